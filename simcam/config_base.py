@@ -1,0 +1,59 @@
+"""Shared base for every typed scenario model (star camera, inductosyn, sweeps).
+
+All scenario models are frozen, keyword-only pydantic models that refuse unknown keys
+and coerce nothing silently: a wrong type, an unknown key or an out-of-range value is
+a :class:`ScenarioError` naming the dotted field path.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+
+class ScenarioError(ValueError):
+    """A scenario (or sweep, or manifest) file is invalid.
+
+    The message names the file (when known), the dotted field path and what is wrong,
+    one line per problem, so the CLI can print it without a traceback.
+    """
+
+
+class StrictModel(BaseModel):
+    """Frozen model that forbids unknown keys and validates on assignment/creation."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=False, validate_default=True)
+
+
+def format_validation_error(err: ValidationError, *, source: str | None = None) -> str:
+    """Render a pydantic ValidationError as lines ``file: field.path: message``."""
+    lines = []
+    prefix = f"{source}: " if source else ""
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"]) or "(top level)"
+        msg = e["msg"]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key"
+        inp = e.get("input")
+        shown = "" if e["type"] in ("extra_forbidden", "missing") else f" (got {inp!r})"
+        if len(shown) > 80:
+            shown = shown[:77] + "...)"
+        lines.append(f"{prefix}{loc}: {msg}{shown}")
+    return "\n".join(lines)
+
+
+def validate_model(model_cls: type[BaseModel], data: dict[str, Any], *, source: str | None = None):
+    """Validate ``data`` into ``model_cls`` or raise :class:`ScenarioError` naming fields."""
+    try:
+        return model_cls.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(format_validation_error(err, source=source)) from None
+
+
+def model_hash(model: BaseModel) -> str:
+    """SHA-256 (first 16 hex digits) of the model's canonical JSON: the scenario hash."""
+    payload = json.dumps(model.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
