@@ -1,0 +1,487 @@
+"""Star-camera scenario: typed, frozen models of the camera, lab and run, loaded from TOML.
+
+A scenario describes the camera (plate scale or focal length and pixel pitch, aperture,
+exposure), its optics (camera PSF, distortion, lateral colour), the detector (two-chip
+mosaic, noise, ADC), the lab (light source, filters, collimator and targets, hexapod)
+and how to render (window and stamp sizes, wavelength sampling). Every key has a
+documented default: the seed-000 camera and lab (``simcam scenario`` prints the resolved
+values as TOML that ``simcam render`` accepts back).
+
+Errors are :class:`simcam.config_base.ScenarioError` naming the file and the dotted
+field, e.g. ``scenario.toml: detector.read_noise_e: Input should be greater than or equal
+to 0 (got -1.0)``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import tomli_w
+from pydantic import ConfigDict, Field, model_validator
+
+from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+
+#: arcsec per radian (exact: 180 * 3600 / pi)
+ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
+
+NonNeg = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+Pos = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Fraction = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)]
+FloatSeq = Annotated[tuple[Finite, ...], Field(strict=False)]
+Pair = Annotated[tuple[Finite, Finite], Field(strict=False)]
+
+
+class _Model(StrictModel):
+    """Scenario base: strict types (no '5' for 5.0), frozen, unknown keys refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, validate_default=True)
+
+
+# --------------------------------------------------------------------------- camera
+class CameraModel(_Model):
+    """Camera geometry and exposure.
+
+    Give either ``plate_scale_arcsec`` or ``focal_length_mm``; the other follows from
+    ``pixel_pitch_um`` (plate scale = pitch / focal length, in arcsec per px).
+    """
+
+    plate_scale_arcsec: Pos | None = None
+    focal_length_mm: Pos | None = None
+    pixel_pitch_um: Pos = 5.5
+    aperture_diameter_mm: Pos = 60.0
+    exposure_s: Pos = 0.1
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_scale(cls, data: Any) -> Any:
+        # Documented default: 5.5 arcsec/px (seed 000) unless a focal length is given.
+        if isinstance(data, dict) and data.get("plate_scale_arcsec") is None and data.get("focal_length_mm") is None:
+            data = {**data, "plate_scale_arcsec": 5.5}
+        return data
+
+    @model_validator(mode="after")
+    def _one_scale(self) -> CameraModel:
+        if self.plate_scale_arcsec is None and self.focal_length_mm is None:
+            raise ValueError("give plate_scale_arcsec or focal_length_mm")
+        if self.plate_scale_arcsec is not None and self.focal_length_mm is not None:
+            implied = self.pixel_pitch_um * 1e-3 / self.focal_length_mm * ARCSEC_PER_RAD
+            if abs(implied - self.plate_scale_arcsec) > 1e-6 * implied:
+                raise ValueError(
+                    f"plate_scale_arcsec={self.plate_scale_arcsec} contradicts focal_length_mm="
+                    f"{self.focal_length_mm} with pixel_pitch_um={self.pixel_pitch_um} "
+                    f"(implies {implied:.6f}); give only one of them"
+                )
+        return self
+
+    @property
+    def scale_arcsec_per_px(self) -> float:
+        """Plate scale in arcsec per px at the optical axis."""
+        if self.plate_scale_arcsec is not None:
+            return float(self.plate_scale_arcsec)
+        return self.pixel_pitch_um * 1e-3 / self.focal_length_mm * ARCSEC_PER_RAD
+
+    @property
+    def focal_length_effective_mm(self) -> float:
+        """Focal length in mm (given, or from plate scale and pitch)."""
+        if self.focal_length_mm is not None:
+            return float(self.focal_length_mm)
+        return self.pixel_pitch_um * 1e-3 / (self.plate_scale_arcsec / ARCSEC_PER_RAD)
+
+    @property
+    def f_number(self) -> float:
+        """Focal ratio N = f / D."""
+        return self.focal_length_effective_mm / self.aperture_diameter_mm
+
+
+# --------------------------------------------------------------------------- optics
+class PSFModel(_Model):
+    """Camera PSF. ``gaussian``: sigma varies over the field as sigma0 + sigma_r2 (r/r_norm)^2.
+
+    ``airy``: diffraction by the circular aperture at each wavelength (f-number from the
+    camera), convolved with a Gaussian blur of the same field-dependent sigma (defocus,
+    jitter); set ``sigma0_px = 0`` for a pure Airy pattern.
+    """
+
+    kind: Literal["gaussian", "airy"] = "gaussian"
+    sigma0_px: NonNeg = 0.8
+    sigma_r2_px: Finite = 0.1
+
+    @model_validator(mode="after")
+    def _width(self) -> PSFModel:
+        if self.kind == "gaussian" and self.sigma0_px <= 0:
+            raise ValueError("sigma0_px must be > 0 for a gaussian PSF")
+        if self.sigma0_px + self.sigma_r2_px * 2.0 < 0:
+            raise ValueError("sigma0_px + sigma_r2_px (r/r_norm)^2 becomes negative in the field")
+        return self
+
+
+class DistortionModel(_Model):
+    """Polynomial distortion (px) of focal-plane coordinates normalised by ``r_norm_px``.
+
+    Brown-Conrady (k1, k2, p1, p2) then a full bivariate cubic (10 coefficients per axis,
+    monomials 1, x, y, x^2, xy, y^2, x^3, x^2 y, x y^2, y^3).
+    """
+
+    k1: Finite = 2.0e-4
+    k2: Finite = 5.0e-5
+    p1: Finite = 0.0
+    p2: Finite = 0.0
+    cubic_x_px: FloatSeq = (0.0,) * 10
+    cubic_y_px: FloatSeq = (0.0,) * 10
+
+    @model_validator(mode="after")
+    def _ten(self) -> DistortionModel:
+        for name in ("cubic_x_px", "cubic_y_px"):
+            if len(getattr(self, name)) != 10:
+                raise ValueError(f"{name} needs 10 coefficients, got {len(getattr(self, name))}")
+        return self
+
+
+class LateralColourModel(_Model):
+    """Chromatic lateral shift (px) as a polynomial in (lambda - lambda_ref) [nm].
+
+    du = (u / r_norm) P_radial + P_x, dv = (v / r_norm) P_radial + P_y, P(d) = sum c_k d^k,
+    k = 1.., coefficients in px per nm^k. The radial term is Seidel lateral colour; the
+    uniform term the prism-like shift of a decentred element.
+    """
+
+    ref_wavelength_nm: Pos = 600.0
+    radial_px_per_nm: FloatSeq = (1.0e-4,)
+    uniform_x_px_per_nm: FloatSeq = (6.0e-4,)
+    uniform_y_px_per_nm: FloatSeq = (3.5e-5,)
+
+
+class OpticsModel(_Model):
+    """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field."""
+
+    transmission: Fraction = 0.8
+    r_norm_px: Pos = 2048.0
+    psf: PSFModel = PSFModel()
+    distortion: DistortionModel = DistortionModel()
+    lateral_colour: LateralColourModel = LateralColourModel()
+
+
+# --------------------------------------------------------------------------- detector
+class ChipModel(_Model):
+    """One sensor of the mosaic: placement error and its own ADC chain."""
+
+    offset_x_px: Finite = 0.0
+    offset_y_px: Finite = 0.0
+    rotation_deg: Finite = 0.0
+    gain_e_per_dn: Pos = 1.0
+    offset_dn: NonNeg = 100.0
+    read_noise_e: NonNeg = 3.0
+    full_well_e: Pos = 4000.0
+
+
+class QEModel(_Model):
+    """Parametric quantum-efficiency curve of a monochrome CMOS (see simcam.spectra)."""
+
+    peak_qe: Annotated[float, Field(gt=0.0, le=1.0)] = 0.6
+    peak_nm: Pos = 550.0
+    blue_cutoff_nm: Pos = 350.0
+    red_cutoff_nm: Pos = 1050.0
+
+
+class DetectorModel(_Model):
+    """Mosaic of identical-format chips side by side along x, with a gap between them."""
+
+    n_chips: Annotated[int, Field(ge=1, le=8)] = 2
+    chip_cols: Annotated[int, Field(ge=16)] = 2048
+    chip_rows: Annotated[int, Field(ge=16)] = 2048
+    gap_px: NonNeg = 20.0
+    bits: Annotated[int, Field(ge=8, le=16)] = 12
+    prnu_rms: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.01
+    dark_current_e_per_s: NonNeg = 20.0
+    dsnu_rms_e: NonNeg = 1.0
+    background_e_per_s: NonNeg = 10.0
+    qe: QEModel = QEModel()
+    chips: Annotated[tuple[ChipModel, ...], Field(strict=False)] = (
+        ChipModel(),
+        ChipModel(gain_e_per_dn=1.05),
+    )
+
+    @model_validator(mode="after")
+    def _chips(self) -> DetectorModel:
+        if len(self.chips) != self.n_chips:
+            raise ValueError(f"chips lists {len(self.chips)} chip(s) but n_chips = {self.n_chips}")
+        return self
+
+    @property
+    def mosaic_shape(self) -> tuple[int, int]:
+        """(rows, cols) of the mosaic array."""
+        return self.chip_rows, self.chip_cols * self.n_chips
+
+
+# --------------------------------------------------------------------------- lab
+class SourceModel(_Model):
+    """Light behind the target: a lamp (blackbody) or a star-like spectrum.
+
+    The source is scaled so that, with no filter, each pinhole gives the camera as many
+    electrons per exposure as a star of ``match_v_mag`` and ``match_spectral_type``.
+    ``kind = "star"`` gives the pinholes that star's own spectrum (blackbody at its Teff).
+    """
+
+    kind: Literal["lamp", "star"] = "lamp"
+    temperature_k: Annotated[float, Field(ge=1000.0, le=60000.0)] = 2856.0
+    match_v_mag: Finite = 7.5
+    match_spectral_type: str = "G2V"
+
+
+class FilterModel(_Model):
+    """Interference filter in front of the target (flat top, smooth edges, FWHM = width)."""
+
+    center_nm: Pos
+    width_nm: Pos
+    peak_transmission: Annotated[float, Field(gt=0.0, le=1.0)] = 0.9
+
+
+class CollimatorModel(_Model):
+    """Collimator that projects the target to infinity."""
+
+    focal_length_mm: Pos = 1000.0
+
+
+class PinholeGridModel(_Model):
+    """Back-lit pinhole target in the collimator focal plane (seed 000: 5 x 5)."""
+
+    rows: Annotated[int, Field(ge=1, le=64)] = 5
+    cols: Annotated[int, Field(ge=1, le=64)] = 5
+    spacing_mm: Pos = 2.0
+    pinhole_diameter_um: NonNeg = 15.0
+    marker_error_3sigma_um: NonNeg = 0.0
+
+
+class CalibrationGridModel(_Model):
+    """Pre-calibrated grid target for the distortion test (seed 000: 32 points).
+
+    Points on a ``rows x cols`` grid spanning ``extent_fraction`` of the mosaic; their
+    reference coordinates carry a marker calibration error of ``marker_error_3sigma_arcsec``
+    (seed 000's C2: 0.5" 3 sigma from a total station).
+    """
+
+    rows: Annotated[int, Field(ge=2, le=64)] = 4
+    cols: Annotated[int, Field(ge=2, le=64)] = 8
+    extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
+    pinhole_diameter_um: NonNeg = 15.0
+    marker_error_3sigma_arcsec: NonNeg = 0.5
+
+
+class PlatformModel(_Model):
+    """Hexapod carrying the camera (seed 000: PI H-840).
+
+    Poses are image displacements in px; the positioning error is Gaussian with the given
+    rms per axis, drawn per pose from the run seed.
+    """
+
+    positioning_noise_px: NonNeg = 0.0
+
+
+class LabModel(_Model):
+    """The lab: source, filters, collimator, targets, platform, target placement."""
+
+    source: SourceModel = SourceModel()
+    filters: Annotated[tuple[FilterModel, ...], Field(strict=False)] = (
+        FilterModel(center_nm=500.0, width_nm=100.0),
+        FilterModel(center_nm=600.0, width_nm=100.0),
+        FilterModel(center_nm=800.0, width_nm=100.0),
+    )
+    collimator: CollimatorModel = CollimatorModel()
+    target: PinholeGridModel = PinholeGridModel()
+    calibration_target: CalibrationGridModel = CalibrationGridModel()
+    platform: PlatformModel = PlatformModel()
+    target_center_px: Pair = (-1024.0, 0.0)
+
+    @model_validator(mode="after")
+    def _filters(self) -> LabModel:
+        centres = [f.center_nm for f in self.filters]
+        if len(set(centres)) != len(centres):
+            raise ValueError(f"filters: two filters share a centre wavelength ({centres})")
+        return self
+
+
+class RenderModel(_Model):
+    """Rendering controls: windows, PSF stamps, wavelength sampling."""
+
+    window_px: Annotated[int, Field(ge=3, le=63)] = 11
+    stamp_px: Annotated[int, Field(ge=8, le=128)] = 32
+    wavelength_min_nm: Pos = 400.0
+    wavelength_max_nm: Pos = 1000.0
+    wavelength_step_nm: Pos = 10.0
+
+    @model_validator(mode="after")
+    def _sizes(self) -> RenderModel:
+        if self.window_px % 2 == 0:
+            raise ValueError(f"window_px must be odd (a window centred on a pixel), got {self.window_px}")
+        if self.window_px > self.stamp_px:
+            raise ValueError(f"window_px ({self.window_px}) larger than stamp_px ({self.stamp_px})")
+        if self.wavelength_max_nm <= self.wavelength_min_nm:
+            raise ValueError("wavelength_max_nm must exceed wavelength_min_nm")
+        return self
+
+
+class TEProtocolModel(_Model):
+    """TE plan (seed 000 eqs 1-2): a static target, ``frames`` >= 2 (the seed asks N >= 30)."""
+
+    frames: Annotated[int, Field(ge=2)] = 30
+
+
+class HSFEProtocolModel(_Model):
+    """HSFE plan (seed 000 eqs 3-12): ``conditions`` poses, each moving the image by
+    ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one."""
+
+    conditions: Annotated[int, Field(ge=2)] = 12
+    frames: Annotated[int, Field(ge=1)] = 30
+    step_px: Finite = 0.2
+    direction_deg: Finite = 45.0
+
+
+class ChromaticProtocolModel(_Model):
+    """Chromatic plan (seed 000 eqs 13-16): the target at each field centre, each filter."""
+
+    frames: Annotated[int, Field(ge=1)] = 30
+    field_centers_px: Annotated[tuple[Pair, ...], Field(strict=False, min_length=1)] = (
+        (-1700.0, -700.0),
+        (1700.0, -700.0),
+        (-1700.0, 700.0),
+        (1700.0, 700.0),
+    )
+    field_names: Annotated[tuple[str, ...], Field(strict=False)] = (
+        "upper-left",
+        "upper-right",
+        "lower-left",
+        "lower-right",
+    )
+    reference_filter_nm: Pos = 600.0
+
+    @model_validator(mode="after")
+    def _names(self) -> ChromaticProtocolModel:
+        if len(self.field_names) != len(self.field_centers_px):
+            raise ValueError(
+                f"field_names has {len(self.field_names)} names for "
+                f"{len(self.field_centers_px)} field_centers_px"
+            )
+        return self
+
+
+class DistortionProtocolModel(_Model):
+    """Distortion plan (seed 000 eqs 17-30): the calibration grid, ``frames`` frames."""
+
+    frames: Annotated[int, Field(ge=1)] = 30
+
+
+class ProtocolsModel(_Model):
+    """Acquisition plans of the seed-000 lab tests (data, read by budget.protocols)."""
+
+    te: TEProtocolModel = TEProtocolModel()
+    hsfe: HSFEProtocolModel = HSFEProtocolModel()
+    chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
+    distortion: DistortionProtocolModel = DistortionProtocolModel()
+
+
+class Scenario(_Model):
+    """A complete star-camera + lab scenario (see module docstring)."""
+
+    name: str = "seed-000 sub-arcsec star camera, lab"
+    seed: Annotated[int, Field(ge=0)] = 20180405
+    camera: CameraModel = CameraModel()
+    optics: OpticsModel = OpticsModel()
+    detector: DetectorModel = DetectorModel()
+    lab: LabModel = LabModel()
+    render: RenderModel = RenderModel()
+    protocols: ProtocolsModel = ProtocolsModel()
+
+    @model_validator(mode="after")
+    def _cross(self) -> Scenario:
+        refs = [f.center_nm for f in self.lab.filters]
+        if self.lab.filters and self.protocols.chromatic.reference_filter_nm not in refs:
+            raise ValueError(
+                f"protocols.chromatic.reference_filter_nm = {self.protocols.chromatic.reference_filter_nm} "
+                f"is not one of lab.filters centres {refs}"
+            )
+        return self
+
+    @cached_property
+    def hash(self) -> str:
+        """Scenario hash: SHA-256 prefix of the canonical JSON of the resolved scenario."""
+        return model_hash(self)
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, strict=True, validate_default=True, ignored_types=(cached_property,)
+    )
+
+
+# --------------------------------------------------------------------------- I/O
+DEFAULT_RESOURCE = "default_scenario.toml"
+
+
+def _strip_none(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _strip_none(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, (list, tuple)):
+        return [_strip_none(v) for v in obj]
+    return obj
+
+
+def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Scenario:
+    """Validate a dict (parsed TOML) into a :class:`Scenario`, or raise ScenarioError."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source or 'scenario'}: top level must be a table")
+    return validate_model(Scenario, data, source=source)
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default."""
+    if path is None:
+        text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+        source = f"<embedded {DEFAULT_RESOURCE}>"
+    else:
+        path = Path(path)
+        if not path.is_file():
+            raise ScenarioError(f"{path}: scenario file not found")
+        text = path.read_text()
+        source = str(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+    return scenario_from_dict(data, source=source)
+
+
+def default_scenario() -> Scenario:
+    """The embedded seed-000 scenario."""
+    return load_scenario(None)
+
+
+def scenario_to_toml(scenario: Scenario) -> str:
+    """Resolved scenario as TOML text that :func:`load_scenario` accepts back."""
+    data = _strip_none(scenario.model_dump(mode="json"))
+    text = tomli_w.dumps(data)
+    # tomli_w writes every array one item per line; fold arrays of scalars onto one line.
+    return _ARRAY_RE.sub(lambda m: "[" + ", ".join(x.strip().rstrip(",") for x in m.group(1).split("\n") if x.strip()) + "]", text)
+
+
+_ARRAY_RE = re.compile(r"\[\n((?: +[^\[\]{}\n]+,\n)+) *\]")
+
+
+def with_updates(scenario: Scenario, dotted: dict[str, Any]) -> Scenario:
+    """Return a copy with dotted keys replaced (``{"detector.read_noise_e": 5}``), re-validated."""
+    data = scenario.model_dump(mode="python")
+    for key, value in dotted.items():
+        node = data
+        parts = key.split(".")
+        for p in parts[:-1]:
+            if not isinstance(node, dict) or p not in node:
+                raise ScenarioError(f"{key}: unknown key {p!r}")
+            node = node[p]
+        if not isinstance(node, dict) or parts[-1] not in node:
+            raise ScenarioError(f"{key}: unknown key {parts[-1]!r}")
+        node[parts[-1]] = value
+    return scenario_from_dict(data, source="override")
