@@ -37,6 +37,14 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
         for line in str(exc).splitlines():
             click.echo(f"error: {line}", err=True)
         sys.exit(2)
+    except ValueError as exc:
+        # Our packages' own ValueError subclasses (OpticsError, SpectraError, ...) report
+        # bad input by convention; anything else is a bug and keeps its traceback.
+        if type(exc).__module__.split(".")[0] not in ("simcam", "budget"):
+            raise
+        for line in str(exc).splitlines():
+            click.echo(f"error: {line}", err=True)
+        sys.exit(2)
     except FileNotFoundError as exc:
         click.echo(f"error: file not found: {exc.filename or exc}", err=True)
         sys.exit(2)

@@ -1,0 +1,332 @@
+"""From a scenario and a target placement to pixels and the truth they carry.
+
+The chain for each pinhole star (stages in a fixed order, as in a detector pipeline):
+
+1. **target**: ideal focal-plane position ``(u, v)`` (simcam.targets), plus the hexapod's
+   image displacement for the pose;
+2. **distortion**: ``(u, v) -> D(u, v)`` (Brown-Conrady then cubic; simcam.optics);
+3. **spectrum**: electrons per nm reaching the detector from source x filter x optics
+   transmission x QE (simcam.sources / simcam.spectra), giving wavelength weights and the
+   electrons per exposure;
+4. **lateral colour**: a displacement per wavelength ``s(lambda, u, v)``; the image is the
+   weighted sum of the per-wavelength images, so its centroid moves by
+   ``sum_l w_l s_l`` (the spectrum-weighted chromatic displacement);
+5. **PSF**: pinhole disc x camera PSF, integrated over each pixel (simcam.optics);
+6. **detector**: PRNU, dark signal + DSNU, shot noise, read noise, full well, ADC
+   (simcam.detector), keyed per mosaic pixel so windows and full frames agree.
+
+The true position reported for a star is the centroid of its noise-free image:
+``D(u + platform) + sum_l w_l s_l``, mapped to mosaic pixel coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from simcam import optics
+from simcam.config_base import ScenarioError
+from simcam.detector import DetectorParams, expose, expose_windows
+from simcam.geometry import Mosaic
+from simcam.rng import key_from_seed
+from simcam.scenario import Scenario
+from simcam.sources import SourceSpectra
+from simcam.targets import TargetLayout
+
+#: SeedSequence spawn-key roots
+STREAM_DETECTOR = 201  # scenario seed -> PRNU/DSNU maps
+STREAM_FRAMES = 301  # run seed -> temporal noise of each frame
+
+
+class RenderError(ScenarioError):
+    """A placement cannot be rendered (a star off the detector, in the gap, ...)."""
+
+
+@dataclass(frozen=True)
+class Placement:
+    """One acquisition condition: a target layout, a hexapod pose and a filter.
+
+    ``condition`` numbers the frame streams: frames of different conditions get
+    independent noise; the same (seed, condition, frame) always gives the same noise.
+    """
+
+    layout: TargetLayout
+    platform_dx_px: float = 0.0
+    platform_dy_px: float = 0.0
+    filter_nm: float | None = None
+    condition: int = 0
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything deterministic about one placement: positions, spectra, stamps, truth."""
+
+    placement: Placement
+    chip: np.ndarray
+    x_ref_chip: np.ndarray  # chip px, reference wavelength position (after distortion)
+    y_ref_chip: np.ndarray
+    electrons: np.ndarray  # photo-electrons per exposure per star (before PRNU)
+    stamps: np.ndarray  # (W, L, L) flux fractions
+    stamp_col0: np.ndarray  # chip px of stamps[:, 0, 0]
+    stamp_row0: np.ndarray
+    truth: pd.DataFrame
+    background_e: float
+
+    @property
+    def n_stars(self) -> int:
+        """Number of stars W."""
+        return len(self.chip)
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Windows cut around each star for a set of frames.
+
+    ``pixels[f, j]`` is the window of star ``j`` in frame ``f``; its pixel ``[r, c]`` is
+    mosaic pixel ``(x = col0[j] + c, y = row0[j] + r)``.
+    """
+
+    pixels: np.ndarray
+    col0: np.ndarray
+    row0: np.ndarray
+    truth: pd.DataFrame
+    frame_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+
+
+class StarCamera:
+    """The simulated star camera in its lab, built from a :class:`Scenario`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The camera and lab.
+    detector_seed : int, optional
+        Seed of the fixed-pattern maps (PRNU, DSNU); default the scenario seed. A Monte
+        Carlo run that wants new maps per trial passes a trial seed here.
+    """
+
+    def __init__(self, scenario: Scenario, *, detector_seed: int | None = None):
+        self.scenario = scenario
+        self.mosaic = Mosaic.from_model(scenario.detector)
+        self.spectra = SourceSpectra(scenario)
+        o = scenario.optics
+        self.distortion = optics.CompositeDistortion(
+            brown_conrady=optics.BrownConradyDistortion(
+                k1=o.distortion.k1, k2=o.distortion.k2, p1=o.distortion.p1, p2=o.distortion.p2,
+                r_norm_px=o.r_norm_px,
+            ),
+            cubic=optics.CubicDistortion(
+                coeffs_x=tuple(o.distortion.cubic_x_px), coeffs_y=tuple(o.distortion.cubic_y_px),
+                r_norm_px=o.r_norm_px,
+            ),
+        )
+        det = scenario.detector
+        self.detector_params = DetectorParams(
+            gain_e_per_dn=tuple(c.gain_e_per_dn for c in det.chips),
+            offset_dn=tuple(c.offset_dn for c in det.chips),
+            read_noise_e=tuple(c.read_noise_e for c in det.chips),
+            full_well_e=tuple(c.full_well_e for c in det.chips),
+            adc_bits=det.bits,
+            prnu_rms=det.prnu_rms,
+            dark_e=det.dark_current_e_per_s * scenario.camera.exposure_s,
+            dsnu_rms_e=det.dsnu_rms_e,
+        )
+        seed = scenario.seed if detector_seed is None else detector_seed
+        self.detector_key = key_from_seed(seed, STREAM_DETECTOR)
+        self.background_e = det.background_e_per_s * scenario.camera.exposure_s
+
+    # ------------------------------------------------------------------ scene
+    def scene(self, placement: Placement) -> Scene:
+        """Compute positions, spectra, PSF stamps and truth of a placement (no noise)."""
+        scn = self.scenario
+        lay = placement.layout
+        u0 = lay.u_px + placement.platform_dx_px
+        v0 = lay.v_px + placement.platform_dy_px
+        ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
+        wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=placement.filter_nm)
+        weights_1d = self.spectra.weights(e_rate)
+        electrons = self.spectra.electrons_per_exposure(e_rate)
+        W = lay.n_stars
+        lc = scn.optics.lateral_colour
+        su, sv = optics.lateral_colour_shift_px(
+            wavelength_nm=wl,
+            u_px=ud,
+            v_px=vd,
+            ref_wavelength_nm=lc.ref_wavelength_nm,
+            radial_coeffs=tuple(lc.radial_px_per_nm),
+            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
+            r_norm_px=scn.optics.r_norm_px,
+        )
+        chrom_u = su @ weights_1d
+        chrom_v = sv @ weights_1d
+        half = scn.render.window_px // 2
+        chip, xc, yc = self.mosaic.focal_to_chip(ud + chrom_u, vd + chrom_v, margin_px=half)
+        bad = np.flatnonzero(chip < 0)
+        if bad.size:
+            j = int(bad[0])
+            raise RenderError(
+                f"placement {placement.label or placement.condition}: star {j} at focal "
+                f"(u, v) = ({ud[j] + chrom_u[j]:.1f}, {vd[j] + chrom_v[j]:.1f}) px is off the "
+                f"detector or within {half} px of a chip edge or gap ({bad.size} of {W} stars); "
+                "move lab.target_center_px or the protocol's field centres"
+            )
+        _, xr, yr = self.mosaic.focal_to_chip(ud, vd)
+        sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
+        sig = optics.psf_sigma_px(
+            u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
+            sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
+        )
+        stamps, c0, r0 = optics.render_stamps(
+            x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
+            sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
+            f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
+            wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
+            shift_x_px=sx, shift_y_px=sy,
+        )
+        x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
+        _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
+        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        truth = pd.DataFrame(
+            {
+                "star": np.arange(W),
+                "chip": chip,
+                "x_true": x_true,
+                "y_true": yc,
+                "u_ideal_px": lay.u_px,
+                "v_ideal_px": lay.v_px,
+                "x_ideal": x_ideal,
+                "y_ideal": y_ideal,
+                "x_reference": x_refm,
+                "y_reference": y_refm,
+                "platform_dx_px": np.full(W, placement.platform_dx_px),
+                "platform_dy_px": np.full(W, placement.platform_dy_px),
+                "distortion_dx_px": ud - u0,
+                "distortion_dy_px": vd - v0,
+                "chromatic_dx_px": chrom_u,
+                "chromatic_dy_px": chrom_v,
+                "electrons": np.full(W, electrons),
+                "psf_sigma_px": sig,
+                "filter_nm": np.full(W, np.nan if placement.filter_nm is None else placement.filter_nm),
+                "condition": np.full(W, placement.condition),
+            }
+        )
+        return Scene(
+            placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
+            electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
+            truth=truth, background_e=self.background_e,
+        )
+
+    # ------------------------------------------------------------------ signal
+    def _add_stamps(self, signal: np.ndarray, scene: Scene, *, chip: int, row0: int, col0: int) -> None:
+        """Add the star images of ``scene`` on ``chip`` into ``signal`` (chip px block at row0, col0).
+
+        Stamp pixels outside the chip are dropped (light lost off the sensor or in the gap).
+        """
+        rows, cols = signal.shape
+        L = scene.stamps.shape[-1]
+        cc = self.mosaic.chip_cols
+        cr = self.mosaic.chip_rows
+        for j in np.flatnonzero(scene.chip == chip):
+            r_lo = max(scene.stamp_row0[j], row0, 0)
+            r_hi = min(scene.stamp_row0[j] + L, row0 + rows, cr)
+            c_lo = max(scene.stamp_col0[j], col0, 0)
+            c_hi = min(scene.stamp_col0[j] + L, col0 + cols, cc)
+            if r_lo >= r_hi or c_lo >= c_hi:
+                continue
+            signal[r_lo - row0 : r_hi - row0, c_lo - col0 : c_hi - col0] += scene.electrons[j] * scene.stamps[
+                j, r_lo - scene.stamp_row0[j] : r_hi - scene.stamp_row0[j],
+                c_lo - scene.stamp_col0[j] : c_hi - scene.stamp_col0[j],
+            ]
+
+    def expected_frame_e(self, scene: Scene) -> np.ndarray:
+        """Noise-free photo-electrons per pixel of the whole mosaic (before PRNU and dark)."""
+        rows, cols = self.mosaic.shape
+        signal = np.full((rows, cols), scene.background_e, dtype=np.float64)
+        cc = self.mosaic.chip_cols
+        for k in range(self.mosaic.n_chips):
+            self._add_stamps(signal[:, k * cc : (k + 1) * cc], scene, chip=k, row0=0, col0=0)
+        return signal
+
+    def window_origins(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        """Mosaic (col0, row0) of each star's window, centred on its true position's pixel."""
+        half = self.scenario.render.window_px // 2
+        xc = scene.truth["x_true"].to_numpy() - scene.chip * self.mosaic.chip_cols
+        col0_chip = np.floor(xc + 0.5).astype(np.int64) - half
+        row0 = np.floor(scene.truth["y_true"].to_numpy() + 0.5).astype(np.int64) - half
+        return col0_chip + scene.chip * self.mosaic.chip_cols, row0
+
+    def expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Noise-free photo-electrons in each star's window (all stars' light included)."""
+        w = self.scenario.render.window_px
+        col0, row0 = self.window_origins(scene)
+        sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
+        cc = self.mosaic.chip_cols
+        for j in range(scene.n_stars):
+            k = int(scene.chip[j])
+            self._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+        return sig, col0, row0
+
+    # ------------------------------------------------------------------ noise
+    def frame_key(self, *, seed: int, condition: int, frame: int) -> np.uint64:
+        """Key of the temporal noise of one frame: ``SeedSequence(seed, (STREAM_FRAMES, condition, frame))``."""
+        return key_from_seed(seed, STREAM_FRAMES, condition, frame)
+
+    def render_windows(
+        self,
+        scene: Scene,
+        *,
+        frames: int,
+        seed: int,
+        first_frame: int = 0,
+        shot_noise: bool = True,
+        read_noise: bool = True,
+        quantize: bool = True,
+    ) -> Windows:
+        """Windows around every star for ``frames`` frames (the Monte Carlo fast path).
+
+        Pixels equal those of :meth:`render_frame` at the same mosaic pixels, same seed.
+        """
+        sig, col0, row0 = self.expected_windows_e(scene)
+        _, cols = self.mosaic.shape
+        out = []
+        for f in range(first_frame, first_frame + frames):
+            key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=f)
+            out.append(
+                expose_windows(
+                    signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
+                    chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                    frame_key=key, detector_key=self.detector_key,
+                    shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
+                )
+            )
+        return Windows(
+            pixels=np.stack(out) if out else np.zeros((0,) + sig.shape),
+            col0=col0, row0=row0, truth=scene.truth,
+            frame_index=np.arange(first_frame, first_frame + frames),
+        )
+
+    def render_frame(
+        self,
+        scene: Scene,
+        *,
+        frame: int,
+        seed: int,
+        expected_e: np.ndarray | None = None,
+        shot_noise: bool = True,
+        read_noise: bool = True,
+        quantize: bool = True,
+    ) -> np.ndarray:
+        """One full mosaic frame (rows, cols) in DN (uint16 when quantised)."""
+        if expected_e is None:
+            expected_e = self.expected_frame_e(scene)
+        _, cols = self.mosaic.shape
+        key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=frame)
+        return expose(
+            signal_e=expected_e, row0=0, col0=0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
+            params=self.detector_params, frame_key=key, detector_key=self.detector_key,
+            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
+        )
