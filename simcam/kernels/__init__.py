@@ -1,0 +1,1 @@
+"""Numba kernels: array-in, array-out numerical cores, free of orchestration."""
