@@ -21,6 +21,7 @@ def _register() -> None:
     for module_name, attr in (
         ("budget.combine", "combine_command"),
         ("budget.measure", "measure_command"),
+        ("budget.simulate", "simulate_command"),
         ("budget.harmonics_cli", "harmonics_group"),
     ):
         try:

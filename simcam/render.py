@@ -38,6 +38,7 @@ from simcam.targets import TargetLayout
 #: SeedSequence spawn-key roots
 STREAM_DETECTOR = 201  # scenario seed -> PRNU/DSNU maps
 STREAM_FRAMES = 301  # run seed -> temporal noise of each frame
+STREAM_DARK_FRAMES = 302  # run seed -> temporal noise of each star-free (lamp-off) frame
 
 
 class RenderError(ScenarioError):
@@ -271,9 +272,12 @@ class StarCamera:
         return sig, col0, row0
 
     # ------------------------------------------------------------------ noise
-    def frame_key(self, *, seed: int, condition: int, frame: int) -> np.uint64:
-        """Key of the temporal noise of one frame: ``SeedSequence(seed, (STREAM_FRAMES, condition, frame))``."""
-        return key_from_seed(seed, STREAM_FRAMES, condition, frame)
+    def frame_key(self, *, seed: int, condition: int, frame: int, dark: bool = False) -> np.uint64:
+        """Key of the temporal noise of one frame: ``SeedSequence(seed, (STREAM_FRAMES, condition, frame))``.
+
+        Star-free (lamp-off) frames use the stream ``STREAM_DARK_FRAMES`` instead.
+        """
+        return key_from_seed(seed, STREAM_DARK_FRAMES if dark else STREAM_FRAMES, condition, frame)
 
     def render_windows(
         self,
@@ -285,16 +289,21 @@ class StarCamera:
         shot_noise: bool = True,
         read_noise: bool = True,
         quantize: bool = True,
+        dark: bool = False,
     ) -> Windows:
         """Windows around every star for ``frames`` frames (the Monte Carlo fast path).
 
         Pixels equal those of :meth:`render_frame` at the same mosaic pixels, same seed.
+        ``dark=True`` renders star-free frames (lamp off: no star, no stray light; dark
+        signal, DSNU, offset and noise only) at the same windows, for dark subtraction.
         """
         sig, col0, row0 = self.expected_windows_e(scene)
+        if dark:
+            sig = np.zeros_like(sig)
         _, cols = self.mosaic.shape
         out = []
         for f in range(first_frame, first_frame + frames):
-            key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=f)
+            key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=f, dark=dark)
             out.append(
                 expose_windows(
                     signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
@@ -319,12 +328,15 @@ class StarCamera:
         shot_noise: bool = True,
         read_noise: bool = True,
         quantize: bool = True,
+        dark: bool = False,
     ) -> np.ndarray:
-        """One full mosaic frame (rows, cols) in DN (uint16 when quantised)."""
-        if expected_e is None:
+        """One full mosaic frame (rows, cols) in DN (uint16 when quantised); ``dark``: lamp off."""
+        if dark:
+            expected_e = np.zeros(self.mosaic.shape)
+        elif expected_e is None:
             expected_e = self.expected_frame_e(scene)
         _, cols = self.mosaic.shape
-        key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=frame)
+        key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=frame, dark=dark)
         return expose(
             signal_e=expected_e, row0=0, col0=0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
             params=self.detector_params, frame_key=key, detector_key=self.detector_key,

@@ -1,0 +1,226 @@
+"""The seed-000 lab protocols as acquisition plans (data), and running them on the simulator.
+
+An :class:`AcquisitionPlan` is a list of conditions, each saying which target, where in
+the field, which hexapod pose, which filter and how many frames: exactly what a lab
+technician writes in a test procedure and what a manifest of real frames records. The
+plans are built from the scenario's ``[protocols]`` section (no protocol is a branch in
+code), and the same centroid tables come out of :func:`simulate` (simulated windows) and
+out of ``budget measure`` (real FITS frames).
+
+Plans (seed 000, section 1):
+
+* ``te`` (1.2): the 5x5 target, static, ``N`` frames;
+* ``hsfe`` (1.3): ``M`` conditions, the image moved ``step_px`` along ``direction_deg``
+  between consecutive conditions by the hexapod, ``N`` frames each;
+* ``chromatic`` (1.4.1): the target at each corner field, behind each filter, ``N``
+  frames each (condition index = field index x number of filters + filter index);
+* ``distortion`` (1.4.2): the calibrated grid target, ``N`` frames; its reference
+  coordinates come with the plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from simcam.scenario import Scenario
+from simcam.targets import calibration_grid, platform_offsets_px, star_grid
+
+PROTOCOLS = ("te", "hsfe", "chromatic", "distortion")
+#: noise-stream id of each protocol: condition streams are ``1000 * id + condition``
+PROTOCOL_STREAM = {"te": 1, "hsfe": 2, "chromatic": 3, "distortion": 4}
+#: SeedSequence root of the hexapod positioning errors (run seed)
+STREAM_PLATFORM = 401
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One acquisition condition of a plan."""
+
+    index: int
+    label: str
+    target: Literal["star_grid", "calibration_grid"]
+    frames: int
+    field_center_px: tuple[float, float] | None = None
+    platform_dx_px: float = 0.0
+    platform_dy_px: float = 0.0
+    filter_nm: float | None = None
+    field: str = ""
+
+
+@dataclass(frozen=True)
+class AcquisitionPlan:
+    """A protocol's conditions, in acquisition order."""
+
+    protocol: str
+    conditions: tuple[Condition, ...]
+    dark_frames: int = 0
+
+    def to_frame(self) -> pd.DataFrame:
+        """The plan as a table (one row per condition), as a lab procedure would list it."""
+        return pd.DataFrame([c.__dict__ for c in self.conditions])
+
+    @property
+    def n_frames_total(self) -> int:
+        """Frames to acquire, all conditions."""
+        return sum(c.frames for c in self.conditions)
+
+
+def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: int = 0) -> AcquisitionPlan:
+    """Build the acquisition plan of ``protocol`` from the scenario's ``[protocols]`` section.
+
+    ``seed`` (the run seed) draws the hexapod positioning errors when the scenario has
+    ``lab.platform.positioning_noise_px > 0``. ``dark_frames`` star-free frames per
+    condition are taken for dark subtraction (0: the window-border background is used).
+    """
+    p = scenario.protocols
+    if protocol == "te":
+        conds = (Condition(0, "static", "star_grid", p.te.frames, tuple(scenario.lab.target_center_px)),)
+    elif protocol == "hsfe":
+        h = p.hsfe
+        dx, dy = platform_offsets_px(
+            steps=h.conditions, step_px=h.step_px, direction_deg=h.direction_deg,
+            noise_px=scenario.lab.platform.positioning_noise_px, seed=seed, stream=STREAM_PLATFORM,
+        )
+        conds = tuple(
+            Condition(k, f"pose {k + 1}", "star_grid", h.frames, tuple(scenario.lab.target_center_px),
+                      float(dx[k]), float(dy[k]))
+            for k in range(h.conditions)
+        )
+    elif protocol == "chromatic":
+        c = p.chromatic
+        filters = [f.center_nm for f in scenario.lab.filters]
+        conds = tuple(
+            Condition(i * len(filters) + k, f"{name} {fnm:g} nm", "star_grid", c.frames,
+                      (float(ctr[0]), float(ctr[1])), filter_nm=fnm, field=name)
+            for i, (name, ctr) in enumerate(zip(c.field_names, c.field_centers_px))
+            for k, fnm in enumerate(filters)
+        )
+    elif protocol == "distortion":
+        conds = (Condition(0, "grid", "calibration_grid", p.distortion.frames),)
+    else:
+        raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
+    return AcquisitionPlan(protocol, conds, dark_frames=dark_frames)
+
+
+@dataclass
+class ProtocolData:
+    """What a protocol run yields: centroids (what the lab sees) and truth (what was injected)."""
+
+    protocol: str
+    centroids: pd.DataFrame
+    truth: pd.DataFrame
+    reference: pd.DataFrame | None = None
+    plan: AcquisitionPlan | None = None
+    windows: dict = field(default_factory=dict)
+
+
+def reference_table(scenario: Scenario, camera=None) -> pd.DataFrame:
+    """Reference coordinates of the calibration grid as the lab has them (mosaic px).
+
+    The ideal projection of the calibrated point positions (nominal chip layout is the
+    camera's own), including the marker calibration error (seed 000 C2).
+    """
+    from simcam.geometry import Mosaic
+
+    lay = calibration_grid(scenario)
+    mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
+    _, x, y = mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+    return pd.DataFrame({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
+
+
+def simulate(
+    plan: AcquisitionPlan,
+    camera,
+    *,
+    seed: int,
+    method: str = "cog",
+    keep_windows: bool = False,
+    centroid_options: dict | None = None,
+) -> ProtocolData:
+    """Run ``plan`` on a :class:`simcam.render.StarCamera` (windows mode) and centroid every frame.
+
+    Each condition's frames get the noise stream ``1000 * PROTOCOL_STREAM + index``, so
+    protocols, conditions and frames never share noise, and a condition's frames are
+    the same whatever else is simulated. With ``plan.dark_frames > 0`` the mean of that
+    many star-free frames is subtracted from each lit window first (seed 000's
+    inter-frame differencing).
+    """
+    from budget.centroid import centroid_windows
+    from simcam.render import Placement
+
+    scn = camera.scenario
+    opts = dict(centroid_options or {})
+    tables, truths, wins = [], [], {}
+    for c in plan.conditions:
+        layout = calibration_grid(scn) if c.target == "calibration_grid" else star_grid(scn, center_px=c.field_center_px)
+        stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
+        placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                              filter_nm=c.filter_nm, condition=stream, label=c.label)
+        scene = camera.scene(placement)
+        win = camera.render_windows(scene, frames=c.frames, seed=seed)
+        pix = win.pixels.astype(np.float64)
+        if plan.dark_frames:
+            dark = camera.render_windows(scene, frames=plan.dark_frames, seed=seed, dark=True)
+            pix = pix - dark.pixels.astype(np.float64).mean(axis=0)[None]
+        W = scene.n_stars
+        n = c.frames
+        extra = {"condition": np.full(W * n, c.index)}
+        if c.filter_nm is not None:
+            extra["filter_nm"] = np.full(W * n, c.filter_nm)
+        if c.field:
+            extra["field"] = np.full(W * n, c.field, dtype=object)
+        t = centroid_windows(
+            pix.reshape(W * n, *pix.shape[2:]),
+            x0=np.tile(win.col0, n), y0=np.tile(win.row0, n),
+            star=np.tile(np.arange(W), n), frame=np.repeat(np.arange(n), W),
+            method=method, extra_columns=extra, **opts,
+        )
+        tables.append(t)
+        tr = scene.truth.copy()
+        tr["condition"] = c.index
+        tr["field"] = c.field
+        truths.append(tr)
+        if keep_windows:
+            wins[c.index] = win
+    ref = reference_table(scn, camera) if plan.protocol == "distortion" else None
+    return ProtocolData(plan.protocol, pd.concat(tables, ignore_index=True),
+                        pd.concat(truths, ignore_index=True), ref, plan, wins)
+
+
+def estimate(
+    protocol: str,
+    centroids: pd.DataFrame,
+    *,
+    plate_scale_arcsec: float,
+    reference: pd.DataFrame | None = None,
+    reference_filter_nm: float | None = None,
+) -> dict:
+    """Run the published estimator of ``protocol`` and its improved variant(s) on a centroid table.
+
+    Returns ``{"published": ErrorEstimate, "improved": ErrorEstimate}`` (the improved
+    variant is the one derived in docs/estimators.md for that class). The same function
+    serves simulated and real centroid tables.
+    """
+    from budget import estimators as E
+
+    ps = plate_scale_arcsec
+    if protocol == "te":
+        return {"published": E.temporal_error(centroids, plate_scale_arcsec=ps),
+                "improved": E.temporal_error_pooled(centroids, plate_scale_arcsec=ps)}
+    if protocol == "hsfe":
+        return {"published": E.high_spatial_frequency_error(centroids, plate_scale_arcsec=ps),
+                "improved": E.high_spatial_frequency_error_debiased(centroids, plate_scale_arcsec=ps)}
+    if protocol == "chromatic":
+        ref = None if reference_filter_nm is None else int(round(reference_filter_nm))
+        return {"published": E.chromatic_error(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref),
+                "improved": E.chromatic_error_decomposed(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)}
+    if protocol == "distortion":
+        if reference is None:
+            raise ValueError("distortion: the reference coordinates of the grid target are required")
+        return {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
+                "improved": E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)}
+    raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")

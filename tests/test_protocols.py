@@ -1,0 +1,204 @@
+"""Acquisition plans, protocols run on simulated windows, and `budget measure` on FITS frames."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from budget.cli import cli as budget_cli
+from budget.measure import measure_frames
+from budget.protocols import estimate, make_plan, simulate
+from budget.simulate import write_protocol_frames
+from simcam.render import StarCamera
+from simcam.scenario import default_scenario, scenario_from_dict
+
+SMALL = {
+    "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
+    # a brighter source than seed 000's V = 7.5 keeps the 500 nm filter frames well above threshold
+    "lab": {"target_center_px": [-133.0, 0.0], "target": {"spacing_mm": 0.5}, "source": {"match_v_mag": 6.0}},
+    "optics": {"r_norm_px": 256.0},
+    "protocols": {
+        "hsfe": {"conditions": 4, "frames": 4},
+        "te": {"frames": 6},
+        "chromatic": {"frames": 3, "field_centers_px": [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]},
+        "distortion": {"frames": 3},
+    },
+}
+
+
+def _mean_and_pooled_sd(cen):
+    """Per (condition, star) mean position, with the frame-to-frame sd pooled over the condition's stars."""
+    g = cen.groupby(["condition", "star"])[["x", "y"]]
+    m = g.mean().join(g.var().add_suffix("_var")).join(g.size().rename("n")).reset_index()
+    pooled = m.groupby("condition")[["x_var", "y_var"]].transform("mean")
+    m["x_sd"], m["y_sd"] = np.sqrt(pooled.x_var), np.sqrt(pooled.y_var)
+    return m
+
+
+@pytest.fixture(scope="module")
+def small():
+    return scenario_from_dict(SMALL)
+
+
+def test_plans_follow_seed000():
+    scn = default_scenario()
+    te = make_plan("te", scn)
+    assert len(te.conditions) == 1 and te.conditions[0].frames >= 30
+    h = make_plan("hsfe", scn).to_frame()
+    assert len(h) == 12
+    step = np.hypot(np.diff(h.platform_dx_px), np.diff(h.platform_dy_px))
+    np.testing.assert_allclose(step, 0.2)
+    np.testing.assert_allclose(h.platform_dx_px, h.platform_dy_px)  # along 45 deg
+    c = make_plan("chromatic", scn).to_frame()
+    assert len(c) == 12 and c.field.nunique() == 4 and sorted(c.filter_nm.unique()) == [500.0, 600.0, 800.0]
+    d = make_plan("distortion", scn)
+    assert d.conditions[0].target == "calibration_grid"
+    with pytest.raises(ValueError, match="protocol: unknown 'xyz'"):
+        make_plan("xyz", scn)
+
+
+def test_simulated_protocols_recover_truth_positions(small):
+    cam = StarCamera(small)
+    for proto in ("te", "hsfe", "chromatic", "distortion"):
+        d = simulate(make_plan(proto, small), cam, seed=3)
+        assert (d.centroids.flag == 0).all()
+        m = _mean_and_pooled_sd(d.centroids)
+        t = d.truth[["condition", "star", "x_true", "y_true"]]
+        j = m.merge(t, on=["condition", "star"])
+        assert len(j) == len(m)
+        # mean over N frames of a thresholded CoG vs truth: temporal noise with standard error
+        # sd/sqrt(N) (5 standard errors: two-sided 6e-7 per star-axis, ~1e-4 over all of them)
+        # plus 0.03 px for the CoG's own systematic error (threshold, 11x11 window, S-curve)
+        se_x = j.x_sd / np.sqrt(j.n)
+        se_y = j.y_sd / np.sqrt(j.n)
+        assert (np.abs(j.x - j.x_true) < 5 * se_x + 0.03).all()
+        assert (np.abs(j.y - j.y_true) < 5 * se_y + 0.03).all()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a debiased variance may come out negative at N = 3..6
+            res = estimate(proto, d.centroids, plate_scale_arcsec=small.camera.scale_arcsec_per_px,
+                           reference=d.reference)
+        assert set(res) == {"published", "improved"}
+
+
+def test_protocol_noise_streams_are_independent_and_reproducible(small):
+    cam = StarCamera(small)
+    a = simulate(make_plan("te", small), cam, seed=3).centroids
+    b = simulate(make_plan("te", small), cam, seed=3).centroids
+    pd.testing.assert_frame_equal(a, b)
+    c = simulate(make_plan("te", small), cam, seed=4).centroids
+    assert not np.allclose(a.x, c.x)
+
+
+@pytest.fixture(scope="module")
+def frames_dir(tmp_path_factory, small):
+    root = tmp_path_factory.mktemp("lab")
+    out = {}
+    for proto in ("te", "hsfe", "distortion", "chromatic"):
+        write_protocol_frames(proto, small, seed=5, out=root / proto, dark_frames=2)
+        out[proto] = root / proto
+    return out
+
+
+@pytest.mark.parametrize("proto", ["te", "hsfe", "distortion", "chromatic"])
+def test_measure_on_simulated_frames_matches_truth(frames_dir, proto):
+    d = frames_dir[proto]
+    ref = d / "reference.csv" if proto == "distortion" else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # negative debiased variances are expected at N = 3..6
+        cen, reference, info = measure_frames(proto, d, reference=ref)
+    assert info["plate_scale_arcsec"] == 5.5
+    truth = pd.read_csv(d / "truth.csv")
+    m = _mean_and_pooled_sd(cen)
+    # star identities: each measured star's nearest truth star in its condition is unique
+    for cond, g in m.groupby("condition"):
+        t = truth[truth.condition == cond]
+        dist = np.hypot(g.x.to_numpy()[:, None] - t.x_true.to_numpy()[None], g.y.to_numpy()[:, None] - t.y_true.to_numpy()[None])
+        nearest = dist.argmin(axis=1)
+        assert len(set(nearest)) == len(g) == len(t)
+        # within 5 standard errors of the frame mean plus the CoG's 0.03 px systematic allowance
+        se = np.hypot(g.x_sd, g.y_sd).to_numpy() / np.sqrt(g.n.to_numpy())
+        assert (dist.min(axis=1) < 5 * se + 0.03).all()
+    if proto == "hsfe":
+        # the same star index follows the same pinhole through the poses
+        first = m[m.condition == 0].set_index("star")
+        last = m[m.condition == m.condition.max()].set_index("star")
+        shift = last[["x", "y"]] - first[["x", "y"]]
+        expected = 0.2 * (m.condition.max()) / np.sqrt(2)
+        np.testing.assert_allclose(shift.to_numpy(), expected, atol=0.05)
+
+
+def test_measure_cli_json(frames_dir, tmp_path):
+    out = tmp_path / "te.json"
+    r = CliRunner().invoke(budget_cli, ["measure", "te", str(frames_dir["te"]), "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "published  TE" in r.output
+    data = json.loads(out.read_text())
+    assert data["estimates"]["published"]["quantity"] == "TE"
+    assert data["estimates"]["published"]["n_stars"] == 25
+
+
+def _run(args):
+    from budget.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(args)
+    return e.value.code
+
+
+def test_measure_bad_inputs(frames_dir, tmp_path, capsys):
+    te = frames_dir["te"]
+    # no manifest
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _run(["measure", "te", str(empty)]) == 2
+    assert "manifest not found" in capsys.readouterr().err
+    # a manifest naming a missing frame
+    m = pd.read_csv(te / "manifest.csv")
+    m.loc[0, "file"] = "nope.fits"
+    bad = tmp_path / "m1.csv"
+    m.to_csv(bad, index=False)
+    assert _run(["measure", "te", str(te), "--manifest", str(bad)]) == 2
+    assert "nope.fits: frame file not found" in capsys.readouterr().err
+    # fewer than 2 frames
+    m = pd.read_csv(te / "manifest.csv")
+    m1 = m[(m.dark == 1) | (m.frame == 0)]
+    one = tmp_path / "m2.csv"
+    m1.to_csv(one, index=False)
+    assert _run(["measure", "te", str(te), "--manifest", str(one)]) == 2
+    assert "at least 2 are needed" in capsys.readouterr().err
+    # unknown column
+    m2 = pd.read_csv(te / "manifest.csv").assign(exposure=1)
+    uk = tmp_path / "m3.csv"
+    m2.to_csv(uk, index=False)
+    assert _run(["measure", "te", str(te), "--manifest", str(uk)]) == 2
+    assert "unknown column(s) exposure" in capsys.readouterr().err
+    # distortion without reference
+    assert _run(["measure", "distortion", str(frames_dir["distortion"])]) == 2
+    assert "--reference" in capsys.readouterr().err
+
+
+def test_measure_flags_a_nan_pixel_star(frames_dir, tmp_path):
+    import shutil
+
+    from astropy.io import fits
+
+    src = frames_dir["te"]
+    dst = tmp_path / "te_nan"
+    shutil.copytree(src, dst)
+    truth = pd.read_csv(dst / "truth.csv")
+    x, y = truth.x_true[0], truth.y_true[0]
+    with fits.open(dst / "c000_f0001.fits", mode="update") as h:
+        data = h[0].data.astype(np.float32)
+        data[int(round(y)), int(round(x))] = np.nan
+        h[0].data = data
+    with pytest.warns(UserWarning, match="(?i)nan|non-finite"):
+        cen, _, _ = measure_frames("te", dst)
+    assert (cen.flag != 0).sum() == 1
+    with pytest.warns(UserWarning, match="excluded"):
+        res = estimate("te", cen, plate_scale_arcsec=5.5)
+    assert res["published"].n_rows_excluded == 1
