@@ -1,0 +1,233 @@
+"""Monte Carlo validation of the seed-001 calibration and the `budget harmonics` CLI.
+
+References: seed 001 sections 3-4 (in-sequence procedure, 3 sigma as 3 x sample std,
+acceptance at requirement/3); the per-trial SeedSequence convention (docs/conventions.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from budget.harmonics_cli import harmonics_group
+from budget.harmonics import DesignError, HarmonicSpec, design_matrix
+from budget.harmonics_validate import (
+    prepare,
+    run_trials,
+    simulate_trial_exact,
+    summarise,
+    validate,
+)
+from simcam.cli_common import run_cli
+from simcam.inductosyn import AutocollimatorParams, default_scenario
+
+
+def budget_main(argv):
+    """`budget harmonics ...` as budget.cli.main runs it (run_cli: user errors exit 2)."""
+    assert argv[0] == "harmonics"
+    run_cli(harmonics_group, argv[1:])
+
+
+def _scenario(**cal_updates):
+    sc = default_scenario()
+    cal = sc.calibration.model_copy(update=cal_updates)
+    return sc.model_copy(update={"calibration": cal})
+
+
+def test_fast_path_equals_exact_path_trial_by_trial():
+    """The vectorised trials (second-order face expansion, batched pseudo-inverse) equal
+    the slow exact path (exact inverse map, one fit at a time) for the same trial keys.
+    Autocollimator resolution 0 so that rounding cannot hide differences; bound 1e-7
+    arcsec (expansion truncation < 1e-9, float rounding ~1e-12)."""
+    sc = _scenario(autocollimator=AutocollimatorParams(noise_arcsec=0.1, resolution_arcsec=0.0))
+    p = prepare(scenario=sc, dense_step_deg=1.0)
+    fast = run_trials(prepared=p, trials=3, seed=42, first_trial=5)
+    for i, trial in enumerate((5, 6, 7)):
+        ex = simulate_trial_exact(scenario=sc, seed=42, trial=trial)
+        for j, key in enumerate(("y_long", "y_long_verify", "y_short", "y_short_verify")):
+            assert np.max(np.abs(ex["tables"][j].error_arcsec.to_numpy() - fast[key][i])) < 1e-7
+        assert np.max(np.abs(ex["in_sequence"]["long"].coefficients_arcsec - fast["c_long"][i])) < 1e-7
+        assert np.max(np.abs(ex["in_sequence"]["short"].coefficients_arcsec - fast["c_short"][i])) < 1e-7
+        assert np.max(np.abs(ex["joint"].coefficients_arcsec - fast["c_joint"][i])) < 1e-7
+
+
+def test_trial_k_independent_of_batching():
+    """Trial k's tables are bit-identical however the trials are batched; the fits agree
+    to floating-point rounding (BLAS sums in a different order for another batch size)."""
+    p = prepare(scenario=default_scenario(), dense_step_deg=1.0)
+    whole = run_trials(prepared=p, trials=8, seed=9)
+    part = run_trials(prepared=p, trials=3, seed=9, first_trial=4)
+    for key in ("y_long", "y_long_verify", "y_short", "y_short_verify"):
+        assert np.array_equal(whole[key][4:7], part[key])
+    for key in ("c_long", "c_short", "c_joint"):
+        np.testing.assert_allclose(whole[key][4:7], part[key], rtol=1e-12, atol=1e-12)
+    # the Gram-identity 3 sigma cancels ~1e4 arcsec^2 to ~1 arcsec^2: rounding ~1e-11
+    np.testing.assert_allclose(whole["dense_sigma3_after_arcsec"][4:7],
+                               part["dense_sigma3_after_arcsec"], rtol=1e-9)
+
+
+def test_dense_statistics_against_direct_evaluation():
+    """Gram-identity 3 sigma and chunked max equal a direct evaluation of the residual."""
+    p = prepare(scenario=default_scenario(), dense_step_deg=0.05)
+    r = run_trials(prepared=p, trials=4, seed=1)
+    for i in range(4):
+        c = np.r_[r["c_long"][i], r["c_short"][i]]
+        res = p.dense_before_arcsec - p.b_seq @ c
+        assert r["dense_sigma3_after_arcsec"][i] == pytest.approx(3 * np.std(res, ddof=1), rel=1e-9)
+        assert r["dense_maxabs_after_arcsec"][i] == pytest.approx(np.max(np.abs(res - res.mean())), rel=1e-12)
+
+
+def test_quantisation_only_coefficient_spread_matches_uniform_prediction():
+    """Quantisation alone (no noise, no face errors, autocollimator continuous): the
+    written error is e(theta_i) - s1_i d with d uniform on [-q/2, q/2), so the eq-7
+    coefficients have covariance P diag(s1^2 q^2/12) P^T (P the pseudo-inverse).
+    K=3000 trials: relative sd of a sample std 1/sqrt(2K) = 1.3%; bound 5 sd."""
+    sc = default_scenario()
+    enc = sc.encoder.model_copy(update={"reading_noise_arcsec": 0.0})
+    lp = sc.calibration.long_polygon.model_copy(update={"face_error_arcsec": 0.0})
+    sp = sc.calibration.short_polygon.model_copy(update={"face_error_arcsec": 0.0})
+    cal = sc.calibration.model_copy(update={"long_polygon": lp, "short_polygon": sp,
+                                            "autocollimator": AutocollimatorParams()})
+    sc = sc.model_copy(update={"encoder": enc, "calibration": cal})
+    p = prepare(scenario=sc, dense_step_deg=1.0)
+    k = 3000
+    r = run_trials(prepared=p, trials=k, seed=5)
+    q = sc.encoder.resolution_deg * 3600
+    cov = p.pinv_long @ np.diag(p.taylor_long.s1**2 * q**2 / 12) @ p.pinv_long.T
+    ratio = r["c_long"].std(axis=0, ddof=1) / np.sqrt(np.diag(cov))
+    assert np.all(np.abs(ratio - 1) < 5 / math.sqrt(2 * k))
+
+
+def test_monte_carlo_default_scenario_short():
+    """Short fixed-seed run (K=400) of the default unit: unbiased recovery of the
+    coefficients the in-sequence method can see (|bias| < 4 spread / sqrt(K)), the
+    ~145 arcsec short-period error reduced below requirement/3, the joint fit better."""
+    sc = default_scenario()
+    p = prepare(scenario=sc, dense_step_deg=0.05)
+    k = 400
+    r = run_trials(prepared=p, trials=k, seed=123)
+    s = summarise(prepared=p, results=r)
+    for name, e in s["coefficients"].items():
+        if name == "e0" or e["in_sequence"] is None:
+            continue
+        v = e["in_sequence"]
+        assert abs(v["bias_arcsec"]) < 4 * v["spread_arcsec"] / math.sqrt(k), name
+    assert 130 < s["short_sigma3_before_arcsec"]["mean"] < 160
+    assert s["dense_sigma3_after_arcsec"]["p95"] < sc.calibration.requirement_arcsec / 3
+    assert s["joint_dense_sigma3_after_arcsec"]["mean"] < s["dense_sigma3_after_arcsec"]["mean"]
+
+
+@pytest.mark.slow
+def test_monte_carlo_default_scenario_long():
+    """K=20000: unbiasedness of every in-sequence coefficient at 4 standard errors."""
+    sc = default_scenario()
+    p = prepare(scenario=sc, dense_step_deg=0.1)
+    k = 20000
+    s = summarise(prepared=p, results=run_trials(prepared=p, trials=k, seed=321))
+    for name, e in s["coefficients"].items():
+        if name == "e0" or e["in_sequence"] is None:
+            continue
+        v = e["in_sequence"]
+        assert abs(v["bias_arcsec"]) < 4 * v["spread_arcsec"] / math.sqrt(k), name
+
+
+def test_aliasing_design_in_scenario_is_an_error():
+    from simcam.inductosyn import PolygonParams
+
+    sc = _scenario(short_polygon=PolygonParams(faces=24))
+    with pytest.raises(DesignError, match="calibration.short_polygon"):
+        prepare(scenario=sc, dense_step_deg=1.0)
+
+
+def test_validate_report_and_json(tmp_path):
+    out = validate(scenario=default_scenario(), trials=20, seed=3, dense_step_deg=0.05,
+                   report_dir=str(tmp_path / "rep"), posterior_steps=300)
+    for f in ("report.md", "error_curves.png", "residual_distribution.png", "posterior_band.png"):
+        assert (tmp_path / "rep" / f).stat().st_size > 0
+    assert len(out["scenario_hash"]) == 16 and out["seed"] == 3 and out["version"]
+    json.dumps(out)  # JSON-ready
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "![posterior band](posterior_band.png)" in md
+
+
+# --------------------------------------------------------------------------- CLI
+def test_cli_fit_example_table(tmp_path, capsys):
+    """The example table (seed 001 Table 2, before compensation) through eq 8."""
+    out = tmp_path / "fit.json"
+    png = tmp_path / "fit.png"
+    budget_main(["harmonics", "fit", "docs/examples/polygon_23.csv", "--period", "short",
+                 "--json", str(out), "--plot", str(png)])
+    d = json.loads(out.read_text())
+    assert set(d["coefficients"]) == {"A_S1c", "A_S1s", "A_S2c", "A_S2s"}
+    assert round(d["sigma3_before_arcsec"], 1) == 145.6
+    assert d["sigma3_after_arcsec"] < 0.05 * d["sigma3_before_arcsec"]
+    assert png.stat().st_size > 0
+    assert "A_S1s" in capsys.readouterr().out
+
+
+def test_cli_fit_errors_exit_2(tmp_path, capsys):
+    t24 = tmp_path / "t24.csv"
+    t24.write_text("angle_deg,error_arcsec\n" + "".join(f"{15 * i},{0.1 * i}\n" for i in range(24)))
+    with pytest.raises(SystemExit) as ei:
+        budget_main(["harmonics", "fit", str(t24), "--period", "short"])
+    assert ei.value.code == 2
+    err = capsys.readouterr().err
+    assert "t24.csv: design cannot separate" in err and "Traceback" not in err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("angle_deg,error_arcsec\n0,1\nzz,2\n")
+    with pytest.raises(SystemExit) as ei:
+        budget_main(["harmonics", "fit", str(bad), "--period", "long"])
+    assert ei.value.code == 2 and "bad.csv:3" in capsys.readouterr().err
+
+
+def test_cli_validate_scenario_and_unknown_key(tmp_path, capsys):
+    budget_main(["harmonics", "scenario"])
+    text = capsys.readouterr().out
+    assert "pole_pairs = 360" in text
+    sc = tmp_path / "s.toml"
+    sc.write_text(text)
+    out = tmp_path / "v.json"
+    budget_main(["harmonics", "validate", str(sc), "--trials", "50", "--seed", "2",
+                 "--dense-step-deg", "0.1", "--json", str(out)])
+    d = json.loads(out.read_text())
+    assert d["trials"] == 50 and d["seed"] == 2
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[calibration]\nrequirement = 3\n")
+    with pytest.raises(SystemExit) as ei:
+        budget_main(["harmonics", "validate", str(bad)])
+    assert ei.value.code == 2
+    assert "bad.toml: calibration.requirement: unknown key" in capsys.readouterr().err
+
+
+def test_joint_design_matrix_shape():
+    spec = HarmonicSpec(mech_orders=(1, 2), elec_orders=(1, 2, 3, 4), n_constants=2)
+    x = design_matrix(angle_deg=np.arange(5.0), spec=spec, table_index=np.array([0, 0, 1, 1, 1]))
+    assert x.shape == (5, 14)
+    assert x[:, 0].tolist() == [1, 1, 0, 0, 0] and x[:, 1].tolist() == [0, 0, 1, 1, 1]
+
+
+def test_cli_design_and_sequence(tmp_path, capsys):
+    """`design` reports the hand-derived aliases; `fit --period sequence` runs eq 7 then
+    eq 8 on two tables written by the simulated rig (exact path)."""
+    budget_main(["harmonics", "design", "--faces", "23"])
+    out = capsys.readouterr().out
+    assert "electrical 1 (360/turn): appears as mechanical order 8" in out
+    assert "electrical 2 (720/turn): appears as mechanical order 7" in out
+    ex = simulate_trial_exact(scenario=default_scenario(), seed=4, trial=0)
+    long_csv, short_csv = tmp_path / "l.csv", tmp_path / "s.csv"
+    ex["tables"][0].to_csv(long_csv, index=False)
+    ex["tables"][2].to_csv(short_csv, index=False)
+    js = tmp_path / "seq.json"
+    budget_main(["harmonics", "fit", str(long_csv), str(short_csv), "--period", "sequence",
+                 "--json", str(js), "--requirement-arcsec", "10"])
+    d = json.loads(js.read_text())
+    seq = ex["in_sequence"]
+    assert d["coefficients"]["A_S1s"]["value_arcsec"] == pytest.approx(
+        seq["short"].coefficients_arcsec[1], abs=1e-6)  # CSV round trip keeps ~1e-12
+    assert d["accepted"] is True and d["sigma3_after_arcsec"] < 10 / 3
+    with pytest.raises(SystemExit) as ei:
+        budget_main(["harmonics", "fit", str(long_csv), "--period", "sequence"])
+    assert ei.value.code == 2
