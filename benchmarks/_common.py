@@ -1,0 +1,116 @@
+"""Shared helpers of the benchmark scripts: machine description, best-of-N timer, table.
+
+Run the scripts from the repository root, e.g. ``python benchmarks/bench_detector_noise.py``.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+import tracemalloc
+from collections.abc import Callable, Sequence
+
+__all__ = ["machine_description", "best_of", "best_of_wall_cpu", "peak_traced_mb",
+           "format_table"]
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine_description() -> dict[str, str]:
+    """CPU model, logical cores (and those usable by this process), load, versions."""
+    import numpy
+
+    info = {
+        "cpu": _cpu_model(),
+        "cores": str(os.cpu_count()),
+        "usable_cores": str(len(os.sched_getaffinity(0))) if hasattr(os, "sched_getaffinity")
+        else str(os.cpu_count()),
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+    }
+    try:
+        import numba
+
+        info["numba"] = numba.__version__
+        info["numba_threads"] = str(numba.get_num_threads())
+    except ImportError:  # pragma: no cover - numba is a dependency
+        info["numba"] = "absent"
+    try:
+        info["load_1_5_15min"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:  # pragma: no cover
+        pass
+    return info
+
+
+def best_of(fn: Callable[[], object], *, repeat: int = 5,
+            warmup: int = 1) -> tuple[float, list[float]]:
+    """Call ``fn`` ``warmup`` times untimed, then ``repeat`` times; return (best s, all s)."""
+    if repeat < 1:
+        raise ValueError(f"repeat: must be >= 1 (got {repeat})")
+    for _ in range(warmup):
+        fn()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), times
+
+
+def best_of_wall_cpu(fn: Callable[[], object], *, repeat: int = 5,
+                     warmup: int = 1) -> tuple[float, float]:
+    """Best wall-clock time and best process CPU time (all threads) of ``fn``, s.
+
+    On a machine shared with other jobs the CPU time is the steadier measure of the
+    work done; wall time is what a user waits.
+    """
+    if repeat < 1:
+        raise ValueError(f"repeat: must be >= 1 (got {repeat})")
+    for _ in range(warmup):
+        fn()
+    walls, cpus = [], []
+    for _ in range(repeat):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn()
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return min(walls), min(cpus)
+
+
+def peak_traced_mb(fn: Callable[[], object]) -> float:
+    """Peak Python/numpy heap allocated while ``fn`` runs (tracemalloc), in MB (1e6 B).
+
+    numpy reports its array buffers to tracemalloc, so this counts the temporaries of
+    a numpy pipeline and the output arrays of a numba one (numba kernels that allocate
+    nothing inside add nothing).
+    """
+    was = tracemalloc.is_tracing()
+    if not was:
+        tracemalloc.start()
+    tracemalloc.reset_peak()
+    base, _ = tracemalloc.get_traced_memory()
+    result = fn()
+    _, peak = tracemalloc.get_traced_memory()
+    del result
+    if not was:
+        tracemalloc.stop()
+    return (peak - base) / 1e6
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """Plain-text table with right-aligned columns."""
+    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
