@@ -22,6 +22,7 @@ def _register() -> None:
         ("budget.combine", "combine_command"),
         ("budget.measure", "measure_command"),
         ("budget.simulate", "simulate_command"),
+        ("budget.validate", "validate_command"),
         ("budget.harmonics_cli", "harmonics_group"),
     ):
         try:

@@ -23,6 +23,11 @@ Improved (derived in ``docs/estimators.md``):
   removal accounted for
 * :func:`chromatic_error_decomposed` -- uniform and radial parts kept apart
 * :func:`distortion_residual_error_dof` -- fit degrees of freedom (W - 10)
+* :func:`chromatic_error_population` -- a stellar population through the camera's
+  spectral response instead of "/2" and "/3"
+* :func:`high_spatial_frequency_error_static` -- the static error itself, not its
+  consecutive differences
+* :func:`distortion_calibration_residual` -- the distortion left after calibration
 
 Rows with a non-zero ``flag`` or a non-finite ``x``/``y`` are excluded with an
 :class:`EstimatorWarning`; stars that then lack what an estimator needs are excluded
@@ -54,10 +59,13 @@ __all__ = [
     "c4",
     "high_spatial_frequency_error",
     "high_spatial_frequency_error_debiased",
+    "high_spatial_frequency_error_static",
     "chromatic_error",
     "chromatic_error_decomposed",
+    "chromatic_error_population",
     "distortion_residual_error",
     "distortion_residual_error_dof",
+    "distortion_calibration_residual",
     "cubic_design_matrix",
     "target_marker_error",
     "low_spatial_frequency_error",
@@ -290,6 +298,55 @@ def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
 # -------------------------------------------------------------------------- TE
 
 
+def _memo_last(fn):
+    """Remember the last call's result for the same table object and arguments.
+
+    The published estimator and its improved variant start from the same per-star
+    statistics of the same centroid table; this computes them once. The key holds the
+    table itself (compared by identity, so the object stays alive and cannot be
+    confused with another), and the warnings the first call logged are replayed into
+    the later call's log, so results and warnings are exactly those of a fresh call.
+    Callers treat the returned frames as read-only.
+    """
+    last: dict = {}
+
+    def wrapper(table, *args, log, **kwargs):
+        key = (args, tuple(sorted(kwargs.items(), key=lambda kv: kv[0])))
+        hit = last.get("entry")
+        if hit is not None and hit[0] is table and _same_key(hit[1], key):
+            for message in hit[3]:
+                log.warn(message)
+            return hit[2]
+        n0 = len(log.messages)
+        out = fn(table, *args, log=log, **kwargs)
+        last["entry"] = (table, key, out, tuple(log.messages[n0:]))
+        return out
+
+    wrapper.__doc__ = fn.__doc__
+    wrapper.__name__ = fn.__name__
+    return wrapper
+
+
+def _same_key(a, b) -> bool:
+    try:
+        return bool(a == b)
+    except (ValueError, TypeError):  # e.g. DataFrames among the arguments
+        return len(a) == len(b) and all(_same_arg(x, y) for x, y in zip(a, b))
+
+
+def _same_arg(x, y) -> bool:
+    if isinstance(x, tuple) and isinstance(y, tuple):
+        return len(x) == len(y) and all(_same_arg(p, q) for p, q in zip(x, y))
+    if isinstance(x, pd.DataFrame) or isinstance(y, pd.DataFrame):
+        return x is y
+    try:
+        return bool(x == y)
+    except (ValueError, TypeError):
+        return x is y
+
+
+
+@_memo_last
 def _te_stats(table, *, condition, ddof, what, log):
     if ddof not in (0, 1):
         raise UserInputError(f"ddof: expected 0 or 1, got {ddof}")
@@ -406,6 +463,7 @@ def temporal_error_pooled(
 # ------------------------------------------------------------------------ HSFE
 
 
+@_memo_last
 def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     df, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
                          key=("star", "condition", "frame"), what=what, log=log)
@@ -554,6 +612,73 @@ def high_spatial_frequency_error_debiased(
 # ------------------------------------------------------------------- chromatic
 
 
+def high_spatial_frequency_error_static(
+    table: pd.DataFrame, *, plate_scale_arcsec: float
+) -> HsfeEstimate:
+    """HSFE as the rms static, position-dependent centroid error (improved variant).
+
+    Eqs 5-10 work on differences of consecutive conditions, whose static part is
+    ``e(k+1) - e(k)``: for steps of 0.2 px the pixel-phase error of neighbouring
+    positions is strongly correlated, so that difference is much smaller than the error
+    itself, while the temporal noise of the two N-frame means adds ``2 sigma_TE^2 / N``
+    (docs/estimators.md, HSFE). Here the per-condition means ``X_j(k)`` are centred twice:
+    over stars in each condition (common motion, as eqs 7-8) and over conditions for each
+    star (the target's own geometry, unknown to the lab), ``R_j(k)``. For static errors of
+    variance ``tau^2`` independent between stars, ``E[sum R^2] = (W-1)(M-1) tau^2 +
+    (1 - 1/W)(1 - 1/M) sum_jk v_jk`` with ``v_jk = s_jk^2 / N_jk`` the temporal variance of
+    each mean, so::
+
+        tau^2 = [sum_jk R_j(k)^2 - (1 - 1/W)(1 - 1/M) sum_jk v_jk] / ((W - 1)(M - 1))
+
+    estimates the variance, over the positions the hexapod visited, of the static error
+    (PRNU, DSNU, pixel-phase S-curve) with common motion and each star's own mean removed.
+    Clipped at 0 with a flag. Needs 2+ good frames per star and condition.
+
+    Parameters
+    ----------
+    table, plate_scale_arcsec
+        As in :func:`high_spatial_frequency_error`.
+
+    Returns
+    -------
+    HsfeEstimate
+        ``residuals`` as for the published HSFE (consecutive differences, for fig. 6).
+    """
+    ps = _check_plate_scale(plate_scale_arcsec)
+    log = _Log()
+    (_, n_bad, stars, conds, mx, my, vx, vy, n, n_excl) = _hsfe_matrices(
+        table, need_frames=2, what="HSFE", log=log)
+    w, m = mx.shape
+    flags: list[str] = []
+    sig = {}
+    details: dict[str, Any] = {}
+    resid = {}
+    for ax, mean, var in (("x", mx, vx), ("y", my, vy)):
+        resid[ax] = _hsfe_residuals(mean)
+        r = mean - mean.mean(axis=0, keepdims=True)
+        r = r - r.mean(axis=1, keepdims=True)
+        s = float(np.sum(r**2))
+        noise = float(np.sum(var / n)) * (1 - 1 / w) * (1 - 1 / m)
+        tau2 = (s - noise) / ((w - 1) * (m - 1))
+        details[f"tau2_{ax}_px2"] = tau2
+        details[f"temporal_noise_variance_{ax}_px2"] = noise / ((w - 1) * (m - 1))
+        if tau2 < 0:
+            flags.append(f"clipped_{ax}")
+            log.warn(f"HSFE: the static variance along {ax} is negative ({tau2:.3g} px^2): "
+                     "temporal noise dominates; set to 0")
+            tau2 = 0.0
+        sig[ax] = math.sqrt(tau2)
+    return HsfeEstimate(
+        quantity="HSFE", method="static", equations="docs/estimators.md (HSFE static)",
+        sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
+        n_stars=w, n_frames=int(n.min()), n_conditions=m,
+        n_stars_excluded=n_excl, n_rows_excluded=n_bad, flags=tuple(flags),
+        warnings=tuple(log.messages), details=details,
+        residuals=_residual_table(stars, conds, resid["x"], resid["y"]),
+    )
+
+
+@_memo_last
 def _chromatic_means(table, *, reference_filter_nm, what, log):
     if not isinstance(table, pd.DataFrame):
         raise UserInputError(f"{what}: expected a pandas DataFrame, got {type(table).__name__}")
@@ -765,6 +890,94 @@ def chromatic_error_decomposed(
 # ------------------------------------------------------------------ distortion
 
 
+def chromatic_error_population(
+    table: pd.DataFrame,
+    *,
+    plate_scale_arcsec: float,
+    filter_wavelength_nm: dict,
+    star_wavelengths_nm: Any,
+    calibration_wavelength_nm: float,
+    reference_filter_nm: int | None = None,
+) -> ChromaticEstimate:
+    """LSFE-S for a stellar population, from the filter measurements (improved variant).
+
+    The centroid of a polychromatic image moves by the spectrum-weighted mean of the
+    per-wavelength lateral shifts; for lateral colour linear in wavelength that is the
+    shift at the image's electron-weighted mean wavelength ``lambda_bar``. So each
+    (field, star)'s filter means are fitted with ``X = a + b lambda_bar_f`` (least
+    squares over the filters, ``lambda_bar_f`` the effective wavelength of the lamp
+    through filter ``f``, optics and QE), the slopes are averaged per field (``b_F``,
+    its mean square debiased by the slopes' sampling variance over the field's ``W``
+    stars), and a star of effective wavelength ``lambda_p`` is displaced from the
+    calibration spectrum's position by ``b_F (lambda_p - lambda_cal)``. The error is the
+    rms over the population and the fields, per axis (docs/estimators.md, chromatic
+    population). It replaces
+    the seed's "/2" and "/3" by the camera's own spectral response: the effective
+    wavelengths are design data (filters, lamp, optics transmission, QE, stellar types).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        As for :func:`chromatic_error`.
+    plate_scale_arcsec : float
+    filter_wavelength_nm : dict
+        Filter centre (as in ``filter_nm``) -> effective wavelength of the lamp through it, nm.
+    star_wavelengths_nm : array_like
+        Effective wavelengths of the stellar population (one per star type), nm.
+    calibration_wavelength_nm : float
+        Effective wavelength of the calibration spectrum (e.g. the unfiltered lamp), nm.
+    reference_filter_nm : int, optional
+        As in :func:`chromatic_error` (only checked here; every filter enters the fit).
+
+    Returns
+    -------
+    ChromaticEstimate
+        ``pairs`` holds one row per (field, star): slopes ``b_x``, ``b_y`` in px/nm.
+    """
+    ps = _check_plate_scale(plate_scale_arcsec)
+    lam_p = np.asarray(star_wavelengths_nm, dtype=float).ravel()
+    if lam_p.size == 0 or not np.isfinite(lam_p).all():
+        raise UserInputError("star_wavelengths_nm: needs one or more finite wavelengths")
+    log = _Log()
+    (_, n_bad, n_excl, filters, ref, _pairs, wx, wy, wn) = _chromatic_means(
+        table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
+    missing = [int(f) for f in filters if int(f) not in {int(k) for k in filter_wavelength_nm}]
+    if missing:
+        raise UserInputError(f"filter_wavelength_nm: no effective wavelength for filter(s) {missing}")
+    lam_f = np.array([float({int(k): v for k, v in filter_wavelength_nm.items()}[int(f)]) for f in filters])
+    a = np.column_stack([np.ones_like(lam_f), lam_f - lam_f.mean()])
+    pinv = np.linalg.pinv(a)
+    bx = (pinv @ wx[list(filters)].to_numpy(float).T)[1]
+    by = (pinv @ wy[list(filters)].to_numpy(float).T)[1]
+    dl = lam_p - float(calibration_wavelength_nm)
+    per = pd.DataFrame({"field": wx.index.get_level_values("field"), "star": wx.index.get_level_values("star"),
+                        "b_x_px_per_nm": bx, "b_y_px_per_nm": by})
+    # Per field, the slope is averaged over its stars (lateral colour varies little across
+    # one target); the mean square of that average is debiased by its sampling variance
+    # s_b^2 / W (temporal noise in the filter means), clipped at 0.
+    g = per.groupby("field")
+    msq = {}
+    for ax in ("x", "y"):
+        col = f"b_{ax}_px_per_nm"
+        mean_b = g[col].mean()
+        var_b = g[col].var(ddof=1).fillna(0.0) / g[col].count()
+        msq[ax] = np.clip(mean_b.to_numpy() ** 2 - var_b.to_numpy(), 0.0, None)
+    sx = float(np.sqrt(np.mean(msq["x"]) * np.mean(dl**2)))
+    sy = float(np.sqrt(np.mean(msq["y"]) * np.mean(dl**2)))
+    k = wx.index.get_level_values("field").nunique()
+    return ChromaticEstimate(
+        quantity="LSFE-S", method="population", equations="docs/estimators.md (chromatic population)",
+        sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
+        n_stars=int(wx.groupby(level="field").size().min()), n_frames=int(wn.min().min()), n_conditions=int(k),
+        n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
+        details={"calibration_wavelength_nm": float(calibration_wavelength_nm),
+                 "population_wavelengths_nm": lam_p.tolist(),
+                 "filter_effective_wavelengths_nm": lam_f.tolist(),
+                 "mean_slope_x_px_per_nm": float(bx.mean()), "mean_slope_y_px_per_nm": float(by.mean())},
+        pairs=per,
+    )
+
+
 def cubic_design_matrix(u: Any, v: Any) -> np.ndarray:
     """Full bivariate cubic basis (10 terms): 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3."""
     u = np.asarray(u, dtype=np.float64)
@@ -773,6 +986,7 @@ def cubic_design_matrix(u: Any, v: Any) -> np.ndarray:
                             u**3, u * u * v, u * v * v, v**3])
 
 
+@_memo_last
 def _distortion_core(table, reference, *, condition, what, log, min_points):
     table = _select_condition(table, condition, what)
     df, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
@@ -930,6 +1144,72 @@ def distortion_residual_error_dof(
         sig[ax] = _root_of_difference(sd2, sres2, ax, flags, log, what)
     return DistortionEstimate(
         quantity="LSFE-C1", method="fit-dof", equations="docs/estimators.md (distortion, W-10)",
+        sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
+        n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
+        n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
+        details=details, residuals=resid,
+    )
+
+
+def distortion_calibration_residual(
+    table: pd.DataFrame,
+    *,
+    reference: pd.DataFrame,
+    plate_scale_arcsec: float,
+    marker_3sigma_arcsec: float,
+    condition: int | None = None,
+) -> DistortionEstimate:
+    """LSFE-C1 as the distortion left *after* the cubic calibration (improved variant).
+
+    Eq 29's ``sqrt(sigma_dX^2 - sigma_DdX^2)`` is the spread of the part of the residuals
+    that the cubic explains, i.e. the distortion the calibration *removes*, not what it
+    leaves (docs/estimators.md, distortion). What is left at the points is the fit
+    residual without its measurement noise: with ``s_res^2 = sum_j DdX_j^2 / (W - 10)``
+    (unbiased for the point-to-point variance), the marker calibration error
+    ``sigma_m = C2 / 3`` (given) and each point's temporal variance of its N-frame mean
+    ``v_j = s_j^2 / N_j``::
+
+        sigma_C1^2 = s_res^2 - sigma_m^2 - mean_j v_j
+
+    clipped at 0 with a flag (the static pixel errors of HSFE at the points stay in it).
+
+    Parameters
+    ----------
+    table, reference, plate_scale_arcsec, condition
+        As in :func:`distortion_residual_error`.
+    marker_3sigma_arcsec : float
+        The target's marker calibration error, 3 sigma arcsec (seed 000's C2).
+
+    Returns
+    -------
+    DistortionEstimate
+    """
+    ps = _check_plate_scale(plate_scale_arcsec)
+    m3 = float(_nonneg("marker_3sigma_arcsec", marker_3sigma_arcsec))
+    log = _Log()
+    what = "LSFE-C1"
+    resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
+                                                   what=what, log=log, min_points=11)
+    sel = _select_condition(table, condition, what)
+    df, _ = _prepare(sel, required=("star", "frame", "x", "y"),
+                     key=tuple(c for c in ("star", "condition", "frame") if c in sel.columns),
+                     what=what, log=_Log())
+    st = _per_star_stats(df, ["star"], 1).set_index("star").loc[resid["star"].to_numpy()]
+    w = len(resid)
+    sm2 = (m3 / (3.0 * ps)) ** 2
+    flags: list[str] = []
+    sig = {}
+    details: dict[str, Any] = {"marker_sigma_px": math.sqrt(sm2)}
+    for ax in ("x", "y"):
+        dd = resid[f"dd{ax}_px"].to_numpy()
+        sres2 = float(np.sum(dd**2)) / (w - 10)
+        noise2 = float(np.mean(st[f"var_{ax}"].to_numpy() / st["n"].to_numpy()))
+        details[f"sigma_fit_residual_{ax}_px"] = math.sqrt(sres2)
+        details[f"temporal_variance_of_means_{ax}_px2"] = noise2
+        sig[ax] = _root_of_difference(sres2, sm2 + noise2, ax, flags, log, what)
+    return DistortionEstimate(
+        quantity="LSFE-C1", method="after-calibration",
+        equations="docs/estimators.md (distortion left after calibration)",
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
         n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
         n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),

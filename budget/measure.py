@@ -211,10 +211,13 @@ def format_estimates(protocol: str, results: dict) -> str:
 @click.option("--window", "window_px", type=click.IntRange(min=3), default=11, show_default=True)
 @click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True)
 @click.option("--saturation-dn", type=float, default=None, help="Flag pixels at or above this level.")
+@click.option("--marker-3sigma", "marker_3sigma", type=click.FloatRange(min=0), default=0.0, show_default=True,
+              help="Distortion: the grid target's marker calibration error, arcsec 3 sigma (seed 000's C2), "
+                   "removed from the improved (after-calibration) LSFE-C1.")
 @click.option("--centroids", "centroids_out", type=click.Path(dir_okay=False), help="Write the centroid table (CSV).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the estimates as JSON.")
 def measure_command(protocol, directory, manifest, reference, plate_scale, method, window_px,
-                    threshold_sigma, saturation_dn, centroids_out, json_out) -> None:
+                    threshold_sigma, saturation_dn, marker_3sigma, centroids_out, json_out) -> None:
     """Centroid the FITS frames in DIRECTORY and run the PROTOCOL's estimators (published and improved)."""
     from budget.protocols import estimate
 
@@ -228,7 +231,8 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
         ps = plate_scale if plate_scale is not None else info["plate_scale_arcsec"]
         if ps is None:
             raise UserInputError("no plate scale: pass --plate-scale (the frames have no PLTSCALE keyword)")
-        results = estimate(protocol, cen, plate_scale_arcsec=float(ps), reference=ref)
+        results = estimate(protocol, cen, plate_scale_arcsec=float(ps), reference=ref,
+                           marker_3sigma_arcsec=marker_3sigma)
     # centroid warnings (flagged stars) are printed here; estimator warnings are in the table
     from budget.centroid import CentroidWarning
 

@@ -118,7 +118,30 @@ class ProtocolData:
     windows: dict = field(default_factory=dict)
 
 
-def reference_table(scenario: Scenario, camera=None) -> pd.DataFrame:
+def centroid_options(camera, col0, threshold_sigma: float, *, dark_frames: int = 0) -> dict:
+    """Centroiding options for simulated windows: border background and a threshold at
+    ``threshold_sigma`` times the background's noise, known from the scenario.
+
+    The noise per pixel (DN) of a window on chip ``k``: temporal read, dark and stray-light
+    shot noise, and the DSNU's spatial scatter, ``sqrt(r^2 + d + b + dsnu^2) / g``; with
+    ``K`` dark frames subtracted the temporal part grows by ``sqrt(1 + 1/K)`` and the DSNU
+    cancels. Passing it explicitly keeps the threshold the same in noise-free truth
+    renderings as in noisy trials (a border-MAD threshold would collapse to 0 there).
+    """
+    scn = camera.scenario
+    det = scn.detector
+    chip = np.asarray(col0) // det.chip_cols
+    read = np.array([c.read_noise_e for c in det.chips])[chip]
+    gain = np.array([c.gain_e_per_dn for c in det.chips])[chip]
+    temporal = read**2 + det.dark_current_e_per_s * scn.camera.exposure_s + camera.background_e
+    if dark_frames:
+        var = temporal * (1.0 + 1.0 / dark_frames)
+    else:
+        var = temporal + det.dsnu_rms_e**2
+    return {"background": "border", "noise_dn": np.sqrt(var) / gain, "threshold_sigma": float(threshold_sigma)}
+
+
+def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None = None) -> pd.DataFrame:
     """Reference coordinates of the calibration grid as the lab has them (mosaic px).
 
     The ideal projection of the calibrated point positions (nominal chip layout is the
@@ -126,7 +149,7 @@ def reference_table(scenario: Scenario, camera=None) -> pd.DataFrame:
     """
     from simcam.geometry import Mosaic
 
-    lay = calibration_grid(scenario)
+    lay = calibration_grid(scenario, marker_seed=marker_seed)
     mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
     _, x, y = mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
     return pd.DataFrame({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
@@ -139,7 +162,8 @@ def simulate(
     seed: int,
     method: str = "cog",
     keep_windows: bool = False,
-    centroid_options: dict | None = None,
+    threshold_sigma: float = 3.0,
+    marker_seed: int | None = None,
 ) -> ProtocolData:
     """Run ``plan`` on a :class:`simcam.render.StarCamera` (windows mode) and centroid every frame.
 
@@ -147,16 +171,17 @@ def simulate(
     protocols, conditions and frames never share noise, and a condition's frames are
     the same whatever else is simulated. With ``plan.dark_frames > 0`` the mean of that
     many star-free frames is subtracted from each lit window first (seed 000's
-    inter-frame differencing).
+    inter-frame differencing). ``marker_seed`` draws new marker errors of the calibration
+    grid (default: the scenario's fixed target).
     """
     from budget.centroid import centroid_windows
     from simcam.render import Placement
 
     scn = camera.scenario
-    opts = dict(centroid_options or {})
     tables, truths, wins = [], [], {}
     for c in plan.conditions:
-        layout = calibration_grid(scn) if c.target == "calibration_grid" else star_grid(scn, center_px=c.field_center_px)
+        layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
+                  else star_grid(scn, center_px=c.field_center_px))
         stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
         placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
                               filter_nm=c.filter_nm, condition=stream, label=c.label)
@@ -168,6 +193,8 @@ def simulate(
             pix = pix - dark.pixels.astype(np.float64).mean(axis=0)[None]
         W = scene.n_stars
         n = c.frames
+        opts = centroid_options(camera, win.col0, threshold_sigma, dark_frames=plan.dark_frames)
+        opts["noise_dn"] = np.tile(opts["noise_dn"], n)
         extra = {"condition": np.full(W * n, c.index)}
         if c.filter_nm is not None:
             extra["filter_nm"] = np.full(W * n, c.filter_nm)
@@ -186,7 +213,7 @@ def simulate(
         truths.append(tr)
         if keep_windows:
             wins[c.index] = win
-    ref = reference_table(scn, camera) if plan.protocol == "distortion" else None
+    ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
     return ProtocolData(plan.protocol, pd.concat(tables, ignore_index=True),
                         pd.concat(truths, ignore_index=True), ref, plan, wins)
 
@@ -198,12 +225,21 @@ def estimate(
     plate_scale_arcsec: float,
     reference: pd.DataFrame | None = None,
     reference_filter_nm: float | None = None,
+    marker_3sigma_arcsec: float = 0.0,
+    spectral: dict | None = None,
+    extra_variants: bool = True,
 ) -> dict:
     """Run the published estimator of ``protocol`` and its improved variant(s) on a centroid table.
 
-    Returns ``{"published": ErrorEstimate, "improved": ErrorEstimate}`` (the improved
-    variant is the one derived in docs/estimators.md for that class). The same function
-    serves simulated and real centroid tables.
+    Returns ``{"published": ErrorEstimate, "improved": ErrorEstimate, ...}``: the
+    improved variant is the one derived in docs/estimators.md that targets what the class
+    is meant to be (TE: pooled rms; HSFE: the static error itself; LSFE-S: uniform and
+    radial parts kept apart, or, given the camera's ``spectral`` design (see
+    :func:`spectral_design`), the stellar population through its spectral response;
+    LSFE-C1: the distortion left after calibration, which needs the marker error
+    ``marker_3sigma_arcsec``, seed 000's C2). Other variants are returned under their
+    own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
+    The same function serves simulated and real tables.
     """
     from budget import estimators as E
 
@@ -212,15 +248,63 @@ def estimate(
         return {"published": E.temporal_error(centroids, plate_scale_arcsec=ps),
                 "improved": E.temporal_error_pooled(centroids, plate_scale_arcsec=ps)}
     if protocol == "hsfe":
-        return {"published": E.high_spatial_frequency_error(centroids, plate_scale_arcsec=ps),
-                "improved": E.high_spatial_frequency_error_debiased(centroids, plate_scale_arcsec=ps)}
+        out = {"published": E.high_spatial_frequency_error(centroids, plate_scale_arcsec=ps),
+               "improved": E.high_spatial_frequency_error_static(centroids, plate_scale_arcsec=ps)}
+        if extra_variants:
+            out["debiased"] = E.high_spatial_frequency_error_debiased(centroids, plate_scale_arcsec=ps)
+        return out
     if protocol == "chromatic":
         ref = None if reference_filter_nm is None else int(round(reference_filter_nm))
-        return {"published": E.chromatic_error(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref),
-                "improved": E.chromatic_error_decomposed(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)}
+        out = {"published": E.chromatic_error(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)}
+        if spectral is None or extra_variants:
+            out["decomposed"] = E.chromatic_error_decomposed(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)
+        if spectral is not None:
+            out["improved"] = E.chromatic_error_population(centroids, plate_scale_arcsec=ps,
+                                                           reference_filter_nm=ref, **spectral)
+        else:
+            out["improved"] = out["decomposed"]
+        return out
     if protocol == "distortion":
         if reference is None:
             raise ValueError("distortion: the reference coordinates of the grid target are required")
-        return {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
-                "improved": E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)}
+        out = {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
+               "improved": E.distortion_calibration_residual(centroids, reference=reference, plate_scale_arcsec=ps,
+                                                             marker_3sigma_arcsec=marker_3sigma_arcsec)}
+        if extra_variants:
+            out["fit_dof"] = E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)
+        return out
     raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
+
+
+def spectral_design(scenario: Scenario) -> dict:
+    """Effective wavelengths from the camera's spectral design (for the population LSFE-S).
+
+    The electron-weighted mean wavelength of the lab lamp through each filter, of the
+    unfiltered lamp (the calibration spectrum, or a star type named by
+    ``validation.calibration_spectrum``) and of each stellar type of
+    ``validation.lsfe_spectral_types``, through the scenario's optics transmission and QE.
+    These are design data a lab has (filter curves, lamp, sensor QE), not measurements.
+    """
+    from simcam import spectra
+    from simcam.sources import SourceSpectra
+
+    sp = SourceSpectra(scenario)
+    wl = sp.wavelength_nm
+
+    def mean_wl(rate):
+        return float(np.dot(sp.weights(rate), wl))
+
+    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=f.center_nm)[1])
+            for f in scenario.lab.filters}
+
+    def star_rate(st):
+        t = spectra.star_teff_k(spectral_type=st)
+        flux = spectra.star_photon_flux_per_nm(v_mag=0.0, temperature_k=t, wavelength_nm=wl)
+        return spectra.detected_electron_rate_per_nm(
+            photon_flux_per_nm=flux, aperture_area_m2=sp.aperture_area_m2, transmission=sp.transmission,
+            filter_transmission=1.0, qe=sp.qe, wavelength_nm=wl)
+
+    cal = scenario.validation.calibration_spectrum
+    lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1]) if cal == "lamp" else mean_wl(star_rate(cal))
+    stars = [mean_wl(star_rate(st)) for st in scenario.validation.lsfe_spectral_types]
+    return {"filter_wavelength_nm": filt, "star_wavelengths_nm": stars, "calibration_wavelength_nm": lam_cal}

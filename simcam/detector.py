@@ -420,3 +420,42 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
         _k.dark_block(r0, c0, mc, dk, params.dark_e, params.dsnu_rms_e,
                       params.hot_pixel_fraction, params.hot_pixel_dark_e, out)
     return out
+
+
+def expose_windows_frames(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
+                          frame_keys, detector_key, shot_noise=True, read_noise=True,
+                          quantize=True, parallel: bool | None = None) -> np.ndarray:
+    """:func:`expose_windows` for many frames at once: output (F, n, h, w).
+
+    Frame ``f`` uses ``frame_keys[f]``; its pixels equal ``expose_windows(...,
+    frame_key=frame_keys[f])`` bit for bit. The fixed-pattern part (PRNU, dark, DSNU, hot
+    pixels) is evaluated once for all frames. ``parallel`` (default: when there are more
+    than 20,000 window rows) runs (frame, window, row) tasks on numba threads; the result
+    does not depend on it.
+    """
+    sig = _signal(signal_e, 3)
+    n, h, w = sig.shape
+    r0 = np.ascontiguousarray(np.asarray(row0), dtype=np.int64)
+    c0 = np.ascontiguousarray(np.asarray(col0), dtype=np.int64)
+    if r0.shape != (n,) or c0.shape != (n,):
+        _fail("row0/col0", f"must be {n} integers (one per window)", (r0.shape, c0.shape))
+    if n and (r0.min() < 0 or c0.min() < 0):
+        _fail("row0/col0", "must be >= 0", (int(r0.min()), int(c0.min())))
+    mc, cc = _check_geometry(rows_hi=int(r0.max()) + h if n else 0,
+                             cols_lo=int(c0.min()) if n else 0,
+                             cols_hi=int(c0.max()) + w if n else 0,
+                             mosaic_cols=mosaic_cols, chip_cols=chip_cols, params=params)
+    keys = np.ascontiguousarray(np.asarray(frame_keys, dtype=np.uint64).ravel())
+    _, dk = _keys(keys[0] if keys.size else 0, detector_key)
+    out = np.empty((keys.size, n, h, w), dtype=params.output_dtype if quantize else np.float64)
+    if sig.size and keys.size:
+        mean = np.empty_like(sig)
+        _k.mean_charge_windows(sig, r0, c0, mc, params.prnu_rms, params.dark_e, params.dsnu_rms_e,
+                               params.hot_pixel_fraction, params.hot_pixel_dark_e, dk, mean)
+        g, off, rn, fw = params._chip_arrays()
+        if parallel is None:
+            parallel = keys.size * n * h > 20_000
+        kern = _k.expose_windows_frames if parallel else _k.expose_windows_frames_serial
+        kern(mean, r0, c0, mc, cc, g, off, rn, fw, keys, bool(shot_noise), bool(read_noise),
+             bool(quantize), float(params.max_dn), out)
+    return out

@@ -28,9 +28,9 @@ import pandas as pd
 
 from simcam import optics
 from simcam.config_base import ScenarioError
-from simcam.detector import DetectorParams, expose, expose_windows
+from simcam.detector import DetectorParams, expose, expose_windows_frames
 from simcam.geometry import Mosaic
-from simcam.rng import key_from_seed
+from simcam.rng import child_keys, key_from_seed
 from simcam.scenario import Scenario
 from simcam.sources import SourceSpectra
 from simcam.targets import TargetLayout
@@ -107,10 +107,16 @@ class StarCamera:
     detector_seed : int, optional
         Seed of the fixed-pattern maps (PRNU, DSNU); default the scenario seed. A Monte
         Carlo run that wants new maps per trial passes a trial seed here.
+    parallel : bool, optional
+        Use numba threads for batches of windows (default: by batch size). Worker
+        processes of a Monte Carlo run pass False. Results are identical either way.
     """
 
-    def __init__(self, scenario: Scenario, *, detector_seed: int | None = None):
+    def __init__(self, scenario: Scenario, *, detector_seed: int | None = None,
+                 parallel: bool | None = None):
         self.scenario = scenario
+        #: numba threads for window batches (None: by size); results do not depend on it
+        self.parallel = parallel
         self.mosaic = Mosaic.from_model(scenario.detector)
         self.spectra = SourceSpectra(scenario)
         o = scenario.optics
@@ -141,7 +147,26 @@ class StarCamera:
 
     # ------------------------------------------------------------------ scene
     def scene(self, placement: Placement) -> Scene:
-        """Compute positions, spectra, PSF stamps and truth of a placement (no noise)."""
+        """Compute positions, spectra, PSF stamps and truth of a placement (no noise).
+
+        Scenes are deterministic, so they are cached (the last 256) per camera: Monte
+        Carlo trials that repeat a placement reuse its stamps.
+        """
+        lay = placement.layout
+        key = (
+            lay.u_px.tobytes(), lay.v_px.tobytes(), lay.reference_u_px.tobytes(), lay.reference_v_px.tobytes(),
+            lay.pinhole_radius_px, placement.platform_dx_px, placement.platform_dy_px, placement.filter_nm,
+            placement.condition, placement.label,
+        )
+        cache = self.__dict__.setdefault("_scene_cache", {})
+        hit = cache.get(key)
+        if hit is None:
+            if len(cache) >= 256:
+                cache.pop(next(iter(cache)))
+            hit = cache[key] = self._scene(placement)
+        return hit
+
+    def _scene(self, placement: Placement) -> Scene:
         scn = self.scenario
         lay = placement.layout
         u0 = lay.u_px + placement.platform_dx_px
@@ -261,7 +286,17 @@ class StarCamera:
         return col0_chip + scene.chip * self.mosaic.chip_cols, row0
 
     def expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Noise-free photo-electrons in each star's window (all stars' light included)."""
+        """Noise-free photo-electrons in each star's window (all stars' light included).
+
+        Computed once per scene (cached on it; callers must not modify the arrays).
+        """
+        cached = scene.__dict__.get("_windows_e")
+        if cached is None:
+            cached = self._expected_windows_e(scene)
+            object.__setattr__(scene, "_windows_e", cached)
+        return cached
+
+    def _expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w = self.scenario.render.window_px
         col0, row0 = self.window_origins(scene)
         sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
@@ -272,12 +307,24 @@ class StarCamera:
         return sig, col0, row0
 
     # ------------------------------------------------------------------ noise
-    def frame_key(self, *, seed: int, condition: int, frame: int, dark: bool = False) -> np.uint64:
-        """Key of the temporal noise of one frame: ``SeedSequence(seed, (STREAM_FRAMES, condition, frame))``.
-
-        Star-free (lamp-off) frames use the stream ``STREAM_DARK_FRAMES`` instead.
+    def frame_keys(self, *, seed: int, condition: int, frames: int, first_frame: int = 0,
+                   dark: bool = False) -> np.ndarray:
+        """Keys of the temporal noise of frames ``first_frame ..``: the condition's key
+        ``SeedSequence(seed, spawn_key=(STREAM_FRAMES, condition))`` and, per frame ``f``,
+        its SplitMix64 child ``f`` (:func:`simcam.rng.child_keys`). Star-free (lamp-off)
+        frames use the stream ``STREAM_DARK_FRAMES`` instead.
         """
-        return key_from_seed(seed, STREAM_DARK_FRAMES if dark else STREAM_FRAMES, condition, frame)
+        ck = (seed, condition, dark)
+        cache = self.__dict__.setdefault("_condition_keys", {})
+        if ck not in cache:
+            if len(cache) > 4096:
+                cache.clear()
+            cache[ck] = key_from_seed(seed, STREAM_DARK_FRAMES if dark else STREAM_FRAMES, condition)
+        return child_keys(cache[ck], frames, start=first_frame)
+
+    def frame_key(self, *, seed: int, condition: int, frame: int, dark: bool = False) -> np.uint64:
+        """Key of one frame (see :meth:`frame_keys`)."""
+        return self.frame_keys(seed=seed, condition=condition, frames=1, first_frame=frame, dark=dark)[0]
 
     def render_windows(
         self,
@@ -301,22 +348,15 @@ class StarCamera:
         if dark:
             sig = np.zeros_like(sig)
         _, cols = self.mosaic.shape
-        out = []
-        for f in range(first_frame, first_frame + frames):
-            key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=f, dark=dark)
-            out.append(
-                expose_windows(
-                    signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
-                    chip_cols=self.mosaic.chip_cols, params=self.detector_params,
-                    frame_key=key, detector_key=self.detector_key,
-                    shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
-                )
-            )
-        return Windows(
-            pixels=np.stack(out) if out else np.zeros((0,) + sig.shape),
-            col0=col0, row0=row0, truth=scene.truth,
-            frame_index=np.arange(first_frame, first_frame + frames),
+        keys = self.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames,
+                               first_frame=first_frame, dark=dark)
+        pixels = expose_windows_frames(
+            signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
+            params=self.detector_params, frame_keys=keys, detector_key=self.detector_key,
+            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize, parallel=self.parallel,
         )
+        return Windows(pixels=pixels, col0=col0, row0=row0, truth=scene.truth,
+                       frame_index=np.arange(first_frame, first_frame + frames))
 
     def render_frame(
         self,

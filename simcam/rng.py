@@ -85,6 +85,7 @@ __all__ = [
     "SLOT_BITS",
     "RngParameterError",
     "key_from_seed",
+    "child_keys",
     "pixel_counter",
     "random_bits64",
     "uniform01",
@@ -246,6 +247,21 @@ def key_from_seed(seed: int, *path: int) -> np.uint64:
     path_i = tuple(_as_nonneg_int(p, f"path[{i}]") for i, p in enumerate(path))
     ss = np.random.SeedSequence(seed_i, spawn_key=path_i)
     return ss.generate_state(1, dtype=np.uint64)[0]
+
+
+def child_keys(key, count: int, *, start: int = 0) -> np.ndarray:
+    """Keys of ``count`` child streams of ``key``: outputs ``start .. start+count-1`` of
+    SplitMix64(key), i.e. ``random_bits64(key, i)`` (vectorised; used for frame keys).
+
+    Distinct children of one key are distinct (the finaliser is a bijection of distinct
+    Weyl-sequence states), and as 64-bit values they behave like fresh random keys.
+    """
+    i = np.arange(start, start + count, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        z = np.uint64(key) + (i + _ONE_U64) * _GOLDEN_GAMMA
+        z = (z ^ (z >> _S30)) * _MIX_M1
+        z = (z ^ (z >> _S27)) * _MIX_M2
+    return z ^ (z >> _S31)
 
 
 def pixel_counter(*, pixel_index, draw):

@@ -386,6 +386,40 @@ class ProtocolsModel(_Model):
     distortion: DistortionProtocolModel = DistortionProtocolModel()
 
 
+class ValidationModel(_Model):
+    """Monte Carlo validation settings (read by budget.validate).
+
+    * ``trials`` / ``tolerance_3sigma_arcsec`` / ``max_trials`` / ``batch_trials``: a fixed
+      number of trials, or batches until the Monte Carlo standard error of every bias and
+      spread (3 sigma arcsec) is below the tolerance (JCGM 101 section 7.9), with a cap;
+    * ``new_maps_per_trial``, ``new_markers_per_trial``: draw new PRNU/DSNU maps and new
+      target marker errors in every trial (else fixed by the scenario seed); the hexapod
+      positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
+    * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
+    * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
+      phases per axis, ``lsfe_spectral_types`` (the stellar population, equal weights) and
+      ``calibration_spectrum`` (``lamp``: the lab source without filter), ``field_grid``
+      points per axis for the field averages.
+    """
+
+    trials: Annotated[int, Field(ge=2)] = 200
+    tolerance_3sigma_arcsec: Annotated[float, Field(gt=0.0)] | None = None
+    max_trials: Annotated[int, Field(ge=2)] = 5000
+    batch_trials: Annotated[int, Field(ge=2)] = 50
+    new_maps_per_trial: bool = False
+    new_markers_per_trial: bool = False
+    centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
+    threshold_sigma: Pos = 3.0
+    dark_frames: Annotated[int, Field(ge=0)] = 0
+    te_truth_frames: Annotated[int, Field(ge=10)] = 1000
+    hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
+    lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
+        "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
+    )
+    calibration_spectrum: str = "lamp"
+    field_grid: Annotated[int, Field(ge=2, le=64)] = 9
+
+
 class Scenario(_Model):
     """A complete star-camera + lab scenario (see module docstring)."""
 
@@ -397,6 +431,7 @@ class Scenario(_Model):
     lab: LabModel = LabModel()
     render: RenderModel = RenderModel()
     protocols: ProtocolsModel = ProtocolsModel()
+    validation: ValidationModel = ValidationModel()
 
     @model_validator(mode="after")
     def _cross(self) -> Scenario:

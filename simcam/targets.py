@@ -84,14 +84,15 @@ def star_grid(scn: Scenario, *, center_px: tuple[float, float] | None = None) ->
     return TargetLayout(u, v, pinhole_radius_px(scn, tgt.pinhole_diameter_um), u.copy(), v.copy())
 
 
-def calibration_grid(scn: Scenario) -> TargetLayout:
+def calibration_grid(scn: Scenario, *, marker_seed: int | None = None) -> TargetLayout:
     """The pre-calibrated grid target (seed 000: 32 points) spanning the mosaic.
 
     Points sit at the centres of a ``rows x cols`` tiling of ``extent_fraction`` of the
     mosaic's focal-plane extent (so none falls on the optical axis or, for an even number
     of columns, in the gap between two chips). The lab's reference coordinates carry the
     marker calibration error (Gaussian, sigma = 3-sigma value / 3, drawn from the scenario
-    seed), converted from arcsec to px with the plate scale.
+    seed, or from ``marker_seed`` when a Monte Carlo trial wants a new target), converted
+    from arcsec to px with the plate scale.
     """
     cal = scn.lab.calibration_target
     det = scn.detector
@@ -103,7 +104,8 @@ def calibration_grid(scn: Scenario) -> TargetLayout:
     u = (col.ravel() - (cal.cols - 1) / 2.0) * du
     v = (row.ravel() - (cal.rows - 1) / 2.0) * dv
     sig_px = cal.marker_error_3sigma_arcsec / 3.0 / scn.camera.scale_arcsec_per_px
-    rng = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=(STREAM_CALIBRATION_MARKERS,)))
+    root = scn.seed if marker_seed is None else marker_seed
+    rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(STREAM_CALIBRATION_MARKERS,)))
     eu = rng.normal(0.0, 1.0, u.shape) * sig_px
     ev = rng.normal(0.0, 1.0, v.shape) * sig_px
     return TargetLayout(u, v, pinhole_radius_px(scn, cal.pinhole_diameter_um), u + eu, v + ev)

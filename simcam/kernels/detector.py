@@ -231,3 +231,97 @@ def count_invalid(a, upper):
         if not (x >= 0.0 and x <= upper):
             n += 1
     return n
+
+
+@njit(cache=True)
+def mean_charge_windows(signal_e, row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e,
+                        hot_fraction, hot_dark_e, detector_key, out):
+    """Mean charge ``S g + d`` (e-) of ``n`` windows: the fixed-pattern part of
+    :func:`expose_row`, computed once for many frames (same operations, same values).
+
+    ``signal_e``, ``out``: (n, h, w) float64; ``row0``, ``col0``: (n,) int64.
+    """
+    n, h, w = signal_e.shape
+    for k in range(n):
+        for i in range(h):
+            base = (row0[k] + i) * mosaic_cols + col0[k]
+            for jj in range(w):
+                out[k, i, jj] = (signal_e[k, i, jj] * prnu_value(detector_key, base + jj, prnu_rms)
+                                 + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e,
+                                              hot_fraction, hot_dark_e))
+
+
+@njit(cache=True)
+def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                   offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
+                   quantize, max_dn):
+    """Temporal noise and ADC of one window row given its mean charge (as :func:`expose_row`)."""
+    w = mean_row.shape[0]
+    base = row * mosaic_cols + col0
+    j = 0
+    while j < w:
+        chip = (col0 + j) // chip_cols
+        j_end = min(w, (chip + 1) * chip_cols - col0)
+        g = gain_e_per_dn[chip]
+        off = offset_dn[chip]
+        rn = read_noise_e[chip]
+        fw = full_well_e[chip]
+        for jj in range(j, j_end):
+            v = mean_row[jj]
+            if shot_noise:
+                v = np.float64(poisson(v, frame_key, slot_counter(base + jj, SLOT_SHOT)))
+            if v > fw:
+                v = fw
+            if read_noise:
+                v += rn * std_normal(frame_key, slot_counter(base + jj, SLOT_READ))
+            v = v / g + off
+            if quantize:
+                v = math.floor(v + 0.5)
+                if v < 0.0:
+                    v = 0.0
+                elif v > max_dn:
+                    v = max_dn
+            out_row[jj] = v
+        j = j_end
+
+
+@njit(cache=True)
+def _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                 read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
+                 max_dn, out):
+    n, h, _ = mean_e.shape
+    f = t // (n * h)
+    r = t - f * n * h
+    k = r // h
+    i = r - k * h
+    _noise_adc_row(mean_e[k, i], out[f, k, i], row0[k] + i, col0[k], mosaic_cols, chip_cols,
+                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys[f],
+                   shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(parallel=True, cache=True)
+def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                          offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
+                          read_noise, quantize, max_dn, out):
+    """Temporal noise and ADC of ``n`` windows in ``F`` frames, (frame, window, row) in parallel.
+
+    ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
+    ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
+    """
+    n, h, _ = mean_e.shape
+    for t in prange(frame_keys.shape[0] * n * h):
+        _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
+                     max_dn, out)
+
+
+@njit(cache=True)
+def expose_windows_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                                 offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
+                                 read_noise, quantize, max_dn, out):
+    """Single-threaded twin of :func:`expose_windows_frames` (small batches, worker processes)."""
+    n, h, _ = mean_e.shape
+    for t in range(frame_keys.shape[0] * n * h):
+        _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
+                     max_dn, out)

@@ -1,0 +1,280 @@
+"""What each error class really is, for a simulated camera: the truth the validator compares to.
+
+Computed from the simulator with temporal noise off (or, for TE, from a large noise-only
+sample) and dense sampling, following each method's own definition (all values 1 sigma
+in px, per axis):
+
+* **TE** (seed 000 eqs 1-2 define it as the mean over stars of each star's temporal
+  centroid standard deviation): the same statistic from ``te_truth_frames`` frames of the
+  TE condition, centroided as the lab does. Reported beside it: the Cramer-Rao bound of
+  an unbiased position estimate from the same pixels (Poisson + read noise; Fisher
+  information ``I_xx = sum_p (d mu_p / dx)^2 / (mu_p + sigma_read^2 / g^2 ...)`` in
+  electrons, e.g. Mendez et al. 2014, PASP 126, 798, eq. 8 for the Poisson case).
+* **HSFE**: the rms of the static, position-dependent centroid error (PRNU, DSNU,
+  pixel-phase "S-curve" of the centroid) over ``hsfe_phase_grid^2`` sub-pixel phases of
+  the HSFE target, with the common motion of each phase removed (the mean over stars).
+* **LSFE-S**: the rms, over the stellar population ``lsfe_spectral_types`` and a
+  ``field_grid`` grid over the detector, of the spectrum-weighted chromatic displacement
+  relative to the calibration spectrum (the lab lamp without filter).
+* **LSFE-C1**: the distortion left after a cubic calibration: a full cubic fitted to the
+  true static displacement at the calibration grid's points, its residual rms over a
+  dense grid spanning the calibrated field.
+* **LSFE-C2**: the injected marker calibration error (sigma = 3-sigma value / 3).
+* **LSFE** and **total**: independent sources, so root-sum-squares: LSFE =
+  sqrt(S^2 + C1^2 + C2^2), total = sqrt(TE^2 + HSFE^2 + LSFE^2). (Seed 000's eq 31 adds
+  C1 and C2 linearly; the validation reports how far that is from this.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from budget.estimators import cubic_design_matrix
+from budget.protocols import centroid_options, make_plan
+from simcam import spectra
+from simcam.render import Placement
+from simcam.targets import calibration_grid, star_grid
+
+
+@dataclass(frozen=True)
+class ClassTruth:
+    """Truth of one error class, 1 sigma px per axis, with how it was computed."""
+
+    name: str
+    x_px: float
+    y_px: float
+    details: dict = field(default_factory=dict)
+
+
+def _centroid(camera, win, method, scenario):
+    from budget.centroid import centroid_cog, centroid_gaussian_fit, centroid_iwcog
+
+    f, w = win.pixels.shape[:2]
+    pix = win.pixels.reshape(f * w, *win.pixels.shape[2:]).astype(np.float64)
+    fn = {"cog": centroid_cog, "iwcog": centroid_iwcog, "gauss": centroid_gaussian_fit}[method]
+    opts = centroid_options(camera, win.col0, scenario.validation.threshold_sigma)
+    opts = {k: (np.tile(v, f) if isinstance(v, np.ndarray) else v) for k, v in opts.items()}
+    x, y, _, flag = fn(pix, x0=np.tile(win.col0, f), y0=np.tile(win.row0, f), **opts)
+    return x.reshape(f, w), y.reshape(f, w), flag.reshape(f, w)
+
+
+def te_truth(camera, *, frames: int, seed: int) -> ClassTruth:
+    """TE truth: mean over stars of the temporal centroid sd from ``frames`` noise-only frames."""
+    scn = camera.scenario
+    plan = make_plan("te", scn)
+    c = plan.conditions[0]
+    scene = camera.scene(Placement(layout=star_grid(scn, center_px=c.field_center_px), condition=999_001))
+    win = camera.render_windows(scene, frames=frames, seed=seed)
+    x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
+    good = (flag == 0).all(axis=0)
+    sx = x[:, good].std(axis=0, ddof=1)
+    sy = y[:, good].std(axis=0, ddof=1)
+    crb_x, crb_y = cramer_rao_bound_px(camera, scene)
+    return ClassTruth("te", float(sx.mean()), float(sy.mean()), {
+        "frames": frames, "stars": int(good.sum()),
+        "per_star_sd_x_px": sx.tolist(), "per_star_sd_y_px": sy.tolist(),
+        "cramer_rao_x_px": float(np.mean(crb_x)), "cramer_rao_y_px": float(np.mean(crb_y)),
+        "standard_error_x_px": float(sx.mean() / math.sqrt(2 * (frames - 1))),
+        "standard_error_y_px": float(sy.mean() / math.sqrt(2 * (frames - 1))),
+    })
+
+
+def cramer_rao_bound_px(camera, scene, *, step_px: float = 1e-3):
+    """Cramer-Rao bound (px, 1 sigma) of each star's x and y from its window's pixels.
+
+    Fisher information of independent pixels with Poisson signal ``mu_p`` (electrons,
+    PRNU and dark included) plus Gaussian read noise, in the Gaussian approximation of
+    their sum (variance ``mu_p + r^2 + g^2/12``):
+    ``I_xx = sum_p (d mu_p / dx)^2 / var_p`` (Mendez et al. 2014, PASP 126, 798);
+    ``d mu_p / dx`` by central differences of the exact pixel-integrated image. The bound
+    ignores the off-diagonal information (x and y nearly decouple for a symmetric PSF).
+    """
+    from dataclasses import replace as dreplace
+
+    from simcam.detector import dsnu_map, prnu_map
+
+    p = scene.placement
+    out = []
+    for dx, dy in ((step_px, 0.0), (-step_px, 0.0), (0.0, step_px), (0.0, -step_px)):
+        sc = camera.scene(dreplace(p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy))
+        out.append(sc)
+    sig0, col0, row0 = camera.expected_windows_e(scene)
+    grads = []
+    for a, b in ((out[0], out[1]), (out[2], out[3])):
+        # same window origins as the central scene (the shift is far below a pixel)
+        ea = _expected_at(camera, a, col0, row0)
+        eb = _expected_at(camera, b, col0, row0)
+        grads.append((ea - eb) / (2 * step_px))
+    det = camera.detector_params
+    chips = scene.chip
+    crb = []
+    for g in grads:
+        vals = []
+        for j in range(scene.n_stars):
+            kw = dict(shape=sig0.shape[1:], row0=int(row0[j]), col0=int(col0[j]), mosaic_cols=camera.mosaic.shape[1],
+                      params=det, detector_key=camera.detector_key)
+            prnu = prnu_map(**kw)
+            mu = sig0[j] * prnu + dsnu_map(**kw)
+            k = int(chips[j])
+            var = mu + det.read_noise_e[k] ** 2 + det.gain_e_per_dn[k] ** 2 / 12.0
+            info = np.sum((g[j] * prnu) ** 2 / var)
+            vals.append(1.0 / math.sqrt(info))
+        crb.append(np.array(vals))
+    return crb[0], crb[1]
+
+
+def _expected_at(camera, scene, col0, row0):
+    w = camera.scenario.render.window_px
+    sig = np.zeros((scene.n_stars, w, w))
+    cc = camera.mosaic.chip_cols
+    for j in range(scene.n_stars):
+        k = int(scene.chip[j])
+        camera._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+    return sig + scene.background_e
+
+
+def hsfe_truth(camera) -> ClassTruth:
+    """HSFE truth: rms static centroid error over sub-pixel phases, common motion removed."""
+    scn = camera.scenario
+    n = scn.validation.hsfe_phase_grid
+    plan = make_plan("hsfe", scn)
+    ctr = plan.conditions[0].field_center_px
+    layout = star_grid(scn, center_px=ctr)
+    ex, ey = [], []
+    for i in range(n):
+        for k in range(n):
+            pl = Placement(layout=layout, platform_dx_px=(i + 0.5) / n, platform_dy_px=(k + 0.5) / n,
+                           condition=999_002)
+            scene = camera.scene(pl)
+            win = camera.render_windows(scene, frames=1, seed=0, shot_noise=False, read_noise=False,
+                                        quantize=False)
+            x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
+            e_x = x[0] - scene.truth.x_true.to_numpy()
+            e_y = y[0] - scene.truth.y_true.to_numpy()
+            ex.append(e_x - e_x.mean())
+            ey.append(e_y - e_y.mean())
+    ex, ey = np.array(ex), np.array(ey)
+    return ClassTruth("hsfe", float(np.sqrt(np.mean(ex**2))), float(np.sqrt(np.mean(ey**2))), {
+        "phases": n * n, "stars": int(ex.shape[1]),
+        "max_abs_x_px": float(np.abs(ex).max()), "max_abs_y_px": float(np.abs(ey).max()),
+    })
+
+
+def _field_grid(camera, n: int, margin_px: float = 40.0):
+    det = camera.scenario.detector
+    half_u = (det.n_chips * det.chip_cols + (det.n_chips - 1) * det.gap_px) / 2 - margin_px
+    half_v = det.chip_rows / 2 - margin_px
+    u, v = np.meshgrid(np.linspace(-half_u, half_u, n), np.linspace(-half_v, half_v, max(2, (n + 1) // 2)))
+    u, v = u.ravel(), v.ravel()
+    chip, _, _ = camera.mosaic.focal_to_chip(u, v)
+    return u[chip >= 0], v[chip >= 0]
+
+
+def chromatic_shift_px(camera, weights, u, v):
+    """Spectrum-weighted lateral-colour displacement (px) at focal points (u, v)."""
+    from simcam import optics
+
+    scn = camera.scenario
+    lc = scn.optics.lateral_colour
+    su, sv = optics.lateral_colour_shift_px(
+        wavelength_nm=camera.spectra.wavelength_nm, u_px=u, v_px=v, ref_wavelength_nm=lc.ref_wavelength_nm,
+        radial_coeffs=tuple(lc.radial_px_per_nm), uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+        uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm), r_norm_px=scn.optics.r_norm_px,
+    )
+    return su @ weights, sv @ weights
+
+
+def star_weights(camera, spectral_type: str) -> np.ndarray:
+    """Wavelength weights of a star of ``spectral_type`` (blackbody at its Teff), no filter."""
+    sp = camera.spectra
+    t = spectra.star_teff_k(spectral_type=spectral_type)
+    flux = spectra.star_photon_flux_per_nm(v_mag=0.0, temperature_k=t, wavelength_nm=sp.wavelength_nm)
+    rate = spectra.detected_electron_rate_per_nm(
+        photon_flux_per_nm=flux, aperture_area_m2=sp.aperture_area_m2, transmission=sp.transmission,
+        filter_transmission=1.0, qe=sp.qe, wavelength_nm=sp.wavelength_nm)
+    return sp.weights(rate)
+
+
+def lsfe_s_truth(camera) -> ClassTruth:
+    """LSFE-S truth: rms chromatic displacement of a stellar population vs the calibration spectrum."""
+    scn = camera.scenario
+    val = scn.validation
+    u, v = _field_grid(camera, val.field_grid)
+    if val.calibration_spectrum == "lamp":
+        _, rate = camera.spectra.electron_rate_per_nm(filter_nm=None)
+        w_cal = camera.spectra.weights(rate)
+    else:
+        w_cal = star_weights(camera, val.calibration_spectrum)
+    cu, cv = chromatic_shift_px(camera, w_cal, u, v)
+    dx, dy = [], []
+    for st in val.lsfe_spectral_types:
+        su, sv = chromatic_shift_px(camera, star_weights(camera, st), u, v)
+        dx.append(su - cu)
+        dy.append(sv - cv)
+    dx, dy = np.array(dx), np.array(dy)
+    return ClassTruth("lsfe_s", float(np.sqrt(np.mean(dx**2))), float(np.sqrt(np.mean(dy**2))), {
+        "spectral_types": list(val.lsfe_spectral_types), "field_points": int(u.size),
+        "calibration_spectrum": val.calibration_spectrum,
+        "per_type_mean_x_px": dx.mean(axis=1).tolist(), "per_type_mean_y_px": dy.mean(axis=1).tolist(),
+    })
+
+
+def lsfe_c1_truth(camera) -> ClassTruth:
+    """LSFE-C1 truth: rms over the field of the static displacement left by a cubic calibration."""
+    scn = camera.scenario
+    lay = calibration_grid(scn)
+    _, rate = camera.spectra.electron_rate_per_nm(filter_nm=None)
+    w_cal = camera.spectra.weights(rate)
+
+    def static(u, v):
+        ud, vd = camera.distortion.forward(u_px=u, v_px=v)
+        cu, cv = chromatic_shift_px(camera, w_cal, ud, vd)
+        return ud + cu - u, vd + cv - v
+
+    gx, gy = static(lay.u_px, lay.v_px)
+    cu0, cv0 = lay.u_px.mean(), lay.v_px.mean()
+    su = np.abs(lay.u_px - cu0).max()
+    sv = np.abs(lay.v_px - cv0).max()
+    a = cubic_design_matrix((lay.u_px - cu0) / su, (lay.v_px - cv0) / sv)
+    coef_x, *_ = np.linalg.lstsq(a, gx, rcond=None)
+    coef_y, *_ = np.linalg.lstsq(a, gy, rcond=None)
+    n = scn.validation.field_grid * 4
+    uu, vv = np.meshgrid(np.linspace(lay.u_px.min(), lay.u_px.max(), n),
+                         np.linspace(lay.v_px.min(), lay.v_px.max(), max(2, n // 2)))
+    uu, vv = uu.ravel(), vv.ravel()
+    fx, fy = static(uu, vv)
+    b = cubic_design_matrix((uu - cu0) / su, (vv - cv0) / sv)
+    rx, ry = fx - b @ coef_x, fy - b @ coef_y
+    return ClassTruth("lsfe_c1", float(np.sqrt(np.mean(rx**2))), float(np.sqrt(np.mean(ry**2))), {
+        "dense_points": int(uu.size), "calibration_points": int(lay.n_stars),
+        "static_rms_x_px": float(np.std(fx)), "static_rms_y_px": float(np.std(fy)),
+        "cubic_part_rms_x_px": float(np.std(b @ coef_x)), "cubic_part_rms_y_px": float(np.std(b @ coef_y)),
+    })
+
+
+def lsfe_c2_truth(scenario) -> ClassTruth:
+    """LSFE-C2 truth: the injected marker calibration error, 1 sigma px per axis."""
+    s = scenario.lab.calibration_target.marker_error_3sigma_arcsec / 3.0 / scenario.camera.scale_arcsec_per_px
+    return ClassTruth("lsfe_c2", s, s, {"marker_error_3sigma_arcsec": scenario.lab.calibration_target.marker_error_3sigma_arcsec})
+
+
+def all_truths(camera, *, seed: int) -> dict[str, ClassTruth]:
+    """Every class's truth, plus the root-sum-square LSFE and total."""
+    scn = camera.scenario
+    t = {
+        "te": te_truth(camera, frames=scn.validation.te_truth_frames, seed=seed),
+        "hsfe": hsfe_truth(camera),
+        "lsfe_s": lsfe_s_truth(camera),
+        "lsfe_c1": lsfe_c1_truth(camera),
+        "lsfe_c2": lsfe_c2_truth(scn),
+    }
+    lx = math.sqrt(t["lsfe_s"].x_px**2 + t["lsfe_c1"].x_px**2 + t["lsfe_c2"].x_px**2)
+    ly = math.sqrt(t["lsfe_s"].y_px**2 + t["lsfe_c1"].y_px**2 + t["lsfe_c2"].y_px**2)
+    t["lsfe"] = ClassTruth("lsfe", lx, ly, {"combination": "rss of S, C1, C2"})
+    tx = math.sqrt(t["te"].x_px**2 + t["hsfe"].x_px**2 + lx**2)
+    ty = math.sqrt(t["te"].y_px**2 + t["hsfe"].y_px**2 + ly**2)
+    t["total"] = ClassTruth("total", tx, ty, {"combination": "rss of TE, HSFE, LSFE"})
+    return t
