@@ -407,7 +407,7 @@ class ValidationModel(_Model):
     max_trials: Annotated[int, Field(ge=2)] = 5000
     batch_trials: Annotated[int, Field(ge=2)] = 50
     new_maps_per_trial: bool = False
-    new_markers_per_trial: bool = False
+    new_markers_per_trial: bool = True
     centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
     threshold_sigma: Pos = 3.0
     dark_frames: Annotated[int, Field(ge=0)] = 0

@@ -82,7 +82,7 @@ def test_simulated_protocols_recover_truth_positions(small):
             warnings.simplefilter("ignore")  # a debiased variance may come out negative at N = 3..6
             res = estimate(proto, d.centroids, plate_scale_arcsec=small.camera.scale_arcsec_per_px,
                            reference=d.reference)
-        assert set(res) == {"published", "improved"}
+        assert {"published", "improved"} <= set(res)
 
 
 def test_protocol_noise_streams_are_independent_and_reproducible(small):
