@@ -464,10 +464,15 @@ def temporal_error_pooled(
 
 
 @_memo_last
-def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
+def _hsfe_stats(table, *, what: str, log: _Log):
+    """Good rows and per-(star, condition) statistics of an HSFE table (shared by variants)."""
     df, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
                          key=("star", "condition", "frame"), what=what, log=log)
-    st = _per_star_stats(df, ["star", "condition"], 1)
+    return df, n_bad, _per_star_stats(df, ["star", "condition"], 1)
+
+
+def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
+    df, n_bad, st = _hsfe_stats(table, what=what, log=log)
     conditions = np.sort(df["condition"].unique())
     m = conditions.size
     if m < 2:
@@ -483,10 +488,11 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     w = complete.size
     if w < 2:
         raise UserInputError(f"{what}: needs at least 2 stars seen in every condition, got {w}")
+    # rows are sorted by (star, condition) and each complete star has all m conditions
     st = st[st["star"].isin(complete)]
 
     def mat(col):
-        return st.pivot(index="star", columns="condition", values=col).loc[complete, conditions].to_numpy(float)
+        return st[col].to_numpy(float).reshape(w, m)
 
     return (df, n_bad, complete, conditions, mat("mean_x"), mat("mean_y"),
             mat("var_x"), mat("var_y"), mat("n"), int(dropped.size))

@@ -20,6 +20,7 @@ is below ``T``, or until ``max_trials``.
 from __future__ import annotations
 
 import math
+import multiprocessing
 import os
 import warnings
 from concurrent.futures import ProcessPoolExecutor
@@ -36,6 +37,17 @@ AXES = ("x", "y")
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
 _CACHE: dict = {}
+#: numba threads inside this process's kernels (False in worker processes: one per core)
+_PARALLEL: bool | None = None
+
+
+def _worker_init() -> None:
+    """Worker processes run single-threaded kernels: the processes are the parallelism."""
+    global _PARALLEL
+    import numba
+
+    numba.set_num_threads(1)
+    _PARALLEL = False
 
 
 def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
@@ -52,7 +64,7 @@ def _camera(scenario, detector_seed=None):
     if cam is None:
         if len(_CACHE) > 4:
             _CACHE.clear()
-        cam = StarCamera(scenario, detector_seed=detector_seed)
+        cam = StarCamera(scenario, detector_seed=detector_seed, parallel=_PARALLEL)
         _CACHE[key] = cam
     return cam
 
@@ -218,7 +230,9 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
 
         bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False)
         bar.update(len(results))
-    pool = ProcessPoolExecutor(max_workers=workers) if workers > 1 else None
+    # "spawn": numba's OpenMP/TBB thread pools must not be forked
+    pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                initializer=_worker_init) if workers > 1 else None)
     stopped_by = "trials"
     try:
         while True:

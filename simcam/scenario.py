@@ -226,13 +226,25 @@ class SourceModel(_Model):
 
     The source is scaled so that, with no filter, each pinhole gives the camera as many
     electrons per exposure as a star of ``match_v_mag`` and ``match_spectral_type``.
-    ``kind = "star"`` gives the pinholes that star's own spectrum (blackbody at its Teff).
+    ``kind = "star"`` gives the pinholes that star's own spectrum: a blackbody at the
+    Teff of ``match_spectral_type``, or at ``star_temperature_k`` when given.
     """
 
     kind: Literal["lamp", "star"] = "lamp"
     temperature_k: Annotated[float, Field(ge=1000.0, le=60000.0)] = 2856.0
     match_v_mag: Finite = 7.5
     match_spectral_type: str = "G2V"
+    star_temperature_k: Annotated[float, Field(ge=1000.0, le=60000.0)] | None = None
+
+    @model_validator(mode="after")
+    def _known_type(self) -> SourceModel:
+        from simcam.spectra import SpectraError, star_teff_k
+
+        try:
+            star_teff_k(spectral_type=self.match_spectral_type)
+        except SpectraError as exc:
+            raise ValueError(f"match_spectral_type: {exc}") from None
+        return self
 
 
 class FilterModel(_Model):
@@ -418,6 +430,18 @@ class ValidationModel(_Model):
     )
     calibration_spectrum: str = "lamp"
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
+
+    @model_validator(mode="after")
+    def _known_types(self) -> ValidationModel:
+        from simcam.spectra import SpectraError, star_teff_k
+
+        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum == "lamp" else [self.calibration_spectrum])
+        for st in names:
+            try:
+                star_teff_k(spectral_type=st)
+            except SpectraError as exc:
+                raise ValueError(f"spectral type {st!r}: {exc}") from None
+        return self
 
 
 class Scenario(_Model):

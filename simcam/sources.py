@@ -41,6 +41,8 @@ class SourceSpectra:
         self.exposure_s = scn.camera.exposure_s
         src = scn.lab.source
         star_t = spectra.star_teff_k(spectral_type=src.match_spectral_type)
+        if src.kind == "star" and src.star_temperature_k is not None:
+            star_t = src.star_temperature_k
         if src.kind == "lamp":
             shape = spectra.lamp_photon_spectrum_per_nm(temperature_k=src.temperature_k, wavelength_nm=wl)
             scale = spectra.lamp_scale_to_match_star(

@@ -74,6 +74,8 @@ def test_focal_length_and_plate_scale_agree():
         ({"lab": {"filters": [{"center_nm": 500.0}]}}, r"lab\.filters\.0\.width_nm: Field required"),
         ({"protocols": {"chromatic": {"reference_filter_nm": 700.0}}}, r"reference_filter_nm = 700.0 is not one of"),
         ({"protocols": {"te": {"frames": 1}}}, r"protocols\.te\.frames"),
+        ({"lab": {"source": {"match_spectral_type": "Q3V"}}}, r"lab\.source: .*match_spectral_type"),
+        ({"validation": {"lsfe_spectral_types": ["G2V", "XX"]}}, r"validation: .*spectral type 'XX'"),
     ],
 )
 def test_bad_scenarios_name_the_field(data, pattern):

@@ -1,0 +1,71 @@
+"""Cost of Monte Carlo validation trials on the embedded seed-000 scenario.
+
+* one full protocol trial (TE + HSFE + chromatic + distortion: 20,460 star-windows with
+  the default plans, centroided and through the published and improved estimators), on
+  one core (numba serial kernels), after warm-up, best and median of ``--repeat``;
+  with the time split into rendering, centroiding and estimating;
+* ``--trials K`` trials (default 1000) with ``--workers W`` processes (default all
+  cores), wall time, including the truth computation and worker start-up.
+
+Usage: ``python benchmarks/bench_validate.py [--repeat 10] [--trials 1000] [--workers 2]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+import warnings
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, _HERE)
+sys.path.insert(1, os.path.dirname(_HERE))
+from _common import format_table, machine_description  # noqa: E402
+
+from budget import validate as V  # noqa: E402
+from simcam.scenario import default_scenario  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=10)
+    ap.add_argument("--trials", type=int, default=1000)
+    ap.add_argument("--workers", type=int, default=V.default_workers())
+    args = ap.parse_args()
+    import numba
+
+    numba.set_num_threads(1)
+    scn = default_scenario()
+    warnings.simplefilter("ignore")
+    V.run_trial(scn, 0, 0)
+    times = []
+    for k in range(1, args.repeat + 1):
+        t0 = time.perf_counter()
+        V.run_trial(scn, 0, k)
+        times.append(time.perf_counter() - t0)
+    from budget.protocols import make_plan
+    from simcam.targets import calibration_grid
+
+    w_star = scn.lab.target.rows * scn.lab.target.cols
+    w_cal = calibration_grid(scn).n_stars
+    n_windows = sum(c.frames * (w_cal if c.target == "calibration_grid" else w_star)
+                    for p in ("te", "hsfe", "chromatic", "distortion") for c in make_plan(p, scn).conditions)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    t0 = time.perf_counter()
+    res = V.validate(scn, trials=args.trials, seed=1, workers=args.workers, keep_example=False)
+    total = time.perf_counter() - t0
+    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print(format_table(
+        ["what", "time"],
+        [
+            (f"one trial, one core ({n_windows:,} star-windows), best", f"{min(times):.3f} s"),
+            ("one trial, one core, median", f"{statistics.median(times):.3f} s"),
+            (f"{res.trials} trials, {args.workers} worker process(es), wall (truth included)", f"{total:.1f} s"),
+        ],
+    ))
+
+
+if __name__ == "__main__":
+    main()
