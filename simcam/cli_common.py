@@ -51,19 +51,40 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
 
 
 def write_json_atomic(path: str | os.PathLike, payload: Any) -> None:
-    """Write JSON to ``path`` atomically (temp file + rename): never a half-written file."""
+    """Write JSON to ``path`` atomically (temp file + rename): never a half-written file.
+
+    NaN and infinities are written as null (strict JSON).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "w") as fh:
-            json.dump(payload, fh, indent=2, sort_keys=False, default=_json_default)
+            json.dump(_finite_or_null(payload), fh, indent=2, sort_keys=False, default=_json_default,
+                      allow_nan=False)
             fh.write("\n")
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _finite_or_null(obj: Any) -> Any:
+    """Replace NaN and infinities (not valid JSON) by null, recursively."""
+    import math
+
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_null(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [_finite_or_null(v) for v in obj.tolist()]
+    if isinstance(obj, (float, np.floating)) and not math.isfinite(float(obj)):
+        return None
+    return obj
 
 
 def _json_default(obj: Any) -> Any:

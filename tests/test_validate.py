@@ -176,3 +176,12 @@ def test_default_scenario_long_run():
     s = res.summary()
     assert s["lsfe_c1"]["x"]["published"]["bias_percent"] > 1000
     assert abs(s["lsfe_s"]["x"]["improved"]["bias_percent"]) < 5
+
+
+def test_default_trial_count_comes_from_the_scenario():
+    scn = _scn(validation=BASE["validation"] | {"trials": 3})
+    res = validate(scn, seed=1, keep_example=False)
+    assert res.trials == 3 and res.stopped_by == "trials"
+    scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance_3sigma_arcsec": 0.2, "batch_trials": 10})
+    res = validate(scn, seed=1, keep_example=False)
+    assert res.stopped_by == "tolerance" and res.trials < 100
