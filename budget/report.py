@@ -131,8 +131,8 @@ def plot_distortion_residuals(est, path: Path) -> None:
                                       ("ddx_px", "ddy_px", "after the cubic fit (eqs 25-26)"))):
         q = a.quiver(r["x_ref"], r["y_ref"], r[u], r[v], angles="xy")
         scale = float(np.nanmax(np.hypot(r[u], r[v]))) or 1.0
-        a.quiverkey(q, 0.85, 1.04, scale, f"{scale:.3f} px", labelpos="E", fontproperties={"size": 7})
-        a.set_title(title, fontsize=9)
+        a.quiverkey(q, 0.80, 1.12, scale, f"{scale:.3f} px", labelpos="E", fontproperties={"size": 7})
+        a.set_title(title, fontsize=9, loc="left")
         a.set_xlabel("x (px)")
         a.set_aspect("equal")
     axs[0].set_ylabel("y (px)")
