@@ -14,7 +14,6 @@ import click
 import pandas as pd
 
 from budget.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
-from simcam.cli_common import UserInputError
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
@@ -78,14 +77,23 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
               help="Star-free frames per condition for dark subtraction.")
 @click.option("--out", required=True, type=click.Path(file_okay=False))
 @click.option("--overwrite", is_flag=True)
-def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite) -> None:
+@click.option("--json", "json_out", type=click.Path(dir_okay=False),
+              help="Write a summary (files, conditions, scenario hash, seed) as JSON.")
+def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out) -> None:
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget measure`."""
     from simcam.scenario import load_scenario
 
     scn = load_scenario(scenario)
-    if out is None:
-        raise UserInputError("--out is required")
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite)
+    if json_out:
+        from simcam import __version__
+        from simcam.cli_common import write_json_atomic
+
+        write_json_atomic(json_out, {
+            "protocol": protocol, "out": str(out), "frames": int(len(m)),
+            "conditions": int(m["condition"].nunique()), "dark_frames": int((m["dark"] == 1).sum()),
+            "scenario_hash": scn.hash, "seed": seed, "version": __version__,
+        })
     click.echo(f"{protocol}: wrote {len(m)} frames ({m['condition'].nunique()} condition(s)) to {out}; "
                f"try: budget measure {protocol} {out}" + (f" --reference {out}/reference.csv" if protocol == "distortion" else ""))

@@ -101,11 +101,10 @@ def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_pe
                quantize, max_dn):
     """One row segment ``signal_row[w]`` starting at mosaic ``(row, col0)`` into ``out_row``.
 
-    Three passes over a row-sized scratch buffer (measured faster than one fused pass):
-    the mean charge ``S g + d``; the Poisson draw; then, chip by chip so that the
-    per-chip constants are loaded once, full well, read noise and ADC. Every value is
-    a function of the pixel index and the keys only, so the pass structure does not
-    change the result.
+    Two passes over a row-sized scratch buffer: the mean charge ``S g + d``; then
+    (:func:`_noise_adc_row`), chip by chip so that the per-chip constants are loaded
+    once, the Poisson draw, full well, read noise and ADC. Every value is a function of
+    the pixel index and the keys only, so the pass structure does not change the result.
     """
     w = signal_row.shape[0]
     base = row * mosaic_cols + col0
@@ -114,32 +113,9 @@ def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_pe
         e[jj] = (signal_row[jj] * prnu_value(detector_key, base + jj, prnu_rms)
                  + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction,
                               hot_dark_e))
-    if shot_noise:
-        for jj in range(w):
-            e[jj] = np.float64(poisson(e[jj], frame_key, slot_counter(base + jj, SLOT_SHOT)))
-    j = 0
-    while j < w:
-        chip = (col0 + j) // chip_cols
-        j_end = min(w, (chip + 1) * chip_cols - col0)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
-        for jj in range(j, j_end):
-            v = e[jj]
-            if v > fw:
-                v = fw
-            if read_noise:
-                v += rn * std_normal(frame_key, slot_counter(base + jj, SLOT_READ))
-            v = v / g + off
-            if quantize:
-                v = math.floor(v + 0.5)
-                if v < 0.0:
-                    v = 0.0
-                elif v > max_dn:
-                    v = max_dn
-            out_row[jj] = v
-        j = j_end
+    _noise_adc_row(e, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                   read_noise_e, full_well_e, frame_key, shot_noise, read_noise, quantize,
+                   max_dn)
 
 
 @njit(parallel=True, cache=True)
