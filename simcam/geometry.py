@@ -55,6 +55,7 @@ class Mosaic:
         return self.chip_rows, self.chip_cols * self.n_chips
 
     def _chip_coords(self, u, v, k):
+        """Chip ``k``'s pixel coordinates of focal points (no bounds check)."""
         x0 = (self.chip_cols - 1) / 2.0
         y0 = (self.chip_rows - 1) / 2.0
         du = u - self.center_u_px[k]

@@ -200,7 +200,11 @@ class StarCamera:
                 f"detector or within {half} px of a chip edge or gap ({bad.size} of {W} stars); "
                 "move lab.target_center_px or the protocol's field centres"
             )
-        _, xr, yr = self.mosaic.focal_to_chip(ud, vd)
+        # reference-wavelength position in the coordinates of the chip the image lands on
+        xr, yr = np.empty(W), np.empty(W)
+        for k in np.unique(chip):
+            sel = chip == k
+            xr[sel], yr[sel] = self.mosaic._chip_coords(ud[sel], vd[sel], int(k))
         sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
         sig = optics.psf_sigma_px(
             u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
