@@ -185,3 +185,11 @@ def test_default_trial_count_comes_from_the_scenario():
     scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance_3sigma_arcsec": 0.2, "batch_trials": 10})
     res = validate(scn, seed=1, keep_example=False)
     assert res.stopped_by == "tolerance" and res.trials < 100
+
+
+def test_new_maps_per_trial_changes_trials_and_averages_the_hsfe_truth():
+    scn = _scn(validation=BASE["validation"] | {"new_maps_per_trial": True})
+    res = validate(scn, trials=2, seed=4, keep_example=False)
+    assert res.truths["hsfe"].details["map_realisations"] == 4
+    fixed = validate(_scn(), trials=2, seed=4, keep_example=False)
+    assert res.samples[("hsfe", "published", "x")][1] != fixed.samples[("hsfe", "published", "x")][1]
