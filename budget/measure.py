@@ -107,6 +107,7 @@ def measure_frames(
     threshold_sigma: float = 5.0,
     match_radius_px: float = 3.0,
     saturation_dn: float | None = None,
+    weight_sigma_px: float | None = None,
 ) -> tuple[pd.DataFrame, pd.DataFrame | None, dict]:
     """Centroid the frames of DIR per its manifest; return (centroids, reference, header info)."""
     from budget.centroid import centroid_frames, detect_stars, subtract_dark
@@ -115,6 +116,11 @@ def measure_frames(
     directory = Path(directory)
     if not directory.is_dir():
         raise UserInputError(f"{directory}: frame directory not found")
+    method_options = {}
+    if method == "iwcog":
+        if weight_sigma_px is None:
+            raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
+        method_options["weight_sigma_px"] = float(weight_sigma_px)
     m = read_manifest(manifest or directory / "manifest.csv", protocol=protocol)
     lit = m[m["dark"] == 0]
     conditions = sorted(lit["condition"].dropna().unique().tolist())
@@ -169,6 +175,7 @@ def measure_frames(
             frames, dark=dark, reference_xy=ref_xy, frame_ids=rows["frame"].astype(int).tolist(),
             window_size_px=window_px, threshold_sigma=threshold_sigma, match_radius_px=match_radius_px,
             method=method, saturation_dn=saturation_dn, adc_max_dn=adc_max, extra_columns=extra,
+            **method_options,
         )
         if protocol == "chromatic" and field not in ref_xy_by_field:
             ref_xy_by_field[field] = ref_xy
@@ -208,6 +215,8 @@ def format_estimates(protocol: str, results: dict) -> str:
               help="arcsec per px (default: the PLTSCALE header keyword).")
 @click.option("--method", type=click.Choice(["cog", "iwcog", "gauss"]), default="cog", show_default=True,
               help="Centroid estimator (cog is seed 000's).")
+@click.option("--weight-sigma-px", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="IWCoG: width of the Gaussian weight (the PSF's sigma), px.")
 @click.option("--window", "window_px", type=click.IntRange(min=3), default=11, show_default=True)
 @click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True)
 @click.option("--saturation-dn", type=float, default=None, help="Flag pixels at or above this level.")
@@ -216,7 +225,7 @@ def format_estimates(protocol: str, results: dict) -> str:
                    "removed from the improved (after-calibration) LSFE-C1.")
 @click.option("--centroids", "centroids_out", type=click.Path(dir_okay=False), help="Write the centroid table (CSV).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the estimates as JSON.")
-def measure_command(protocol, directory, manifest, reference, plate_scale, method, window_px,
+def measure_command(protocol, directory, manifest, reference, plate_scale, method, weight_sigma_px, window_px,
                     threshold_sigma, saturation_dn, marker_3sigma, centroids_out, json_out) -> None:
     """Centroid the FITS frames in DIRECTORY and run the PROTOCOL's estimators (published and improved)."""
     from budget.protocols import estimate
@@ -227,7 +236,7 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
         warnings.simplefilter("always")
         cen, ref, info = measure_frames(protocol, directory, manifest=manifest, reference=reference, method=method,
                                         window_px=window_px, threshold_sigma=threshold_sigma,
-                                        saturation_dn=saturation_dn)
+                                        saturation_dn=saturation_dn, weight_sigma_px=weight_sigma_px)
         ps = plate_scale if plate_scale is not None else info["plate_scale_arcsec"]
         if ps is None:
             raise UserInputError("no plate scale: pass --plate-scale (the frames have no PLTSCALE keyword)")

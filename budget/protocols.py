@@ -141,6 +141,18 @@ def centroid_options(camera, col0, threshold_sigma: float, *, dark_frames: int =
     return {"background": "border", "noise_dn": np.sqrt(var) / gain, "threshold_sigma": float(threshold_sigma)}
 
 
+def design_psf_sigma_px(scenario: Scenario) -> float:
+    """The PSF's Gaussian-equivalent sigma (px) at the field centre, from the optical design:
+    the Gaussian sigma, or for an Airy PSF ``0.42 lambda N / p`` at 600 nm (the Gaussian
+    that best matches the Airy core) combined in quadrature with its blur. Used as the
+    IWCoG weight width, as a lab would take it from its design."""
+    psf = scenario.optics.psf
+    if psf.kind == "gaussian":
+        return float(psf.sigma0_px)
+    airy = 0.42 * 0.6 * scenario.camera.f_number / scenario.camera.pixel_pitch_um
+    return float(np.hypot(airy, psf.sigma0_px))
+
+
 def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None = None) -> pd.DataFrame:
     """Reference coordinates of the calibration grid as the lab has them (mosaic px).
 
@@ -195,6 +207,8 @@ def simulate(
         n = c.frames
         opts = centroid_options(camera, win.col0, threshold_sigma, dark_frames=plan.dark_frames)
         opts["noise_dn"] = np.tile(opts["noise_dn"], n)
+        if method == "iwcog":
+            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
         extra = {"condition": np.full(W * n, c.index)}
         if c.filter_nm is not None:
             extra["filter_nm"] = np.full(W * n, c.filter_nm)

@@ -202,3 +202,14 @@ def test_measure_flags_a_nan_pixel_star(frames_dir, tmp_path):
     with pytest.warns(UserWarning, match="excluded"):
         res = estimate("te", cen, plate_scale_arcsec=5.5)
     assert res["published"].n_rows_excluded == 1
+
+
+@pytest.mark.parametrize("method", ["iwcog", "gauss"])
+def test_better_centroids_run_through_the_protocols(small, method):
+    cam = StarCamera(small)
+    d = simulate(make_plan("te", small), cam, seed=3, method=method)
+    assert (d.centroids.flag == 0).all()
+    m = _mean_and_pooled_sd(d.centroids).merge(d.truth[["condition", "star", "x_true", "y_true"]],
+                                               on=["condition", "star"])
+    se = m.x_sd / np.sqrt(m.n)
+    assert (np.abs(m.x - m.x_true) < 5 * se + 0.03).all()
