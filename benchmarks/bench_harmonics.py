@@ -13,25 +13,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
+import sys
 import time
 
 import numpy as np
 
-
-def machine() -> str:
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return (f"{cpu}; {os.cpu_count()} logical cores visible; numpy {np.__version__}; "
-            f"Python {platform.python_version()}")
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, _HERE)
+sys.path.insert(1, os.path.dirname(_HERE))
+from _common import machine_description  # noqa: E402
 
 
 def main() -> None:
@@ -54,7 +45,7 @@ def main() -> None:
         t0 = time.perf_counter()
         run_trials(prepared=p, trials=args.trials, seed=args.seed)
         times.append(time.perf_counter() - t0)
-    print(f"machine: {machine()}")
+    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
     print(f"scenario preparation (truth on {p.dense_true_deg.size} points, face expansions, "
           f"pseudo-inverses): {t_prep:.3f} s")
     print(f"{args.trials} full calibration trials (24+24+23+23 points, in-sequence and joint "
