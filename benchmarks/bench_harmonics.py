@@ -17,7 +17,6 @@ import statistics
 import sys
 import time
 
-import numpy as np
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
