@@ -190,7 +190,9 @@ def simulate(
     from simcam.render import Placement
 
     scn = camera.scenario
-    tables, truths, wins = [], [], {}
+    truths, wins = [], {}
+    pix_all, x0_all, y0_all, noise_all, star_all, frame_all = [], [], [], [], [], []
+    cond_all, filt_all, field_all = [], [], []
     for c in plan.conditions:
         layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
                   else star_grid(scn, center_px=c.field_center_px))
@@ -205,31 +207,38 @@ def simulate(
             pix = pix - dark.pixels.astype(np.float64).mean(axis=0)[None]
         W = scene.n_stars
         n = c.frames
-        opts = centroid_options(camera, win.col0, threshold_sigma, dark_frames=plan.dark_frames)
-        opts["noise_dn"] = np.tile(opts["noise_dn"], n)
-        if method == "iwcog":
-            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
-        extra = {"condition": np.full(W * n, c.index)}
-        if c.filter_nm is not None:
-            extra["filter_nm"] = np.full(W * n, c.filter_nm)
-        if c.field:
-            extra["field"] = np.full(W * n, c.field, dtype=object)
-        t = centroid_windows(
-            pix.reshape(W * n, *pix.shape[2:]),
-            x0=np.tile(win.col0, n), y0=np.tile(win.row0, n),
-            star=np.tile(np.arange(W), n), frame=np.repeat(np.arange(n), W),
-            method=method, extra_columns=extra, **opts,
-        )
-        tables.append(t)
+        pix_all.append(pix.reshape(W * n, *pix.shape[2:]))
+        x0_all.append(np.tile(win.col0, n))
+        y0_all.append(np.tile(win.row0, n))
+        noise_all.append(np.tile(centroid_options(camera, win.col0, threshold_sigma,
+                                                  dark_frames=plan.dark_frames)["noise_dn"], n))
+        star_all.append(np.tile(np.arange(W), n))
+        frame_all.append(np.repeat(np.arange(n), W))
+        cond_all.append(np.full(W * n, c.index))
+        filt_all.append(np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm))
+        field_all.append(np.full(W * n, c.field, dtype=object))
         tr = scene.truth.copy()
         tr["condition"] = c.index
         tr["field"] = c.field
         truths.append(tr)
         if keep_windows:
             wins[c.index] = win
+    # one centroiding call for the whole protocol (same options as per condition)
+    extra = {"condition": np.concatenate(cond_all)}
+    if any(c.filter_nm is not None for c in plan.conditions):
+        extra["filter_nm"] = np.concatenate(filt_all)
+    if any(c.field for c in plan.conditions):
+        extra["field"] = np.concatenate(field_all)
+    opts = {"background": "border", "noise_dn": np.concatenate(noise_all), "threshold_sigma": float(threshold_sigma)}
+    if method == "iwcog":
+        opts["weight_sigma_px"] = design_psf_sigma_px(scn)
+    table = centroid_windows(
+        np.concatenate(pix_all), x0=np.concatenate(x0_all), y0=np.concatenate(y0_all),
+        star=np.concatenate(star_all), frame=np.concatenate(frame_all),
+        method=method, extra_columns=extra, **opts,
+    )
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, pd.concat(tables, ignore_index=True),
-                        pd.concat(truths, ignore_index=True), ref, plan, wins)
+    return ProtocolData(plan.protocol, table, pd.concat(truths, ignore_index=True), ref, plan, wins)
 
 
 def estimate(
