@@ -49,14 +49,19 @@ class ClassTruth:
     details: dict = field(default_factory=dict)
 
 
-def _centroid(camera, win, method, scenario):
+def _centroid(camera, win, method, scenario, *, pixels=None):
     from budget.centroid import centroid_cog, centroid_gaussian_fit, centroid_iwcog
+    from budget.protocols import design_psf_sigma_px
 
-    f, w = win.pixels.shape[:2]
-    pix = win.pixels.reshape(f * w, *win.pixels.shape[2:]).astype(np.float64)
+    pix_in = win.pixels if pixels is None else pixels
+    f, w = pix_in.shape[:2]
+    pix = pix_in.reshape(f * w, *pix_in.shape[2:]).astype(np.float64)
     fn = {"cog": centroid_cog, "iwcog": centroid_iwcog, "gauss": centroid_gaussian_fit}[method]
-    opts = centroid_options(camera, win.col0, scenario.validation.threshold_sigma)
+    opts = centroid_options(camera, win.col0, scenario.validation.threshold_sigma,
+                            dark_frames=scenario.validation.dark_frames)
     opts = {k: (np.tile(v, f) if isinstance(v, np.ndarray) else v) for k, v in opts.items()}
+    if method == "iwcog":
+        opts["weight_sigma_px"] = design_psf_sigma_px(scenario)
     x, y, _, flag = fn(pix, x0=np.tile(win.col0, f), y0=np.tile(win.row0, f), **opts)
     return x.reshape(f, w), y.reshape(f, w), flag.reshape(f, w)
 
@@ -151,7 +156,13 @@ def hsfe_truth(camera) -> ClassTruth:
             scene = camera.scene(pl)
             win = camera.render_windows(scene, frames=1, seed=0, shot_noise=False, read_noise=False,
                                         quantize=False)
-            x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
+            pix = None
+            if scn.validation.dark_frames:
+                # the lab subtracts star-free frames: the dark pattern (DSNU) then cancels
+                dark = camera.render_windows(scene, frames=1, seed=0, shot_noise=False, read_noise=False,
+                                             quantize=False, dark=True)
+                pix = win.pixels - dark.pixels
+            x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn, pixels=pix)
             e_x = x[0] - scene.truth.x_true.to_numpy()
             e_y = y[0] - scene.truth.y_true.to_numpy()
             ex.append(e_x - e_x.mean())
