@@ -993,7 +993,7 @@ def cubic_design_matrix(u: Any, v: Any) -> np.ndarray:
 
 
 @_memo_last
-def _distortion_core(table, reference, *, condition, what, log, min_points):
+def _distortion_core(table, reference, *, condition, what, log):
     table = _select_condition(table, condition, what)
     df, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
                          key=tuple(c for c in ("star", "condition", "frame") if c in table.columns),
@@ -1017,9 +1017,7 @@ def _distortion_core(table, reference, *, condition, what, log, min_points):
         log.warn(f"{what}: {len(lost)} reference point(s) without a good centroid excluded "
                  f"(stars {lost[:10]})")
     m = st.merge(reference[["star", "x_ref", "y_ref"]], on="star").sort_values("star")
-    w = len(m)
-    if w < min_points:
-        raise UserInputError(f"{what}: the cubic fit (10 terms) needs at least {min_points} points, got {w}")
+    _need_points(len(m), 10, what)
     x0, y0 = m["x_ref"].to_numpy(float), m["y_ref"].to_numpy(float)
     dx = m["mean_x"].to_numpy(float) - x0                     # eq 19
     dy = m["mean_y"].to_numpy(float) - y0                     # eq 20
@@ -1036,8 +1034,16 @@ def _distortion_core(table, reference, *, condition, what, log, min_points):
     fx, fy = a @ cx, a @ cy
     resid = pd.DataFrame({"star": m["star"].to_numpy(), "x_ref": x0, "y_ref": y0,
                           "dx_px": dx, "dy_px": dy, "fit_x_px": fx, "fit_y_px": fy,
-                          "ddx_px": dx - fx, "ddy_px": dy - fy})  # eqs 25-26
+                          "ddx_px": dx - fx, "ddy_px": dy - fy,  # eqs 25-26
+                          # temporal variance of each point's N-frame mean
+                          "var_mean_x_px2": (m["var_x"] / m["n"]).to_numpy(float),
+                          "var_mean_y_px2": (m["var_y"] / m["n"]).to_numpy(float)})
     return resid, n_bad, len(lost), int(m["n"].min())
+
+
+def _need_points(w: int, min_points: int, what: str) -> None:
+    if w < min_points:
+        raise UserInputError(f"{what}: the cubic fit (10 terms) needs at least {min_points} points, got {w}")
 
 
 def _root_of_difference(a2: float, b2: float, axis: str, flags: list, log: _Log, what: str) -> float:
@@ -1084,7 +1090,7 @@ def distortion_residual_error(
     log = _Log()
     what = "LSFE-C1"
     resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                   what=what, log=log, min_points=10)
+                                                   what=what, log=log)
     w = len(resid)
     flags: list[str] = []
     sig = {}
@@ -1135,8 +1141,9 @@ def distortion_residual_error_dof(
     log = _Log()
     what = "LSFE-C1"
     resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                   what=what, log=log, min_points=11)
+                                                   what=what, log=log)
     w = len(resid)
+    _need_points(w, 11, what)
     flags: list[str] = []
     sig = {}
     details: dict[str, Any] = {}
@@ -1195,13 +1202,9 @@ def distortion_calibration_residual(
     log = _Log()
     what = "LSFE-C1"
     resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                   what=what, log=log, min_points=11)
-    sel = _select_condition(table, condition, what)
-    df, _ = _prepare(sel, required=("star", "frame", "x", "y"),
-                     key=tuple(c for c in ("star", "condition", "frame") if c in sel.columns),
-                     what=what, log=_Log())
-    st = _per_star_stats(df, ["star"], 1).set_index("star").loc[resid["star"].to_numpy()]
+                                                   what=what, log=log)
     w = len(resid)
+    _need_points(w, 11, what)
     sm2 = (m3 / (3.0 * ps)) ** 2
     flags: list[str] = []
     sig = {}
@@ -1209,7 +1212,7 @@ def distortion_calibration_residual(
     for ax in ("x", "y"):
         dd = resid[f"dd{ax}_px"].to_numpy()
         sres2 = float(np.sum(dd**2)) / (w - 10)
-        noise2 = float(np.mean(st[f"var_{ax}"].to_numpy() / st["n"].to_numpy()))
+        noise2 = float(np.mean(resid[f"var_mean_{ax}_px2"].to_numpy()))
         details[f"sigma_fit_residual_{ax}_px"] = math.sqrt(sres2)
         details[f"temporal_variance_of_means_{ax}_px2"] = noise2
         sig[ax] = _root_of_difference(sres2, sm2 + noise2, ax, flags, log, what)

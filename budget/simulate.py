@@ -40,18 +40,13 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
             expected = cam.expected_frame_e(scene)
             kw = dict(scenario=scenario, seed=seed, condition=c.index, filter_nm=c.filter_nm,
                       platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px, label=c.field or c.label)
-            for f in range(c.frames):
-                name = f"c{c.index:03d}_f{f:04d}.fits"
-                io.write_frame(tmp / name, cam.render_frame(scene, frame=f, seed=seed, expected_e=expected),
-                               io.frame_header(frame=f, **kw))
-                rows.append({"file": name, "condition": c.index, "frame": f, "filter_nm": c.filter_nm,
-                             "field": c.field or None, "dark": 0})
-            for f in range(plan.dark_frames):
-                name = f"c{c.index:03d}_dark{f:04d}.fits"
-                io.write_frame(tmp / name, cam.render_frame(scene, frame=f, seed=seed, dark=True),
-                               io.frame_header(frame=f, **kw))
-                rows.append({"file": name, "condition": c.index, "frame": f, "filter_nm": c.filter_nm,
-                             "field": c.field or None, "dark": 1})
+            for dark, count, tag in ((0, c.frames, "f"), (1, plan.dark_frames, "dark")):
+                for f in range(count):
+                    name = f"c{c.index:03d}_{tag}{f:04d}.fits"
+                    data = cam.render_frame(scene, frame=f, seed=seed, expected_e=expected, dark=bool(dark))
+                    io.write_frame(tmp / name, data, io.frame_header(frame=f, **kw))
+                    rows.append({"file": name, "condition": c.index, "frame": f, "filter_nm": c.filter_nm,
+                                 "field": c.field or None, "dark": dark})
             t = scene.truth.copy()
             t["condition"] = c.index
             t["field"] = c.field

@@ -21,6 +21,7 @@ BrownConradyDistortion, CubicDistortion, CompositeDistortion
 
 from __future__ import annotations
 
+import abc
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -497,11 +498,12 @@ def _coords(u_px, v_px):
     return u.astype(np.float64, copy=True), v.astype(np.float64, copy=True)
 
 
-class _Distortion:
+class _Distortion(abc.ABC):
     """Shared forward/inverse machinery; subclasses define ``_map(u, v)``."""
 
-    def _map(self, u, v):  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _map(self, u, v):
+        """Distorted (u', v') px and the Jacobian (..., 2, 2) at focal-plane points (u, v) px."""
 
     def forward(self, *, u_px, v_px):
         """Distorted focal-plane coordinates ``(u', v')`` in px of ideal ``(u, v)`` px."""
