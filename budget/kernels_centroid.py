@@ -47,78 +47,142 @@ def border_stats(windows, out_median, out_sigma):
     nb = 2 * w + 2 * max(h - 2, 0)
     buf = np.empty(nb)
     for k in range(n):
-        m = 0
-        for j in range(w):
-            v = windows[k, 0, j]
-            if math.isfinite(v):
-                buf[m] = v
-                m += 1
-            if h > 1:
-                v = windows[k, h - 1, j]
-                if math.isfinite(v):
-                    buf[m] = v
-                    m += 1
-        for i in range(1, h - 1):
-            v = windows[k, i, 0]
-            if math.isfinite(v):
-                buf[m] = v
-                m += 1
-            if w > 1:
-                v = windows[k, i, w - 1]
-                if math.isfinite(v):
-                    buf[m] = v
-                    m += 1
-        if m == 0:
-            out_median[k] = np.nan
-            out_sigma[k] = np.nan
-            continue
-        med = _median_inplace(buf, m)
+        med, sig = border_one(windows[k], buf, True)
         out_median[k] = med
-        out_sigma[k] = 1.482602218505602 * _mad_sorted(buf, m, med)
+        out_sigma[k] = sig
 
 
 @njit(cache=True)
-def _mad_sorted(buf, m, med):
-    """Median of ``|buf[:m] - med|`` for sorted ``buf[:m]``, by an O(m) two-way merge."""
-    lft = m // 2
-    while lft + 1 < m and buf[lft + 1] <= med:
-        lft += 1
-    while lft >= 0 and buf[lft] > med:
-        lft -= 1
-    rgt = lft + 1
-    k_lo = (m - 1) // 2
-    k_hi = m // 2
-    v_lo = 0.0
-    v_hi = 0.0
-    for q in range(k_hi + 1):
-        dl = med - buf[lft] if lft >= 0 else np.inf
-        dr = buf[rgt] - med if rgt < m else np.inf
-        if dl <= dr:
-            d = dl
-            lft -= 1
-        else:
-            d = dr
-            rgt += 1
-        if q == k_lo:
-            v_lo = d
-        if q == k_hi:
-            v_hi = d
-    return 0.5 * (v_lo + v_hi)
+def border_one(win, buf, with_sigma):
+    """Border median and ``1.4826 * MAD`` of one window ``win`` (h, w).
+
+    ``buf`` is scratch of at least ``2 w + 2 (h - 2)`` elements. With ``with_sigma``
+    False the MAD is skipped (sigma returned as NaN): callers that know the noise need
+    only the median. Both are NaN when the border holds no finite pixel. The median is
+    the exact order statistic (the mean of the two middle values for an even count), by
+    selection instead of sorting (:func:`_median_select`).
+    """
+    h, w = win.shape
+    m = 0
+    for j in range(w):
+        v = win[0, j]
+        if math.isfinite(v):
+            buf[m] = v
+            m += 1
+        if h > 1:
+            v = win[h - 1, j]
+            if math.isfinite(v):
+                buf[m] = v
+                m += 1
+    for i in range(1, h - 1):
+        v = win[i, 0]
+        if math.isfinite(v):
+            buf[m] = v
+            m += 1
+        if w > 1:
+            v = win[i, w - 1]
+            if math.isfinite(v):
+                buf[m] = v
+                m += 1
+    if m == 0:
+        return np.nan, np.nan
+    med = _median_select(buf, m)
+    if not with_sigma:
+        return med, np.nan
+    for q in range(m):
+        buf[q] = abs(buf[q] - med)
+    return med, 1.482602218505602 * _median_select(buf, m)
 
 
 @njit(cache=True)
-def _median_inplace(buf, m):
-    """Median of ``buf[:m]`` (sorts ``buf[:m]`` in place; insertion sort, small m)."""
-    for a in range(1, m):
-        v = buf[a]
-        b = a - 1
-        while b >= 0 and buf[b] > v:
-            buf[b + 1] = buf[b]
-            b -= 1
-        buf[b + 1] = v
+def _select_kth(buf, m, k):
+    """``k``-th smallest of ``buf[:m]`` (0-based), partially reordering ``buf[:m]`` so that
+    ``buf[:k] <= buf[k] <= buf[k+1:m]``: Hoare's FIND as given by N. Wirth, *Algorithms +
+    Data Structures = Programs* (Prentice-Hall, 1976), section 2.3.4; O(m) on average."""
+    lo = 0
+    hi = m - 1
+    while lo < hi:
+        x = buf[k]
+        i = lo
+        j = hi
+        while True:
+            while buf[i] < x:
+                i += 1
+            while x < buf[j]:
+                j -= 1
+            if i <= j:
+                t = buf[i]
+                buf[i] = buf[j]
+                buf[j] = t
+                i += 1
+                j -= 1
+            if i > j:
+                break
+        if j < k:
+            lo = i
+        if k < i:
+            hi = j
+    return buf[k]
+
+
+@njit(cache=True)
+def _median_select(buf, m):
+    """Median of ``buf[:m]`` (reorders ``buf[:m]``): the middle order statistic, or for
+    even ``m`` the mean of the two middle ones (the largest of the lower half after
+    selection)."""
+    k = m // 2
+    hi = _select_kth(buf, m, k)
     if m % 2 == 1:
-        return buf[m // 2]
-    return 0.5 * (buf[m // 2 - 1] + buf[m // 2])
+        return hi
+    lo = buf[0]
+    for q in range(1, k):
+        if buf[q] > lo:
+            lo = buf[q]
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def cog_one(win, x0, y0, b, t, subtract_threshold, saturation):
+    """Thresholded centre of gravity of one window ``win`` (h, w): see :func:`thresholded_cog`.
+
+    Returns ``(x, y, flux, flag)``; ``x = y = flux = NaN`` with `FLAG_LOST` when no pixel
+    is above threshold.
+    """
+    h, w = win.shape
+    flag = 0
+    sw = 0.0
+    sx = 0.0
+    sy = 0.0
+    flux = 0.0
+    npos = 0
+    peak = -np.inf
+    pi = 0
+    pj = 0
+    for i in range(h):
+        for j in range(w):
+            v = win[i, j]
+            if not math.isfinite(v):
+                flag |= FLAG_NONFINITE
+                continue
+            if v >= saturation:
+                flag |= FLAG_SATURATED
+            s = v - b
+            if s > t:
+                wgt = s - t if subtract_threshold else s
+                sw += wgt
+                sx += wgt * j
+                sy += wgt * i
+                flux += s
+                npos += 1
+                if s > peak:
+                    peak = s
+                    pi = i
+                    pj = j
+    if npos == 0 or not sw > 0.0:
+        return np.nan, np.nan, np.nan, flag | FLAG_LOST
+    if pi == 0 or pj == 0 or pi == h - 1 or pj == w - 1:
+        flag |= FLAG_EDGE
+    return x0 + sx / sw, y0 + sy / sw, flux, flag
 
 
 @njit(cache=True)
@@ -145,50 +209,13 @@ def thresholded_cog(windows, x0, y0, background, threshold, subtract_threshold,
     out_flag : int64 array (n,)
         OR-ed with the flags found (callers may pre-set bits such as `FLAG_EDGE`).
     """
-    n, h, w = windows.shape
+    n = windows.shape[0]
     for k in range(n):
-        b = background[k]
-        t = threshold[k]
-        flag = 0
-        sw = 0.0
-        sx = 0.0
-        sy = 0.0
-        flux = 0.0
-        npos = 0
-        peak = -np.inf
-        pi = 0
-        pj = 0
-        for i in range(h):
-            for j in range(w):
-                v = windows[k, i, j]
-                if not math.isfinite(v):
-                    flag |= FLAG_NONFINITE
-                    continue
-                if v >= saturation:
-                    flag |= FLAG_SATURATED
-                s = v - b
-                if s > t:
-                    wgt = s - t if subtract_threshold else s
-                    sw += wgt
-                    sx += wgt * j
-                    sy += wgt * i
-                    flux += s
-                    npos += 1
-                    if s > peak:
-                        peak = s
-                        pi = i
-                        pj = j
-        if npos == 0 or not sw > 0.0:
-            out_x[k] = np.nan
-            out_y[k] = np.nan
-            out_flux[k] = np.nan
-            flag |= FLAG_LOST
-        else:
-            out_x[k] = x0[k] + sx / sw
-            out_y[k] = y0[k] + sy / sw
-            out_flux[k] = flux
-            if pi == 0 or pj == 0 or pi == h - 1 or pj == w - 1:
-                flag |= FLAG_EDGE
+        x, y, f, flag = cog_one(windows[k], x0[k], y0[k], background[k], threshold[k],
+                                subtract_threshold, saturation)
+        out_x[k] = x
+        out_y[k] = y
+        out_flux[k] = f
         out_flag[k] |= flag
 
 

@@ -108,14 +108,32 @@ def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: 
 
 @dataclass
 class ProtocolData:
-    """What a protocol run yields: centroids (what the lab sees) and truth (what was injected)."""
+    """What a protocol run yields: centroids (what the lab sees) and truth (what was injected).
+
+    ``truth_parts`` holds each condition's truth table with its condition index and field
+    label; the ``truth`` table (one row per star and condition) is assembled from them on
+    first use (the Monte Carlo validator never needs it).
+    """
 
     protocol: str
     centroids: pd.DataFrame
-    truth: pd.DataFrame
+    truth_parts: list
     reference: pd.DataFrame | None = None
     plan: AcquisitionPlan | None = None
     windows: dict = field(default_factory=dict)
+
+    @property
+    def truth(self) -> pd.DataFrame:
+        cached = self.__dict__.get("_truth")
+        if cached is None:
+            parts = []
+            for table, index, field_label in self.truth_parts:
+                tr = table.copy()
+                tr["condition"] = index
+                tr["field"] = field_label
+                parts.append(tr)
+            cached = self.__dict__["_truth"] = pd.concat(parts, ignore_index=True)
+        return cached
 
 
 def centroid_options(camera, col0, threshold_sigma: float, *, dark_frames: int = 0) -> dict:
@@ -190,55 +208,107 @@ def simulate(
     from simcam.render import Placement
 
     scn = camera.scenario
+    # the fused kernel (exposure and centroid in one pass, same values) serves the
+    # thresholded centre of gravity when the windows themselves are not wanted
+    fused = method == "cog" and not keep_windows
     truths, wins = [], {}
-    pix_all, x0_all, y0_all, noise_all, star_all, frame_all = [], [], [], [], [], []
-    cond_all, filt_all, field_all = [], [], []
+    cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt", "field",
+                                             "x", "y", "flux", "flag")}
     for c in plan.conditions:
         layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
-                  else star_grid(scn, center_px=c.field_center_px))
+                  else _star_grid(scn, c.field_center_px))
         stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
         placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
                               filter_nm=c.filter_nm, condition=stream, label=c.label)
         scene = camera.scene(placement)
-        win = camera.render_windows(scene, frames=c.frames, seed=seed)
-        pix = win.pixels.astype(np.float64)
-        if plan.dark_frames:
-            dark = camera.render_windows(scene, frames=plan.dark_frames, seed=seed, dark=True)
-            pix = pix - dark.pixels.astype(np.float64).mean(axis=0)[None]
         W = scene.n_stars
         n = c.frames
-        pix_all.append(pix.reshape(W * n, *pix.shape[2:]))
-        x0_all.append(np.tile(win.col0, n))
-        y0_all.append(np.tile(win.row0, n))
-        noise_all.append(np.tile(centroid_options(camera, win.col0, threshold_sigma,
-                                                  dark_frames=plan.dark_frames)["noise_dn"], n))
-        star_all.append(np.tile(np.arange(W), n))
-        frame_all.append(np.repeat(np.arange(n), W))
-        cond_all.append(np.full(W * n, c.index))
-        filt_all.append(np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm))
-        field_all.append(np.full(W * n, c.field, dtype=object))
-        tr = scene.truth.copy()
-        tr["condition"] = c.index
-        tr["field"] = c.field
-        truths.append(tr)
-        if keep_windows:
-            wins[c.index] = win
-    # one centroiding call for the whole protocol (same options as per condition)
-    extra = {"condition": np.concatenate(cond_all)}
+        dark_mean = None
+        if plan.dark_frames:
+            dark = camera.render_windows(scene, frames=plan.dark_frames, seed=seed, dark=True)
+            dark_mean = dark.pixels.astype(np.float64).mean(axis=0)
+        chain = camera.window_chain(scene)
+        noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=plan.dark_frames)["noise_dn"]
+        if fused:
+            x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
+                                                threshold_dn=float(threshold_sigma) * noise_dn)
+            for name, v in (("x", x), ("y", y), ("flux", flux), ("flag", flag)):
+                cols[name].append(v.reshape(-1))
+        else:
+            win = camera.render_windows(scene, frames=n, seed=seed)
+            pix = win.pixels.astype(np.float64)
+            if dark_mean is not None:
+                pix = pix - dark_mean[None]
+            cols["pix"].append(pix.reshape(W * n, *pix.shape[2:]))
+            cols["noise"].append(np.tile(noise_dn, n))
+            if keep_windows:
+                wins[c.index] = win
+        cols["x0"].append(np.tile(chain.col0, n))
+        cols["y0"].append(np.tile(chain.row0, n))
+        cols["star"].append(np.tile(np.arange(W), n))
+        cols["frame"].append(np.repeat(np.arange(n), W))
+        cols["cond"].append(np.full(W * n, c.index))
+        cols["filt"].append(np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm))
+        cols["field"].append(np.full(W * n, c.field, dtype=object))
+        truths.append((scene.truth, c.index, c.field))
+    extra = {"condition": np.concatenate(cols["cond"])}
     if any(c.filter_nm is not None for c in plan.conditions):
-        extra["filter_nm"] = np.concatenate(filt_all)
+        extra["filter_nm"] = np.concatenate(cols["filt"])
     if any(c.field for c in plan.conditions):
-        extra["field"] = np.concatenate(field_all)
-    opts = {"background": "border", "noise_dn": np.concatenate(noise_all), "threshold_sigma": float(threshold_sigma)}
-    if method == "iwcog":
-        opts["weight_sigma_px"] = design_psf_sigma_px(scn)
-    table = centroid_windows(
-        np.concatenate(pix_all), x0=np.concatenate(x0_all), y0=np.concatenate(y0_all),
-        star=np.concatenate(star_all), frame=np.concatenate(frame_all),
-        method=method, extra_columns=extra, **opts,
-    )
+        extra["field"] = np.concatenate(cols["field"])
+    star, frame = np.concatenate(cols["star"]), np.concatenate(cols["frame"])
+    if fused:
+        from budget.centroid import _table, _warn_flags
+
+        table = _table(star=star, frame=frame, x=np.concatenate(cols["x"]), y=np.concatenate(cols["y"]),
+                       flux=np.concatenate(cols["flux"]), flag=np.concatenate(cols["flag"]),
+                       flux_column="flux_dn", extra_columns=extra)
+        _warn_flags(table)
+    else:
+        # one centroiding call for the whole protocol (same options as per condition)
+        opts = {"background": "border", "noise_dn": np.concatenate(cols["noise"]),
+                "threshold_sigma": float(threshold_sigma)}
+        if method == "iwcog":
+            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
+        table = centroid_windows(
+            np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]), y0=np.concatenate(cols["y0"]),
+            star=star, frame=frame, method=method, extra_columns=extra, **opts,
+        )
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, table, pd.concat(truths, ignore_index=True), ref, plan, wins)
+    return ProtocolData(plan.protocol, table, truths, ref, plan, wins)
+
+
+_LAYOUTS: dict = {}
+
+
+def _star_grid(scn: Scenario, center_px):
+    """:func:`simcam.targets.star_grid` memoised per scenario and centre (it is deterministic;
+    its arrays are not modified downstream)."""
+    key = (scn.hash, None if center_px is None else tuple(center_px))
+    lay = _LAYOUTS.get(key)
+    if lay is None:
+        if len(_LAYOUTS) > 256:
+            _LAYOUTS.clear()
+        lay = _LAYOUTS[key] = star_grid(scn, center_px=center_px)
+    return lay
+
+
+def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean, threshold_dn):
+    """Frames of a scene's windows exposed and centroided in one pass (thresholded centre of
+    gravity, border background; :mod:`budget.kernels_trial`): x, y, flux, flag as (frames, W)."""
+    from budget import kernels_trial as _kt
+
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
+    W, h, w = chain.mean_e.shape
+    out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
+    out_flag = np.zeros((frames, W), dtype=np.int64)
+    dm = np.zeros((0, h, w)) if dark_mean is None else np.ascontiguousarray(dark_mean, dtype=np.float64)
+    parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
+    kern = _kt.expose_centroid_frames if parallel else _kt.expose_centroid_frames_serial
+    kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
+         chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
+         np.ascontiguousarray(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
+    return out_x, out_y, out_f, out_flag
 
 
 def estimate(

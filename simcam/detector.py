@@ -422,17 +422,34 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
     return out
 
 
-def expose_windows_frames(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
-                          frame_keys, detector_key, shot_noise=True, read_noise=True,
-                          quantize=True, parallel: bool | None = None) -> np.ndarray:
-    """:func:`expose_windows` for many frames at once: output (F, n, h, w).
+@dataclass(frozen=True)
+class WindowChain:
+    """Validated inputs of the window noise kernels for a set of ``n`` windows.
 
-    Frame ``f`` uses ``frame_keys[f]``; its pixels equal ``expose_windows(...,
-    frame_key=frame_keys[f])`` bit for bit. The fixed-pattern part (PRNU, dark, DSNU, hot
-    pixels) is evaluated once for all frames. ``parallel`` (default: when there are more
-    than 20,000 window rows) runs (frame, window, row) tasks on numba threads; the result
-    does not depend on it.
+    ``mean_e`` (n, h, w) is the mean charge ``S g + d`` (PRNU, dark, DSNU and hot pixels
+    applied, e-); ``row0``/``col0`` (n,) int64 the mosaic origins; ``gain``, ``offset``,
+    ``read_noise``, ``full_well`` the per-chip constants (float64 arrays); ``max_dn`` the
+    ADC maximum. Built by :func:`window_chain`; consumed by
+    :func:`simcam.kernels.detector._noise_adc_row` (through :func:`expose_windows_frames`
+    or a caller's own fused kernel, which then gives the same pixels bit for bit).
     """
+
+    mean_e: np.ndarray
+    row0: np.ndarray
+    col0: np.ndarray
+    mosaic_cols: int
+    chip_cols: int
+    gain: np.ndarray
+    offset: np.ndarray
+    read_noise: np.ndarray
+    full_well: np.ndarray
+    max_dn: float
+    output_dtype: np.dtype
+
+
+def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
+                 detector_key) -> WindowChain:
+    """Validate a window batch and evaluate its fixed pattern once (see :class:`WindowChain`)."""
     sig = _signal(signal_e, 3)
     n, h, w = sig.shape
     r0 = np.ascontiguousarray(np.asarray(row0), dtype=np.int64)
@@ -445,17 +462,40 @@ def expose_windows_frames(*, signal_e, row0, col0, mosaic_cols, chip_cols, param
                              cols_lo=int(c0.min()) if n else 0,
                              cols_hi=int(c0.max()) + w if n else 0,
                              mosaic_cols=mosaic_cols, chip_cols=chip_cols, params=params)
-    keys = np.ascontiguousarray(np.asarray(frame_keys, dtype=np.uint64).ravel())
-    _, dk = _keys(keys[0] if keys.size else 0, detector_key)
-    out = np.empty((keys.size, n, h, w), dtype=params.output_dtype if quantize else np.float64)
-    if sig.size and keys.size:
-        mean = np.empty_like(sig)
+    _, dk = _keys(0, detector_key)
+    mean = np.empty_like(sig, dtype=np.float64)
+    if sig.size:
         _k.mean_charge_windows(sig, r0, c0, mc, params.prnu_rms, params.dark_e, params.dsnu_rms_e,
                                params.hot_pixel_fraction, params.hot_pixel_dark_e, dk, mean)
-        g, off, rn, fw = params._chip_arrays()
+    g, off, rn, fw = params._chip_arrays()
+    return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
+
+
+def expose_windows_frames(*, signal_e=None, row0=None, col0=None, mosaic_cols=None, chip_cols=None,
+                          params: DetectorParams | None = None, frame_keys, detector_key=None,
+                          shot_noise=True, read_noise=True, quantize=True,
+                          parallel: bool | None = None, chain: WindowChain | None = None) -> np.ndarray:
+    """:func:`expose_windows` for many frames at once: output (F, n, h, w).
+
+    Frame ``f`` uses ``frame_keys[f]``; its pixels equal ``expose_windows(...,
+    frame_key=frame_keys[f])`` bit for bit. The fixed-pattern part (PRNU, dark, DSNU, hot
+    pixels) is evaluated once for all frames (or given as ``chain`` from
+    :func:`window_chain`, instead of the window and detector arguments). ``parallel``
+    (default: when there are more than 20,000 window rows) runs (frame, window, row)
+    tasks on numba threads; the result does not depend on it.
+    """
+    if chain is None:
+        chain = window_chain(signal_e=signal_e, row0=row0, col0=col0, mosaic_cols=mosaic_cols,
+                             chip_cols=chip_cols, params=params, detector_key=detector_key)
+    keys = np.ascontiguousarray(np.asarray(frame_keys, dtype=np.uint64).ravel())
+    _keys(keys[0] if keys.size else 0, 0)
+    n, h, w = chain.mean_e.shape
+    out = np.empty((keys.size, n, h, w), dtype=chain.output_dtype if quantize else np.float64)
+    if chain.mean_e.size and keys.size:
         if parallel is None:
             parallel = keys.size * n * h > 20_000
         kern = _k.expose_windows_frames if parallel else _k.expose_windows_frames_serial
-        kern(mean, r0, c0, mc, cc, g, off, rn, fw, keys, bool(shot_noise), bool(read_noise),
-             bool(quantize), float(params.max_dn), out)
+        kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain,
+             chain.offset, chain.read_noise, chain.full_well, keys, bool(shot_noise), bool(read_noise),
+             bool(quantize), chain.max_dn, out)
     return out

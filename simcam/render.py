@@ -28,7 +28,7 @@ import pandas as pd
 
 from simcam import optics
 from simcam.config_base import ScenarioError
-from simcam.detector import DetectorParams, expose, expose_windows_frames
+from simcam.detector import DetectorParams, expose, expose_windows_frames, window_chain
 from simcam.geometry import Mosaic
 from simcam.rng import child_keys, key_from_seed
 from simcam.scenario import Scenario
@@ -311,6 +311,24 @@ class StarCamera:
         return sig, col0, row0
 
     # ------------------------------------------------------------------ noise
+    def window_chain(self, scene: Scene, *, dark: bool = False):
+        """The scene's windows through the detector's fixed pattern (:func:`simcam.detector.window_chain`):
+        mean charge per pixel and the chip constants, for the noise kernels. ``dark``: lamp
+        off (no star, no stray light). Cached on the scene (callers must not modify it).
+        """
+        name = "_chain_dark" if dark else "_chain"
+        cached = scene.__dict__.get(name)
+        if cached is None:
+            sig, col0, row0 = self.expected_windows_e(scene)
+            if dark:
+                sig = np.zeros_like(sig)
+            _, cols = self.mosaic.shape
+            cached = window_chain(signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
+                                  chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                                  detector_key=self.detector_key)
+            object.__setattr__(scene, name, cached)
+        return cached
+
     def frame_keys(self, *, seed: int, condition: int, frames: int, first_frame: int = 0,
                    dark: bool = False) -> np.ndarray:
         """Keys of the temporal noise of frames ``first_frame ..``: the condition's key
@@ -348,17 +366,12 @@ class StarCamera:
         ``dark=True`` renders star-free frames (lamp off: no star, no stray light; dark
         signal, DSNU, offset and noise only) at the same windows, for dark subtraction.
         """
-        sig, col0, row0 = self.expected_windows_e(scene)
-        if dark:
-            sig = np.zeros_like(sig)
-        _, cols = self.mosaic.shape
+        chain = self.window_chain(scene, dark=dark)
         keys = self.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames,
                                first_frame=first_frame, dark=dark)
-        pixels = expose_windows_frames(
-            signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
-            params=self.detector_params, frame_keys=keys, detector_key=self.detector_key,
-            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize, parallel=self.parallel,
-        )
+        pixels = expose_windows_frames(frame_keys=keys, chain=chain, shot_noise=shot_noise,
+                                       read_noise=read_noise, quantize=quantize, parallel=self.parallel)
+        col0, row0 = chain.col0, chain.row0
         return Windows(pixels=pixels, col0=col0, row0=row0, truth=scene.truth,
                        frame_index=np.arange(first_frame, first_frame + frames))
 

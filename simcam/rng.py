@@ -42,8 +42,9 @@ Counter layout
 counters, split into 16 *slots* of 4096, one slot per variate (PRNU, DSNU, read noise,
 shot noise, ...; assigned in :mod:`simcam.kernels.detector`). A variate starts at
 ``j = 0`` and a rejection method moves on to ``j = 1, 2, ...`` inside its slot:
-:func:`std_normal` needs a second word with probability 0.012, :func:`poisson` uses two
-uniforms (inversion) or two per PTRS trial (acceptance above 0.89), so a slot is never
+:func:`std_normal` needs a second word with probability 0.012, :func:`poisson` uses one
+word (inversion; a second with probability below 1/16) or two per PTRS trial (acceptance
+above 0.89), so a slot is never
 exhausted in practice (the probability of needing 2048 PTRS trials is below
 ``0.11**2048``).
 
@@ -92,6 +93,8 @@ __all__ = [
     "std_normal_ppf",
     "std_normal",
     "poisson",
+    "poisson_setup",
+    "poisson_prepared",
     "log_factorial",
     "uniform_array",
     "normal_array",
@@ -504,17 +507,25 @@ def poisson(lam, key, counter):
     """Exact Poisson variate with mean ``lam``.
 
     ``lam < 10``: ``X = X0 + X1`` with independent ``X0 ~ Poisson(lam0)``,
-    ``lam0 = floor(16 lam) / 16``, and ``X1 ~ Poisson(lam - lam0)``; their sum is exactly
-    Poisson(lam) by the additivity of independent Poisson variables. ``X0`` is found by
-    inversion with indexed search in a precomputed CDF table (Chen & Asau 1974, "On
-    generating random variates from an empirical distribution", AIIE Trans. 6, 163-166;
-    Devroye 1986, ch. III) from the uniform at ``counter``; ``X1`` (mean below 1/16)
-    by sequential-search inversion (Devroye 1986, ch. X.3) from the uniform at
-    ``counter + 1``, skipping the exponential when ``u <= 1 - (lam - lam0)``. Both are
-    exact up to double-precision rounding of the CDFs (below 1e-15).
+    ``lam0 = floor(16 lam) / 16``, and ``X1 ~ Poisson(r)``, ``r = lam - lam0 < 1/16``;
+    their sum is exactly Poisson(lam) by the additivity of independent Poisson
+    variables. ``X0`` is found by inversion with indexed search in a precomputed CDF
+    table (Chen & Asau 1974, "On generating random variates from an empirical
+    distribution", AIIE Trans. 6, 163-166; Devroye 1986, ch. III) from the uniform ``u``
+    made of the top 53 bits of the word at ``counter``. ``X1`` by sequential-search
+    inversion (Devroye 1986, ch. X.3) of a second uniform ``u1 = (b + u2) / 2048``,
+    where ``b`` is the low 11 bits of the same word (independent of its top 53 bits) and
+    ``u2`` the uniform at ``counter + 1``; since ``u1 <= 1 - r`` implies
+    ``u1 <= exp(-r)``, i.e. ``X1 = 0``, and ``u1 < (b + 1) / 2048``, the second word is
+    drawn only when ``(b + 1) / 2048 > 1 - r`` (probability ``r + 1/2048``). Both
+    inversions are exact up to double-precision rounding of the CDFs (below 1e-15).
     ``lam >= 10``: PTRS, transformed rejection with squeeze (Hoermann 1993, algorithm
     PTRS, constants as published), two uniforms per trial at ``counter, counter + 1``,
     then ``counter + 2, counter + 3``, ...
+
+    The constants that depend on ``lam`` only are computed by :func:`poisson_setup`
+    and the draw by :func:`poisson_prepared`; a caller drawing many variates of one
+    mean (a pixel in many frames) calls the setup once and gets the same values.
 
     Parameters
     ----------
@@ -532,39 +543,71 @@ def poisson(lam, key, counter):
     int
         Poisson(lam) count.
     """
+    mode, j, r, b, a, vr = poisson_setup(lam)
+    return poisson_prepared(lam, mode, j, r, b, a, vr, key, counter)
+
+
+#: :func:`poisson_setup` modes
+_PM_ZERO = 0
+_PM_HUGE = 1
+_PM_TABLE = 2
+_PM_PTRS = 3
+_LOW11_MASK = np.uint64(0x7FF)
+_INV_2048 = 1.0 / 2048.0
+
+
+@njit(cache=True, inline="always")
+def poisson_setup(lam):
+    """Constants of :func:`poisson` that depend on the mean only.
+
+    Returns ``(mode, j, r, b, a, vr)``: ``mode`` 0 (``lam <= 0`` or NaN), 1 (above
+    ``POISSON_MAX_LAM``), 2 (table inversion: level ``j = floor(16 lam)`` and residual
+    mean ``r = lam - j / 16``) or 3 (PTRS constants ``b = 0.931 + 2.53 sqrt(lam)``,
+    ``a = -0.059 + 0.02483 b``, ``v_r = 0.9277 - 3.6224 / (b - 2)``, Hoermann 1993).
+    """
     if not (lam > 0.0):
-        return 0
+        return _PM_ZERO, 0, 0.0, 0.0, 0.0, 0.0
     if lam > POISSON_MAX_LAM:
-        return np.int64(min(lam, 4.611686018427388e18))
-    c = np.uint64(counter)
+        return _PM_HUGE, 0, 0.0, 0.0, 0.0, 0.0
     if lam < POISSON_PTRS_MIN_LAM:
-        # X = X0 + X1, X0 ~ Poisson(lam0) tabulated, X1 ~ Poisson(lam - lam0) small
         j = np.int64(lam * POISSON_TABLE_LEVELS_PER_E)
-        lam0 = j * (1.0 / POISSON_TABLE_LEVELS_PER_E)
-        u = uniform01(key, c)
+        return _PM_TABLE, j, lam - j * (1.0 / POISSON_TABLE_LEVELS_PER_E), 0.0, 0.0, 0.0
+    b = 0.931 + 2.53 * math.sqrt(lam)
+    return _PM_PTRS, 0, 0.0, b, -0.059 + 0.02483 * b, 0.9277 - 3.6224 / (b - 2.0)
+
+
+@njit(cache=True)
+def poisson_prepared(lam, mode, j, r, b, a, vr, key, counter):
+    """Poisson(lam) draw at ``counter`` given ``poisson_setup(lam)`` (see :func:`poisson`)."""
+    if mode == _PM_TABLE:
+        c = np.uint64(counter)
+        word = random_bits64(key, c)
+        u = max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53  # as uniform01
         k = _PT_GUIDE_TABLE[j, np.int64(u * _PT_GUIDE)]
         while u > _PT_CDF[j, k]:
             k += 1
-        r = lam - lam0
         if r > 0.0:
-            u1 = uniform01(key, c + _ONE_U64)
-            if u1 > 1.0 - r:  # else X1 = 0 since u1 <= 1 - r <= exp(-r)
-                p = math.exp(-r)
-                cdf = p
-                m = 0
-                while u1 > cdf:
-                    m += 1
-                    p *= r * (_INV_K[m] if m < 64 else 1.0 / m)
-                    nxt = cdf + p
-                    if nxt == cdf:  # remaining tail mass below double rounding
-                        break
-                    cdf = nxt
-                k += m
+            low = np.float64(np.int64(word & _LOW11_MASK))
+            if (low + 1.0) * _INV_2048 > 1.0 - r:  # else X1 = 0 (u1 <= 1 - r <= exp(-r))
+                u1 = (low + uniform01(key, c + _ONE_U64)) * _INV_2048
+                if u1 > 1.0 - r:
+                    p = math.exp(-r)
+                    cdf = p
+                    m = 0
+                    while u1 > cdf:
+                        m += 1
+                        p *= r * (_INV_K[m] if m < 64 else 1.0 / m)
+                        nxt = cdf + p
+                        if nxt == cdf:  # remaining tail mass below double rounding
+                            break
+                        cdf = nxt
+                    k += m
         return k
-    slam = math.sqrt(lam)
-    b = 0.931 + 2.53 * slam
-    a = -0.059 + 0.02483 * b
-    vr = 0.9277 - 3.6224 / (b - 2.0)
+    if mode == _PM_ZERO:
+        return 0
+    if mode == _PM_HUGE:
+        return np.int64(min(lam, 4.611686018427388e18))
+    c = np.uint64(counter)
     loglam = 0.0
     log_invalpha = 0.0
     setup_done = False

@@ -217,3 +217,27 @@ def test_better_centroids_run_through_the_protocols(small, method):
     # is wider (pinhole disc, pixel), keeps a pixel-phase bias of a few hundredths of a px
     allowance = 0.06 if method == "iwcog" else 0.03
     assert (np.abs(m.x - m.x_true) < 5 * se + allowance).all()
+
+
+@pytest.mark.parametrize("dark_frames", [0, 2])
+def test_fused_fast_path_equals_windows_then_centroids(small, dark_frames):
+    # simulate() without keep_windows exposes and centroids each window in one numba pass
+    # (budget.kernels_trial); with keep_windows it renders the windows and runs
+    # centroid_windows on them. Same pixels, same centroid code: identical tables.
+    cam = StarCamera(small)
+    for proto in ("te", "hsfe", "chromatic", "distortion"):
+        plan = make_plan(proto, small, seed=4, dark_frames=dark_frames)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fast = simulate(plan, cam, seed=4, marker_seed=9)
+            slow = simulate(plan, cam, seed=4, marker_seed=9, keep_windows=True)
+        assert slow.windows and not fast.windows
+        pd.testing.assert_frame_equal(fast.centroids, slow.centroids, check_exact=True)
+        pd.testing.assert_frame_equal(fast.truth, slow.truth, check_exact=True)
+
+
+def test_fused_fast_path_threads_do_not_change_results(small):
+    plan = make_plan("hsfe", small, seed=2)
+    serial = simulate(plan, StarCamera(small, parallel=False), seed=2).centroids
+    threaded = simulate(plan, StarCamera(small, parallel=True), seed=2).centroids
+    pd.testing.assert_frame_equal(serial, threaded, check_exact=True)

@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from simcam.rng import SLOT_BITS, DRAW_BITS, poisson, std_normal, uniform01
+from simcam.rng import SLOT_BITS, DRAW_BITS, poisson_prepared, poisson_setup, std_normal, uniform01
 
 SLOT_PRNU = 0
 SLOT_DSNU = 1
@@ -227,6 +227,36 @@ def mean_charge_windows(signal_e, row0, col0, mosaic_cols, prnu_rms, dark_e, dsn
                                               hot_fraction, hot_dark_e))
 
 
+@njit(cache=True, inline="always")
+def _noise_adc_pixel(v, pixel, g, off, rn, fw, frame_key, shot_noise, read_noise, quantize, max_dn):
+    """Temporal noise and ADC of one pixel of mean charge ``v`` (e-): Poisson, full well,
+    read noise, conversion and quantisation (module docstring). Returns DN (float)."""
+    mode, pj, pr, pb, pa, pvr = poisson_setup(v)
+    return _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, frame_key,
+                               shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(cache=True, inline="always")
+def _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, frame_key,
+                        shot_noise, read_noise, quantize, max_dn):
+    """:func:`_noise_adc_pixel` given ``simcam.rng.poisson_setup(v)`` (same value)."""
+    if shot_noise:
+        v = np.float64(poisson_prepared(v, mode, pj, pr, pb, pa, pvr, frame_key,
+                                        slot_counter(pixel, SLOT_SHOT)))
+    if v > fw:
+        v = fw
+    if read_noise:
+        v += rn * std_normal(frame_key, slot_counter(pixel, SLOT_READ))
+    v = v / g + off
+    if quantize:
+        v = math.floor(v + 0.5)
+        if v < 0.0:
+            v = 0.0
+        elif v > max_dn:
+            v = max_dn
+    return v
+
+
 @njit(cache=True)
 def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                    offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
@@ -243,52 +273,54 @@ def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_
         rn = read_noise_e[chip]
         fw = full_well_e[chip]
         for jj in range(j, j_end):
-            v = mean_row[jj]
-            if shot_noise:
-                v = np.float64(poisson(v, frame_key, slot_counter(base + jj, SLOT_SHOT)))
-            if v > fw:
-                v = fw
-            if read_noise:
-                v += rn * std_normal(frame_key, slot_counter(base + jj, SLOT_READ))
-            v = v / g + off
-            if quantize:
-                v = math.floor(v + 0.5)
-                if v < 0.0:
-                    v = 0.0
-                elif v > max_dn:
-                    v = max_dn
-            out_row[jj] = v
+            out_row[jj] = _noise_adc_pixel(mean_row[jj], base + jj, g, off, rn, fw, frame_key,
+                                           shot_noise, read_noise, quantize, max_dn)
         j = j_end
 
 
 @njit(cache=True)
-def _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
-                 read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
-                 max_dn, out):
-    n, h, _ = mean_e.shape
-    f = t // (n * h)
-    r = t - f * n * h
-    k = r // h
-    i = r - k * h
-    _noise_adc_row(mean_e[k, i], out[f, k, i], row0[k] + i, col0[k], mosaic_cols, chip_cols,
-                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys[f],
-                   shot_noise, read_noise, quantize, max_dn)
+def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
+                     max_dn):
+    """:func:`_noise_adc_row` for a block ``mean[h, w]`` at mosaic ``(row0, col0)`` in ``F``
+    frames, into ``out[F, h, w]``: the same value per pixel and frame, computed pixel by
+    pixel with the frames innermost, so that the chip constants and the Poisson set-up
+    of each pixel's mean (:func:`simcam.rng.poisson_setup`) are computed once."""
+    h, w = mean.shape
+    nf = frame_keys.shape[0]
+    j = 0
+    while j < w:
+        chip = (col0 + j) // chip_cols
+        j_end = min(w, (chip + 1) * chip_cols - col0)
+        g = gain_e_per_dn[chip]
+        off = offset_dn[chip]
+        rn = read_noise_e[chip]
+        fw = full_well_e[chip]
+        for i in range(h):
+            base = (row0 + i) * mosaic_cols + col0
+            for jj in range(j, j_end):
+                v = mean[i, jj]
+                mode, pj, pr, pb, pa, pvr = poisson_setup(v)
+                for f in range(nf):
+                    out[f, i, jj] = _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, base + jj, g, off,
+                                                        rn, fw, frame_keys[f], shot_noise, read_noise,
+                                                        quantize, max_dn)
+        j = j_end
 
 
 @njit(parallel=True, cache=True)
 def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                           offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
                           read_noise, quantize, max_dn, out):
-    """Temporal noise and ADC of ``n`` windows in ``F`` frames, (frame, window, row) in parallel.
+    """Temporal noise and ADC of ``n`` windows in ``F`` frames, windows in parallel.
 
     ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
     ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
     """
-    n, h, _ = mean_e.shape
-    for t in prange(frame_keys.shape[0] * n * h):
-        _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
-                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
-                     max_dn, out)
+    for k in prange(mean_e.shape[0]):
+        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+                         gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
+                         shot_noise, read_noise, quantize, max_dn)
 
 
 @njit(cache=True)
@@ -296,8 +328,7 @@ def expose_windows_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gai
                                  offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
                                  read_noise, quantize, max_dn, out):
     """Single-threaded twin of :func:`expose_windows_frames` (small batches, worker processes)."""
-    n, h, _ = mean_e.shape
-    for t in range(frame_keys.shape[0] * n * h):
-        _frames_task(t, mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
-                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
-                     max_dn, out)
+    for k in range(mean_e.shape[0]):
+        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+                         gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
+                         shot_noise, read_noise, quantize, max_dn)
