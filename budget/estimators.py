@@ -240,8 +240,8 @@ def _prepare(
             raise UserInputError(f"{what}: column {c!r} must hold integers without gaps")
         if not np.all(np.asarray(col, dtype=np.float64) == np.round(np.asarray(col, dtype=np.float64))):
             raise UserInputError(f"{what}: column {c!r} must hold integers")
-    dup = table.duplicated(subset=list(key), keep=False)
-    if dup.any():
+    if _has_duplicate_keys(table, key):
+        dup = table.duplicated(subset=list(key), keep=False)
         first = table.loc[dup, list(key)].iloc[0].to_dict()
         raise UserInputError(
             f"{what}: {int(dup.sum())} rows repeat the same ({', '.join(key)}), e.g. {first}"
@@ -261,6 +261,23 @@ def _prepare(
     if good.empty:
         raise UserInputError(f"{what}: no good rows left after excluding flagged/non-finite rows")
     return good, n_bad
+
+
+def _key_codes(table: pd.DataFrame, key: tuple[str, ...]) -> np.ndarray:
+    """One integer per row, equal for two rows exactly when all ``key`` columns are equal
+    (each column factorised, the codes combined and re-factorised so they stay < rows)."""
+    codes = np.zeros(len(table), dtype=np.int64)
+    for c in key:
+        col_codes, uniques = pd.factorize(table[c], use_na_sentinel=False)
+        codes = pd.factorize(codes * len(uniques) + col_codes)[0]
+    return codes
+
+
+def _has_duplicate_keys(table: pd.DataFrame, key: tuple[str, ...]) -> bool:
+    """Whether two rows share the same values of every ``key`` column."""
+    if not key or len(table) < 2:
+        return False
+    return bool(np.bincount(_key_codes(table, key)).max() > 1)
 
 
 def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame:
@@ -700,15 +717,21 @@ def _chromatic_means(table, *, reference_filter_nm, what, log):
         ref = int(reference_filter_nm)
         if ref not in filters:
             raise UserInputError(f"{what}: reference_filter_nm={ref} is not in the data's filters {filters.tolist()}")
-    g = df.groupby(["field", "star", "filter_nm"], sort=True)
-    means = pd.DataFrame({"x": g["x"].mean(), "y": g["y"].mean(), "n": g["x"].count()}).reset_index()
-    wide_x = means.pivot(index=["field", "star"], columns="filter_nm", values="x")
-    wide_y = means.pivot(index=["field", "star"], columns="filter_nm", values="y")
-    wide_n = means.pivot(index=["field", "star"], columns="filter_nm", values="n")
-    all_pairs = pd.MultiIndex.from_frame(table[["field", "star"]].drop_duplicates())
-    wide_x = wide_x.reindex(all_pairs.sort_values())
-    wide_y = wide_y.reindex(wide_x.index)
-    wide_n = wide_n.reindex(wide_x.index)
+    # per (field, star) and filter: mean x, y and count, by bincount on integer codes
+    # (every (field, star) pair of the table is kept, sorted, NaN where a filter is missing)
+    pairs_index = pd.MultiIndex.from_frame(table[["field", "star"]].drop_duplicates()).sort_values()
+    row = pairs_index.get_indexer(pd.MultiIndex.from_frame(df[["field", "star"]]))
+    col = np.searchsorted(filters, df["filter_nm"].to_numpy())
+    cell = row * filters.size + col
+    size = len(pairs_index) * filters.size
+    count = np.bincount(cell, minlength=size).astype(np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mx = np.bincount(cell, weights=df["x"].to_numpy(np.float64), minlength=size) / count
+        my = np.bincount(cell, weights=df["y"].to_numpy(np.float64), minlength=size) / count
+    count[count == 0] = np.nan
+    columns = pd.Index(filters, name="filter_nm")
+    wide_x, wide_y, wide_n = (pd.DataFrame(a.reshape(len(pairs_index), filters.size), index=pairs_index,
+                                           columns=columns) for a in (mx, my, count))
     complete = wide_x.notna().all(axis=1)
     n_excl = int((~complete).sum())
     if n_excl:
