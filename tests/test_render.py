@@ -163,3 +163,27 @@ def test_same_seed_same_pixels_and_detector_seed_changes_maps(scene):
     c = StarCamera(default_scenario(), detector_seed=99)
     wc = c.render_windows(c.scene(scene.placement), frames=2, seed=5)
     assert np.any(wc.pixels != wa.pixels)
+
+
+def test_scene_cache_reuses_images_when_only_the_reference_changes():
+    # a new calibrated target per Monte Carlo trial changes only the lab's reference
+    # coordinates: the cached images are reused and the truth carries the new reference,
+    # exactly as a camera that never saw the first target computes it
+    import pandas as pd
+
+    from simcam.targets import calibration_grid
+
+    scn = default_scenario()
+    a, b = calibration_grid(scn, marker_seed=1), calibration_grid(scn, marker_seed=2)
+    assert np.array_equal(a.u_px, b.u_px) and not np.array_equal(a.reference_u_px, b.reference_u_px)
+    cam = StarCamera(scn)
+    first = cam.scene(Placement(layout=a, condition=7))
+    cam.render_windows(first, frames=1, seed=0)          # fills the scene's window caches
+    second = cam.scene(Placement(layout=b, condition=7))
+    fresh = StarCamera(scn).scene(Placement(layout=b, condition=7))
+    assert second.stamps is first.stamps
+    np.testing.assert_array_equal(second.stamps, fresh.stamps)
+    pd.testing.assert_frame_equal(second.truth, fresh.truth, check_exact=True)
+    assert not np.array_equal(second.truth.x_reference, first.truth.x_reference)
+    np.testing.assert_array_equal(cam.render_windows(second, frames=2, seed=5).pixels,
+                                  StarCamera(scn).render_windows(fresh, frames=2, seed=5).pixels)
