@@ -301,15 +301,41 @@ def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame
 
 
 def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
-    g = df.groupby(by, sort=True)
-    out = pd.DataFrame({
-        "n": g["x"].count(),
-        "mean_x": g["x"].mean(),
-        "mean_y": g["y"].mean(),
-        "var_x": g["x"].var(ddof=ddof),
-        "var_y": g["y"].var(ddof=ddof),
-    })
-    return out.reset_index()
+    """Per group of the ``by`` columns (sorted, as ``groupby(by, sort=True)``): count ``n``,
+    means and variances (``ddof``; NaN when ``n <= ddof``) of x and y.
+
+    Integer codes and ``numpy.bincount`` instead of a pandas groupby (the estimators run
+    in every Monte Carlo trial); the variance is the two-pass sum of squared deviations
+    from the group mean, so no precision is lost to cancellation.
+    """
+    n_rows = len(df)
+    codes = np.zeros(n_rows, dtype=np.int64)
+    uniques = []
+    for c in by:
+        u, inv = np.unique(df[c].to_numpy(), return_inverse=True)
+        codes = codes * len(u) + inv.reshape(-1)
+        uniques.append(u)
+    groups, inv = np.unique(codes, return_inverse=True)
+    inv = inv.reshape(-1)
+    n = np.bincount(inv, minlength=groups.size)
+    out = {}
+    rem = groups.copy()
+    for c, u in reversed(list(zip(by, uniques))):
+        out[c] = u[rem % len(u)]
+        rem //= len(u)
+    out = {c: out[c] for c in by}
+    out["n"] = n
+    means, variances = {}, {}
+    for ax in ("x", "y"):
+        v = df[ax].to_numpy(np.float64)
+        m = np.bincount(inv, weights=v, minlength=groups.size) / n
+        ss = np.bincount(inv, weights=(v - m[inv]) ** 2, minlength=groups.size)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            var = np.where(n > ddof, ss / np.maximum(n - ddof, 1), np.nan)
+        means[f"mean_{ax}"], variances[f"var_{ax}"] = m, var
+    out.update(means)
+    out.update(variances)
+    return pd.DataFrame(out)
 
 
 # -------------------------------------------------------------------------- TE
@@ -719,8 +745,14 @@ def _chromatic_means(table, *, reference_filter_nm, what, log):
             raise UserInputError(f"{what}: reference_filter_nm={ref} is not in the data's filters {filters.tolist()}")
     # per (field, star) and filter: mean x, y and count, by bincount on integer codes
     # (every (field, star) pair of the table is kept, sorted, NaN where a filter is missing)
-    pairs_index = pd.MultiIndex.from_frame(table[["field", "star"]].drop_duplicates()).sort_values()
-    row = pairs_index.get_indexer(pd.MultiIndex.from_frame(df[["field", "star"]]))
+    f_codes, f_uni = pd.factorize(table["field"], sort=True)
+    s_uni, s_codes = np.unique(table["star"].to_numpy(), return_inverse=True)
+    n_s = len(s_uni)
+    present = np.unique(f_codes * n_s + s_codes.reshape(-1))        # sorted by (field, star)
+    pairs_index = pd.MultiIndex.from_arrays([np.asarray(f_uni)[present // n_s], s_uni[present % n_s]],
+                                            names=["field", "star"])
+    row = np.searchsorted(present, pd.Index(f_uni).get_indexer(df["field"]) * n_s
+                          + np.searchsorted(s_uni, df["star"].to_numpy()))
     col = np.searchsorted(filters, df["filter_nm"].to_numpy())
     cell = row * filters.size + col
     size = len(pairs_index) * filters.size
