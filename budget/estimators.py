@@ -263,6 +263,12 @@ def _prepare(
     return good, n_bad
 
 
+def _stars_per_field(wide: pd.DataFrame) -> np.ndarray:
+    """Number of rows (stars) of each field of a table indexed by (field, star)."""
+    codes, _ = pd.factorize(wide.index.get_level_values("field"))
+    return np.bincount(codes)
+
+
 def _key_codes(table: pd.DataFrame, key: tuple[str, ...]) -> np.ndarray:
     """One integer per row, equal for two rows exactly when all ``key`` columns are equal
     (each column factorised, the codes combined and re-factorised so they stay < rows)."""
@@ -836,7 +842,7 @@ def chromatic_error(
     pt = pd.DataFrame(rows)
     mx = float(pt["delta_bar_x_px"].abs().max())
     my = float(pt["delta_bar_y_px"].abs().max())
-    per_field = wx.groupby(level="field").size()
+    per_field = _stars_per_field(wx)
     return ChromaticEstimate(
         quantity="LSFE-S", method="published", equations="seed 000 eqs 13-16, section 1.4.1",
         sigma_x_px=mx / spectrum_factor, sigma_y_px=my / spectrum_factor, plate_scale_arcsec=ps,
@@ -935,7 +941,7 @@ def chromatic_error_decomposed(
     sx = float(pt["rms_x_px"].max()) / (2.0 * spectrum_factor)
     sy = float(pt["rms_y_px"].max()) / (2.0 * spectrum_factor)
     k = wx.index.get_level_values("field").nunique()
-    per_field = wx.groupby(level="field").size()
+    per_field = _stars_per_field(wx)
     return ChromaticEstimate(
         quantity="LSFE-S", method="decomposed", equations="docs/estimators.md (chromatic decomposed)",
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
@@ -1029,7 +1035,7 @@ def chromatic_error_population(
     return ChromaticEstimate(
         quantity="LSFE-S", method="population", equations="docs/estimators.md (chromatic population)",
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
-        n_stars=int(wx.groupby(level="field").size().min()), n_frames=int(wn.min().min()), n_conditions=int(k),
+        n_stars=int(_stars_per_field(wx).min()), n_frames=int(wn.min().min()), n_conditions=int(k),
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
         details={"calibration_wavelength_nm": float(calibration_wavelength_nm),
                  "population_wavelengths_nm": lam_p.tolist(),

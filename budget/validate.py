@@ -37,6 +37,8 @@ AXES = ("x", "y")
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
 _CACHE: dict = {}
+#: trials per task sent to a worker process
+_CHUNK_TRIALS = 10
 #: numba threads inside this process's kernels (False in worker processes: one per core)
 _PARALLEL: bool | None = None
 
@@ -264,7 +266,10 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
                     if bar:
                         bar.update(1)
             else:
-                chunks = [ks[i::workers * 4] for i in range(min(len(ks), workers * 4))]
+                # small chunks (a few seconds of work each) keep both the workers and the
+                # progress bar busy to the end; the order of completion does not matter
+                size = max(1, min(_CHUNK_TRIALS, len(ks) // (2 * workers)))
+                chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
                 for res in pool.map(_run_chunk, [(scenario, seed, c) for c in chunks]):
                     results.extend(res)
                     if bar:
