@@ -104,6 +104,15 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite) ->
     click.echo(f"time       {dt:.2f} s")
 
 
+def _register_lens_commands() -> None:
+    from simcam.lens.cli import optics_command
+
+    cli.add_command(optics_command)
+
+
+_register_lens_commands()
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     run_cli(cli, argv)

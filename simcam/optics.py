@@ -410,6 +410,13 @@ def lateral_colour_shift_px(
         du = (u / r_norm) P_r(dl) + P_x(dl)
         dv = (v / r_norm) P_r(dl) + P_y(dl)
 
+    ``radial_coeffs`` may also be a table ``c[k-1][m]`` (K rows, M columns): the radial
+    polynomial then depends on the field radius ``r = sqrt(u^2 + v^2)`` too,
+    ``P_r(dl, r) = sum_k sum_m c_km dl^k (r / r_norm)^(2m)``: the expansion of transverse
+    chromatic aberration in odd powers of the field (primary, secondary, ... lateral
+    colour, ``du`` proportional to ``h, h^3, h^5``; Welford 1986, Sec. 14.4), as fitted to a
+    traced lens by :mod:`simcam.lens.simulator`. One column is the first form.
+
     The radial term is transverse chromatic aberration (lateral colour, a Seidel
     chromatic term proportional to field height; e.g. Welford, Aberrations of Optical
     Systems, 1986, on transverse chromatic aberration); the uniform term is
@@ -429,7 +436,8 @@ def lateral_colour_shift_px(
     ref_wavelength_nm : float
         Reference wavelength (zero displacement) in nm (> 0).
     radial_coeffs, uniform_x_coeffs, uniform_y_coeffs : sequence of float
-        ``c_1, c_2, ...`` in px / nm^k (may be empty).
+        ``c_1, c_2, ...`` in px / nm^k (may be empty). ``radial_coeffs`` may be a
+        rectangular table ``c[k-1][m]`` (px / nm^k at ``(r / r_norm)^(2m)``).
     r_norm_px : float
         Normalising field radius in px (> 0).
 
@@ -451,11 +459,23 @@ def lateral_colour_shift_px(
         raise OpticsError(f"v_px: shape {v.shape} differs from u_px {u.shape}")
     lref = _positive_float("ref_wavelength_nm", ref_wavelength_nm)
     rn = _positive_float("r_norm_px", r_norm_px)
-    cr = _coeff_tuple("radial_coeffs", radial_coeffs)
     cx = _coeff_tuple("uniform_x_coeffs", uniform_x_coeffs)
     cy = _coeff_tuple("uniform_y_coeffs", uniform_y_coeffs)
     dl = wl - lref
-    pr = _poly_no_constant(dl, cr)[None, :]
+    table = _finite_array("radial_coeffs", radial_coeffs)
+    if table.ndim > 2 or (table.ndim == 2 and table.shape[1] == 0):
+        raise OpticsError(f"radial_coeffs: expected a sequence or a table with rows of equal length >= 1, "
+                          f"got shape {table.shape}")
+    if table.ndim == 2 and table.shape[1] > 1:
+        # P_r(dl, r) = sum_k dl^k sum_m c_km s^m with s = (r / r_norm)^2, per star
+        s = (u * u + v * v) / (rn * rn)
+        a = np.power.outer(s, np.arange(table.shape[1])) @ table.T  # (n, K)
+        dlp = np.power.outer(dl, np.arange(1, table.shape[0] + 1)).T  # (K, n_l)
+        pr = a @ dlp
+    elif table.ndim == 2:
+        pr = _poly_no_constant(dl, tuple(float(c) for c in table[:, 0]))[None, :]
+    else:
+        pr = _poly_no_constant(dl, _coeff_tuple("radial_coeffs", radial_coeffs))[None, :]
     px = _poly_no_constant(dl, cx)[None, :]
     py = _poly_no_constant(dl, cy)[None, :]
     du = (u / rn)[:, None] * pr + px

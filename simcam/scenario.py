@@ -14,6 +14,8 @@ to 0 (got -1.0)``.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import re
 import tomllib
@@ -36,6 +38,7 @@ Finite = Annotated[float, Field(allow_inf_nan=False)]
 Fraction = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)]
 FloatSeq = Annotated[tuple[Finite, ...], Field(strict=False)]
 Pair = Annotated[tuple[Finite, Finite], Field(strict=False)]
+FloatTable = Annotated[tuple[FloatSeq, ...], Field(strict=False, min_length=1)]
 
 
 class _Model(StrictModel):
@@ -149,20 +152,43 @@ class LateralColourModel(_Model):
 
     du = (u / r_norm) P_radial + P_x, dv = (v / r_norm) P_radial + P_y, P(d) = sum c_k d^k,
     k = 1.., coefficients in px per nm^k. The radial term is Seidel lateral colour; the
-    uniform term the prism-like shift of a decentred element.
+    uniform term the prism-like shift of a decentred element. ``radial_px_per_nm`` may
+    also be a table (rows of equal length) ``c[k-1][m]``: ``P_radial = sum_k sum_m c_km
+    d^k (r / r_norm)^(2m)``, lateral colour growing as odd powers of the field radius ``r``
+    (what a traced lens gives, see ``optics.lens``).
     """
 
     ref_wavelength_nm: Pos = 600.0
-    radial_px_per_nm: FloatSeq = (1.0e-4,)
+    radial_px_per_nm: FloatSeq | FloatTable = (1.0e-4,)
     uniform_x_px_per_nm: FloatSeq = (6.0e-4,)
     uniform_y_px_per_nm: FloatSeq = (3.5e-5,)
 
+    @model_validator(mode="after")
+    def _rectangular(self) -> LateralColourModel:
+        rows = self.radial_px_per_nm
+        if rows and isinstance(rows[0], tuple):
+            widths = {len(r) for r in rows}
+            if len(widths) != 1 or 0 in widths:
+                raise ValueError(f"radial_px_per_nm: table rows must have the same length >= 1 (got lengths "
+                                 f"{[len(r) for r in rows]})")
+        return self
+
 
 class OpticsModel(_Model):
-    """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field."""
+    """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field.
+
+    ``lens`` (optional, default none: the analytic coefficients below): a lens prescription,
+    ``"embedded:star_camera"`` or a TOML file path (relative to the working directory).
+    The lens is ray traced (simcam.lens, cached on disk) and sets ``psf`` (Airy with the
+    geometric blur), ``distortion``, the lateral-colour coefficients and
+    ``camera.aperture_diameter_mm`` (its entrance pupil), fitted to the traced tables
+    (docs/lens.md); values given for those must equal what the lens gives. The camera's
+    nominal focal length must agree with the lens's within 0.1 %.
+    """
 
     transmission: Fraction = 0.8
     r_norm_px: Pos = 2048.0
+    lens: Annotated[str, Field(min_length=1)] | None = None
     psf: PSFModel = PSFModel()
     distortion: DistortionModel = DistortionModel()
     lateral_colour: LateralColourModel = LateralColourModel()
@@ -457,6 +483,19 @@ class Scenario(_Model):
     protocols: ProtocolsModel = ProtocolsModel()
     validation: ValidationModel = ValidationModel()
 
+    @model_validator(mode="before")
+    @classmethod
+    def _lens(cls, data: Any) -> Any:
+        # optics.lens: trace the lens (or read its cached tables) and fill what it sets
+        if isinstance(data, dict):
+            optics = data.get("optics")
+            lens = optics.get("lens") if isinstance(optics, dict) else getattr(optics, "lens", None)
+            if lens is not None:
+                from simcam.lens.simulator import apply_lens
+
+                return apply_lens(data)
+        return data
+
     @model_validator(mode="after")
     def _cross(self) -> Scenario:
         refs = [f.center_nm for f in self.lab.filters]
@@ -469,8 +508,13 @@ class Scenario(_Model):
 
     @cached_property
     def hash(self) -> str:
-        """Scenario hash: SHA-256 prefix of the canonical JSON of the resolved scenario."""
-        return model_hash(self)
+        """Scenario hash: SHA-256 prefix of the canonical JSON of the resolved scenario
+        (without ``optics.lens`` when it is unset, so analytic scenarios keep their hash)."""
+        if self.optics.lens is not None:
+            return model_hash(self)
+        payload = json.dumps(self.model_dump(mode="json", exclude={"optics": {"lens"}}), sort_keys=True,
+                             separators=(",", ":"))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
     model_config = ConfigDict(
         extra="forbid", frozen=True, strict=True, validate_default=True, ignored_types=(cached_property,)
@@ -493,6 +537,15 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Sc
     """Validate a dict (parsed TOML) into a :class:`Scenario`, or raise ScenarioError."""
     if not isinstance(data, dict):
         raise ScenarioError(f"{source or 'scenario'}: top level must be a table")
+    optics = data.get("optics")
+    if isinstance(optics, dict) and optics.get("lens") is not None:
+        # resolve the lens here too, so that its errors read "file: field: message"
+        from simcam.lens.simulator import apply_lens
+
+        try:
+            data = apply_lens(data)
+        except ValueError as exc:
+            raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
     return validate_model(Scenario, data, source=source)
 
 
@@ -533,6 +586,19 @@ _ARRAY_RE = re.compile(r"\[\n((?: +[^\[\]{}\n]+,\n)+) *\]")
 def with_updates(scenario: Scenario, dotted: dict[str, Any]) -> Scenario:
     """Return a copy with dotted keys replaced (``{"detector.read_noise_e": 5}``), re-validated."""
     data = scenario.model_dump(mode="python")
+    if scenario.optics.lens is not None:
+        # what the lens sets is recomputed after the update (unless the update sets it)
+        from simcam.lens.simulator import LENS_DERIVED_PATHS
+
+        for path in LENS_DERIVED_PATHS:
+            if any(k == path or k.startswith(path + ".") or path.startswith(k + ".") for k in dotted):
+                continue
+            *parents, leaf = path.split(".")
+            node = data
+            for part in parents:
+                node = node.get(part, {}) if isinstance(node, dict) else {}
+            if isinstance(node, dict):
+                node.pop(leaf, None)
     for key, value in dotted.items():
         node = data
         parts = key.split(".")
