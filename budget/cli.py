@@ -24,6 +24,8 @@ def _register() -> None:
         ("budget.simulate", "simulate_command"),
         ("budget.validate", "validate_command"),
         ("budget.harmonics_cli", "harmonics_group"),
+        ("budget.sweep", "sweep_command"),
+        ("budget.sweep_plot", "plot_command"),
     ):
         try:
             module = importlib.import_module(module_name)

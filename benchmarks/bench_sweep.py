@@ -1,0 +1,154 @@
+"""Throughput of design-trade sweeps, and the cost of a point as its trial count grows.
+
+* points per second of a truth-mode sweep of the embedded seed-000 scenario (PSF width x
+  PRNU, ``--points`` points, each a new camera: scenes, stamps and every class's truth)
+  on 1 and 2 local worker processes (``budget sweep --workers W``), and optionally on a
+  Dask LocalCluster (``--dask``). Two rates per run: end to end (wall time of
+  ``run_sweep``: reading and checking the sweep, starting the processes, importing,
+  warming the JIT, writing the store) and steady state (points finished after every
+  worker has finished its first one, over the time since then). Each configuration runs
+  ``--repeat`` times into a fresh store; best and range are printed;
+* one validation point (``evaluate = "validate"``) of the default scenario with K trials,
+  in this process on one numba thread (as in a worker), K in ``--trials-list``, best of
+  ``--repeat``; a least-squares line gives the fixed cost (truths) and the cost per trial.
+
+Usage: ``python benchmarks/bench_sweep.py [--points 24] [--repeat 2] [--dask]
+[--trials-list 2,4,8,16]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, _HERE)
+sys.path.insert(1, os.path.dirname(_HERE))
+from _common import format_table, machine_description  # noqa: E402
+
+
+def _grid_file(d: str, points: int) -> str:
+    n_psf = max(1, points // 2)
+    path = os.path.join(d, "bench.toml")
+    with open(path, "w") as fh:
+        fh.write(f"""name = "bench: HSFE vs PSF width and PRNU"
+seed = 1
+evaluate = "truth"
+[parameters]
+"optics.psf.sigma0_px" = {{start = 0.6, stop = 1.4, num = {n_psf}}}
+"detector.prnu_rms" = [0.0, 0.01]
+""")
+    return path
+
+
+def _rates(rep) -> tuple[float, float]:
+    """(end-to-end points/s, steady-state points/s) of a run."""
+    n = len(rep.completed)
+    e2e = n / rep.wall_s
+    first = {}
+    for _, _, t, pid in rep.completed:
+        first.setdefault(pid, t)
+    t_ready = max(first.values())
+    after = [t for _, _, t, _ in rep.completed if t > t_ready]
+    steady = len(after) / (max(after) - t_ready) if len(after) >= 2 else float("nan")
+    return e2e, steady
+
+
+def _throughput(path: str, d: str, repeat: int, configs) -> list:
+    from budget.sweep import run_sweep
+
+    rows = []
+    for label, kw in configs:
+        e2e, steady, cost, cpu = [], [], [], []
+        for r in range(repeat):
+            out = os.path.join(d, f"store-{label.replace(' ', '_')}-{r}")
+            rep = run_sweep(path, out, **kw)
+            a, b = _rates(rep)
+            e2e.append(a)
+            steady.append(b)
+            cost.extend(rep.compute_s)
+            cpu.extend(rep.cpu_s)
+            shutil.rmtree(out)
+        cost.sort()
+        cpu.sort()
+        rows.append((label, e2e, steady, cost[len(cost) // 2], cpu[len(cpu) // 2]))
+        print(f"  {label}: end-to-end {max(e2e):.3f} points/s, steady {max(steady):.3f} points/s", flush=True)
+    return rows
+
+
+def _trial_cost(trials_list, repeat):
+    import numpy as np
+
+    from budget.sweep_eval import PointTask, evaluate_point
+    from budget.validate import _worker_init
+    from simcam.scenario import default_scenario, with_updates
+
+    _worker_init()  # one numba thread, as in a worker process
+    base = default_scenario()
+    evaluate_point(PointTask("grid", 0, "camera", "validate", base, 1, trials=2))  # warm-up (JIT)
+    rows = []
+    n = 0
+    for k in trials_list:
+        ts = []
+        for r in range(repeat):
+            # a new scenario (detector seed) each time, as every point of a sweep is: no cached
+            # camera, scenes or stamps
+            n += 1
+            scn = with_updates(base, {"seed": base.seed + n})
+            t0 = time.perf_counter()
+            evaluate_point(PointTask("grid", 0, "camera", "validate", scn, 100 + n, trials=k))
+            ts.append(time.perf_counter() - t0)
+        rows.append((k, min(ts), max(ts)))
+        print(f"  {k} trials: best {min(ts):.2f} s", flush=True)
+    k = np.array([r[0] for r in rows], float)
+    t = np.array([r[1] for r in rows])
+    b, a = np.polyfit(k, t, 1)
+    return rows, a, b
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=24)
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--dask", action="store_true", help="also a Dask LocalCluster of 2 workers")
+    ap.add_argument("--trials-list", default="2,4,8,16")
+    ap.add_argument("--skip-throughput", action="store_true")
+    ap.add_argument("--skip-trials", action="store_true")
+    args = ap.parse_args()
+    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()), flush=True)
+    d = tempfile.mkdtemp(prefix="bench_sweep_")
+    try:
+        if not args.skip_throughput:
+            path = _grid_file(d, args.points)
+            configs = [("1 process", {"workers": 1}), ("2 processes", {"workers": 2})]
+            if args.dask:
+                configs.append(("Dask LocalCluster 2", {"dask_local": 2}))
+            print(f"throughput, {args.points} truth-mode points of the default scenario, "
+                  f"{args.repeat} run(s) each:", flush=True)
+            rows = _throughput(path, d, args.repeat, configs)
+            base_e2e, base_st = max(rows[0][1]), max(rows[0][2])
+            print(format_table(
+                ["workers", "end-to-end pt/s best [range]", "steady pt/s best [range]", "speed-up (steady)",
+                 "median point wall s", "median point CPU s"],
+                [(lab, f"{max(e):.3f} [{min(e):.3f}-{max(e):.3f}]", f"{max(s):.3f} [{min(s):.3f}-{max(s):.3f}]",
+                  f"{max(s) / base_st:.2f}x (e2e {max(e) / base_e2e:.2f}x)", f"{c:.2f}", f"{u:.2f}")
+                 for lab, e, s, c, u in rows]))
+            print("(a point's CPU time is the work; its wall time above its CPU time is waiting for a core: "
+                  "other jobs on the machine)")
+        if not args.skip_trials:
+            print("cost of one validation point (default scenario, one numba thread):", flush=True)
+            tl = [int(x) for x in args.trials_list.split(",")]
+            rows, a, b = _trial_cost(tl, args.repeat)
+            print(format_table(["trials", "best s", "worst s"], [(k, f"{lo:.2f}", f"{hi:.2f}") for k, lo, hi in rows]))
+            print(f"fit: {a:.2f} s + {b:.3f} s per trial")
+        print("load after:", " ".join(f"{x:.2f}" for x in os.getloadavg()))
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
