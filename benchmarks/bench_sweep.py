@@ -84,10 +84,10 @@ def _trial_cost(trials_list, repeat):
     import numpy as np
 
     from budget.sweep_eval import PointTask, evaluate_point
-    from budget.validate import _worker_init
+    from budget.validate import worker_init
     from simcam.scenario import default_scenario, with_updates
 
-    _worker_init()  # one numba thread, as in a worker process
+    worker_init()  # one numba thread, as in a worker process
     base = default_scenario()
     evaluate_point(PointTask("grid", 0, "camera", "validate", base, 1, trials=2))  # warm-up (JIT)
     rows = []

@@ -51,7 +51,6 @@ INDUCTOSYN_AXES = ("angle",)
 #: codes of ``stopped_by`` (CF flag values)
 STOPPED_BY = ("trials", "tolerance", "max_trials")
 #: spawn key of the truth seed inside budget.validate.validate (kept equal, tested)
-TRUTH_SPAWN_KEY = (2**31,)
 
 
 def labels(kind: str) -> dict[str, tuple[str, ...]]:
@@ -126,27 +125,11 @@ class PointResult:
 
 
 def camera_truths(scenario, seed: int) -> dict:
-    """Every class's truth (:class:`budget.truth.ClassTruth`) as ``validate(scenario, seed=seed)`` has it.
+    """Every class's truth (:class:`budget.truth.ClassTruth`) as ``validate(scenario, seed=seed)``
+    has it: :func:`budget.validate.truths`."""
+    from budget.validate import truths
 
-    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``; with
-    ``validation.new_maps_per_trial`` the HSFE truth is the rms over the maps of trials
-    0-3 and the total follows (the rule of :func:`budget.validate.validate`).
-    """
-    from budget.truth import ClassTruth, all_truths, hsfe_truth
-    from budget.validate import trial_seeds
-    from simcam.render import StarCamera
-
-    truth_seed = int(np.random.SeedSequence(seed, spawn_key=TRUTH_SPAWN_KEY).generate_state(1)[0])
-    truths = all_truths(StarCamera(scenario), seed=truth_seed)
-    if scenario.validation.new_maps_per_trial:
-        hs = [hsfe_truth(StarCamera(scenario, detector_seed=trial_seeds(seed, k)[1])) for k in range(4)]
-        hx = math.sqrt(np.mean([h.x_px**2 for h in hs]))
-        hy = math.sqrt(np.mean([h.y_px**2 for h in hs]))
-        truths["hsfe"] = ClassTruth("hsfe", hx, hy, {**hs[0].details, "map_realisations": len(hs)})
-        t, lf = truths["te"], truths["lsfe"]
-        truths["total"] = ClassTruth("total", math.sqrt(t.x_px**2 + hx**2 + lf.x_px**2),
-                                     math.sqrt(t.y_px**2 + hy**2 + lf.y_px**2), truths["total"].details)
-    return truths
+    return truths(scenario, seed=seed)
 
 
 def _truth_arrays(scenario, truths) -> tuple[np.ndarray, np.ndarray]:
@@ -258,7 +241,7 @@ def evaluate_point(task: PointTask) -> PointResult:
 
 def evaluate_in_worker(task: PointTask) -> PointResult:
     """:func:`evaluate_point` in a Dask worker: one numba thread per task, as the local pool."""
-    from budget.validate import _worker_init
+    from budget.validate import worker_init
 
-    _worker_init()
+    worker_init()
     return evaluate_point(task)

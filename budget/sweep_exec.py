@@ -8,7 +8,7 @@ number of workers or the order.
 * :class:`InlineRunner`: one after the other in this process (tests, debugging);
 * :class:`ProcessRunner`: a pool of local processes, started with ``spawn`` (numba's
   thread pools must not be forked), each initialised like the validation's own workers
-  (:func:`budget.validate._worker_init`: one numba thread per process: the processes
+  (:func:`budget.validate.worker_init`: one numba thread per process: the processes
   are the parallelism);
 * :class:`DaskRunner`: an existing Dask distributed scheduler (``tcp://host:port``) or a
   :class:`distributed.LocalCluster` of ``n`` single-threaded worker processes; each task
@@ -76,10 +76,10 @@ class ProcessRunner(Runner):
     def __enter__(self):
         from concurrent.futures import ProcessPoolExecutor
 
-        from budget.validate import _worker_init
+        from budget.validate import worker_init
 
         self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_worker_init)
+                                         initializer=worker_init)
         return self
 
     def close(self):

@@ -43,7 +43,7 @@ _CHUNK_TRIALS = 10
 _PARALLEL: bool | None = None
 
 
-def _worker_init() -> None:
+def worker_init() -> None:
     """Worker processes run single-threaded kernels: the processes are the parallelism."""
     global _PARALLEL
     import numba
@@ -195,6 +195,28 @@ class ValidationResult:
         }
 
 
+def truths(scenario, *, seed: int) -> dict:
+    """Every class's truth (:class:`budget.truth.ClassTruth`) of a validation run with ``seed``.
+
+    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
+    ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
+    the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
+    """
+    from budget.truth import ClassTruth, all_truths, hsfe_truth
+
+    truth_seed = int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
+    out = all_truths(_camera(scenario), seed=truth_seed)
+    if scenario.validation.new_maps_per_trial:
+        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1])) for k in range(4)]
+        hx = math.sqrt(np.mean([h.x_px**2 for h in hs]))
+        hy = math.sqrt(np.mean([h.y_px**2 for h in hs]))
+        out["hsfe"] = ClassTruth("hsfe", hx, hy, {**hs[0].details, "map_realisations": len(hs)})
+        t, lf = out["te"], out["lsfe"]
+        out["total"] = ClassTruth("total", math.sqrt(t.x_px**2 + hx**2 + lf.x_px**2),
+                                  math.sqrt(t.y_px**2 + hy**2 + lf.y_px**2), out["total"].details)
+    return out
+
+
 def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: float | None = None,
              seed: int = 0, workers: int = 1, progress: bool = False, keep_example: bool = True) -> ValidationResult:
     """Run the Monte Carlo validation (see module docstring).
@@ -212,8 +234,6 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
     workers : int
         Processes (1: in this process). Results do not depend on it.
     """
-    from budget.truth import all_truths
-
     val = scenario.validation
     tol = tolerance_3sigma_arcsec if tolerance_3sigma_arcsec is not None else (
         val.tolerance_3sigma_arcsec if trials is None else None)
@@ -221,21 +241,7 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
         raise ValueError("trials and tolerance: give one of them")
     if workers < 1:
         raise ValueError(f"workers: must be >= 1, got {workers}")
-    cam = _camera(scenario)
-    truth_seed = int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
-    truths = all_truths(cam, seed=truth_seed)
-    if val.new_maps_per_trial:
-        # the static pixel error then changes from trial to trial: its truth is the rms
-        # over the maps of the first (up to) four trials
-        from budget.truth import ClassTruth, hsfe_truth
-
-        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1])) for k in range(4)]
-        hx = math.sqrt(np.mean([h.x_px**2 for h in hs]))
-        hy = math.sqrt(np.mean([h.y_px**2 for h in hs]))
-        truths["hsfe"] = ClassTruth("hsfe", hx, hy, {**hs[0].details, "map_realisations": len(hs)})
-        t, l = truths["te"], truths["lsfe"]
-        truths["total"] = ClassTruth("total", math.sqrt(t.x_px**2 + hx**2 + l.x_px**2),
-                                     math.sqrt(t.y_px**2 + hy**2 + l.y_px**2), truths["total"].details)
+    truths_ = truths(scenario, seed=seed)
     example = run_trial(scenario, seed, 0, keep=True) if keep_example else None
     results: list = [] if example is None else [{"k": 0, "values": example["values"]}]
     if tol is None and trials is None:
@@ -251,7 +257,7 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
         bar.update(len(results))
     # "spawn": numba's OpenMP/TBB thread pools must not be forked
     pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                initializer=_worker_init) if workers > 1 else None)
+                                initializer=worker_init) if workers > 1 else None)
     stopped_by = "trials"
     try:
         while True:
@@ -288,7 +294,7 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
             bar.close()
     results.sort(key=lambda r: r["k"])
     samples = {key: np.array([r["values"][key] for r in results]) for key in results[0]["values"]}
-    return ValidationResult(scenario, seed, truths, samples, len(results), stopped_by,
+    return ValidationResult(scenario, seed, truths_, samples, len(results), stopped_by,
                             example=example.get("kept", {}) if example else {})
 
 
