@@ -271,11 +271,17 @@ def _stars_per_field(wide: pd.DataFrame) -> np.ndarray:
 
 def _key_codes(table: pd.DataFrame, key: tuple[str, ...]) -> np.ndarray:
     """One integer per row, equal for two rows exactly when all ``key`` columns are equal
-    (each column factorised, the codes combined and re-factorised so they stay < rows)."""
+    (each column factorised; the codes combined in mixed radix, re-factorised if the
+    radix product would overflow)."""
     codes = np.zeros(len(table), dtype=np.int64)
+    size = 1
     for c in key:
         col_codes, uniques = pd.factorize(table[c], use_na_sentinel=False)
-        codes = pd.factorize(codes * len(uniques) + col_codes)[0]
+        if size * max(len(uniques), 1) >= 2**62:
+            codes = pd.factorize(codes)[0]
+            size = int(codes.max()) + 1
+        codes = codes * len(uniques) + col_codes
+        size *= max(len(uniques), 1)
     return codes
 
 
@@ -283,7 +289,8 @@ def _has_duplicate_keys(table: pd.DataFrame, key: tuple[str, ...]) -> bool:
     """Whether two rows share the same values of every ``key`` column."""
     if not key or len(table) < 2:
         return False
-    return bool(np.bincount(_key_codes(table, key)).max() > 1)
+    s = np.sort(_key_codes(table, key))
+    return bool(np.any(s[1:] == s[:-1]))
 
 
 def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame:
@@ -526,10 +533,12 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     m = conditions.size
     if m < 2:
         raise UserInputError(f"{what}: needs at least 2 conditions, got {m} ({conditions.tolist()})")
-    st = st[st["n"] >= need_frames]
-    counts = st.groupby("star")["condition"].nunique()
-    all_stars = np.sort(table["star"].unique())
-    complete = counts.index[counts == m].to_numpy()
+    # st has one row per (star, condition), sorted by (star, condition)
+    st_star = st["star"].to_numpy()
+    keep = st["n"].to_numpy() >= need_frames
+    kept_stars, n_conditions = np.unique(st_star[keep], return_counts=True)
+    all_stars = np.unique(table["star"].to_numpy())
+    complete = kept_stars[n_conditions == m]
     dropped = np.setdiff1d(all_stars, complete)
     if dropped.size:
         log.warn(f"{what}: {dropped.size} star(s) lack {need_frames}+ good frames in some "
@@ -538,10 +547,10 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     if w < 2:
         raise UserInputError(f"{what}: needs at least 2 stars seen in every condition, got {w}")
     # rows are sorted by (star, condition) and each complete star has all m conditions
-    st = st[st["star"].isin(complete)]
+    sel = keep & np.isin(st_star, complete)
 
     def mat(col):
-        return st[col].to_numpy(float).reshape(w, m)
+        return st[col].to_numpy(float)[sel].reshape(w, m)
 
     return (df, n_bad, complete, conditions, mat("mean_x"), mat("mean_y"),
             mat("var_x"), mat("var_y"), mat("n"), int(dropped.size))
@@ -767,15 +776,16 @@ def _chromatic_means(table, *, reference_filter_nm, what, log):
         mx = np.bincount(cell, weights=df["x"].to_numpy(np.float64), minlength=size) / count
         my = np.bincount(cell, weights=df["y"].to_numpy(np.float64), minlength=size) / count
     count[count == 0] = np.nan
-    columns = pd.Index(filters, name="filter_nm")
-    wide_x, wide_y, wide_n = (pd.DataFrame(a.reshape(len(pairs_index), filters.size), index=pairs_index,
-                                           columns=columns) for a in (mx, my, count))
-    complete = wide_x.notna().all(axis=1)
+    mx, my, count = (a.reshape(len(pairs_index), filters.size) for a in (mx, my, count))
+    complete = np.isfinite(count).all(axis=1)
     n_excl = int((~complete).sum())
     if n_excl:
-        lost = [f"{f}/{s}" for f, s in wide_x.index[~complete][:10]]
+        lost = [f"{f}/{s}" for f, s in pairs_index[~complete][:10]]
         log.warn(f"{what}: {n_excl} (field, star) pair(s) lack a filter and are excluded ({', '.join(lost)})")
-    wide_x, wide_y, wide_n = wide_x[complete], wide_y[complete], wide_n[complete]
+    columns = pd.Index(filters, name="filter_nm")
+    index = pairs_index[complete] if n_excl else pairs_index
+    wide_x, wide_y, wide_n = (pd.DataFrame(a[complete] if n_excl else a, index=index, columns=columns)
+                              for a in (mx, my, count))
     if wide_x.empty:
         raise UserInputError(f"{what}: no (field, star) seen through every filter")
     pairs = []
@@ -833,9 +843,11 @@ def chromatic_error(
     n_pts = len(wx)                                   # W * K
     k = wx.index.get_level_values("field").nunique()
     rows = []
+    col = {f: i for i, f in enumerate(wx.columns)}
+    ax, ay = wx.to_numpy(), wy.to_numpy()
     for lo, hi in pairs:
-        dxb = float((wx[hi] - wx[lo]).sum()) / (2.0 * n_pts)
-        dyb = float((wy[hi] - wy[lo]).sum()) / (2.0 * n_pts)
+        dxb = float((ax[:, col[hi]] - ax[:, col[lo]]).sum()) / (2.0 * n_pts)
+        dyb = float((ay[:, col[hi]] - ay[:, col[lo]]).sum()) / (2.0 * n_pts)
         rows.append({"pair": f"{hi}-{lo}", "filter_short_nm": lo, "filter_long_nm": hi,
                      "delta_bar_x_px": dxb, "delta_bar_y_px": dyb,
                      "delta_bar_x_arcsec": dxb * ps, "delta_bar_y_arcsec": dyb * ps})
@@ -1077,9 +1089,13 @@ def _distortion_core(table, reference, *, condition, what, log):
     if lost:
         log.warn(f"{what}: {len(lost)} reference point(s) without a good centroid excluded "
                  f"(stars {lost[:10]})")
-    m = st.merge(reference[["star", "x_ref", "y_ref"]], on="star").sort_values("star")
+    # st is sorted by star and every star of st has its reference (checked above)
+    m = st
     _need_points(len(m), 10, what)
-    x0, y0 = m["x_ref"].to_numpy(float), m["y_ref"].to_numpy(float)
+    ref_star = reference["star"].to_numpy()
+    order = np.argsort(ref_star, kind="stable")
+    ri = order[np.searchsorted(ref_star[order], m["star"].to_numpy())]
+    x0, y0 = reference["x_ref"].to_numpy(float)[ri], reference["y_ref"].to_numpy(float)[ri]
     dx = m["mean_x"].to_numpy(float) - x0                     # eq 19
     dy = m["mean_y"].to_numpy(float) - y0                     # eq 20
     # normalised coordinates for conditioning: centre and half range

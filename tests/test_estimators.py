@@ -524,3 +524,16 @@ def test_per_star_statistics_match_pandas_groupby():
                                 "var_x": g["x"].var(ddof=ddof), "var_y": g["y"].var(ddof=ddof)}).reset_index()
             # x/sd ~ 1e5: both implementations round the deviations at ~1e5 * 2.2e-16 relative
             pd.testing.assert_frame_equal(got, ref, check_exact=False, rtol=1e-9, atol=0, check_dtype=False)
+
+
+def test_duplicate_key_check_matches_pandas():
+    # the factorised-code check against pandas' duplicated() on random small tables with
+    # repeated keys, string and float key columns
+    from budget.estimators import _has_duplicate_keys
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n = int(rng.integers(2, 40))
+        df = pd.DataFrame({"a": rng.integers(0, 4, n), "f": rng.choice(["n", "s", "e"], n),
+                           "b": rng.integers(0, 3, n).astype(float)})
+        assert _has_duplicate_keys(df, ("a", "f", "b")) == bool(df.duplicated(subset=["a", "f", "b"]).any())
