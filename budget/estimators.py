@@ -257,7 +257,8 @@ def _prepare(
         stars = sorted(set(table.loc[bad, "star"].tolist()))
         shown = ", ".join(str(s) for s in stars[:10]) + (" ..." if len(stars) > 10 else "")
         log.warn(f"{what}: {n_bad} row(s) flagged or with non-finite x/y excluded (stars {shown})")
-    good = table.loc[~bad].copy()
+    # the estimators only read the good rows: the table itself when none is excluded
+    good = table.loc[~bad] if n_bad else table
     if good.empty:
         raise UserInputError(f"{what}: no good rows left after excluding flagged/non-finite rows")
     return good, n_bad
@@ -1034,13 +1035,14 @@ def chromatic_error_population(
     # Per field, the slope is averaged over its stars (lateral colour varies little across
     # one target); the mean square of that average is debiased by its sampling variance
     # s_b^2 / W (temporal noise in the filter means), clipped at 0.
-    g = per.groupby("field")
+    fcode, _ = pd.factorize(per["field"])
+    cnt = np.bincount(fcode).astype(float)
     msq = {}
-    for ax in ("x", "y"):
-        col = f"b_{ax}_px_per_nm"
-        mean_b = g[col].mean()
-        var_b = g[col].var(ddof=1).fillna(0.0) / g[col].count()
-        msq[ax] = np.clip(mean_b.to_numpy() ** 2 - var_b.to_numpy(), 0.0, None)
+    for ax, b in (("x", bx), ("y", by)):
+        mean_b = np.bincount(fcode, weights=b) / cnt
+        ss = np.bincount(fcode, weights=(b - mean_b[fcode]) ** 2)
+        var_b = np.where(cnt > 1, ss / np.maximum(cnt - 1.0, 1.0), 0.0) / cnt   # s_b^2 / W (0 for W = 1)
+        msq[ax] = np.clip(mean_b**2 - var_b, 0.0, None)
     sx = float(np.sqrt(np.mean(msq["x"]) * np.mean(dl**2)))
     sy = float(np.sqrt(np.mean(msq["y"]) * np.mean(dl**2)))
     k = wx.index.get_level_values("field").nunique()

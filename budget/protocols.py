@@ -228,10 +228,11 @@ def simulate(
             dark = camera.render_windows(scene, frames=plan.dark_frames, seed=seed, dark=True)
             dark_mean = dark.pixels.astype(np.float64).mean(axis=0)
         chain = camera.window_chain(scene)
-        noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=plan.dark_frames)["noise_dn"]
+        cc = _condition_columns(camera, scene, chain, c, threshold_sigma, plan.dark_frames)
+        noise_dn = cc["noise_dn"]
         if fused:
             x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
-                                                threshold_dn=float(threshold_sigma) * noise_dn)
+                                                threshold_dn=cc["threshold_dn"])
             for name, v in (("x", x), ("y", y), ("flux", flux), ("flag", flag)):
                 cols[name].append(v.reshape(-1))
         else:
@@ -243,13 +244,8 @@ def simulate(
             cols["noise"].append(np.tile(noise_dn, n))
             if keep_windows:
                 wins[c.index] = win
-        cols["x0"].append(np.tile(chain.col0, n))
-        cols["y0"].append(np.tile(chain.row0, n))
-        cols["star"].append(np.tile(np.arange(W), n))
-        cols["frame"].append(np.repeat(np.arange(n), W))
-        cols["cond"].append(np.full(W * n, c.index))
-        cols["filt"].append(np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm))
-        cols["field"].append(np.full(W * n, c.field, dtype=object))
+        for name in ("x0", "y0", "star", "frame", "cond", "filt", "field"):
+            cols[name].append(cc[name])
         truths.append((scene.truth, c.index, c.field))
     extra = {"condition": np.concatenate(cols["cond"])}
     if any(c.filter_nm is not None for c in plan.conditions):
@@ -279,6 +275,28 @@ def simulate(
 
 
 _LAYOUTS: dict = {}
+
+
+def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
+    """The per-row columns of a condition's centroid table (window origins, star, frame,
+    condition, filter, field) and its windows' noise and threshold (DN): fixed for a scene
+    and condition, so kept on the scene (read-only) for the next trial."""
+    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames)
+    store = scene.__dict__.setdefault("_protocol_columns", {})
+    cc = store.get(key)
+    if cc is None:
+        W, n = scene.n_stars, c.frames
+        noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=dark_frames)["noise_dn"]
+        cc = {"noise_dn": noise_dn, "threshold_dn": float(threshold_sigma) * noise_dn,
+              "x0": np.tile(chain.col0, n), "y0": np.tile(chain.row0, n),
+              "star": np.tile(np.arange(W), n), "frame": np.repeat(np.arange(n), W),
+              "cond": np.full(W * n, c.index),
+              "filt": np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm),
+              "field": np.full(W * n, c.field, dtype=object)}
+        for v in cc.values():
+            v.flags.writeable = False
+        store[key] = cc
+    return cc
 
 
 def _star_grid(scn: Scenario, center_px):

@@ -235,7 +235,7 @@ def test_normal_tails_and_wedges():
 # ---------------------------------------------------------------------- Poisson
 
 
-@pytest.mark.parametrize("lam", [0.3, 3.0, 9.9, 10.1, 50.0, 1e4])
+@pytest.mark.parametrize("lam", [0.3, 3.0, 9.9, 10.1, 25.0, 50.0, 63.9, 64.0, 200.0, 1e4])
 def test_poisson_chi_square_and_moments(lam):
     n = N
     x = rng.poisson_array(lam=lam, key=rng.key_from_seed(11, int(lam * 10)),
