@@ -13,37 +13,9 @@ import pytest
 
 from budget.sweep_spec import expand_values, load_sweep, point_identity, point_seed
 from simcam.config_base import ScenarioError
+from tiny_camera import TINY
 
-#: a small camera (two 256 x 256 chips, short plans) that every point of these tests varies
-TINY = textwrap.dedent("""
-    [detector]
-    chip_cols = 256
-    chip_rows = 256
-    gap_px = 10.0
-    [lab]
-    target_center_px = [-133.0, 0.0]
-    [lab.target]
-    spacing_mm = 0.5
-    [optics]
-    r_norm_px = 256.0
-    [protocols.te]
-    frames = 10
-    [protocols.hsfe]
-    conditions = 6
-    frames = 6
-    [protocols.chromatic]
-    frames = 4
-    field_centers_px = [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]
-    [protocols.distortion]
-    frames = 4
-    [render]
-    stamp_px = 16
-    wavelength_step_nm = 25.0
-    [validation]
-    te_truth_frames = 60
-    hsfe_phase_grid = 2
-    field_grid = 3
-""")
+
 
 
 def _write(tmp_path, body: str, name: str = "sweep.toml") -> str:

@@ -21,37 +21,9 @@ import xarray as xr
 from budget.sweep import open_sensitivity, open_sobol, open_sweep, run_sweep
 from budget.sweep_spec import load_sweep
 from simcam.cli_common import UserInputError
+from tiny_camera import TINY
 
-TINY = textwrap.dedent("""
-    [detector]
-    chip_cols = 256
-    chip_rows = 256
-    gap_px = 10.0
-    [lab]
-    target_center_px = [-133.0, 0.0]
-    [lab.target]
-    spacing_mm = 0.5
-    [optics]
-    r_norm_px = 256.0
-    [protocols.te]
-    frames = 10
-    [protocols.hsfe]
-    conditions = 6
-    frames = 6
-    [protocols.chromatic]
-    frames = 4
-    field_centers_px = [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]
-    [protocols.distortion]
-    frames = 4
-    [render]
-    stamp_px = 16
-    wavelength_step_nm = 25.0
-    [validation]
-    te_truth_frames = 60
-    hsfe_phase_grid = 2
-    field_grid = 3
-    batch_trials = 4
-""")
+
 
 #: six truth-mode points (3 magnitudes x 2 PSF widths)
 GRID = """
