@@ -107,6 +107,17 @@ def test_results_identical_in_one_process_two_processes_and_a_dask_cluster(grid,
     _assert_same(grid["ds"], open_sweep(tmp_path / "dask"))
 
 
+def test_dask_local_cluster_started_by_the_command_gives_the_same_store(grid, tmp_path, capsys):
+    """--dask-local N starts its own LocalCluster (on loopback) and closes it: same store."""
+    from budget.cli import main
+
+    path = _write(tmp_path, GRID)
+    main(["sweep", path, "--out", str(tmp_path / "local"), "--dask-local", "1", "--no-progress"])
+    out = capsys.readouterr().out
+    assert "6 point(s) computed" in out
+    _assert_same(grid["ds"], open_sweep(tmp_path / "local"))
+
+
 ZIP = """
     name = "tiny frames"
     base = "tiny.toml"
