@@ -257,6 +257,14 @@ def _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, fra
     return v
 
 
+@njit(cache=True, inline="always")
+def _chip_segment(col0, j, w, chip_cols):
+    """Chip of column ``j`` of a segment of ``w`` columns starting at mosaic column
+    ``col0``, and the end (exclusive) of the run of the segment's columns on that chip."""
+    chip = (col0 + j) // chip_cols
+    return chip, min(w, (chip + 1) * chip_cols - col0)
+
+
 @njit(cache=True)
 def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                    offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
@@ -266,8 +274,7 @@ def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_
     base = row * mosaic_cols + col0
     j = 0
     while j < w:
-        chip = (col0 + j) // chip_cols
-        j_end = min(w, (chip + 1) * chip_cols - col0)
+        chip, j_end = _chip_segment(col0, j, w, chip_cols)
         g = gain_e_per_dn[chip]
         off = offset_dn[chip]
         rn = read_noise_e[chip]
@@ -290,8 +297,7 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     nf = frame_keys.shape[0]
     j = 0
     while j < w:
-        chip = (col0 + j) // chip_cols
-        j_end = min(w, (chip + 1) * chip_cols - col0)
+        chip, j_end = _chip_segment(col0, j, w, chip_cols)
         g = gain_e_per_dn[chip]
         off = offset_dn[chip]
         rn = read_noise_e[chip]

@@ -107,7 +107,7 @@ def _preload_libcxx(libllvm: Path) -> None:
         if real.exists():
             try:
                 ctypes.CDLL(str(real), mode=ctypes.RTLD_GLOBAL)
-            except OSError:
+            except OSError:  # not loadable here: the LLVM check below then falls back, with a warning
                 pass
 
 
