@@ -1,0 +1,211 @@
+"""The study contract: what one lab method on one instrument provides to the shared machinery.
+
+A *study* (seed 000's star-camera lab methods, seed 001's inductosyn calibration, the
+whiskbroom TDI camera of seed 002, ...) implements :class:`Study` and nothing more. The
+runner (:mod:`budget.runner.run`) turns any study into seeded trials on processes or a
+Dask cluster, adaptive stopping, statistics with their standard errors, a JSON result
+and a report; the sweep engine varies any of its scenario fields; the CLI is built from
+the registry (:mod:`budget.runner.registry`).
+
+What a study provides
+---------------------
+* ``name`` (the registry key and CLI group, e.g. ``"whiskbroom"``), ``title`` and the seed
+  document it implements;
+* its scenario: :meth:`Study.load_scenario` (strict TOML through a frozen pydantic model,
+  errors as :class:`simcam.config_base.ScenarioError` naming file and field),
+  :meth:`Study.default_text` (the embedded default, with comments) and
+  :meth:`Study.from_dict` (what sweeps use after setting dotted keys);
+* :meth:`Study.classes`: the error classes with labels, units and axes, and the
+  :attr:`Study.variants` of its estimators (``published``, ``improved``, ...);
+* :meth:`Study.trial`: the estimates of one simulated measurement, computed by the same
+  estimators that run on real data, keyed ``(class, variant, axis)``; where the truth
+  changes from trial to trial (an injected error drawn per trial), the trial's own truth
+  under the same key, and where the estimator states an uncertainty, its 1-sigma value
+  (the runner reports coverage);
+* :meth:`Study.truths`: the truth of each class that is a property of the scenario, keyed
+  ``(class, axis)``, with its own standard error (0 when exact);
+* :meth:`Study.report_sections`: the sections and plots its report adds.
+
+Randomness: trial ``k`` of a run with ``seed`` must draw only from
+``numpy.random.SeedSequence(seed, spawn_key=(k,))`` (see :func:`trial_seed_sequence`),
+and the truths from ``SeedSequence(seed, spawn_key=(TRUTH_SPAWN_KEY,))``, so results do
+not depend on the number of workers or the order in which trials finish.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["ClassSpec", "Key", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
+           "Truth", "trial_seed_sequence", "truth_seed_sequence"]
+
+#: spawn key of the truths' seed sequence (trials use 0, 1, 2, ...)
+TRUTH_SPAWN_KEY = 2**31
+
+#: (class, variant, axis)
+Key = tuple[str, str, str]
+
+
+def trial_seed_sequence(seed: int, k: int) -> np.random.SeedSequence:
+    """The seed sequence of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``."""
+    return np.random.SeedSequence(seed, spawn_key=(k,))
+
+
+def truth_seed_sequence(seed: int) -> np.random.SeedSequence:
+    """The seed sequence of the truths: ``SeedSequence(seed, spawn_key=(2**31,))``."""
+    return np.random.SeedSequence(seed, spawn_key=(TRUTH_SPAWN_KEY,))
+
+
+@dataclass(frozen=True)
+class ClassSpec:
+    """One error class of a study: what it is called and in which unit it is reported.
+
+    Parameters
+    ----------
+    name : str
+        Key used in trials, JSON and sweeps (``"te"``, ``"delta_vp"``).
+    label : str
+        What a reader sees (``"temporal error (TE)"``).
+    unit : str
+        Unit of every value of the class (``"arcsec, 3 sigma"``, ``"mm/s"``).
+    axes : tuple of str
+        Axes of the class (``("x", "y")``, ``("angle",)``).
+    description : str
+        One sentence: what the truth is and what the estimate measures.
+    per_trial_truth : bool
+        True when each trial carries its own truth (an error drawn per trial): the
+        runner then compares estimate and truth trial by trial.
+    """
+
+    name: str
+    label: str
+    unit: str
+    axes: tuple[str, ...] = ("x", "y")
+    description: str = ""
+    per_trial_truth: bool = False
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The truth of one class and axis, with its Monte Carlo standard error (0: exact)."""
+
+    value: float
+    se: float = 0.0
+    details: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.se) and self.se >= 0.0):
+            raise ValueError(f"Truth.se must be finite and >= 0, got {self.se}")
+
+
+@dataclass
+class TrialResult:
+    """What one trial returns.
+
+    ``estimates[(class, variant, axis)]`` is the estimate; ``truths`` holds the trial's
+    own truth under the same key for classes with ``per_trial_truth``; ``sigmas`` the
+    estimator's stated 1-sigma uncertainty where it states one. ``extra`` may carry
+    anything small and picklable that the study's report wants (kept for trial 0 only).
+    """
+
+    estimates: dict[Key, float]
+    truths: dict[Key, float] = field(default_factory=dict)
+    sigmas: dict[Key, float] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class ReportSection:
+    """A section a study adds to its report: Markdown text and the figures it refers to."""
+
+    title: str
+    markdown: str
+    figures: list[Path] = field(default_factory=list)
+
+
+class Study(ABC):
+    """One lab method on one instrument (see the module docstring for the contract)."""
+
+    #: registry key and CLI group name
+    name: str = ""
+    #: one line for humans
+    title: str = ""
+    #: source document (``"000"`` ... ``"004"``)
+    seed_document: str = ""
+    #: estimator variants, in report order
+    variants: tuple[str, ...] = ("published", "improved")
+
+    # ------------------------------------------------------------ scenario
+    @abstractmethod
+    def default_text(self) -> str:
+        """The embedded default scenario, as TOML text with its comments."""
+
+    @abstractmethod
+    def from_dict(self, data: dict, *, source: str) -> Any:
+        """Validate a scenario mapping into the study's frozen model.
+
+        Raises :class:`simcam.config_base.ScenarioError` naming ``source`` and the field.
+        """
+
+    def load_scenario(self, path: str | Path | None = None) -> Any:
+        """The scenario at ``path`` (strict TOML) or the embedded default."""
+        from budget.runner.scenario_io import read_toml
+
+        if path is None:
+            return self.from_dict(read_toml(text=self.default_text(), source=f"embedded {self.name} default"),
+                                  source=f"embedded {self.name} default")
+        return self.from_dict(read_toml(path=path), source=str(path))
+
+    def scenario_hash(self, scenario: Any) -> str:
+        """Hash of the scenario's canonical content (the models' ``hash`` by default)."""
+        return scenario.hash
+
+    def scenario_text(self, scenario: Any) -> str:
+        """The resolved scenario as TOML (what the JSON result carries)."""
+        import tomli_w
+
+        return tomli_w.dumps(scenario.model_dump(mode="json", exclude_none=True))
+
+    # ------------------------------------------------------------ the method
+    @abstractmethod
+    def classes(self, scenario: Any) -> tuple[ClassSpec, ...]:
+        """The error classes this study reports, in report order."""
+
+    @abstractmethod
+    def trial(self, scenario: Any, seed: int, k: int) -> TrialResult:
+        """One simulated measurement and its estimates (see the module docstring)."""
+
+    @abstractmethod
+    def truths(self, scenario: Any, seed: int) -> dict[tuple[str, str], Truth]:
+        """The truth of every class without ``per_trial_truth``, keyed ``(class, axis)``."""
+
+    # ------------------------------------------------------------ run settings
+    def default_trials(self, scenario: Any) -> int:
+        """Trials when the user gives neither a count nor a tolerance."""
+        return int(scenario.validation.trials)
+
+    def max_trials(self, scenario: Any) -> int:
+        """Cap on trials under adaptive stopping."""
+        return int(getattr(scenario.validation, "max_trials", 10 * self.default_trials(scenario)))
+
+    def batch_trials(self, scenario: Any) -> int:
+        """Trials between two convergence checks under adaptive stopping."""
+        return int(getattr(scenario.validation, "batch_trials", 50))
+
+    def worker_init(self) -> None:
+        """Called once in each worker process (e.g. one numba thread per process)."""
+
+    # ------------------------------------------------------------ report
+    def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
+        """Sections and plots this study adds to the common report (none by default)."""
+        return []
+
+    def commands(self) -> list:
+        """Extra click commands of this study's CLI group besides ``validate``."""
+        return []
