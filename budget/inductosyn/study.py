@@ -56,6 +56,12 @@ class InductosynStudy(Study):
 
         return model_hash(scenario)
 
+    def check(self, scenario, *, where: str) -> None:
+        # the calibration designs (24-face long, short and joint) separate the harmonics
+        from budget.harmonics_validate import prepare
+
+        prepare(scenario=scenario, dense_step_deg=1.0)
+
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         return (
             ClassSpec("before", "short-period error before compensation", _UNIT, ("angle",),

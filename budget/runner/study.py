@@ -164,6 +164,10 @@ class Study(ABC):
                                   source=f"embedded {self.name} default")
         return self.from_dict(read_toml(path=path), source=str(path))
 
+    def check(self, scenario: Any, *, where: str) -> None:
+        """What the simulator would refuse later, checked now and cheaply (sweeps check every
+        point before any work); raise ScenarioError (or the simulator's ValueError) naming ``where``."""
+
     def scenario_hash(self, scenario: Any) -> str:
         """Hash of the scenario's canonical content (the models' ``hash`` by default)."""
         return scenario.hash

@@ -57,6 +57,11 @@ class StarCameraStudy(Study):
 
         return scenario_to_toml(scenario)
 
+    def check(self, scenario, *, where: str) -> None:
+        from budget.sweep_spec import check_camera_geometry
+
+        check_camera_geometry(scenario, where=where)
+
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc) for n, label, desc in _CLASSES)
 
@@ -102,6 +107,14 @@ class StarCameraStudy(Study):
                     se_px = t.details[f"standard_error_{ax}_px"] / math.sqrt(max(t.details.get("stars", 1), 1))
                 out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, float(se_px) * f,
                                        {k: v for k, v in t.details.items() if not isinstance(v, (list, dict))})
+        # LSFE and the total are root-sum-squares of independent classes: first-order
+        # propagation of the parts' standard errors, se = sqrt(sum (part / whole)^2 se_part^2)
+        for whole, parts in (("lsfe", ("lsfe_s", "lsfe_c1", "lsfe_c2")), ("total", ("te", "hsfe", "lsfe"))):
+            for ax in ("x", "y"):
+                w = out[(whole, ax)]
+                if w.value > 0:
+                    se = math.sqrt(sum((out[(p, ax)].value / w.value * out[(p, ax)].se) ** 2 for p in parts))
+                    out[(whole, ax)] = Truth(w.value, se, w.details)
         return out
 
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
