@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 from photutils.centroids import centroid_com
 from scipy.special import erf
@@ -327,3 +329,41 @@ def test_border_background_matches_numpy_on_random_windows():
         m = np.median(b)
         assert med[q] == m
         assert sig[q] == pytest.approx(1.482602218505602 * np.median(np.abs(b - m)), abs=1e-12)
+
+
+def _frame_with_stars(seed, *, big_star=False):
+    rng = np.random.default_rng(seed)
+    rows, cols = 300, 400
+    frame = rng.normal(100.0, 4.0, (rows, cols))
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    ref = np.array([[50.3, 40.7], [58.1, 44.2], [200.6, 150.4], [3.2, 120.8], [395.4, 290.1], [300.0, 200.0]])
+    for i, (x, y) in enumerate(ref):
+        if i == len(ref) - 1 and not big_star:
+            continue  # a reference without a star
+        s = 6.0 if (big_star and i == 2) else 1.2
+        frame += 900.0 * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * s * s))
+    frame[150, 330] += 400.0  # a hot pixel, and a small noise blob near a reference
+    frame[44:46, 52:54] += 60.0
+    return np.round(frame).astype(np.uint16), ref
+
+
+@pytest.mark.parametrize("big_star", [False, True])
+def test_reference_list_path_equals_whole_frame_detection(monkeypatch, big_star):
+    """Detection in boxes around the references gives the table the whole-frame labelling
+    gives (stars close together, at the frame's edges, a missing star, a noise blob, dark
+    subtraction; a star larger than its box falls back to the whole frame)."""
+    import budget.centroid as c
+
+    frames = [_frame_with_stars(s, big_star=big_star)[0] for s in (1, 2)]
+    ref = _frame_with_stars(1, big_star=big_star)[1]
+    dark = np.random.default_rng(9).normal(2.0, 1.0, frames[0].shape)
+    opts = dict(reference_xy=ref, dark=dark, threshold_sigma=5.0, window_size_px=7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fast = c.centroid_frames(frames, **opts)
+        calls = []
+        real = c._detect_near
+        monkeypatch.setattr(c, "_detect_near", lambda *a, **k: calls.append(real(*a, **k)) or None)
+        full = c.centroid_frames(frames, **opts)
+    pd.testing.assert_frame_equal(fast, full)
+    assert (calls[0] is None) == big_star  # the big star's halo leaves its box: whole frame
