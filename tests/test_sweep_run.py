@@ -155,6 +155,8 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
             for v in VARIANTS:
                 e = d.sel({"class": c, "axis": a, "variant": v})
                 r = s[c][a][v]
+                # exact on purpose: a sweep point is the same validate run (same seed, same
+                # code) stored in a different container; any difference is a bug
                 assert (float(e["mean"]), float(e.bias), float(e.spread), float(e.se_bias)) == (
                     r["mean"], r["bias"], r["std"], r["se_bias"])
                 assert [float(e.ci95_low), float(e.ci95_high)] == r["interval_95"]
@@ -264,6 +266,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
     p = load_sweep(path).points[1]
     s = validate(scenario=p.scenario, trials=20, seed=p.seed, dense_step_deg=0.02)["summary"]
     d = ds.sel({"calibration.short_polygon.faces": 23, "axis": "angle"})
+    # exact on purpose: the sweep stores the very numbers of the same seeded validate run
     assert float(d.truth.sel({"class": "residual", "variant": "published"})) == s["dense_sigma3_after_arcsec"]["mean"]
     assert float(d.truth.sel({"class": "residual", "variant": "improved"})) == \
         s["joint_dense_sigma3_after_arcsec"]["mean"]
@@ -311,6 +314,8 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
     s = open_sobol(tmp_path / "sob").sel(axis="x")
     psf, mark = "optics.psf.sigma0_px", "lab.calibration_target.marker_error_3sigma_arcsec"
     te, c2 = s.sel({"class": "te"}), s.sel({"class": "lsfe_c2"})
+    # exact on purpose: a parameter the class does not read leaves its output bit-identical,
+    # so its total index is exactly 0 (a non-zero value means hidden coupling)
     assert float(te.ST.sel(parameter=mark)) == 0.0
     assert abs(float(te.S1.sel(parameter=psf)) - 1) <= 3 * float(te.S1_conf.sel(parameter=psf)) / 1.96
     assert float(c2.ST.sel(parameter=psf)) == 0.0
