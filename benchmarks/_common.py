@@ -1,10 +1,15 @@
 """Shared helpers of the benchmark scripts: machine description, best-of-N timer, table.
 
-Run the scripts from the repository root, e.g. ``python benchmarks/bench_detector_noise.py``.
+Run the scripts from the repository root, e.g. ``python benchmarks/bench_detector_noise.py``,
+or all of them through ``python benchmarks/run_all.py``, which writes ``docs/benchmarks.md``
+from the ``RESULT {json}`` line that each script prints last (see :func:`emit_result`).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import math
 import os
 import platform
 import time
@@ -12,7 +17,11 @@ import tracemalloc
 from collections.abc import Callable, Sequence
 
 __all__ = ["machine_description", "best_of", "best_of_wall_cpu", "peak_traced_mb",
-           "format_table"]
+           "format_table", "add_quick_flag", "figure", "emit_result", "optional_import",
+           "RESULT_PREFIX"]
+
+#: Prefix of the one machine-readable line a benchmark prints last (parsed by run_all.py).
+RESULT_PREFIX = "RESULT "
 
 
 def _cpu_model() -> str:
@@ -114,3 +123,72 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> st
     lines = ["  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in cells]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
+
+
+def add_quick_flag(ap: argparse.ArgumentParser) -> None:
+    """Add ``--quick``: a smoke run with fewer repeats/trials (figures not meaningful)."""
+    ap.add_argument("--quick", action="store_true",
+                    help="smoke run: fewer repeats and trials (timings not meaningful)")
+
+
+def optional_import(name: str):
+    """Import an optional peer library; ``None`` when it is not installed.
+
+    Only a missing module counts as "not installed"; any other import error propagates.
+    """
+    import importlib
+
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        if exc.name is not None and name.split(".")[0] != exc.name.split(".")[0]:
+            # the peer is installed but one of its own dependencies is missing
+            print(f"note: {name} is installed but cannot be imported: {exc}")
+        return None
+
+
+def figure(key: str, what: str, ours: float | None, unit: str, *, better: str = "lower",
+           peer: str | None = None, peer_value: float | None = None,
+           peer_status: str | None = None, target: float | None = None,
+           target_source: str | None = None) -> dict:
+    """One key figure of a benchmark for the summary table of ``docs/benchmarks.md``.
+
+    Parameters
+    ----------
+    key : str
+        Stable identifier (e.g. ``"cog_us"``).
+    what : str
+        Human description, with the inputs.
+    ours : float or None
+        Our measured value, in ``unit``.
+    unit : str
+        Unit of ``ours``, ``peer_value`` and ``target`` (``"ms"``, ``"windows/s"``...).
+    better : {"lower", "higher"}
+        Whether a lower (a time, memory) or a higher (a rate, a speed-up) value is better;
+        sets the sense of the ratio and of the target.
+    peer, peer_value : str, float, optional
+        The peer measured in the same run and its value in ``unit``.
+    peer_status : str, optional
+        Why there is no peer value (e.g. ``"not installed"``).
+    target, target_source : float, str, optional
+        The issue's target in ``unit`` and where it is stated (``"issue 13"``).
+    """
+    if better not in ("lower", "higher"):
+        raise ValueError(f"better: must be 'lower' or 'higher' (got {better!r})")
+
+    def clean(v):
+        return None if v is None or not math.isfinite(float(v)) else float(v)
+
+    return {"key": key, "what": what, "ours": clean(ours), "unit": unit, "better": better,
+            "peer": peer, "peer_value": clean(peer_value), "peer_status": peer_status,
+            "target": clean(target), "target_source": target_source}
+
+
+def emit_result(bench: str, figures: Sequence[dict], *, quick: bool = False,
+                **extra: object) -> None:
+    """Print the final machine-readable line: ``RESULT {json}`` (one line, parsed by run_all).
+
+    ``extra`` holds further named values (versions of the peers, settings).
+    """
+    payload = {"bench": bench, "quick": bool(quick), "figures": list(figures), **extra}
+    print(RESULT_PREFIX + json.dumps(payload, sort_keys=False), flush=True)

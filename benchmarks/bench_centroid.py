@@ -15,14 +15,26 @@ Gaussian read noise from one ``numpy.random.Generator``) go through
   (it takes milliseconds per window); its time per window is comparable, its rms
   columns refer to that subset.
 
+and, when SEP is installed, ``sep.winpos`` (windowed positions, Gaussian weight
+sigma 1 px) on the same mosaic.
+
 Then one 4096 x 2048 frame with a 5 x 5 star grid through the full-frame path
-(``centroid_frames``: level and noise, threshold, ``ndimage.label``, matching, windows,
-CoG).
+(``budget.centroid.centroid_frames([frame], reference_xy=ref)``: level and noise from a
+row subsample, threshold, labelling of boxes around the references, matching, windows,
+CoG), and without the reference list (labelling the whole frame). Beside it, in the
+same run, photutils' full-frame path on the same frame: level and noise by
+``astropy.stats.sigma_clipped_stats`` on every 16th row, the whole frame thresholded at
+5 sigma above the level (values below set to 0), then ``centroid_sources`` (box 11,
+``centroid_com``) at the 25 reference positions; and, when SEP is installed, SEP's
+background (``sep.Background``) + ``sep.extract`` at 5 sigma on the whole frame (a
+detection without a reference list, beside our figure without one).
 
 Printed: time per window (best of N, JIT warmed up), rms position difference to
 photutils (0 up to rounding for identical definitions) and rms error to the truth.
 
-Run: ``python benchmarks/bench_centroid.py [--n 10000] [--repeat 5] [--seed 1]``
+The last line is ``RESULT {json}`` with the key figures (read by ``run_all.py``).
+
+Run: ``python benchmarks/bench_centroid.py [--n 10000] [--repeat 5] [--seed 1] [--quick]``
 """
 
 from __future__ import annotations
@@ -32,12 +44,20 @@ import os
 import sys
 
 import numpy as np
-import photutils
-from photutils.centroids import centroid_2dg, centroid_com, centroid_sources
 from scipy.special import erf
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import best_of, format_table, machine_description  # noqa: E402
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, _HERE)
+sys.path.insert(1, os.path.dirname(_HERE))
+from _common import (  # noqa: E402
+    add_quick_flag,
+    best_of,
+    emit_result,
+    figure,
+    format_table,
+    machine_description,
+    optional_import,
+)
 
 from budget.centroid import (  # noqa: E402
     centroid_cog,
@@ -72,12 +92,19 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--n-2dg", type=int, default=200, help="windows for centroid_2dg")
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.n, args.repeat, args.n_2dg = min(args.n, 1000), min(args.repeat, 2), min(args.n_2dg, 10)
     n = args.n
+    photutils = optional_import("photutils")
+    sep = optional_import("sep")
     bg, thr = 100.0, 50.0          # background (e-) and threshold above it (about 4.5 sigma)
     win, xt, yt = make_windows(n, seed=args.seed)
 
-    info = machine_description() | {"photutils": photutils.__version__}
+    info = machine_description() | {
+        "photutils": photutils.__version__ if photutils else "not installed",
+        "sep": sep.__version__ if sep else "not installed"}
     print("machine: " + ", ".join(f"{k}={v}" for k, v in info.items()))
     print(f"{n} windows {SIZE}x{SIZE}, Gaussian PSF sigma 1 px, 2e4 e-, background {bg} e-, "
           f"read noise 5 e-; threshold {thr} e- above background; best of {args.repeat}\n")
@@ -106,81 +133,176 @@ def main() -> None:
         x, y, _, _ = fn()
         results[name] = (t, x, y)
 
-    def photutils_loop():
-        xs = np.empty(n)
-        ys = np.empty(n)
-        for q in range(n):
-            s = win[q] - bg
-            xs[q], ys[q] = centroid_com(np.where(s > thr, s, 0.0))
-        return xs, ys
+    if photutils is not None:
+        from photutils.centroids import centroid_2dg, centroid_com, centroid_sources
 
-    prepared = np.where(win - bg > thr, win - bg, 0.0)
-    side = int(np.ceil(np.sqrt(n)))
-    mosaic = np.zeros((side * SIZE, side * SIZE))
-    for q in range(n):
-        r, c = divmod(q, side)
-        mosaic[r * SIZE:(r + 1) * SIZE, c * SIZE:(c + 1) * SIZE] = prepared[q]
-    qs = np.arange(n)
-    cx = (qs % side) * SIZE + SIZE // 2
-    cy = (qs // side) * SIZE + SIZE // 2
+        def photutils_loop():
+            xs = np.empty(n)
+            ys = np.empty(n)
+            for q in range(n):
+                s = win[q] - bg
+                xs[q], ys[q] = centroid_com(np.where(s > thr, s, 0.0))
+            return xs, ys
 
-    def photutils_sources():
-        x, y = centroid_sources(mosaic, cx, cy, box_size=SIZE, centroid_func=centroid_com)
-        return x - (cx - SIZE // 2), y - (cy - SIZE // 2)
+        prepared = np.where(win - bg > thr, win - bg, 0.0)
+        mosaic, cx, cy = _mosaic(prepared, SIZE)
 
-    rep_slow = max(1, min(args.repeat, 3))
-    for name, fn in (("photutils centroid_com loop", photutils_loop),
-                     ("photutils centroid_sources", photutils_sources)):
-        t, _ = best_of(fn, repeat=rep_slow, warmup=1)
-        x, y = fn()
-        results[name] = (t, x, y)
+        def photutils_sources():
+            x, y = centroid_sources(mosaic, cx, cy, box_size=SIZE, centroid_func=centroid_com)
+            return x - (cx - SIZE // 2), y - (cy - SIZE // 2)
 
-    m2 = min(args.n_2dg, n)
+        rep_slow = max(1, min(args.repeat, 3))
+        for name, fn in (("photutils centroid_com loop", photutils_loop),
+                         ("photutils centroid_sources", photutils_sources)):
+            t, _ = best_of(fn, repeat=rep_slow, warmup=1)
+            x, y = fn()
+            results[name] = (t, x, y)
 
-    def photutils_2dg():
-        xs = np.full(n, np.nan)
-        ys = np.full(n, np.nan)
-        for q in range(m2):
-            xs[q], ys[q] = centroid_2dg(win[q] - bg)
-        return xs, ys
+        m2 = min(args.n_2dg, n)
 
-    t, _ = best_of(photutils_2dg, repeat=1, warmup=1)
-    t *= n / m2                                     # scaled to n windows for the per-window time
-    x, y = photutils_2dg()
-    results[f"photutils centroid_2dg ({m2})"] = (t, x, y)
+        def photutils_2dg():
+            xs = np.full(n, np.nan)
+            ys = np.full(n, np.nan)
+            for q in range(m2):
+                xs[q], ys[q] = centroid_2dg(win[q] - bg)
+            return xs, ys
+
+        t, _ = best_of(photutils_2dg, repeat=1, warmup=1)
+        t *= n / m2                                     # scaled to n windows for the per-window time
+        x, y = photutils_2dg()
+        results[f"photutils centroid_2dg ({m2})"] = (t, x, y)
+    if sep is not None:
+        mosaic_sep, cx_sep, cy_sep = _mosaic(np.ascontiguousarray(win - bg), SIZE)
+
+        def sep_winpos():
+            x, y, _ = sep.winpos(mosaic_sep, cx_sep.astype(float), cy_sep.astype(float),
+                                 np.full(n, 1.0))
+            return x - (cx_sep - SIZE // 2), y - (cy_sep - SIZE // 2)
+
+        t, _ = best_of(sep_winpos, repeat=max(1, min(args.repeat, 3)), warmup=1)
+        x, y = sep_winpos()
+        results["SEP winpos (sigma 1 px)"] = (t, x, y)
 
     ref_name = "photutils centroid_com loop"
-    _, xr, yr = results[ref_name]
+    xr, yr = (results[ref_name][1], results[ref_name][2]) if ref_name in results else (None, None)
     rows = []
     for name, (t, x, y) in results.items():
         rows.append([
             name, f"{t / n * 1e6:.3f}",
-            f"{np.sqrt(np.nanmean((x - xr) ** 2)):.3e}", f"{np.sqrt(np.nanmean((y - yr) ** 2)):.3e}",
+            f"{np.sqrt(np.nanmean((x - xr) ** 2)):.3e}" if xr is not None else "n/a",
+            f"{np.sqrt(np.nanmean((y - yr) ** 2)):.3e}" if yr is not None else "n/a",
             f"{np.sqrt(np.nanmean((x - xt) ** 2)):.5f}", f"{np.sqrt(np.nanmean((y - yt) ** 2)):.5f}",
         ])
     print(format_table(["method", "us/window", "rms dx to photutils com", "rms dy",
                         "rms err x (truth)", "rms err y"], rows))
-    t_ours = results["budget CoG (given background)"][0]
-    full_frame(seed=args.seed, repeat=rep_slow)
-    print(f"\nbudget CoG is {results[ref_name][0] / t_ours:.0f}x faster than the centroid_com loop "
-          f"and {results['photutils centroid_sources'][0] / t_ours:.0f}x faster than centroid_sources.")
+    if photutils is None:
+        print("photutils: not installed (its rows and the full-frame peer are missing)")
+    if sep is None:
+        print("SEP: not installed (sep.winpos and sep.extract rows are missing)")
+    ff = full_frame(seed=args.seed, repeat=max(1, min(args.repeat, 3)), photutils=photutils, sep=sep)
+
+    def us(name):
+        return results[name][0] / n * 1e6 if name in results else None
+
+    status = None if photutils is not None else "not installed"
+    figs = [
+        figure("cog_us", "CoG, 11x11 window, given background (us/window)",
+               us("budget CoG (given background)"), "us", peer="photutils centroid_sources",
+               peer_value=us("photutils centroid_sources"), peer_status=status,
+               target=2.0, target_source="issue 3"),
+        figure("cog_border_us", "CoG, 11x11 window, border-median background (us/window)",
+               us("budget CoG (border median bg)"), "us", peer="photutils centroid_com loop",
+               peer_value=us("photutils centroid_com loop"), peer_status=status,
+               target=2.0, target_source="issue 3"),
+        figure("gauss_fit_us", "2-D Gaussian fit, 11x11 window (us/window)",
+               us("budget Gaussian LSQ fit"), "us", peer=f"photutils centroid_2dg",
+               peer_value=us(f"photutils centroid_2dg ({min(args.n_2dg, n)})"), peer_status=status),
+        figure("full_frame_ref_ms", "full 4096x2048 frame, 25 stars, reference list (ms)",
+               ff["ours_ref_s"] * 1e3, "ms", peer="photutils threshold + centroid_sources",
+               peer_value=None if ff["photutils_s"] is None else ff["photutils_s"] * 1e3,
+               peer_status=status, target=10.0, target_source="issue 13"),
+        figure("full_frame_detect_ms", "full 4096x2048 frame, 25 stars, detection first (ms)",
+               ff["ours_detect_s"] * 1e3, "ms", peer="SEP background + extract",
+               peer_value=None if ff["sep_s"] is None else ff["sep_s"] * 1e3,
+               peer_status=None if sep is not None else "not installed"),
+    ]
+    if sep is not None:
+        figs.insert(1, figure("cog_vs_sep_us", "CoG (given background) vs SEP winpos (us/window)",
+                              us("budget CoG (given background)"), "us", peer="SEP winpos",
+                              peer_value=us("SEP winpos (sigma 1 px)")))
+    emit_result("centroid", figs, quick=args.quick, windows=n,
+                photutils=photutils.__version__ if photutils else None,
+                sep=sep.__version__ if sep else None)
 
 
-def full_frame(*, seed: int, repeat: int) -> None:
-    """Time the full-frame path on one 4096 x 2048 frame with 25 stars."""
+def _mosaic(windows: np.ndarray, size: int):
+    """Tile ``windows`` (n, size, size) into one square image; centres of the tiles."""
+    n = windows.shape[0]
+    side = int(np.ceil(np.sqrt(n)))
+    mosaic = np.zeros((side * size, side * size))
+    for q in range(n):
+        r, c = divmod(q, side)
+        mosaic[r * size:(r + 1) * size, c * size:(c + 1) * size] = windows[q]
+    qs = np.arange(n)
+    return mosaic, (qs % side) * size + size // 2, (qs // side) * size + size // 2
+
+
+def full_frame(*, seed: int, repeat: int, photutils=None, sep=None) -> dict:
+    """Time the full-frame path on one 4096 x 2048 frame with 25 stars, and its peers."""
     rng = np.random.default_rng(seed + 1)
     rows, cols = 2048, 4096
-    frame = 200.0 + rng.normal(0.0, 5.0, (rows, cols))
+    level_e, noise_e = 200.0, 5.0
+    frame = level_e + rng.normal(0.0, noise_e, (rows, cols))
     gx, gy = np.meshgrid(np.linspace(300, 3800, 5), np.linspace(200, 1850, 5))
     ref = np.column_stack([gx.ravel() + rng.uniform(-.5, .5, 25), gy.ravel() + rng.uniform(-.5, .5, 25)])
-    win, _, _ = make_windows(25, seed=seed + 2)
-    for (x, y), w in zip(ref, win):
+    win, wxt, wyt = make_windows(25, seed=seed + 2)
+    xt, yt = np.empty(25), np.empty(25)
+    for q, ((x, y), w) in enumerate(zip(ref, win)):
         r0, c0 = int(round(y)) - SIZE // 2, int(round(x)) - SIZE // 2
         frame[r0:r0 + SIZE, c0:c0 + SIZE] += w - 100.0
+        xt[q], yt[q] = c0 + wxt[q], r0 + wyt[q]
+
+    def rms(x, y):
+        return float(np.sqrt(np.nanmean((x - xt) ** 2 + (y - yt) ** 2)))
+
     t, _ = best_of(lambda: centroid_frames([frame], reference_xy=ref), repeat=repeat, warmup=1)
     t2, _ = best_of(lambda: centroid_frames([frame]), repeat=repeat, warmup=1)
-    print(f"\nfull frame {cols}x{rows}, 25 stars (budget.centroid_frames): {t:.3f} s with a "
-          f"reference list, {t2:.3f} s detecting the reference first")
+    ours = centroid_frames([frame], reference_xy=ref)
+    out = {"ours_ref_s": t, "ours_detect_s": t2, "photutils_s": None, "sep_s": None}
+    lines = [["budget centroid_frames, reference list", f"{t * 1e3:.1f}",
+              f"{rms(ours['x'].to_numpy(), ours['y'].to_numpy()):.4f}"],
+             ["budget centroid_frames, detection first", f"{t2 * 1e3:.1f}", ""]]
+    if photutils is not None:
+        from astropy.stats import sigma_clipped_stats
+        from photutils.centroids import centroid_com, centroid_sources
+
+        def peer():
+            _, med, std = sigma_clipped_stats(frame[::16], sigma=3.0)
+            img = frame - med
+            img[img <= 5.0 * std] = 0.0
+            return centroid_sources(img, ref[:, 0], ref[:, 1], box_size=SIZE,
+                                    centroid_func=centroid_com)
+
+        tp, _ = best_of(peer, repeat=repeat, warmup=1)
+        px, py = peer()
+        out["photutils_s"] = tp
+        lines.append(["photutils: sigma-clipped level, threshold, centroid_sources",
+                      f"{tp * 1e3:.1f}", f"{rms(px, py):.4f}"])
+    if sep is not None:
+        data = np.ascontiguousarray(frame, dtype=np.float32)
+
+        def sep_path():
+            bkg = sep.Background(data)
+            return sep.extract(data - bkg, 5.0, err=bkg.globalrms)
+
+        ts, _ = best_of(sep_path, repeat=repeat, warmup=1)
+        out["sep_s"] = ts
+        objs = sep_path()
+        lines.append([f"SEP: Background + extract (5 sigma; {len(objs)} objects)",
+                      f"{ts * 1e3:.1f}", ""])
+    print(f"\nfull frame {cols}x{rows}, 25 stars, best of {repeat}:")
+    print(format_table(["path", "ms", "rms error to truth (px)"], lines))
+    return out
 
 
 if __name__ == "__main__":
