@@ -6,12 +6,24 @@ clip, read noise, per-chip gain/offset ADC to uint16. The expected signal is a 3
 background plus 25 Gaussian stars of 1e5 e- each. numpy uses one
 ``numpy.random.Generator`` per frame (draws the maps every frame, as the kernel does).
 
+Peers in the same run, each optional (reported as "not installed" when absent):
+
+* GalSim ``CCDNoise`` (Poisson shot noise, Gaussian read noise 5 e-, gain 2 e-/DN) added
+  to a ``galsim.ImageD`` of the same expected signal (a copy made per frame, since the
+  noise is added in place): fewer effects than ours (no PRNU, dark, full well, ADC);
+* one pyxel exposure of a 2048 x 4096 CMOS through an 11-model pipeline built in code
+  (:func:`pyxel_yaml`): the same expected signal loaded as photons (``load_image`` of a
+  ``.npy``), shot noise, conversion, dark current 2 e-/s, collection, fixed-pattern
+  noise 1 %, full well, measurement, CMOS output-node noise 5 e-, amplifier, 16-bit ADC.
+  Best of ``--pyxel-repeat`` runs of ``pyxel.run_mode`` (nothing written to disk).
+
 Times are best of ``--repeat`` after a warm-up call (JIT / cache load): wall-clock ms per
 frame and CPU ms per frame (all threads; steadier on a shared machine). Peak memory is
 the tracemalloc peak of one frame (output + temporaries), MB, and the growth of the
-process's maximum resident set over the whole run, MB.
+process's maximum resident set over the whole run, MB. The last line is
+``RESULT {json}`` (read by ``run_all.py``).
 
-Usage: ``python benchmarks/bench_detector_noise.py [--repeat 5]``
+Usage: ``python benchmarks/bench_detector_noise.py [--repeat 5] [--pyxel-repeat 2] [--quick]``
 """
 
 from __future__ import annotations
@@ -20,6 +32,7 @@ import argparse
 import os
 import resource
 import sys
+import tempfile
 import time
 
 import numba
@@ -29,9 +42,13 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))  # the repository root, if not installed
 from _common import (  # noqa: E402
+    add_quick_flag,
     best_of_wall_cpu,
+    emit_result,
+    figure,
     format_table,
     machine_description,
+    optional_import,
     peak_traced_mb,
 )
 
@@ -100,12 +117,133 @@ def numpy_frame(sig: np.ndarray, frame: int) -> np.ndarray:
     return e.astype(np.uint16)
 
 
+def galsim_frame(galsim, sig: np.ndarray, frame: int):
+    """GalSim's CCD noise (Poisson + read noise + gain) on a copy of the expected signal."""
+    img = galsim.ImageD(sig.copy())
+    img.addNoise(galsim.CCDNoise(galsim.BaseDeviate(1000 + frame), sky_level=0.0,
+                                 gain=PARAMS.gain_e_per_dn[0], read_noise=PARAMS.read_noise_e[0]))
+    return img
+
+
+def pyxel_yaml(image_file: str, *, seed: int = 7) -> str:
+    """pyxel configuration of one CMOS exposure of the signal in ``image_file`` (e-/s, 1 s).
+
+    Conversion factors: 1e-6 V/e-, x 76.29, 16-bit ADC over 0-10 V: 2.0 e-/DN, as chip 0.
+    """
+    p = PARAMS
+    return f"""
+exposure:
+  readout:
+    times: [1.0]
+    non_destructive: false
+  pipeline_seed: {seed}
+cmos_detector:
+  geometry:
+    row: {ROWS}
+    col: {COLS}
+    total_thickness: 40.0
+    pixel_vert_size: 10.0
+    pixel_horz_size: 10.0
+    pixel_scale: 5.5
+  environment:
+    temperature: 293.0
+  characteristics:
+    quantum_efficiency: 1.0
+    charge_to_volt:
+      value: 1.0e-06
+    pre_amplification: 76.29
+    full_well_capacity: {int(p.full_well_e[0])}
+    adc_bit_resolution: {p.adc_bits}
+    adc_voltage_range: [0.0, 10.0]
+pipeline:
+  photon_collection:
+    - name: load_image
+      func: pyxel.models.photon_collection.load_image
+      enabled: true
+      arguments:
+        image_file: {image_file}
+        convert_to_photons: false
+    - name: shot_noise
+      func: pyxel.models.photon_collection.shot_noise
+      enabled: true
+      arguments:
+        type: poisson
+  charge_generation:
+    - name: simple_conversion
+      func: pyxel.models.charge_generation.simple_conversion
+      enabled: true
+      arguments:
+        quantum_efficiency: 1.0
+        binomial_sampling: false
+    - name: simple_dark_current
+      func: pyxel.models.charge_generation.simple_dark_current
+      enabled: true
+      arguments:
+        dark_rate: {p.dark_e}
+  charge_collection:
+    - name: simple_collection
+      func: pyxel.models.charge_collection.simple_collection
+      enabled: true
+    - name: fixed_pattern_noise
+      func: pyxel.models.charge_collection.fixed_pattern_noise
+      enabled: true
+      arguments:
+        fixed_pattern_noise_factor: {p.prnu_rms}
+    - name: simple_full_well
+      func: pyxel.models.charge_collection.simple_full_well
+      enabled: true
+  charge_measurement:
+    - name: simple_measurement
+      func: pyxel.models.charge_measurement.simple_measurement
+      enabled: true
+    - name: output_node_noise_cmos
+      func: pyxel.models.charge_measurement.output_node_noise_cmos
+      enabled: true
+      arguments:
+        readout_noise: {p.read_noise_e[0]}
+        readout_noise_std: 0.5
+  readout_electronics:
+    - name: simple_amplifier
+      func: pyxel.models.readout_electronics.simple_amplifier
+      enabled: true
+    - name: simple_adc
+      func: pyxel.models.readout_electronics.simple_adc
+      enabled: true
+      arguments:
+        data_type: uint16
+"""
+
+
+def time_pyxel(pyxel, sig: np.ndarray, repeat: int) -> tuple[float, float, np.ndarray]:
+    """Best wall and CPU seconds of ``repeat`` pyxel exposures (after one warm-up); image."""
+    cwd = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="bench_pyxel_") as d:
+        path = os.path.join(d, "signal.npy")
+        np.save(path, sig)
+        cfg = pyxel.loads(pyxel_yaml(path))
+        os.chdir(d)  # should pyxel write anything, it lands in the temporary folder
+        try:
+            wall, cpu = best_of_wall_cpu(lambda: pyxel.run_mode(cfg), repeat=repeat, warmup=1)
+            img = np.asarray(pyxel.run_mode(cfg)["/bucket/image"])[0]
+        finally:
+            os.chdir(cwd)
+    return wall, cpu, img
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="timed repeats (best is reported)")
+    ap.add_argument("--pyxel-repeat", type=int, default=2, help="timed pyxel exposures")
+    add_quick_flag(ap)
     args = ap.parse_args(argv)
+    if args.quick:
+        args.repeat, args.pyxel_repeat = min(args.repeat, 2), 1
+    galsim = optional_import("galsim")
+    pyxel = optional_import("pyxel")
 
-    info = machine_description()
+    info = machine_description() | {
+        "galsim": galsim.__version__ if galsim else "not installed",
+        "pyxel": pyxel.__version__ if pyxel else "not installed"}
     print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()))
     sig = make_signal()
     npix = sig.size
@@ -120,6 +258,8 @@ def main(argv=None) -> int:
         numba.set_num_threads(n_threads)
         frame = iter(range(1, 10**6))
         wall, cpu = best_of_wall_cpu(lambda: simcam_frame(sig, next(frame)), repeat=args.repeat)
+        if n_threads == max_threads:
+            ours_wall = wall
         rows.append(["simcam counter-RNG kernel", n_threads, f"{wall * 1e3:.0f}",
                      f"{cpu * 1e3:.0f}", f"{npix / wall / 1e6:.1f}",
                      f"{peak_traced_mb(lambda: simcam_frame(sig, 0)):.0f}"])
@@ -131,9 +271,27 @@ def main(argv=None) -> int:
                  f"{cpu * 1e3:.0f}", f"{npix / wall / 1e6:.1f}",
                  f"{peak_traced_mb(lambda: numpy_frame(sig, 0)):.0f}"])
     rss2 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+    numpy_wall = wall
+    ours_mb, numpy_mb = float(rows[0][5]), float(rows[-1][5])
+    galsim_wall = pyxel_wall = None
+    if galsim is not None:
+        frame = iter(range(1, 10**6))
+        galsim_wall, cpu = best_of_wall_cpu(lambda: galsim_frame(galsim, sig, next(frame)),
+                                            repeat=args.repeat)
+        rows.append(["GalSim CCDNoise (shot+read+gain only)", 1, f"{galsim_wall * 1e3:.0f}",
+                     f"{cpu * 1e3:.0f}", f"{npix / galsim_wall / 1e6:.1f}", ""])
+    else:
+        rows.append(["GalSim CCDNoise: not installed", "", "", "", "", ""])
+    if pyxel is not None:
+        pyxel_wall, cpu, pimg = time_pyxel(pyxel, sig, args.pyxel_repeat)
+        rows.append(["pyxel 3 CMOS exposure, 11 models", "", f"{pyxel_wall * 1e3:.0f}",
+                     f"{cpu * 1e3:.0f}", f"{npix / pyxel_wall / 1e6:.1f}", ""])
+    else:
+        rows.append(["pyxel CMOS exposure: not installed", "", "", "", "", ""])
     print(f"full frame {ROWS} x {COLS} = {npix / 1e6:.2f} Mpix, best of {args.repeat}:")
     print(format_table(["method", "threads", "wall ms/frame", "cpu ms/frame", "Mpix/s",
                         "peak MB"], rows))
+    print(f"(pyxel: best of {args.pyxel_repeat} after a warm-up)" if pyxel is not None else "")
     print(f"max RSS growth: simcam runs {rss1 - rss0:.0f} MB, then numpy runs {rss2 - rss1:.0f} MB "
           f"(RSS before: {rss0:.0f} MB, includes the 67 MB input)")
 
@@ -142,6 +300,22 @@ def main(argv=None) -> int:
     bg = sig < 3.5
     print(f"sanity (background pixels, DN): simcam mean {a[bg].mean():.3f} sd {a[bg].std():.3f}; "
           f"numpy mean {b[bg].mean():.3f} sd {b[bg].std():.3f}")
+
+    def ms(v):
+        return None if v is None else v * 1e3
+
+    chain = "detector chain, full 2048x4096 frame (wall ms)"
+    emit_result("detector_noise", [
+        figure("chain_vs_numpy_ms", chain, ours_wall * 1e3, "ms", peer="plain numpy Generator",
+               peer_value=numpy_wall * 1e3),
+        figure("chain_vs_galsim_ms", chain, ours_wall * 1e3, "ms", peer="GalSim CCDNoise",
+               peer_value=ms(galsim_wall), peer_status=None if galsim else "not installed"),
+        figure("chain_vs_pyxel_ms", chain, ours_wall * 1e3, "ms", peer="pyxel CMOS exposure (11 models)",
+               peer_value=ms(pyxel_wall), peer_status=None if pyxel else "not installed"),
+        figure("chain_peak_mb", "detector chain, peak memory of one frame (MB, tracemalloc)",
+               ours_mb, "MB", peer="plain numpy Generator", peer_value=numpy_mb),
+    ], quick=args.quick, galsim=galsim.__version__ if galsim else None,
+        pyxel=pyxel.__version__ if pyxel else None)
     return 0
 
 
