@@ -11,8 +11,14 @@
   numba serial and threaded.
 * **Memory**: tracemalloc peak of rendering one full frame, and the growth of the
   process's maximum resident set over one frame.
+* **Peer**, optional (reported as "not installed" when absent): GalSim drawing 25 Airy
+  stars (FWHM 1.5 px, 33 x 33 px stamps, 1e5 e- each) on a 4096 x 2048 ``ImageD`` with
+  the same background level as our expected image, then ``CCDNoise`` (Poisson + read
+  noise + gain of chip 0); and the 25 stars alone.
 
-Usage: ``python benchmarks/bench_render.py [--repeat 5]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_render.py [--repeat 5] [--quick]``
 """
 
 from __future__ import annotations
@@ -28,7 +34,16 @@ import numpy as np
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import best_of_wall_cpu, format_table, machine_description, peak_traced_mb  # noqa: E402
+from _common import (  # noqa: E402
+    add_quick_flag,
+    best_of_wall_cpu,
+    emit_result,
+    figure,
+    format_table,
+    machine_description,
+    optional_import,
+    peak_traced_mb,
+)
 
 from simcam.render import Placement, StarCamera  # noqa: E402
 from simcam.scenario import default_scenario  # noqa: E402
@@ -53,10 +68,34 @@ def numpy_frame(expected_e: np.ndarray, scn, seed: int) -> np.ndarray:
     return out
 
 
+def galsim_frame(galsim, scn, shape: tuple[int, int], background_e: float, seed: int, *,
+                 noise: bool = True):
+    """25 Airy stars on a full frame with GalSim, then its CCD noise (chip 0's gain, read noise)."""
+    det = scn.detector
+    rows, cols = shape
+    img = galsim.ImageD(cols, rows, scale=1.0, init_value=background_e)
+    psf = galsim.Airy(lam_over_diam=1.5 / 1.028).withFlux(1e5)       # FWHM = 1.028 lambda/D = 1.5 px
+    for x in np.linspace(300.0, cols - 300.0, 5):
+        for y in np.linspace(200.0, rows - 200.0, 5):
+            stamp = psf.drawImage(nx=33, ny=33, scale=1.0, center=galsim.PositionD(x + 0.3, y + 0.7))
+            b = stamp.bounds & img.bounds
+            img[b] += stamp[b]
+    if noise:
+        chip = det.chips[0]
+        img.addNoise(galsim.CCDNoise(galsim.BaseDeviate(seed), sky_level=0.0,
+                                     gain=chip.gain_e_per_dn, read_noise=chip.read_noise_e))
+    return img
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--frames", type=int, default=2000, help="frames of the windows benchmark")
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeat, args.frames = min(args.repeat, 2), min(args.frames, 200)
+    galsim = optional_import("galsim")
     scn = default_scenario()
     cam = StarCamera(scn)
     placement = Placement(layout=star_grid(scn))
@@ -80,7 +119,7 @@ def main() -> None:
     sim_frame()
     rss_growth = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024.0
 
-    frames = 2000
+    frames = args.frames
     rows = []
     for par in (False, True):
         c = StarCamera(scn, parallel=par)
@@ -89,6 +128,25 @@ def main() -> None:
         w, _ = best_of_wall_cpu(lambda: c.render_windows(sc, frames=frames, seed=3), repeat=3)
         rows.append((f"windows 11x11, numba {'threads' if par else 'serial'}", f"{frames * 25 / w:,.0f} windows/s",
                      f"{w / (frames * 25) * 1e6:.2f} us/window"))
+        rate = frames * 25 / w
+        if not par:
+            rate_serial = rate
+        else:
+            rate_threads = rate
+
+    gal = gal_stars = None
+    if galsim is not None:
+        bg = float(np.median(expected))
+        gal = best_of_wall_cpu(lambda: galsim_frame(galsim, scn, expected.shape, bg, next(counter)),
+                               repeat=max(2, args.repeat // 2))
+        gal_stars = best_of_wall_cpu(lambda: galsim_frame(galsim, scn, expected.shape, bg, 0, noise=False),
+                                     repeat=args.repeat)
+        peer_rows = [("peer: GalSim 25 Airy stars + CCDNoise, full frame", f"{gal[0] * 1e3:.0f} ms",
+                      f"{gal[1] * 1e3:.0f} ms"),
+                     ("peer: GalSim 25 Airy stars alone (no noise)", f"{gal_stars[0] * 1e3:.1f} ms",
+                      f"{gal_stars[1] * 1e3:.1f} ms")]
+    else:
+        peer_rows = [("peer: GalSim not installed", "", "")]
 
     print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
     print(format_table(
@@ -102,8 +160,27 @@ def main() -> None:
             *[(a, b, c_) for a, b, c_ in rows],
             ("peak memory, one full frame (tracemalloc)", f"{peak_mb:.0f} MB", ""),
             ("max RSS growth over one full frame", f"{rss_growth:.0f} MB", ""),
+            *peer_rows,
         ],
     ))
+    gstat = None if galsim is not None else "not installed"
+    what = "full 2048x4096 frame, 25 stars, every detector effect (wall ms)"
+    emit_result("render", [
+        figure("full_frame_ms", what, full[0] * 1e3, "ms", peer="plain numpy Generator (same noise)",
+               peer_value=nump[0] * 1e3, target=150.0, target_source="issue 2"),
+        figure("full_frame_vs_galsim_ms", what, full[0] * 1e3, "ms",
+               peer="GalSim 25 Airy stars + CCDNoise", peer_value=None if gal is None else gal[0] * 1e3,
+               peer_status=gstat, target=150.0, target_source="issue 2"),
+        figure("scene_ms", "scene: 25 stars' spectra, distortion, colour, PSF stamps (ms)",
+               scene_s[0] * 1e3, "ms", peer="GalSim 25 Airy stars drawn (monochromatic)",
+               peer_value=None if gal_stars is None else gal_stars[0] * 1e3, peer_status=gstat),
+        figure("windows_per_s_serial", "noisy 11x11 windows per second, one core", rate_serial,
+               "windows/s", better="higher", target=100_000, target_source="issue 2"),
+        figure("windows_per_s_threads", "noisy 11x11 windows per second, numba threads",
+               rate_threads, "windows/s", better="higher", target=100_000, target_source="issue 2"),
+        figure("peak_mb", "peak memory, one full frame (MB, tracemalloc)", peak_mb, "MB",
+               target=300.0, target_source="issue 2"),
+    ], quick=args.quick, galsim=galsim.__version__ if galsim else None)
 
 
 if __name__ == "__main__":
