@@ -6,7 +6,9 @@ eq 7, compensate, fit eq 8 (in sequence) and the joint fit, and verify both
 compensations against the truth over 3600 points of the circle (every 0.1 deg):
 3 sigma and max |residual|.
 
-Run: ``python benchmarks/bench_harmonics.py [--trials 10000] [--repeats 5]``.
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Run: ``python benchmarks/bench_harmonics.py [--trials 10000] [--repeats 5] [--quick]``.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import time
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import machine_description  # noqa: E402
+from _common import add_quick_flag, emit_result, figure, machine_description  # noqa: E402
 
 
 def main() -> None:
@@ -29,7 +31,10 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=10000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeats = min(args.repeats, 2)
 
     from budget.harmonics_validate import prepare, run_trials
     from simcam.inductosyn import default_scenario
@@ -50,6 +55,10 @@ def main() -> None:
     print(f"{args.trials} full calibration trials (24+24+23+23 points, in-sequence and joint "
           f"fits, verification over {p.dense_true_deg.size} points): best {min(times):.3f} s, "
           f"median {statistics.median(times):.3f} s over {args.repeats} runs")
+    emit_result("harmonics", [
+        figure("trials_s", f"{args.trials} full inductosyn calibration trials (s, best)", min(times), "s",
+               target=2.0 * args.trials / 10000, target_source="issue 5"),
+    ], quick=args.quick, trials=args.trials)
 
 
 if __name__ == "__main__":

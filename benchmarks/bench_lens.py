@@ -13,7 +13,9 @@
   spots, PSF stamps), with a warm tracer (target: at most 10 s); and reading the same
   table back from the disk cache.
 
-Usage: ``python benchmarks/bench_lens.py [--repeat 5]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_lens.py [--repeat 5] [--table-repeat 3] [--quick]``
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
 sys.path.insert(2, os.path.join(os.path.dirname(_HERE), "tests"))
-from _common import format_table, machine_description  # noqa: E402
+from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
 from simcam.lens.prescription import load_prescription  # noqa: E402
 from simcam.lens.products import LensProducts, compute_products  # noqa: E402
@@ -57,7 +59,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--table-repeat", type=int, default=3)
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeat, args.table_repeat = 1, 1
     import tomllib
     from importlib import resources
 
@@ -127,6 +132,16 @@ def main() -> None:
             ("table read back from the disk cache (NetCDF)", span(load_t) + " ms", ""),
         ],
     ))
+    emit_result("lens", [
+        figure("bundle_ms", "bundle of 100,000 rays, 9 surfaces, llvm variant, warm (ms)",
+               min(bundle_t) * 1e3, "ms", peer="plain-numpy reference tracer",
+               peer_value=min(numpy_t) * 1e3, target=50.0, target_source="issue 7"),
+        figure("bundle_vs_scalar_ms", "bundle of 100,000 rays, 9 surfaces, llvm variant, warm (ms)",
+               min(bundle_t) * 1e3, "ms", peer="Mitsuba scalar_rgb (500 rays, x 200)",
+               peer_value=min(scalar_t) * 200 * 1e3),
+        figure("table_s", "table 10 fields x 15 wavelengths x 100,000 rays (s)", min(table_t), "s",
+               target=10.0, target_source="issue 7"),
+    ], quick=args.quick, variant=tr.variant)
 
 
 if __name__ == "__main__":

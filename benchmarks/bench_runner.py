@@ -8,7 +8,9 @@
   to a new folder): the wall time of ``budget validate --trials 2 --workers 1`` minus twice
   the time of one warm trial measured in the same run.
 
-Usage: ``python benchmarks/bench_runner.py [--trials 200] [--repeat 2]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_runner.py [--trials 200] [--repeat 2] [--quick]``
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import warnings
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import format_table, machine_description  # noqa: E402
+from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
 
 def _run(args: list[str], env: dict | None = None) -> float:
@@ -56,7 +58,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--repeat", type=int, default=2)
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.trials, args.repeat = min(args.trials, 10), 1
     print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
     with tempfile.TemporaryDirectory() as tmp:
         _run(["validate", "--trials", "2", "--workers", "1", "--no-progress"])  # warm the numba cache
@@ -78,6 +83,18 @@ def main() -> None:
     ]))
     print(f"\n2 workers give {one / two:.2f}x the throughput of 1 (target >= 1.7x); fixed cost "
           f"{warm - 2 * t_trial:.2f} s warm (target <= 2 s), {cold - 2 * t_trial:.2f} s cold (target <= 8 s)")
+    main_job = args.trials == 200
+    emit_result("runner", [
+        figure("two_worker_speedup", f"throughput of 2 workers / 1 worker, budget validate --trials {args.trials}",
+               one / two, "x", better="higher", target=1.7 if main_job else None,
+               target_source="issue 13 (200 trials)" if main_job else None),
+        figure("fixed_cost_warm_s", "fixed cost of budget validate, warm numba cache (s)",
+               warm - 2 * t_trial, "s", target=2.0, target_source="issue 13"),
+        figure("fixed_cost_cold_s", "fixed cost of budget validate, empty numba cache (s)",
+               cold - 2 * t_trial, "s", target=8.0, target_source="issue 13"),
+        figure("one_worker_s", f"budget validate --trials {args.trials}, 1 worker (s)", one, "s"),
+        figure("two_workers_s", f"budget validate --trials {args.trials}, 2 workers (s)", two, "s"),
+    ], quick=args.quick, trials=args.trials)
 
 
 if __name__ == "__main__":

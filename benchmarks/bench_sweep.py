@@ -12,8 +12,10 @@
   in this process on one numba thread (as in a worker), K in ``--trials-list``, best of
   ``--repeat``; a least-squares line gives the fixed cost (truths) and the cost per trial.
 
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
 Usage: ``python benchmarks/bench_sweep.py [--points 24] [--repeat 2] [--dask]
-[--trials-list 2,4,8,16]``
+[--trials-list 2,4,8,16] [--quick]``
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import time
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import format_table, machine_description  # noqa: E402
+from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
 
 def _grid_file(d: str, points: int) -> str:
@@ -118,7 +120,11 @@ def main() -> None:
     ap.add_argument("--trials-list", default="2,4,8,16")
     ap.add_argument("--skip-throughput", action="store_true")
     ap.add_argument("--skip-trials", action="store_true")
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.points, args.repeat, args.trials_list = min(args.points, 4), 1, "2,4"
+    figs = []
     print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()), flush=True)
     d = tempfile.mkdtemp(prefix="bench_sweep_")
     try:
@@ -139,13 +145,31 @@ def main() -> None:
                  for lab, e, s, c, u in rows]))
             print("(a point's CPU time is the work; its wall time above its CPU time is waiting for a core: "
                   "other jobs on the machine)")
+            by = {lab: (max(e), max(s_)) for lab, e, s_, _, _ in rows}
+            two_e, two_s = by["2 processes"]
+            figs += [
+                figure("sweep_speedup_steady", f"sweep, {args.points} truth-mode points: steady points/s, "
+                       "2 processes / 1", two_s / base_st, "x", better="higher", target=1.7,
+                       target_source="issue 6"),
+                figure("sweep_speedup_e2e", f"sweep, {args.points} truth-mode points: end-to-end points/s, "
+                       "2 processes / 1", two_e / base_e2e, "x", better="higher"),
+                figure("sweep_points_per_s", f"sweep, 2 processes, end-to-end points/s", two_e,
+                       "points/s", better="higher"),
+            ]
+            if "Dask LocalCluster 2" in by:
+                figs.append(figure("sweep_speedup_dask", "sweep: steady points/s, Dask LocalCluster 2 / "
+                                   "1 process", by["Dask LocalCluster 2"][1] / base_st, "x",
+                                   better="higher", target=1.7, target_source="issue 6"))
         if not args.skip_trials:
             print("cost of one validation point (default scenario, one numba thread):", flush=True)
             tl = [int(x) for x in args.trials_list.split(",")]
             rows, a, b = _trial_cost(tl, args.repeat)
             print(format_table(["trials", "best s", "worst s"], [(k, f"{lo:.2f}", f"{hi:.2f}") for k, lo, hi in rows]))
             print(f"fit: {a:.2f} s + {b:.3f} s per trial")
+            figs += [figure("point_fixed_s", "validation point: fixed cost (truths), s", a, "s"),
+                     figure("point_per_trial_s", "validation point: cost per trial, s", b, "s")]
         print("load after:", " ".join(f"{x:.2f}" for x in os.getloadavg()))
+        emit_result("sweep", figs, quick=args.quick, points=args.points)
     finally:
         shutil.rmtree(d, ignore_errors=True)
 

@@ -7,7 +7,9 @@
 * ``--trials K`` trials (default 1000) with ``--workers W`` processes (default all
   cores), wall time, including the truth computation and worker start-up.
 
-Usage: ``python benchmarks/bench_validate.py [--repeat 10] [--trials 1000] [--workers 2]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_validate.py [--repeat 10] [--trials 1000] [--workers 2] [--quick]``
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import warnings
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import format_table, machine_description  # noqa: E402
+from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
 from budget import validate as V  # noqa: E402
 from simcam.scenario import default_scenario  # noqa: E402
@@ -33,7 +35,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=10)
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=V.default_workers())
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeat, args.trials = min(args.repeat, 3), min(args.trials, 20)
     import numba
 
     numba.set_num_threads(1)
@@ -65,6 +70,15 @@ def main() -> None:
             (f"{res.trials} trials, {args.workers} worker process(es), wall (truth included)", f"{total:.1f} s"),
         ],
     ))
+    emit_result("validate", [
+        figure("trial_s", "one full seed-000 protocol trial, one core, best (s)", min(times), "s",
+               target=0.1, target_source="issue 4"),
+        figure("trial_median_s", "one full seed-000 protocol trial, one core, median (s)",
+               statistics.median(times), "s", target=0.1, target_source="issue 4"),
+        figure("trials_total_s", f"{res.trials} trials, {args.workers} workers, truth included (s)",
+               total, "s", target=120.0 if res.trials == 1000 else None,
+               target_source="issue 4 (1000 trials)" if res.trials == 1000 else None),
+    ], quick=args.quick, trials=res.trials, workers=args.workers)
 
 
 if __name__ == "__main__":
