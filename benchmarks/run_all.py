@@ -150,8 +150,11 @@ class BenchRun:
 
 
 def discover(bench_dir: Path = HERE) -> dict[str, Path]:
-    """Benchmark scripts ``bench_<name>.py`` of ``bench_dir``, by ``<name>``, sorted."""
-    return {p.stem[len("bench_"):]: p for p in sorted(bench_dir.glob("bench_*.py"))}
+    """Benchmark scripts ``bench_<name>.py`` of ``bench_dir`` by ``<name>``: those with an
+    explanation first, in the page's order, then any others alphabetically."""
+    found = {p.stem[len("bench_"):]: p for p in sorted(bench_dir.glob("bench_*.py"))}
+    order = [n for n in EXPLANATION if n in found] + sorted(n for n in found if n not in EXPLANATION)
+    return {n: found[n] for n in order}
 
 
 def supports_quick(script: Path) -> bool:
@@ -270,24 +273,19 @@ def versions() -> dict[str, str]:
 
 
 def _fmt(v: float | None) -> str:
+    """Four significant digits (thousands separators from 10,000 on)."""
     if v is None:
         return ""
-    a = abs(v)
-    if a == 0:
-        return "0"
-    if a >= 1e4:
+    if abs(v) >= 1e4:
         return f"{v:,.0f}"
-    if a >= 100:
-        return f"{v:.0f}"
-    if a >= 10:
-        return f"{v:.1f}"
-    if a >= 1:
-        return f"{v:.2f}"
-    return f"{v:.3g}"
+    return f"{v:.4g}"
 
 
-def summary_rows(runs: list[BenchRun]) -> list[list[str]]:
-    """Rows: benchmark, what, ours, peer, peer value, ratio (>1: ours better), target, met."""
+def summary_rows(runs: list[BenchRun], *, quick: bool = False) -> list[list[str]]:
+    """Rows: benchmark, what, ours, peer, peer value, ratio (>1: ours better), target, met.
+
+    With ``quick`` the verdicts carry "(quick)": a smoke run measures nothing.
+    """
     rows = []
     for run in runs:
         if run.result is None:
@@ -311,6 +309,7 @@ def summary_rows(runs: list[BenchRun]) -> list[list[str]]:
                     met = "not measured"
                 else:
                     met = "yes" if (ours <= target if lower else ours >= target) else "**no**"
+                    met += " (quick)" if quick else ""
             tgt = ""
             if target is not None:
                 tgt = f"{'<=' if lower else '>='} {_fmt(target)} {unit}"
@@ -340,7 +339,7 @@ def _docstring_paragraph(script: Path) -> str:
 
     try:
         doc = ast.get_docstring(ast.parse(script.read_text(encoding="utf-8"))) or ""
-    except SyntaxError:
+    except (OSError, SyntaxError, UnicodeDecodeError):
         doc = ""
     paras = [p.strip() for p in doc.split("\n\n") if p.strip()]
     return "\n\n".join(paras[:2]) if paras else "(no description)"
@@ -377,7 +376,7 @@ def render_page(runs: list[BenchRun], *, quick: bool, only: list[str] | None,
               "is faster or smaller. The peer is measured by the same script in the same run; "
               "peers that do fewer or other effects are named with what they do.", ""]
     lines += [_md_table(["benchmark", "what", "ours", "peer", "peer value", "ratio", "target", "met?"],
-                        summary_rows(runs)), ""]
+                        summary_rows(runs, quick=quick)), ""]
     for r in runs:
         title, text = EXPLANATION.get(r.name, (r.name, _docstring_paragraph(r.script)))
         lines += [f"## {title} (`{r.script.name}`)", "", text, ""]
@@ -446,7 +445,7 @@ def main(argv: list[str] | None = None) -> int:
     tmp = out_path.with_name(out_path.name + ".tmp")
     tmp.write_text(page, encoding="utf-8")
     tmp.replace(out_path)
-    rows = summary_rows(runs)
+    rows = summary_rows(runs, quick=args.quick)
     print()
     print(format_table(["benchmark", "what", "ours", "peer", "peer value", "ratio", "target", "met?"],
                        [[c.replace("**", "") for c in r] for r in rows]))
