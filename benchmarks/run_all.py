@@ -383,7 +383,8 @@ def render_page(runs: list[BenchRun], *, quick: bool, only: list[str] | None,
         if r.notes:
             lines += ["Note: " + "; ".join(r.notes) + ".", ""]
         body = "\n".join(ln for ln in r.stdout.splitlines() if not ln.startswith(RESULT_PREFIX)).rstrip()
-        lines += [f"Output of `python benchmarks/{r.script.name} {' '.join(r.args)}`".rstrip() + ":", "",
+        cmd = " ".join(["python", f"benchmarks/{r.script.name}", *r.args])
+        lines += [f"Output of `{cmd}`:", "",
                   "```text", body or "(no output)", "```", ""]
         if r.status != "ok":
             tail = "\n".join(r.stderr.rstrip().splitlines()[-20:])
