@@ -300,6 +300,10 @@ def main(argv=None) -> int:
     bg = sig < 3.5
     print(f"sanity (background pixels, DN): simcam mean {a[bg].mean():.3f} sd {a[bg].std():.3f}; "
           f"numpy mean {b[bg].mean():.3f} sd {b[bg].std():.3f}")
+    if pyxel is not None:
+        c = pimg.astype(float)
+        print(f"pyxel (no offset; 2.0 e-/DN; its dark and read-noise models differ): background "
+              f"mean {c[bg].mean():.3f} sd {c[bg].std():.3f} DN")
 
     def ms(v):
         return None if v is None else v * 1e3

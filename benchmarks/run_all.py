@@ -50,6 +50,9 @@ from _common import RESULT_PREFIX, format_table  # noqa: E402
 VERSIONED = ("simcam-budget", "numpy", "scipy", "numba", "astropy", "pandas", "photutils",
              "galsim", "pyxel-sim", "sep", "mitsuba", "drjit", "dask", "zarr", "colour-science")
 
+#: Options a benchmark gets in a full run (beside its defaults); none in a --quick run.
+FULL_ARGS: dict[str, list[str]] = {"sweep": ["--dask"]}
+
 #: Explanation written around each benchmark's measured table (the template text of the
 #: page). A discovered benchmark without an entry here gets its script's docstring.
 EXPLANATION: dict[str, tuple[str, str]] = {
@@ -104,8 +107,8 @@ Truth-mode points of the default camera (PSF width x PRNU; each point a new came
 scenes, stamps and every class's truth) on 1 and 2 local worker processes, end to end and
 in steady state (points finished after every worker finished its first), best over the
 repeats into a fresh store; and the cost of one validation point as its trial count grows
-(a least-squares line: fixed cost plus cost per trial). Target (issue 6): at least 1.7x
-with 2 workers. More in [sweeps.md](sweeps.md)."""),
+(a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
+LocalCluster of 2 workers. Target (issue 6): at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
     "lens": ("Lens tracing", """\
 A bundle of 100,000 rays of one field point and wavelength through the embedded 9-surface
 star-camera lens (Mitsuba `llvm_ad_rgb` intersections, double-precision refinement and
@@ -189,7 +192,7 @@ def _load() -> tuple[float, float, float] | None:
 
 def run_one(name: str, script: Path, *, quick: bool, timeout_s: float) -> BenchRun:
     """Run one benchmark script in a subprocess; capture its output, load and RESULT."""
-    args = []
+    args = [] if quick else list(FULL_ARGS.get(name, []))
     run = BenchRun(name=name, script=script, args=args)
     if quick:
         if supports_quick(script):
