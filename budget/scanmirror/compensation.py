@@ -68,15 +68,33 @@ class FirstOrderCompensator:
         return d[:, 0], d[:, 1]
 
 
-def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *, iterations: int = 4):
+def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *, iterations: int = 6,
+                       tol_rad: float = 1e-13, use_kernel: bool = True):
     """The exact compensation: Newton iterations (Jacobian by central differences) on the lab's
-    model until ``x, y`` of its ground point in ``r0`` equal the nominal ones. Returns the
-    commanded (alpha, beta) (rad)."""
+    model until ``x, y`` of its ground point in ``r0`` equal the nominal ones (until the
+    step is below ``tol_rad``). Returns the commanded (alpha, beta) (rad). On the sphere the
+    numba kernel (:mod:`budget.scanmirror.kernels`) runs the same iterations point by point
+    (``use_kernel=False``: the vectorised numpy path, used to test it)."""
+    from simcam.scanmirror.geometry import attitude_matrix_br
+
     target = world.nominal_ground(alpha0, beta0)[..., :2]
     a, b = np.array(alpha0, float), np.array(beta0, float)
+    att = np.asarray(att, float)
+    A_br = attitude_matrix_br(att[..., 0], att[..., 1], att[..., 2])
+    if world.scenario.orbit.earth_shape == "sphere" and use_kernel:
+        from budget.scanmirror.kernels import exact_compensation_sphere
+
+        n = a.shape[0]
+        tx = np.ascontiguousarray(np.broadcast_to(np.asarray(dtau_x, float), (n,)))
+        ty = np.ascontiguousarray(np.broadcast_to(np.asarray(dtau_y, float), (n,)))
+        return exact_compensation_sphere(a, b, tx, ty, np.ascontiguousarray(A_br),
+                                         np.ascontiguousarray(np.broadcast_to(A_r0r, (n, 3, 3))),
+                                         np.ascontiguousarray(np.broadcast_to(np.asarray(R_km, float), (n,))),
+                                         float(world.earth.radius_km), np.ascontiguousarray(target), iterations,
+                                         tol_rad, _H_RAD)
 
     def f(a_, b_):
-        return world.ground(a_, b_, dtau_x, dtau_y, att, A_r0r, R_km)[..., :2]
+        return world.ground(a_, b_, dtau_x, dtau_y, None, A_r0r, R_km, A_br=A_br)[..., :2]
 
     for _ in range(iterations):
         r = f(a, b) - target
@@ -86,6 +104,8 @@ def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *
         da = (Jb[:, 1] * r[:, 0] - Jb[:, 0] * r[:, 1]) / det
         db = (-Ja[:, 1] * r[:, 0] + Ja[:, 0] * r[:, 1]) / det
         a, b = a - da, b - db
+        if max(np.abs(da).max(), np.abs(db).max()) < tol_rad:
+            break
     return a, b
 
 

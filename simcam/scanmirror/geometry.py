@@ -68,14 +68,18 @@ def mirror_normal_body(alpha_rad, beta_rad, dtau_x_rad=0.0, dtau_y_rad=0.0) -> n
     """Mirror normal in the body frame, eq. (1) [R]: ``w^b = R_x(alpha) R_y(beta) A_tau (0, 0, 1)``.
 
     The normal deviation is the exact rotation with rotation vector
-    ``(dtau_x, dtau_y, 0)`` in the mirror frame (to first order eq. (19):
-    ``w^m = (dtau_y, -dtau_x, 1)``). Returns (..., 3).
+    ``(dtau_x, dtau_y, 0)`` in the mirror frame: ``A_tau z = (k_y sin t, -k_x sin t, cos t)``
+    with ``t = |dtau|``, ``k = dtau / t`` (Rodrigues; to first order eq. (19):
+    ``w^m = (dtau_y, -dtau_x, 1)``). Written out element by element. Returns (..., 3).
     """
-    alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad = np.broadcast_arrays(
-        *(np.asarray(x, dtype=float) for x in (alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad)))
-    rv = np.stack([dtau_x_rad, dtau_y_rad, np.zeros_like(dtau_x_rad)], -1)
-    wm = rotvec_matrix(rv)[..., :, 2]
-    return np.einsum("...ij,...jk,...k->...i", rot_x(alpha_rad), rot_y(beta_rad), wm)
+    a, b, tx, ty = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
+                                         (alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad)))
+    t = np.hypot(tx, ty)
+    sinc = np.where(t > 0, np.sin(t) / np.where(t > 0, t, 1.0), 1.0)
+    mx, my, mz = ty * sinc, -tx * sinc, np.cos(t)
+    cb, sb, ca, sa = np.cos(b), np.sin(b), np.cos(a), np.sin(a)
+    gx, gy, gz = cb * mx + sb * mz, my, -sb * mx + cb * mz          # R_y(beta)
+    return np.stack([gx, ca * gy - sa * gz, sa * gy + ca * gz], -1)  # R_x(alpha)
 
 
 def line_of_sight_body(alpha_rad, beta_rad, dtau_x_rad=0.0, dtau_y_rad=0.0) -> np.ndarray:
@@ -94,11 +98,13 @@ def line_of_sight_body(alpha_rad, beta_rad, dtau_x_rad=0.0, dtau_y_rad=0.0) -> n
 def attitude_matrix_br(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
     """Attitude matrix ``A_br`` (orbit -> body components), 3-1-2 Euler sequence, eq. (20) [R]:
     ``A_br = C_2(theta) C_1(phi) C_3(psi)`` with ``C_i`` the frame (passive) rotations
-    (Wertz 1978, App. E, Table E-1, 3-1-2). Small angles: ``[[1, psi, -theta], [-psi, 1, phi],
-    [theta, -phi, 1]]``."""
-    roll_rad, pitch_rad, yaw_rad = np.broadcast_arrays(*(np.asarray(x, float) for x in (roll_rad, pitch_rad, yaw_rad)))
-    # a frame rotation C_i(a) is the transpose of the active R_i(a) = R_i(-a)
-    return rot_y(-pitch_rad) @ rot_x(-roll_rad) @ rot_z(-yaw_rad)
+    (Wertz 1978, App. E, Table E-1, 3-1-2), written out. Small angles: ``[[1, psi, -theta],
+    [-psi, 1, phi], [theta, -phi, 1]]``."""
+    f, th, ps = np.broadcast_arrays(*(np.asarray(x, float) for x in (roll_rad, pitch_rad, yaw_rad)))
+    cf, sf, ct, st, cp, sp = np.cos(f), np.sin(f), np.cos(th), np.sin(th), np.cos(ps), np.sin(ps)
+    return np.stack([np.stack([ct * cp - st * sf * sp, ct * sp + st * sf * cp, -st * cf], -1),
+                     np.stack([-cf * sp, cf * cp, sf], -1),
+                     np.stack([st * cp + ct * sf * sp, st * sp - ct * sf * cp, ct * cf], -1)], -2)
 
 
 #: ``P``: columns are the orbit-frame axes (x east, y south, z nadir) in the

@@ -76,8 +76,8 @@ class MirrorConfig(StrictModel):
 
 
 class StarSensingConfig(StrictModel):
-    field_half_width_deg: Annotated[float, Field(gt=0, le=5)] = 0.5
-    mag_limit: float = 6.5
+    field_half_width_deg: Annotated[float, Field(gt=0, le=5)] = 1.0
+    mag_limit: float = 7.5
     centroid_sigma_arcsec: Pos = 1.0
     tracker_sigma_arcsec: Pos = 1.0
     frames_per_dwell: Annotated[int, Field(ge=1, le=100)] = 4

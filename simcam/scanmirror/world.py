@@ -30,7 +30,7 @@ E_Z = np.array([0.0, 0.0, 1.0])
 
 def ground_point_r0(alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad, att_rad, A_r0r, R_km, *,
                     earth_radius_km: float, omega0_rad: float, shape: str = "sphere",
-                    polar_radius_km: float | None = None):
+                    polar_radius_km: float | None = None, A_br=None):
     """Geocentric ground point ``r_e`` in the nominal orbit frame ``r0`` (km), eqs. (2)-(7) [R].
 
     ``s^r = A_br^T s^b``; sphere: ``R_s`` from the law of cosines and
@@ -40,8 +40,9 @@ def ground_point_r0(alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad, att_rad, A_r0r,
     ``R_km`` (N,).
     """
     sb = line_of_sight_body(alpha_rad, beta_rad, dtau_x_rad, dtau_y_rad)
-    att = np.asarray(att_rad, float)
-    A_br = attitude_matrix_br(att[..., 0], att[..., 1], att[..., 2])
+    if A_br is None:
+        att = np.asarray(att_rad, float)
+        A_br = attitude_matrix_br(att[..., 0], att[..., 1], att[..., 2])
     sr = np.einsum("...ji,...j->...i", A_br, sb)
     R = np.asarray(R_km, float)
     if shape == "sphere":
@@ -124,11 +125,11 @@ class World:
         x0[:3] = np.deg2rad(a.initial_deg if initial_deg is None else initial_deg)
         return pd.angles(x0)
 
-    def ground(self, alpha, beta, dtx, dty, att, A_r0r, R):
+    def ground(self, alpha, beta, dtx, dty, att, A_r0r, R, *, A_br=None):
         """Ground point in ``r0`` (km) by :func:`ground_point_r0` with this scenario's Earth."""
         return ground_point_r0(alpha, beta, dtx, dty, att, A_r0r, R, earth_radius_km=self.earth.radius_km,
                                omega0_rad=self.omega0_rad, shape=self.scenario.orbit.earth_shape,
-                               polar_radius_km=self.polar_radius_km)
+                               polar_radius_km=self.polar_radius_km, A_br=A_br)
 
     def nominal_ground(self, alpha, beta):
         """Nominal ground point (no deviation, zero attitude, nominal GEO orbit) in ``r0``."""
