@@ -22,7 +22,6 @@ def _register() -> None:
         ("budget.combine", "combine_command"),
         ("budget.measure", "measure_command"),
         ("budget.simulate", "simulate_command"),
-        ("budget.validate", "validate_command"),
         ("budget.harmonics_cli", "harmonics_group"),
         ("budget.sweep", "sweep_command"),
         ("budget.sweep_plot", "plot_command"),
@@ -34,6 +33,18 @@ def _register() -> None:
                 continue
             raise
         cli.add_command(getattr(module, attr))
+    # every registered study is a group (`budget <study> validate ...`); the study's module
+    # is imported only when its group runs
+    from budget.runner.cli import study_group, validate_command_for
+    from budget.runner.registry import study_names
+
+    for name in study_names():
+        if name not in cli.commands:
+            cli.add_command(study_group(name))
+    # `budget validate`: the seed-000 study, as it always was
+    cli.add_command(validate_command_for(
+        "starcam", help_text="Monte Carlo validation of the seed-000 lab methods on SCENARIO "
+                             "(default: the embedded seed-000 scenario)."))
 
 
 _register()
