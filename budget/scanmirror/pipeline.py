@@ -72,11 +72,6 @@ class Setup:
         return att[:n], out
 
 
-def _errors(setup, alpha, beta, dtx, dty, att):
-    g = setup.world.ground(alpha, beta, dtx, dty, att, setup.A_true, setup.R_true)
-    return ground_errors_deg(setup.world, g, setup.g0)
-
-
 def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) -> dict:
     """One trial: draws, star measurements, estimates, compensation, ground errors.
 
@@ -145,8 +140,8 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
             truth = np.full(2, np.nan)
         est = {"published": est_pub, "improved": est_imp, "without_estimate": np.zeros(2)}
         out["dtau"], out["dtau_sigma"], out["dtau_true"] = est, np.sqrt(np.diag(cov)), truth
-        errs = {"uncompensated": _errors(setup, setup.alpha0[sel], setup.beta0[sel], dtx_t[sel], dty_t[sel],
-                                         att_scan[sel])}
+        errs = {"uncompensated": _errors_sel(setup, sel, setup.alpha0[sel], setup.beta0[sel], dtx_t[sel],
+                                             dty_t[sel], att_scan[sel])}
         # published: first-order corrections from the nine parameters the lab knows
         p = np.column_stack([np.full(sel.sum(), est_pub[0]), np.full(sel.sum(), est_pub[1]), att_lab[sel],
                              orb_lab[sel], dR_lab[sel]])

@@ -92,7 +92,7 @@ class ValidationConfig(StrictModel):
     trials: Annotated[int, Field(ge=1)] = 1000
     max_trials: Annotated[int, Field(ge=1)] = 4000
     batch_trials: Annotated[int, Field(ge=1)] = 200
-    tolerance: Pos = 0.5
+    tolerance: Annotated[float, Field(gt=0)] | None = None
     ground_step_s: Annotated[float, Field(gt=0, le=10)] = 0.5
 
 
