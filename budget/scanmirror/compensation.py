@@ -69,7 +69,7 @@ class FirstOrderCompensator:
 
 
 def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *, iterations: int = 6,
-                       tol_rad: float = 1e-13, use_kernel: bool = True):
+                       tol_rad: float = 1e-13, use_kernel: bool = True, target=None):
     """The exact compensation: Newton iterations (Jacobian by central differences) on the lab's
     model until ``x, y`` of its ground point in ``r0`` equal the nominal ones (until the
     step is below ``tol_rad``). Returns the commanded (alpha, beta) (rad). On the sphere the
@@ -77,7 +77,8 @@ def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *
     (``use_kernel=False``: the vectorised numpy path, used to test it)."""
     from simcam.scanmirror.geometry import attitude_matrix_br
 
-    target = world.nominal_ground(alpha0, beta0)[..., :2]
+    if target is None:
+        target = world.nominal_ground(alpha0, beta0)[..., :2]
     a, b = np.array(alpha0, float), np.array(beta0, float)
     att = np.asarray(att, float)
     A_br = attitude_matrix_br(att[..., 0], att[..., 1], att[..., 2])
@@ -109,11 +110,11 @@ def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *
     return a, b
 
 
-def ground_errors_deg(world, r_e_r0, r_e0_r0):
+def ground_errors_deg(world, r_e_r0, r_e0_r0, *, latlon0=None):
     """Latitude and longitude errors (deg) of ground points against their nominal ones (eq. 21
     of the paper's error definition: Delta lambda = lambda - lambda_0, Delta delta = delta - delta_0)."""
     lat, lon = world.latlon(r_e_r0)
-    lat0, lon0 = world.latlon(r_e0_r0)
+    lat0, lon0 = world.latlon(r_e0_r0) if latlon0 is None else latlon0
     dlon = np.mod(lon - lon0 + np.pi, 2 * np.pi) - np.pi
     return np.rad2deg(lat - lat0), np.rad2deg(dlon)
 

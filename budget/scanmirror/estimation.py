@@ -99,13 +99,15 @@ def batch_estimate(dwells: list[DwellMeasurement], *, centroid_sigma_rad: float,
         return np.concatenate([q[msk].ravel() for q, msk in zip(pr, masks)])
 
     h = 1e-7
+    J = None
     for _ in range(iterations):
         f0 = model(theta)
-        J = np.empty((f0.size, p))
-        for j in range(p):
-            e = np.zeros(p)
-            e[j] = h
-            J[:, j] = (model(theta + e) - model(theta - e)) / (2 * h)
+        if J is None:  # the Jacobian at the start serves every step (the model is nearly linear)
+            J = np.empty((f0.size, p))
+            for j in range(p):
+                e = np.zeros(p)
+                e[j] = h
+                J[:, j] = (model(theta + e) - model(theta - e)) / (2 * h)
         Jw = np.vstack([J / centroid_sigma_rad, np.hstack([np.zeros((3 * K, 2)), np.eye(3 * K)]) / tracker_sigma_rad])
         rw = np.concatenate([(y - f0) / centroid_sigma_rad, -theta[2:] / tracker_sigma_rad])
         step, *_ = np.linalg.lstsq(Jw, rw, rcond=None)

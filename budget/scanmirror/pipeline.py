@@ -45,6 +45,7 @@ class Setup:
         self.scan = plan.scan[keep]
         self.alpha0, self.beta0 = plan.alpha_rad[keep], plan.beta_rad[keep]
         self.g0 = w.nominal_ground(self.alpha0, self.beta0)
+        self.latlon0 = w.latlon(self.g0)
         if np.isnan(self.g0).any():
             j = int(np.flatnonzero(np.isnan(self.g0[:, 0]))[0])
             from simcam.config_base import ScenarioError
@@ -151,7 +152,8 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
                                         dtx_t[sel], dty_t[sel], att_scan[sel])
         for name, e in (("improved", est_imp), ("without_estimate", np.zeros(2))):
             ac, bc = exact_compensation(w, setup.alpha0[sel], setup.beta0[sel], np.full(sel.sum(), e[0]),
-                                        np.full(sel.sum(), e[1]), att_lab[sel], A_lab[sel], R_lab[sel])
+                                        np.full(sel.sum(), e[1]), att_lab[sel], A_lab[sel], R_lab[sel],
+                                        target=setup.g0[sel, :2])
             errs[name] = _errors_sel(setup, sel, ac, bc, dtx_t[sel], dty_t[sel], att_scan[sel])
             if keep_series:
                 errs[name + "_angles"] = (ac - setup.alpha0[sel], bc - setup.beta0[sel])
@@ -165,4 +167,4 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
 
 def _errors_sel(setup, sel, alpha, beta, dtx, dty, att):
     g = setup.world.ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
-    return ground_errors_deg(setup.world, g, setup.g0[sel])
+    return ground_errors_deg(setup.world, g, None, latlon0=(setup.latlon0[0][sel], setup.latlon0[1][sel]))
