@@ -215,3 +215,25 @@ def test_orbit_error_matrix_first_order(world):
     assert w == pytest.approx(0.6 * DEG, rel=1e-3)
     # the first-order matrix leaves second-order errors only: i cos u (u + dOm) ~ 9e-5 rad (notes: 5e-5..9e-5)
     assert np.abs(first_order_orbit_error_matrix(isu, icu, w) - A[0]).max() < 1.2 * icu * w
+
+
+def test_pd_attitude_against_expm_and_the_damped_oscillator():
+    from scipy.linalg import expm
+
+    from simcam.scanmirror.attitude import PDAttitude, pd_system_matrix
+
+    I, kp, kd, w0 = (1800.0, 1500.0, 2200.0), (4.5, 3.75, 5.5), (126.0, 105.0, 154.0), 7.292e-5
+    A, b = pd_system_matrix(I, kp, kd, w0, (1e-4, -5e-5, 8e-5))
+    t = np.array([0.0, 10.0, 50.0, 300.0])
+    x0 = np.array([2e-4, -3e-4, 4e-4, 0.0, 0.0, 0.0])
+    got = PDAttitude(A, b, t).angles(x0)
+    x_ss = -np.linalg.solve(A, b)
+    ref = np.array([x_ss + expm(A * tk) @ (x0 - x_ss) for tk in t])[:, :3]
+    assert np.abs(got - ref).max() < 1e-15
+    # pitch is decoupled: I theta'' + kd theta' + kp theta = T, underdamped closed form
+    wn, zeta = np.sqrt(kp[1] / I[1]), kd[1] / (2 * np.sqrt(kp[1] * I[1]))
+    wd = wn * np.sqrt(1 - zeta**2)
+    th_ss = -5e-5 / kp[1]
+    e0 = x0[1] - th_ss
+    theta = th_ss + e0 * np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
+    assert np.abs(got[:, 1] - theta).max() < 1e-15

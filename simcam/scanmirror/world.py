@@ -142,6 +142,27 @@ class World:
         """Geocentric latitude and longitude (rad) of ground points given in ``r0``."""
         return latlon_geocentric(np.einsum("ij,...j->...i", nominal_orbit_matrix_sr0(self.omega0_rad), r_e_r0))
 
+    def timeline(self, step_s: float) -> dict:
+        """The whole plan every ``step_s``: commanded angles, the scenario's deviation (its
+        axis and phase), the PD or profile attitude, the propagated orbit, and the nominal
+        and true ground points (geocentric lat/lon, deg; NaN where the line of sight misses
+        the Earth, e.g. in the star excursion). What ``benchmarks/bench_scanmirror.py`` times."""
+        m = self.scenario.mirror
+        t = np.arange(0.0, self.duration_s, step_s)
+        plan = self.plan(t)
+        dtx, dty = deviation_components(t, np.deg2rad(m.deviation_constant_deg), np.deg2rad(m.deviation_variable_deg),
+                                        m.deviation_period_s, np.deg2rad(m.deviation_phase_deg),
+                                        np.deg2rad(m.deviation_axis_deg))
+        att = self.attitude(t)
+        A, R, _, _ = self.orbit_geometry(t)
+        g0 = self.nominal_ground(plan.alpha_rad, plan.beta_rad)
+        g = self.ground(plan.alpha_rad, plan.beta_rad, dtx, dty, att, A, R)
+        lat0, lon0 = self.latlon(g0)
+        lat, lon = self.latlon(g)
+        return {"t_s": t, "alpha_rad": plan.alpha_rad, "beta_rad": plan.beta_rad, "scan": plan.scan,
+                "dtau_x_rad": dtx, "dtau_y_rad": dty, "attitude_rad": att, "lat0_deg": np.rad2deg(lat0),
+                "lon0_deg": np.rad2deg(lon0), "lat_deg": np.rad2deg(lat), "lon_deg": np.rad2deg(lon)}
+
     @cached_property
     def nominal_orbit_matrix_sr0(self):
         return nominal_orbit_matrix_sr0(self.omega0_rad)
