@@ -237,3 +237,22 @@ def test_pd_attitude_against_expm_and_the_damped_oscillator():
     e0 = x0[1] - th_ss
     theta = th_ss + e0 * np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
     assert np.abs(got[:, 1] - theta).max() < 1e-15
+
+
+def test_ellipsoid_option_agrees_with_proj_geos():
+    pyproj = pytest.importorskip("pyproj")
+    data = tomllib.loads(default_text())
+    data["orbit"]["earth_shape"] = "ellipsoid"
+    w = World(scenario_from_dict(data, source="default"))
+    a_m = w.earth.radius_km * 1e3
+    h = (w.R0_km - w.earth.radius_km) * 1e3
+    proj = pyproj.Proj(f"+proj=geos +h={h} +lon_0=105 +sweep=x +a={a_m} +rf={1 / w.earth.flattening} +units=m +no_defs")
+    alpha = np.linspace(-6, 6, 7) * DEG
+    beta = -45 * DEG + np.linspace(-2.5, 2.5, 7) * DEG
+    A, B = np.meshgrid(alpha, beta)
+    lat_c, lon = w.latlon(w.nominal_ground(A.ravel(), B.ravel()))
+    # PROJ works in geodetic latitude: tan(phi_d) = tan(phi_c) / (1 - f)^2 on the surface
+    lat_d = np.arctan(np.tan(lat_c) / (1 - w.earth.flattening) ** 2)
+    x, y = proj(np.rad2deg(lon), np.rad2deg(lat_d))
+    assert np.abs(np.asarray(x) / h - 2 * (B.ravel() + 45 * DEG)).max() < 1e-9
+    assert np.abs(np.asarray(y) / h - A.ravel()).max() < 1e-9
