@@ -256,3 +256,28 @@ def test_ellipsoid_option_agrees_with_proj_geos():
     x, y = proj(np.rad2deg(lon), np.rad2deg(lat_d))
     assert np.abs(np.asarray(x) / h - 2 * (B.ravel() + 45 * DEG)).max() < 1e-9
     assert np.abs(np.asarray(y) / h - A.ravel()).max() < 1e-9
+
+
+def test_scan_plan_matches_the_papers_timeline(world):
+    # method notes, "Derived timeline": scan 1 50-290 s, star dwell 315-335 s, scan 2 350-590 s
+    t = np.arange(0.0, 600.0, 0.05)
+    p = world.plan(t)
+    for s, (a, b) in ((1, (50.0, 290.0)), (2, (350.0, 590.0))):
+        ts = t[p.scan == s]
+        assert ts[0] == pytest.approx(a, abs=0.05) and ts[-1] == pytest.approx(b, abs=0.06)
+    ts = t[p.star_dwell == 1]
+    assert ts[0] == pytest.approx(315.0, abs=0.05) and ts[-1] == pytest.approx(335.0, abs=0.06)
+    dwell = p.star_dwell == 1
+    assert np.allclose(np.rad2deg(p.alpha_rad[dwell]), 13.0, atol=1e-12)
+    assert np.allclose(np.rad2deg(p.beta_rad[dwell]), -55.5, atol=1e-12)
+    # 120 lines of 3 deg, 119 steps of 0.0168 deg = 1.9992 deg of alpha
+    scan1 = p.scan == 1
+    assert np.rad2deg(p.alpha_rad[scan1]).max() - 1.0 == pytest.approx(119 * 0.0168, abs=1e-9)
+    assert np.rad2deg(p.beta_rad[scan1]).min() == pytest.approx(-46.5, abs=1e-9)
+    assert np.rad2deg(p.beta_rad[scan1]).max() == pytest.approx(-43.5, abs=1e-6)
+    # the slew's peak rates: 12 deg / 8 s and -9 deg / 8 s in a 2/6/2 s trapezoid = 1.5, -1.125 deg/s
+    slew = (t > 307.0) & (t < 313.0)
+    rate = np.gradient(np.rad2deg(p.alpha_rad), t)[slew]
+    assert rate.max() == pytest.approx(1.5, rel=1e-9)
+    rate_b = np.gradient(np.rad2deg(p.beta_rad), t)[slew]
+    assert rate_b.min() == pytest.approx(-1.125, rel=1e-9)

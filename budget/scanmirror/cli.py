@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-__all__ = ["simulate_command", "simulate", "main"]
+__all__ = ["simulate_command", "simulate", "write_simulate_report"]
 
 
 def simulate(scenario, *, seed: int = 0, source: str = "scenario") -> tuple[dict, object, dict]:
@@ -53,8 +53,6 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
     t = np.arange(0.0, w.duration_s, 0.1)
     plan = w.plan(t)
     sc = setup.scenario
-    from simcam.scanmirror.world import deviation_components
-
     figs = [plot_ground_error_maps(w, setup, out, d / "ground_error_maps.png")]
     dx, dy = out["series"]["dtau_x"], out["series"]["dtau_y"]
     dwell_end = float(setup.dwells[-1].frame_t_s[-1]) if setup.dwells else float(t[0])
@@ -80,7 +78,6 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
               "dtau = 0, as the paper does.", ""]
     lines += [f"![{f.stem}]({f.name})" for f in figs]
     (d / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    _ = deviation_components
     return d / "report.md"
 
 
@@ -109,15 +106,3 @@ def simulate_command() -> click.Command:
             click.echo(f"report: {write_simulate_report(summary, setup, out, report_dir)}")
 
     return cmd
-
-
-@click.group("scanmirror")
-def _group():
-    """Interim local group (the registry's ``budget scanmirror`` is the real entry point)."""
-
-
-def main(argv=None) -> None:
-    from simcam.cli_common import run_cli
-
-    _group.add_command(simulate_command())
-    run_cli(_group, argv)

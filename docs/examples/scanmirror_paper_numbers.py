@@ -7,7 +7,6 @@ Run from the repository root: ``python docs/examples/scanmirror_paper_numbers.py
 from __future__ import annotations
 
 import argparse
-import copy
 import os
 import sys
 import tomllib

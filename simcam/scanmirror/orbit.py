@@ -182,4 +182,3 @@ def orbit_error_parameters(i_rad, u_rad, d_omega_rad) -> np.ndarray:
 
 __all__ += ["orbit_error_matrix_r0r", "first_order_orbit_error_matrix", "orbit_error_parameters", "orbit_angles",
             "exact_orbit_error_matrix"]
-_ = P_ORBIT
