@@ -184,3 +184,12 @@ def test_unknown_key_is_named():
     data["mirror"]["tilt"] = 1.0
     with pytest.raises(ScenarioError, match=r"mirror.tilt: unknown key"):
         scenario_from_dict(data, source="test.toml")
+
+
+def test_profile_attitude_mode_runs_through_the_pipeline():
+    sc = _default(**{"attitude.mode": "profile"})
+    setup = Setup(sc, 2.0, scans=(2,))
+    o = run(setup, np.random.default_rng(5))
+    lat, lon = o["errors"][2]["improved"]
+    # exact compensation with a 1" knowledge error and a ~0.6" estimate error: a few 1e-3 deg
+    assert np.isfinite(lat).all() and np.abs(lat).max() < 0.02 and np.abs(lon).max() < 0.02

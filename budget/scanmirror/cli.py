@@ -54,9 +54,10 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
     plan = w.plan(t)
     sc = setup.scenario
     figs = [plot_ground_error_maps(w, setup, out, d / "ground_error_maps.png")]
-    dx, dy = out["series"]["dtau_x"], out["series"]["dtau_y"]
+    ser = out["series"]
+    dx, dy = ser["dtau_x_all"], ser["dtau_y_all"]
     dwell_end = float(setup.dwells[-1].frame_t_s[-1]) if setup.dwells else float(t[0])
-    figs.append(plot_deviation_timeline(setup.t_s, dx, dy, {k: out["dtau"][k] for k in ("published", "improved")},
+    figs.append(plot_deviation_timeline(ser["t_all_s"], dx, dy, {k: out["dtau"][k] for k in ("published", "improved")},
                                         dwell_end, d / "deviation_timeline.png"))
     figs.append(plot_scan_pattern(w, t, plan.alpha_rad, plan.beta_rad, plan.scan, plan.star_dwell,
                                   d / "scan_pattern.png"))

@@ -160,8 +160,11 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
         sc_errors[s] = errs
     out["errors"] = sc_errors
     if keep_series:
+        t_all = np.arange(0.0, w.duration_s, setup.step_s)
+        dx_all, dy_all = dev(t_all)
         out["series"] = {"t_s": setup.t_s, "scan": setup.scan, "dtau_x": dtx_t, "dtau_y": dty_t,
-                         "attitude": att_scan, "g0": setup.g0}
+                         "attitude": att_scan, "g0": setup.g0, "t_all_s": t_all, "dtau_x_all": dx_all,
+                         "dtau_y_all": dy_all}
     return out
 
 
