@@ -23,16 +23,18 @@ def test_trial_keys_truths_and_sigmas(scenario):
     assert {k[1] for k in r.estimates} == set(STUDY.variants)
     assert set(r.truths) == {k for k in r.estimates if k[0] == "dtau"}
     assert set(r.sigmas) == {("dtau", "improved", "x"), ("dtau", "improved", "y")}
-    # the same trial twice: identical (trial k draws only from its own seed sequence)
+    # the same trial twice: bit-identical (trial k draws only from its own seed sequence;
+    # exact equality is the point here, not a computed-float comparison)
     r2 = STUDY.trial(scenario, 0, 3)
     assert r.estimates == r2.estimates
     truths = STUDY.truths(scenario, 0)
-    assert all(t.value == 0.0 for t in truths.values())
+    assert all(t.value == 0.0 for t in truths.values())  # a stated constant, not a computation
 
 
 def test_run_study_two_workers_equal_one(scenario):
     from budget.runner.run import run_study
 
+    # bit-identity across worker counts is the requirement (exact comparison on purpose)
     a = run_study(STUDY, scenario, trials=6, seed=11, workers=1)
     b = run_study(STUDY, scenario, trials=6, seed=11, workers=2)
     assert a.samples.keys() == b.samples.keys()
