@@ -66,3 +66,16 @@ def test_simulate_command_and_bad_input(tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {bad}: orbit.eccentricity")
+
+
+def test_validate_names_the_file_of_a_starless_dwell(tmp_path, capsys):
+    from budget.cli import cli
+    from simcam.cli_common import run_cli
+
+    bad = tmp_path / "dim.toml"
+    bad.write_text(STUDY.default_text().replace("mag_limit = 7.5 ", "mag_limit = 2.0 "))
+    with pytest.raises(SystemExit) as exc:
+        run_cli(cli, ["scanmirror", "validate", str(bad), "--trials", "2", "--workers", "1"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {bad}: star_sensing.mag_limit: no catalogue star")

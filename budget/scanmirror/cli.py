@@ -11,12 +11,12 @@ import numpy as np
 __all__ = ["simulate_command", "simulate", "write_simulate_report"]
 
 
-def simulate(scenario, *, seed: int = 0, source: str = "scenario") -> tuple[dict, object, dict]:
+def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dict, object, dict]:
     """Run the timeline once (the draws of trial ``seed``'s stream, ground points every
     ``compensation.ground_step_s``); returns (JSON summary, setup, raw output)."""
     from budget.scanmirror.pipeline import ARCSEC, Setup, run
 
-    setup = Setup(scenario, scenario.compensation.ground_step_s, source=source)
+    setup = Setup(scenario, scenario.compensation.ground_step_s, source=source or scenario.source)
     out = run(setup, np.random.default_rng(np.random.SeedSequence(seed)), keep_series=True)
     lat0, lon0 = setup.world.latlon(setup.g0)
     summary = {

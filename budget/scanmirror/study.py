@@ -67,7 +67,7 @@ class ScanMirrorStudy(Study):
                       ("lat", "lon"), "as ground_max, root mean square over the scan's samples; truth 0"),
         )
 
-    def _setup(self, scenario, *, source: str = "scenario"):
+    def _setup(self, scenario, *, source: str | None = None):
         from budget.scanmirror.pipeline import Setup
 
         key = scenario.hash
@@ -78,7 +78,8 @@ class ScanMirrorStudy(Study):
 
             w = World(scenario)
             last = int(evaluate_plan(scenario.scan_plan, np.arange(0.0, w.duration_s, 0.5)).scan.max())
-            _SETUP[key] = Setup(scenario, scenario.validation.ground_step_s, scans=(last,), source=source)
+            _SETUP[key] = Setup(scenario, scenario.validation.ground_step_s, scans=(last,),
+                                source=source or scenario.source)
         return _SETUP[key]
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:

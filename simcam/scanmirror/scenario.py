@@ -6,7 +6,7 @@ from __future__ import annotations
 from importlib.resources import files
 from typing import Annotated, Literal, Union
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
 
@@ -149,10 +149,16 @@ class ScanMirrorScenario(StrictModel):
     compensation: CompensationConfig = CompensationConfig()
     validation: ValidationConfig = ValidationConfig()
     scan_plan: ScanPlan
+    #: where the scenario came from (named in errors found later, e.g. in a worker process)
+    _source: str = PrivateAttr(default="scenario")
 
     @property
     def hash(self) -> str:
         return model_hash(self)
+
+    @property
+    def source(self) -> str:
+        return self._source
 
 
 def default_text() -> str:
@@ -163,6 +169,7 @@ def default_text() -> str:
 def scenario_from_dict(data: dict, *, source: str) -> ScanMirrorScenario:
     """Validate a mapping; errors are :class:`ScenarioError` lines naming ``source`` and field."""
     sc = validate_model(ScanMirrorScenario, data, source=source)
+    sc._source = source
     n_scan = sum(1 for s in sc.scan_plan.segments if s.kind == "area_scan")
     if n_scan < 1:
         raise ScenarioError(f"{source}: scan_plan.segments: at least one area_scan is needed")
