@@ -72,30 +72,46 @@ def tdi_phasor_kernel(v_along, v_cross, n_stages, n_phase, n_time, k_along, k_cr
     ``u = m + j/n_phase`` along the TDI direction and at column ``c``; the image moves
     continuously at ``(v_along, v_cross)`` pixels per line period, so the scene point under
     the packet is ``(u - v_along t, c - v_cross t)``. The exposure is sampled at
-    ``n_time`` midpoints per clock phase. ``out[c, m]`` accumulates, over the first
-    ``m + 1`` stages, the sum of the phasor (prefix sums give the MTF of every stage
-    count in one pass). The phasor is advanced by complex multiplication (a rotation per
-    time sample and one per clock step), not recomputed.
+    ``n_time`` midpoints per clock phase; within a phase the samples' phasors form a
+    geometric sequence (ratio ``r``), summed exactly as ``z (1 - r^n)/(1 - r)``, so
+    ``n_time`` can be made large at no cost. ``out[m, c]`` is the sum over the samples of
+    the first ``m + 1`` stages (prefix sums: every stage count in one pass). Columns are
+    the inner loop (independent, vectorisable).
     """
     two_pi = 2.0 * math.pi
     dt = 1.0 / (n_phase * n_time)
-    # phase rate of the scene under a fixed packet, per time sample, and the clock step
-    rot_t = complex(math.cos(-two_pi * (k_along * v_along + k_cross * v_cross) * dt),
-                    math.sin(-two_pi * (k_along * v_along + k_cross * v_cross) * dt))
-    rot_clk = complex(math.cos(two_pi * k_along / n_phase), math.sin(two_pi * k_along / n_phase))
+    th = -two_pi * (k_along * v_along + k_cross * v_cross) * dt      # phase step per sample
+    rr, ri = math.cos(th), math.sin(th)
+    if abs(th) < 1e-300:
+        gr, gi = float(n_time), 0.0
+    else:
+        # (1 - r^n) / (1 - r)
+        nr, ni = 1.0 - math.cos(n_time * th), -math.sin(n_time * th)
+        dr, di = 1.0 - rr, -ri
+        den = dr * dr + di * di
+        gr, gi = (nr * dr + ni * di) / den, (ni * dr - nr * di) / den
+    # advance over one clock phase: r^n, then the clock step +2 pi k_a / n_phase
+    ph_q = n_time * th + two_pi * k_along / n_phase
+    qr, qi = math.cos(ph_q), math.sin(ph_q)
+    zr = np.empty(n_cols)
+    zi = np.empty(n_cols)
+    ar = np.zeros(n_cols)
+    ai = np.zeros(n_cols)
+    t0 = 0.5 * dt
     for ci in range(n_cols):
-        c = col0 + ci
-        t0 = 0.5 * dt
-        ph0 = two_pi * (k_cross * (c - v_cross * t0) - k_along * v_along * t0)
-        z = complex(math.cos(ph0), math.sin(ph0))
-        acc = 0.0 + 0.0j
-        for m in range(n_stages):
-            for j in range(n_phase):
-                for _ in range(n_time):
-                    acc += z
-                    z *= rot_t
-                z *= rot_clk
-            out[ci, m] = acc
+        ph0 = two_pi * (k_cross * (col0 + ci - v_cross * t0) - k_along * v_along * t0)
+        zr[ci] = math.cos(ph0)
+        zi[ci] = math.sin(ph0)
+    for m in range(n_stages):
+        for _ in range(n_phase):
+            for ci in range(n_cols):
+                xr, xi = zr[ci], zi[ci]
+                ar[ci] += xr * gr - xi * gi
+                ai[ci] += xr * gi + xi * gr
+                zr[ci] = xr * qr - xi * qi
+                zi[ci] = xr * qi + xi * qr
+        for ci in range(n_cols):
+            out[m, ci] = complex(ar[ci], ai[ci])
 
 
 @njit(cache=True)

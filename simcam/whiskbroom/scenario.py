@@ -131,15 +131,16 @@ class Synthesis(StrictModel):
 
 class Tdi(StrictModel):
     columns: int = Field(default=1000, ge=2)
-    time_samples_per_phase: int = Field(default=4, ge=1)
+    time_samples_per_phase: int = Field(default=64, ge=1)
     aperture_samples: int = Field(default=16, ge=1)
     signal_e_per_stage: float = Field(default=400.0, gt=0)
     read_noise_e: float = Field(default=30.0, ge=0)
     noise: bool = True
     edge_angle_deg: float = Field(default=5.0, gt=0, lt=45)
-    edge_lines: int = Field(default=48, ge=8)
-    edge_columns: int = Field(default=160, ge=8)
+    edge_lines: int = Field(default=32, ge=8)
+    edge_columns: int = Field(default=128, ge=8)
     edge_oversampling: int = Field(default=4, ge=1)
+    edge_time_samples_per_phase: int = Field(default=8, ge=1)
 
 
 class Validation(StrictModel):
