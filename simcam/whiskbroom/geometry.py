@@ -324,7 +324,8 @@ def scan_ground_trace(params, x1_mm, x3_mm, times_s):
     """Geodetic-sphere latitude and longitude (deg) of image points while the mirror scans.
 
     For each time the chain is evaluated at that real time and the image points are ray
-    cast; longitude is Earth-fixed (E1 toward the descending node at t = 0).
+    cast; longitude is Earth-fixed, east positive, from the orbit's ascending node at t = 0
+    (the direction -E3), unwrapped along the trace.
 
     Returns
     -------
@@ -335,5 +336,5 @@ def scan_ground_trace(params, x1_mm, x3_mm, times_s):
     for t in np.asarray(times_s, dtype=float):
         g = ground_points(params[:1], x1_mm, x3_mm, t=t)[0]
         lat.append(np.degrees(np.arcsin(g[:, 1] / np.linalg.norm(g, axis=-1))))
-        lon.append(np.degrees(np.arctan2(g[:, 0], g[:, 2])))
-    return np.array(lat), np.array(lon)
+        lon.append(np.arctan2(-g[:, 0], -g[:, 2]))
+    return np.array(lat), np.degrees(np.unwrap(np.array(lon), axis=0))

@@ -144,7 +144,7 @@ class Tdi(StrictModel):
 
 
 class Validation(StrictModel):
-    trials: int = Field(default=1000, ge=1)
+    trials: int = Field(default=200, ge=1)
     max_trials: int = Field(default=10000, ge=1)
     batch_trials: int = Field(default=100, ge=1)
     tolerance: float | None = Field(default=None, gt=0)

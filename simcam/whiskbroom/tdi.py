@@ -74,9 +74,9 @@ def pixel_mtf(eps: float, eta: float, *, n_stages: int, n_phase: int, n_time: in
     for ka, kc in ((frequency, 0.0), (0.0, frequency)):
         acc = sinusoid_accumulators(eps, eta, n_stages=n_stages, n_phase=n_phase, n_time=n_time,
                                     columns=columns, k_along=ka, k_cross=kc)
-        ap = aperture_factor(ka, kc, aperture_samples)
-        moving = np.abs(acc * ap).mean(axis=1)
-        static = count * abs(ap)
+        ap = abs(aperture_factor(ka, kc, aperture_samples))
+        moving = np.abs(acc).mean(axis=1) * ap       # |aperture x accumulated phasor|
+        static = count * ap
         res.append(moving / static)
     return res[0], res[1]
 
