@@ -380,6 +380,8 @@ def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = No
             "beta_mean_deg": float(np.mean(r.beta_deg)),
             "eps_quantile": eq, "eta_quantile": hq,
             "n_max_published": stage_limit(eq, threshold=sc.synthesis.mtf_threshold),
+            "eps_max": float(np.max(np.abs(r.eps))),
+            "n_max_published_at_max": stage_limit(float(np.max(np.abs(r.eps))), threshold=sc.synthesis.mtf_threshold),
             "n_max_improved": stage_limit(eq, n_phase=sc.camera.n_phase, cross_q=hq,
                                           threshold=sc.synthesis.mtf_threshold),
         })
