@@ -20,7 +20,6 @@ Classes: ``mtf_nyquist`` (axes along, cross) at the scenario's stage count, and
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np

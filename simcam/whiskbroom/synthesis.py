@@ -28,7 +28,7 @@ import numpy as np
 from scipy.special import ndtri
 
 from simcam.whiskbroom import geometry as geo
-from simcam.whiskbroom.scenario import ERROR_VARIABLES, STATE_VARIABLES, VARIABLES, WhiskbroomScenario
+from simcam.whiskbroom.scenario import ERROR_VARIABLES, VARIABLES, WhiskbroomScenario
 
 __all__ = ["trial_uniforms", "standard_draws", "nominal_params", "trial_params",
            "field_points", "full_field_points", "array_angle", "evaluate", "Residuals",
