@@ -82,6 +82,15 @@ class ProcessRunner(Runner):
                                          initializer=worker_init)
         return self
 
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc is not None and not isinstance(exc, Exception) and self._pool is not None:
+            # interrupted (SIGINT/SIGTERM): end the workers now rather than finish their points
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(self._pool)
+            self._pool = None
+        self.close()
+
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)

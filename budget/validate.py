@@ -44,10 +44,16 @@ _PARALLEL: bool | None = None
 
 
 def worker_init() -> None:
-    """Worker processes run single-threaded kernels: the processes are the parallelism."""
+    """Worker processes run single-threaded kernels: the processes are the parallelism.
+
+    They also exit when their parent dies (:func:`simcam.lifecycle.exit_with_parent`).
+    """
     global _PARALLEL
     import numba
 
+    from simcam.lifecycle import exit_with_parent
+
+    exit_with_parent()  # a killed parent leaves no orphaned worker
     numba.set_num_threads(1)
     _PARALLEL = False
 
@@ -287,6 +293,13 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
                 if len(results) >= cap:
                     stopped_by = "max_trials"
                     break
+    except BaseException as exc:
+        if pool is not None and not isinstance(exc, Exception):  # interrupted: stop the workers now
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(pool)
+            pool = None
+        raise
     finally:
         if pool is not None:
             pool.shutdown()
@@ -319,6 +332,23 @@ def default_workers() -> int:
 # --------------------------------------------------------------------------- CLI
 import click  # noqa: E402
 
+#: a lower bound of the memory one trial's results hold (one float64 per class, axis, variant)
+_BYTES_PER_TRIAL = 8 * len(CLASSES) * len(AXES) * len(VARIANTS)
+
+
+def _check_trials_fit(scn, *, trials, tolerance, source: str) -> None:
+    """Refuse a trial count whose results alone cannot fit in memory (before any work)."""
+    from simcam.lifecycle import check_memory
+
+    if trials is not None:
+        n, what = trials, f"--trials {trials}"
+    elif tolerance is None:
+        n, what = scn.validation.trials, f"{source}: validation.trials = {scn.validation.trials}"
+    else:
+        n, what = scn.validation.max_trials, f"{source}: validation.max_trials = {scn.validation.max_trials}"
+    check_memory(float(n) * _BYTES_PER_TRIAL, what=f"{what} (at least {_BYTES_PER_TRIAL} bytes per trial)")
+
+
 
 @click.command("validate")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
@@ -343,6 +373,7 @@ def validate_command(scenario, trials, tolerance, seed, workers, json_out, repor
     if trials is not None and tolerance is not None:
         raise UserInputError("--trials and --tolerance: give one of them")
     scn = load_scenario(scenario)
+    _check_trials_fit(scn, trials=trials, tolerance=tolerance, source=str(scenario or "<embedded scenario>"))
     t0 = time.perf_counter()
     res = validate(scn, trials=trials, tolerance_3sigma_arcsec=tolerance, seed=seed,
                    workers=workers or default_workers(), progress=progress)

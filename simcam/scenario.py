@@ -555,11 +555,10 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:
-        path = Path(path)
-        if not path.is_file():
-            raise ScenarioError(f"{path}: scenario file not found")
-        text = path.read_text()
+        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
         source = str(path)
+        return scenario_from_dict(read_toml(path=path, source=source), source=source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

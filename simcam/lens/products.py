@@ -464,7 +464,9 @@ def lens_products(prescription, *, use_cache: bool = True, variant: str | None =
     key = p.hash
     if use_cache and key in _MEMO:
         return _MEMO[key]
-    path = cache_dir() / f"{p.name}-{key}.nc"
+    from simcam.lifecycle import safe_filename
+
+    path = cache_dir() / f"{safe_filename(p.name, default='lens')}-{key}.nc"  # the name is input: never a path
     if use_cache and path.is_file():
         try:
             prod = LensProducts.load(path)
