@@ -259,7 +259,10 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False)
+        import sys
+
+        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False,
+                   disable=not sys.stderr.isatty())  # quiet when not on a terminal
         bar.update(len(results))
     # "spawn": numba's OpenMP/TBB thread pools must not be forked
     pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -38,6 +39,8 @@ def format_validation_error(err: ValidationError, *, source: str | None = None) 
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         inp = e.get("input")
+        if isinstance(inp, float) and not math.isfinite(inp):
+            msg = "must be a finite number"  # not "should be less than 1" for a NaN
         shown = "" if e["type"] in ("extra_forbidden", "missing") else f" (got {inp!r})"
         if len(shown) > 80:
             shown = shown[:77] + "...)"
