@@ -97,12 +97,13 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
 
 def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool) -> None:
     """Refuse manifest entries that lead out of the dataset folder (unless allowed)."""
-    if allow_outside:
-        return
     root = directory.resolve()
     for i, f in enumerate(m["file"]):
-        target = (directory / str(f)).resolve()
-        if target != root and root not in target.parents:
+        try:
+            target = (directory / str(f)).resolve()
+        except (ValueError, OSError, RuntimeError) as exc:  # NUL byte, symlink loop
+            raise UserInputError(f"{manifest}: row {i + 2}: file {f!r} is not a usable path ({exc})") from None
+        if not allow_outside and target != root and root not in target.parents:
             raise UserInputError(f"{manifest}: row {i + 2}: file {f!r} is outside the dataset folder {directory} "
                                  "(pass --allow-outside-files to read it anyway)")
 
@@ -160,10 +161,11 @@ def measure_frames(
     _confine(m, directory, manifest or directory / "manifest.csv", allow_outside=allow_outside)
     lit = m[m["dark"] == 0]
     conditions = sorted(lit["condition"].dropna().unique().tolist())
+    mpath = manifest or directory / "manifest.csv"
     if protocol in ("te", "distortion") and len(conditions) != 1:
-        raise UserInputError(f"{protocol}: expected one condition, the manifest has {len(conditions)}")
+        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
     if protocol == "hsfe" and len(conditions) < 2:
-        raise UserInputError("hsfe: needs at least 2 conditions (hexapod poses)")
+        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
     _, header = read_frame(directory / lit["file"].iloc[0])
     try:
         adc_max = 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
@@ -217,7 +219,8 @@ def measure_frames(
         else:
             det = detect_stars(first, threshold_sigma=threshold_sigma)
             if det.empty:
-                raise UserInputError(f"condition {cond}: no star above {threshold_sigma} sigma in {rows['file'].iloc[0]}")
+                raise UserInputError(f"{directory / rows['file'].iloc[0]}: condition {cond}: no star above "
+                                     f"{threshold_sigma} sigma")
             xy = det[["x_peak", "y_peak"]].to_numpy(float)
             ref_xy = xy[_raster_order(xy)]
         extra = {"condition": int(cond)}

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from budget.protocols import PROTOCOLS, estimate, make_plan, simulate
+from simcam.lifecycle import worker_initializer
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -266,7 +267,7 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
         bar.update(len(results))
     # "spawn": numba's OpenMP/TBB thread pools must not be forked
     pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                initializer=worker_init) if workers > 1 else None)
+                                initializer=worker_initializer("budget.validate:worker_init")) if workers > 1 else None)
     stopped_by = "trials"
     try:
         while True:

@@ -40,7 +40,7 @@ from pathlib import Path
 __all__ = [
     "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
     "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
-    "progress", "remove_stale_partials", "safe_filename", "stop_pool",
+    "progress", "remove_stale_partials", "safe_filename", "stop_pool", "worker_initializer",
 ]
 
 #: outputs at least this large are announced before they are written
@@ -192,6 +192,10 @@ def exit_with_parent(*, poll_s: float = 0.5, use_pdeathsig: bool = True) -> None
     When the workers are gone, multiprocessing's resource tracker (which holds a pipe
     from the parent and each worker) sees end-of-file and exits too.
     """
+    global _GUARDED
+    if _GUARDED:
+        return
+    _GUARDED = True
     import multiprocessing
 
     owner = multiprocessing.parent_process()
@@ -210,6 +214,30 @@ def exit_with_parent(*, poll_s: float = 0.5, use_pdeathsig: bool = True) -> None
                 os._exit(1)
 
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+_GUARDED = False
+
+
+def _guarded_init(target: str) -> None:
+    exit_with_parent()
+    import importlib
+
+    module, _, name = target.partition(":")
+    getattr(importlib.import_module(module), name)()
+
+
+def worker_initializer(target: str):
+    """A pool ``initializer`` that guards the worker (:func:`exit_with_parent`) *before*
+    importing and calling ``target`` (``"package.module:function"``).
+
+    The guard then holds from the worker's first moments: a parent killed while its
+    workers are still importing numerical libraries (seconds on a loaded machine) leaves
+    no worker behind either. Picklable (a :func:`functools.partial` of this light module).
+    """
+    import functools
+
+    return functools.partial(_guarded_init, target)
 
 
 def stop_pool(pool) -> None:
