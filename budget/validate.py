@@ -47,14 +47,12 @@ _PARALLEL: bool | None = None
 def worker_init() -> None:
     """Worker processes run single-threaded kernels: the processes are the parallelism.
 
-    They also exit when their parent dies (:func:`simcam.lifecycle.exit_with_parent`).
+    Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
+    the worker exit when its parent dies.
     """
     global _PARALLEL
     import numba
 
-    from simcam.lifecycle import exit_with_parent
-
-    exit_with_parent()  # a killed parent leaves no orphaned worker
     numba.set_num_threads(1)
     _PARALLEL = False
 
@@ -351,7 +349,6 @@ def _check_trials_fit(scn, *, trials, tolerance, source: str) -> None:
     else:
         n, what = scn.validation.max_trials, f"{source}: validation.max_trials = {scn.validation.max_trials}"
     check_memory(float(n) * _BYTES_PER_TRIAL, what=f"{what} (at least {_BYTES_PER_TRIAL} bytes per trial)")
-
 
 
 @click.command("validate")
