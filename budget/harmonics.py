@@ -33,6 +33,11 @@ import numpy as np
 
 from simcam.cli_common import UserInputError
 
+#: one full turn in arcsec: no calibration reading errs by that much
+FULL_TURN_ARCSEC = 360.0 * 3600.0
+#: calibration angles beyond ten turns are not readings of one rotation
+MAX_ANGLE_DEG = 3600.0
+
 __all__ = [
     "CompensationModel",
     "DesignAnalysis",
@@ -540,13 +545,18 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
 
     path = str(path)
     try:
-        fh = open(path, newline="")
+        fh = open(path, newline="", encoding="utf-8")
     except FileNotFoundError:
         raise UserInputError(f"{path}: file not found") from None
     except OSError as exc:
         raise UserInputError(f"{path}: cannot read ({exc.strerror})") from None
-    with fh:
-        rows = [(i + 1, r) for i, r in enumerate(csv.reader(fh))]
+    try:
+        with fh:
+            rows = [(i + 1, r) for i, r in enumerate(csv.reader(fh))]
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}): is this a CSV table?") from None
+    except csv.Error as exc:
+        raise UserInputError(f"{path}: not a readable CSV table ({exc})") from None
     rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r)]
     if not rows:
         raise UserInputError(f"{path}: empty file (expected a header angle_deg,error_arcsec)")
@@ -570,6 +580,12 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
         if not (math.isfinite(a) and math.isfinite(e)):
             problems.append(f"{path}:{ln}: non-finite value")
             continue
+        if abs(e) >= FULL_TURN_ARCSEC or abs(a) > MAX_ANGLE_DEG:
+            # an angle error of a full turn or more, or an angle beyond a few turns, is
+            # not a calibration reading (and squares of such values overflow)
+            problems.append(f"{path}:{ln}: out of range: angle_deg {r[ia].strip()} (|angle| <= {MAX_ANGLE_DEG:g}), "
+                            f"error_arcsec {r[ie].strip()} (|error| < {FULL_TURN_ARCSEC:g}, one turn)")
+            continue
         ang.append(a)
         err.append(e)
     if problems:
@@ -580,5 +596,12 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
     a = np.array(ang)
     wrapped = np.round(np.mod(a, 360.0), 9)
     if np.unique(wrapped).size != a.size:
-        raise UserInputError(f"{path}: duplicated angle(s) (modulo 360 deg)")
+        lines = [ln for ln, _ in rows[1:]]
+        seen: dict = {}
+        for i, w in enumerate(wrapped):
+            if w in seen:
+                j = seen[w]
+                raise UserInputError(f"{path}:{lines[i]}: duplicated angle: angle_deg {ang[i]:g} repeats line {lines[j]}'s "
+                                     f"{ang[j]:g} (modulo 360 deg)")
+            seen[w] = i
     return a, np.array(err)

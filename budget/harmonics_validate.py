@@ -439,7 +439,9 @@ def validate(*, scenario: InductosynScenario, trials: int, seed: int,
     if progress:
         from tqdm import tqdm
 
-        it = tqdm(it, desc="trials", unit="chunk", leave=False)
+        import sys
+
+        it = tqdm(it, desc="trials", unit="chunk", leave=False, disable=not sys.stderr.isatty())  # quiet off a terminal
     for s in it:
         parts.append(run_trials(prepared=p, trials=min(chunk, trials - s), seed=seed, first_trial=s))
     res = {k: np.concatenate([q[k] for q in parts], axis=0) for k in parts[0]}

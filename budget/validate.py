@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from budget.protocols import PROTOCOLS, estimate, make_plan, simulate
+from simcam.lifecycle import worker_initializer
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -44,7 +45,11 @@ _PARALLEL: bool | None = None
 
 
 def worker_init() -> None:
-    """Worker processes run single-threaded kernels: the processes are the parallelism."""
+    """Worker processes run single-threaded kernels: the processes are the parallelism.
+
+    Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
+    the worker exit when its parent dies.
+    """
     global _PARALLEL
     import numba
 
@@ -253,11 +258,14 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False)
+        import sys
+
+        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False,
+                   disable=not sys.stderr.isatty())  # quiet when not on a terminal
         bar.update(len(results))
     # "spawn": numba's OpenMP/TBB thread pools must not be forked
     pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                initializer=worker_init) if workers > 1 else None)
+                                initializer=worker_initializer("budget.validate:worker_init")) if workers > 1 else None)
     stopped_by = "trials"
     try:
         while True:
@@ -287,6 +295,13 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
                 if len(results) >= cap:
                     stopped_by = "max_trials"
                     break
+    except BaseException as exc:
+        if pool is not None and not isinstance(exc, Exception):  # interrupted: stop the workers now
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(pool)
+            pool = None
+        raise
     finally:
         if pool is not None:
             pool.shutdown()
@@ -319,6 +334,22 @@ def default_workers() -> int:
 # --------------------------------------------------------------------------- CLI
 import click  # noqa: E402
 
+#: a lower bound of the memory one trial's results hold (one float64 per class, axis, variant)
+_BYTES_PER_TRIAL = 8 * len(CLASSES) * len(AXES) * len(VARIANTS)
+
+
+def _check_trials_fit(scn, *, trials, tolerance, source: str) -> None:
+    """Refuse a trial count whose results alone cannot fit in memory (before any work)."""
+    from simcam.lifecycle import check_memory
+
+    if trials is not None:
+        n, what = trials, f"--trials {trials}"
+    elif tolerance is None:
+        n, what = scn.validation.trials, f"{source}: validation.trials = {scn.validation.trials}"
+    else:
+        n, what = scn.validation.max_trials, f"{source}: validation.max_trials = {scn.validation.max_trials}"
+    check_memory(float(n) * _BYTES_PER_TRIAL, what=f"{what} (at least {_BYTES_PER_TRIAL} bytes per trial)")
+
 
 @click.command("validate")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
@@ -343,6 +374,7 @@ def validate_command(scenario, trials, tolerance, seed, workers, json_out, repor
     if trials is not None and tolerance is not None:
         raise UserInputError("--trials and --tolerance: give one of them")
     scn = load_scenario(scenario)
+    _check_trials_fit(scn, trials=trials, tolerance=tolerance, source=str(scenario or "<embedded scenario>"))
     t0 = time.perf_counter()
     res = validate(scn, trials=trials, tolerance_3sigma_arcsec=tolerance, seed=seed,
                    workers=workers or default_workers(), progress=progress)

@@ -546,7 +546,19 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Sc
             data = apply_lens(data)
         except ValueError as exc:
             raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
-    return validate_model(Scenario, data, source=source)
+    scn = validate_model(Scenario, data, source=source)
+    _check_derived_finite(scn, source=source)
+    return scn
+
+
+def _check_derived_finite(scn: "Scenario", *, source: str | None) -> None:
+    """Input check: products of fields that overflow (e.g. ``exposure_s = 1e308``) are
+    reported against the fields, not as a derived quantity deep in the simulator."""
+    dark = scn.detector.dark_current_e_per_s * scn.camera.exposure_s
+    if not math.isfinite(dark):
+        raise ScenarioError(f"{source or 'scenario'}: camera.exposure_s = {scn.camera.exposure_s:g}: the dark charge "
+                            f"per exposure (x detector.dark_current_e_per_s = {scn.detector.dark_current_e_per_s:g}) "
+                            "overflows; give an exposure in seconds")
 
 
 def load_scenario(path: str | Path | None = None) -> Scenario:
@@ -555,11 +567,10 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:
-        path = Path(path)
-        if not path.is_file():
-            raise ScenarioError(f"{path}: scenario file not found")
-        text = path.read_text()
+        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
         source = str(path)
+        return scenario_from_dict(read_toml(path=path, source=source), source=source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
