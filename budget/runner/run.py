@@ -168,6 +168,14 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     cap = min(study.max_trials(scenario), MAX_TRIALS)
     batch = study.batch_trials(scenario)
     classes = tuple(study.classes(scenario))
+    # what the trials will hold in memory, refused before any work if it cannot fit: per
+    # trial and key an estimate, maybe a truth and a stated sigma (8 bytes each, kept in
+    # Python dicts until the end: about 100 bytes a value)
+    from simcam.lifecycle import check_memory
+
+    n_values = sum(len(c.axes) for c in classes) * len(study.variants)
+    n_max = trials if trials is not None else cap
+    check_memory(float(n_max) * (300 + 3 * 100 * n_values), what=f"{n_max:,} trials of {study.name}")
     executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
                              initializer=_worker_init, initargs=(study,))
     results: dict[int, TrialResult] = {}
