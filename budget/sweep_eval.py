@@ -137,15 +137,9 @@ def _truth_arrays(scenario, truths) -> tuple[np.ndarray, np.ndarray]:
 
     f = 3.0 * scenario.camera.scale_arcsec_per_px
     truth = np.array([[getattr(truths[c], f"{a}_px") * f for a in AXES] for c in CLASSES])
-    se = np.zeros_like(truth)
-    te = truths["te"]
-    i_te, i_total = CLASSES.index("te"), CLASSES.index("total")
-    for j, a in enumerate(AXES):
-        # the TE truth is a mean over stars of per-star sds from a sample of frames
-        s = te.details[f"standard_error_{a}_px"] * f / math.sqrt(max(te.details["stars"], 1))
-        se[i_te, j] = s
-        tot = truth[i_total, j]
-        se[i_total, j] = truth[i_te, j] / tot * s if tot > 0 else s  # d total / d TE = TE / total
+    # each truth carries its own Monte Carlo standard error (budget.truth.ClassTruth; the
+    # combined classes propagate their parts')
+    se = np.array([[getattr(truths[c], f"se_{a}_px") * f for a in AXES] for c in CLASSES])
     return truth, se
 
 

@@ -202,18 +202,28 @@ def truths(scenario, *, seed: int) -> dict:
     ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
     the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
     """
-    from budget.truth import ClassTruth, all_truths, hsfe_truth
+    from budget.truth import ClassTruth, all_truths, combine, hsfe_truth
 
     truth_seed = int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
     out = all_truths(_camera(scenario), seed=truth_seed)
     if scenario.validation.new_maps_per_trial:
-        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1])) for k in range(4)]
-        hx = math.sqrt(np.mean([h.x_px**2 for h in hs]))
-        hy = math.sqrt(np.mean([h.y_px**2 for h in hs]))
-        out["hsfe"] = ClassTruth("hsfe", hx, hy, {**hs[0].details, "map_realisations": len(hs)})
-        t, lf = out["te"], out["lsfe"]
-        out["total"] = ClassTruth("total", math.sqrt(t.x_px**2 + hx**2 + lf.x_px**2),
-                                  math.sqrt(t.y_px**2 + hy**2 + lf.y_px**2), out["total"].details)
+        val = scenario.validation
+        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1]), frames=val.hsfe_truth_frames,
+                         seed=int(np.random.SeedSequence(truth_seed, spawn_key=(3, k)).generate_state(1)[0]))
+              for k in range(4)]
+        vals = {}
+        for ax in AXES:
+            h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
+            # the truth is the rms over map realisations: the 4 maps sample it (se of a mean
+            # of 4 squares) and each map's own truth has its frame-sampling error
+            se_h2 = math.sqrt(h2.var(ddof=1) / h2.size
+                              + np.sum([(2 * getattr(h, f"{ax}_px") * getattr(h, f"se_{ax}_px")) ** 2
+                                        for h in hs]) / h2.size**2)
+            v = math.sqrt(h2.mean())
+            vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
+        out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
+                                 se_x_px=vals["x"][1], se_y_px=vals["y"][1])
+        out = combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
     return out
 
 

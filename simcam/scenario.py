@@ -435,7 +435,7 @@ class ValidationModel(_Model):
       positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
-      phases per axis, ``lsfe_spectral_types`` (the stellar population, equal weights) and
+      phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
       ``calibration_spectrum`` (``lamp``: the lab source without filter), ``field_grid``
       points per axis for the field averages.
     """
@@ -450,6 +450,7 @@ class ValidationModel(_Model):
     threshold_sigma: Pos = 3.0
     dark_frames: Annotated[int, Field(ge=0)] = 0
     te_truth_frames: Annotated[int, Field(ge=10)] = 1000
+    hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 2000
     hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
     lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",

@@ -30,7 +30,8 @@ BASE = {
         "chromatic": {"frames": 4, "field_centers_px": [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]},
         "distortion": {"frames": 4},
     },
-    "validation": {"te_truth_frames": 300, "hsfe_phase_grid": 3, "field_grid": 5, "batch_trials": 4},
+    "validation": {"te_truth_frames": 300, "hsfe_phase_grid": 3, "hsfe_truth_frames": 200, "field_grid": 5,
+                   "batch_trials": 4},
 }
 QUIET = {"prnu_rms": 0.0, "dsnu_rms_e": 0.0}
 NO_OPTICS = {
@@ -76,7 +77,7 @@ def test_te_alone_is_recovered_within_monte_carlo_error():
     te = res.truths["te"]
     for ax in ("x", "y"):
         d = s[ax]["improved"]
-        se_truth = te.details[f"standard_error_{ax}_px"] * f / math.sqrt(te.details["stars"])
+        se_truth = getattr(te, f"se_{ax}_px") * f
         assert abs(d["bias"]) < 3 * math.hypot(d["se_bias"], se_truth), d
         # the published mean of per-star sds is low by the c4 factor of N = 10 frames (~2.7 %)
         p = s[ax]["published"]
@@ -101,12 +102,16 @@ def test_hsfe_invisible_effect_gives_estimate_consistent_with_zero():
     tau2 = np.array(tau2)
     m, se = tau2.mean(axis=0), tau2.std(axis=0, ddof=1) / math.sqrt(len(tau2))
     assert np.all(np.abs(m) < 3 * se)
-    # the truth is small but not 0: the threshold (3 sigma of the background noise) and the
-    # 11-px window still give the centre of gravity a pixel-phase error for sigma = 1.6 px
+    # The truth is the static error of the expected centroid under noise. For a Gaussian of
+    # sigma = 1.6 px the sampled centre of gravity's pixel-phase error is ~exp(-2 pi^2
+    # sigma^2) ~ 1e-22 px (Poisson summation), and the noise smooths the threshold's edge:
+    # its mean square (an unbiased split-half estimate) must be 0 within 3 of its own
+    # standard errors.
     from budget.truth import hsfe_truth
 
-    t = hsfe_truth(cam)
-    assert t.x_px < 0.005 and t.y_px < 0.005
+    t = hsfe_truth(cam, frames=400, seed=7)
+    for ax in ("x", "y"):
+        assert abs(t.details[f"mean_square_{ax}_px2"]) < 3 * t.details[f"se_mean_square_{ax}_px2"]
 
 
 def test_lsfe_c1_published_measures_the_calibrated_part_not_the_residual():
