@@ -121,9 +121,14 @@ class ProtocolData:
     reference: pd.DataFrame | None = None
     plan: AcquisitionPlan | None = None
     windows: dict = field(default_factory=dict)
+    camera: object = None
 
     @property
     def truth(self) -> pd.DataFrame:
+        """Per star and condition: the scene's truth, plus ``x_reported``/``y_reported``, the
+        position the camera reports for the true image position (its own distortion
+        correction applied, :meth:`simcam.render.StarCamera.report_positions`; equal to
+        ``x_true``/``y_true`` for an uncalibrated camera): what a perfect centroid gives."""
         cached = self.__dict__.get("_truth")
         if cached is None:
             parts = []
@@ -132,7 +137,11 @@ class ProtocolData:
                 tr["condition"] = index
                 tr["field"] = field_label
                 parts.append(tr)
-            cached = self.__dict__["_truth"] = pd.concat(parts, ignore_index=True)
+            cached = pd.concat(parts, ignore_index=True)
+            if self.camera is not None:
+                cached["x_reported"], cached["y_reported"] = self.camera.report_positions(
+                    cached["x_true"].to_numpy(), cached["y_true"].to_numpy())
+            self.__dict__["_truth"] = cached
         return cached
 
 
@@ -270,8 +279,12 @@ def simulate(
             np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]), y0=np.concatenate(cols["y0"]),
             star=star, frame=frame, method=method, extra_columns=extra, **opts,
         )
+    if camera.onboard_correction is not None:
+        # the camera reports its centroids through its own distortion correction
+        # (optics.distortion_correction, simcam.correction), as a flight camera does
+        table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, table, truths, ref, plan, wins)
+    return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)
 
 
 _LAYOUTS: dict = {}
@@ -339,6 +352,7 @@ def estimate(
     marker_3sigma_arcsec: float = 0.0,
     spectral: dict | None = None,
     extra_variants: bool = True,
+    camera_corrects_distortion: bool = False,
 ) -> dict:
     """Run the published estimator of ``protocol`` and its improved variant(s) on a centroid table.
 
@@ -348,7 +362,9 @@ def estimate(
     radial parts kept apart, or, given the camera's ``spectral`` design (see
     :func:`spectral_design`), the stellar population through its spectral response;
     LSFE-C1: the distortion left after calibration, which needs the marker error
-    ``marker_3sigma_arcsec``, seed 000's C2). Other variants are returned under their
+    ``marker_3sigma_arcsec``, seed 000's C2; with ``camera_corrects_distortion`` (the camera
+    reports positions through its own distortion correction, as a flight camera does) the
+    displacement that calibrated camera still makes). Other variants are returned under their
     own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
     The same function serves simulated and real tables.
     """
@@ -378,9 +394,10 @@ def estimate(
     if protocol == "distortion":
         if reference is None:
             raise ValueError("distortion: the reference coordinates of the grid target are required")
+        improved = E.distortion_remaining_displacement if camera_corrects_distortion else E.distortion_calibration_residual
         out = {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
-               "improved": E.distortion_calibration_residual(centroids, reference=reference, plate_scale_arcsec=ps,
-                                                             marker_3sigma_arcsec=marker_3sigma_arcsec)}
+               "improved": improved(centroids, reference=reference, plate_scale_arcsec=ps,
+                                    marker_3sigma_arcsec=marker_3sigma_arcsec)}
         if extra_variants:
             out["fit_dof"] = E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)
         return out

@@ -104,7 +104,8 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
             res = estimate(proto, data.centroids, plate_scale_arcsec=ps, reference=data.reference,
                            reference_filter_nm=scenario.protocols.chromatic.reference_filter_nm,
                            marker_3sigma_arcsec=scenario.lab.calibration_target.marker_error_3sigma_arcsec,
-                           spectral=spectral, extra_variants=keep)
+                           spectral=spectral, extra_variants=keep,
+                           camera_corrects_distortion=scenario.optics.distortion_correction.kind != "none")
             cls = {"te": "te", "hsfe": "hsfe", "chromatic": "lsfe_s", "distortion": "lsfe_c1"}[proto]
             for var in VARIANTS:
                 values[(cls, var, "x")] = res[var].sigma_x_px

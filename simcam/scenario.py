@@ -174,6 +174,45 @@ class LateralColourModel(_Model):
         return self
 
 
+class DistortionCorrectionModel(_Model):
+    """The distortion correction the camera applies to its own centroids (issue 12).
+
+    A camera under the seed-000 LSFE-C1 test already carries a distortion model from an
+    earlier calibration, with that calibration's own errors. ``kind = "fitted"`` (default):
+    at a ``rows x cols`` grid spanning ``extent_fraction`` of the mosaic (as
+    ``lab.calibration_target`` lays out its grid), the displacement of each point (true
+    distortion plus the lamp's lateral colour, in mosaic px) was measured with a marker
+    error of ``marker_error_3sigma_arcsec`` (3 sigma, per axis) and a centroid noise of
+    ``centroid_noise_px`` (1 sigma, per axis, of each point's mean), and a full bivariate
+    polynomial of total degree ``order`` in the measured coordinates was fitted to it by
+    least squares; the camera reports ``x - c_x(x, y)``, ``y - c_y(x, y)``. The errors are
+    drawn once from the scenario seed (one physical camera). ``kind = "none"``: the camera
+    reports raw centroids (an uncalibrated camera). The defaults (cubic, 32 points, 0.5"
+    markers, 0.002 px centroid noise ~ the default camera's TE over 30 frames) leave a
+    remaining displacement near the marker floor of eq 29, sqrt(9/31) x 0.5" = 0.27".
+    """
+
+    kind: Literal["fitted", "none"] = "fitted"
+    rows: Annotated[int, Field(ge=2, le=64)] = 4
+    cols: Annotated[int, Field(ge=2, le=64)] = 8
+    extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
+    order: Annotated[int, Field(ge=1, le=7)] = 3
+    marker_error_3sigma_arcsec: NonNeg = 0.5
+    centroid_noise_px: NonNeg = 0.002
+
+    @model_validator(mode="after")
+    def _determined(self) -> DistortionCorrectionModel:
+        if self.kind == "fitted":
+            if self.order >= self.rows or self.order >= self.cols:
+                raise ValueError(f"order {self.order} needs more than {self.order} rows and columns of points "
+                                 f"(got rows = {self.rows}, cols = {self.cols})")
+            n_terms = (self.order + 1) * (self.order + 2) // 2
+            if self.rows * self.cols <= n_terms:
+                raise ValueError(f"order {self.order} has {n_terms} terms: needs more than {n_terms} points "
+                                 f"(got {self.rows * self.cols})")
+        return self
+
+
 class OpticsModel(_Model):
     """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field.
 
@@ -191,6 +230,7 @@ class OpticsModel(_Model):
     lens: Annotated[str, Field(min_length=1)] | None = None
     psf: PSFModel = PSFModel()
     distortion: DistortionModel = DistortionModel()
+    distortion_correction: DistortionCorrectionModel = DistortionCorrectionModel()
     lateral_colour: LateralColourModel = LateralColourModel()
 
 
