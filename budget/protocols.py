@@ -404,35 +404,66 @@ def estimate(
     raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
 
 
+def lab_spectral_scenario(scenario: Scenario) -> Scenario:
+    """The camera as the lab believes it to be: the scenario with ``lab.knowledge``'s stated
+    errors applied to the QE peak, the filters' centres and widths and the lamp's colour
+    temperature (the stellar Teff error is applied in :func:`spectral_design`)."""
+    from simcam.scenario import with_updates
+
+    k = scenario.lab.knowledge
+    filters = [dict(f.model_dump(mode="python"), center_nm=f.center_nm + k.filter_center_nm_error,
+                    width_nm=f.width_nm + k.filter_width_nm_error) for f in scenario.lab.filters]
+    return with_updates(scenario, {
+        "detector.qe.peak_nm": scenario.detector.qe.peak_nm + k.qe_peak_nm_error,
+        "lab.source.temperature_k": scenario.lab.source.temperature_k + k.lamp_temperature_k_error,
+        "lab.filters": filters,
+        # (the plan's reference filter is named by its centre, which moves with the others)
+        "protocols.chromatic.reference_filter_nm": (scenario.protocols.chromatic.reference_filter_nm
+                                                    + k.filter_center_nm_error),
+    })
+
+
 def spectral_design(scenario: Scenario) -> dict:
-    """Effective wavelengths from the camera's spectral design (for the population LSFE-S).
+    """Effective wavelengths from the lab's model of the camera (for the population LSFE-S).
 
     The electron-weighted mean wavelength of the lab lamp through each filter, of the
-    unfiltered lamp (the calibration spectrum, or a star type named by
-    ``validation.calibration_spectrum``) and of each stellar type of
-    ``validation.lsfe_spectral_types``, through the scenario's optics transmission and QE.
-    These are design data a lab has (filter curves, lamp, sensor QE), not measurements.
+    calibration spectrum (``validation.calibration_spectrum``: the population mean, the
+    unfiltered lamp, or a star type) and of each stellar type of
+    ``validation.lsfe_spectral_types``, through the optics transmission and QE, all as
+    the lab believes them: :func:`lab_spectral_scenario` applies ``lab.knowledge``'s stated
+    errors (QE peak, filter centres and widths, lamp temperature), and each star's Teff is
+    the spectral model's, ``Teff (1 + star_teff_fraction_error)``. These are design data a
+    lab has (filter certificates, lamp, sensor QE, a spectral library), not measurements,
+    and not the simulator's own spectra. The returned filter keys are the filters' nominal
+    centres (as the centroid table labels them).
     """
     from simcam import spectra
     from simcam.sources import SourceSpectra
 
-    sp = SourceSpectra(scenario)
+    lab = lab_spectral_scenario(scenario)
+    k = scenario.lab.knowledge
+    sp = SourceSpectra(lab)
     wl = sp.wavelength_nm
 
     def mean_wl(rate):
         return float(np.dot(sp.weights(rate), wl))
 
-    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=f.center_nm)[1])
-            for f in scenario.lab.filters}
+    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=fl.center_nm)[1])
+            for f, fl in zip(scenario.lab.filters, lab.lab.filters)}
 
     def star_rate(st):
-        t = spectra.star_teff_k(spectral_type=st)
+        t = spectra.star_teff_k(spectral_type=st) * (1.0 + k.star_teff_fraction_error)
         flux = spectra.star_photon_flux_per_nm(v_mag=0.0, temperature_k=t, wavelength_nm=wl)
         return spectra.detected_electron_rate_per_nm(
             photon_flux_per_nm=flux, aperture_area_m2=sp.aperture_area_m2, transmission=sp.transmission,
             filter_transmission=1.0, qe=sp.qe, wavelength_nm=wl)
 
     cal = scenario.validation.calibration_spectrum
-    lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1]) if cal == "lamp" else mean_wl(star_rate(cal))
     stars = [mean_wl(star_rate(st)) for st in scenario.validation.lsfe_spectral_types]
+    if cal == "population_mean":
+        lam_cal = float(np.mean(stars))
+    elif cal == "lamp":
+        lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1])
+    else:
+        lam_cal = mean_wl(star_rate(cal))
     return {"filter_wavelength_nm": filt, "star_wavelengths_nm": stars, "calibration_wavelength_nm": lam_cal}

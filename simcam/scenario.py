@@ -362,8 +362,31 @@ class PlatformModel(_Model):
     positioning_noise_px: NonNeg = 0.0
 
 
+class LabKnowledgeModel(_Model):
+    """What the lab *believes* about the camera's spectral response (issue 12).
+
+    The improved LSFE-S estimator needs effective wavelengths of the lamp through each
+    filter, of the calibration spectrum and of the stellar population; a lab computes them
+    from its own models (data sheets, filter certificates, a spectral library), which
+    differ from the camera's true ones. Each field is a stated error, the lab's value minus
+    the true one: ``qe_peak_nm_error`` (the QE curve's peak wavelength), ``filter_center_nm_error``
+    (every filter's centre), ``filter_width_nm_error`` (every filter's FWHM),
+    ``lamp_temperature_k_error`` (the lamp's colour temperature) and
+    ``star_teff_fraction_error`` (the spectral model's effective temperature of each
+    stellar type, as a fraction: Teff_lab = Teff (1 + e)). All zero: the lab knows the
+    camera exactly (the estimator then shares the simulator's spectral inputs).
+    """
+
+    qe_peak_nm_error: Finite = 20.0
+    filter_center_nm_error: Finite = 3.0
+    filter_width_nm_error: Finite = 2.0
+    lamp_temperature_k_error: Finite = 50.0
+    star_teff_fraction_error: Annotated[float, Field(gt=-0.5, lt=0.5, allow_inf_nan=False)] = 0.03
+
+
 class LabModel(_Model):
-    """The lab: source, filters, collimator, targets, platform, target placement."""
+    """The lab: source, filters, collimator, targets, platform, target placement, and the
+    lab's own (imperfect) knowledge of the camera's spectral response (``knowledge``)."""
 
     source: SourceModel = SourceModel()
     filters: Annotated[tuple[FilterModel, ...], Field(strict=False)] = (
@@ -376,6 +399,7 @@ class LabModel(_Model):
     calibration_target: CalibrationGridModel = CalibrationGridModel()
     platform: PlatformModel = PlatformModel()
     target_center_px: Pair = (-1024.0, 0.0)
+    knowledge: LabKnowledgeModel = LabKnowledgeModel()
 
     @model_validator(mode="after")
     def _filters(self) -> LabModel:
@@ -476,7 +500,10 @@ class ValidationModel(_Model):
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
       phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
-      ``calibration_spectrum`` (``lamp``: the lab source without filter), ``field_grid``
+      ``calibration_spectrum`` (the reference of the chromatic displacement:
+      ``population_mean``, the default, the mean over the population at each field point,
+      since the population's common offset is calibrated at system level (seed 000); or
+      ``lamp``, the lab source without filter; or a spectral type), ``field_grid``
       points per axis for the field averages.
     """
 
@@ -495,14 +522,15 @@ class ValidationModel(_Model):
     lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
     )
-    calibration_spectrum: str = "lamp"
+    calibration_spectrum: str = "population_mean"
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
 
     @model_validator(mode="after")
     def _known_types(self) -> ValidationModel:
         from simcam.spectra import SpectraError, star_teff_k
 
-        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum == "lamp" else [self.calibration_spectrum])
+        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum in ("lamp", "population_mean")
+                                                   else [self.calibration_spectrum])
         for st in names:
             try:
                 star_teff_k(spectral_type=st)
