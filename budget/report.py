@@ -34,6 +34,8 @@ def format_table(summary: dict) -> str:
             p, i = d["published"], d["improved"]
 
             def pct(v):
+                if v.get("role") == "input":
+                    return "   input "
                 b = v["bias_percent"]
                 mark = "*" if v["bias_significant"] else " "
                 return f"{b:+7.0f}%{mark}" if np.isfinite(b) else "     n/a "
@@ -42,7 +44,8 @@ def format_table(summary: dict) -> str:
                 f"{cls:<10}{ax:<5}{p['truth']:>8.3f}  {p['mean']:>12.3f} +- {p['std']:<6.3f} {pct(p)}"
                 f"  {i['mean']:>12.3f} +- {i['std']:<6.3f} {pct(i)}"
             )
-    lines.append("arcsec, 3 sigma; * = bias significant (|bias| > 3 Monte Carlo standard errors)")
+    lines.append("arcsec, 3 sigma; * = bias significant (|bias| > 3 standard errors of the mean estimate and "
+                 "the truth combined); input = given to the lab (LSFE-C2), not a result")
     return "\n".join(lines)
 
 

@@ -33,6 +33,9 @@ from budget.protocols import PROTOCOLS, estimate, make_plan, simulate
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
 AXES = ("x", "y")
+#: classes whose value is given to the lab, not measured by it: reported, never "validated"
+#: (LSFE-C2, the marker calibration error of the grid target, seed 000 section 1.4.3)
+INPUT_CLASSES = ("lsfe_c2",)
 #: protocol producing each measured class
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
@@ -155,27 +158,37 @@ class ValidationResult:
             for ax in AXES:
                 out[cls][ax] = {}
                 truth = getattr(self.truths[cls], f"{ax}_px") * f
+                se_truth = getattr(self.truths[cls], f"se_{ax}_px", 0.0) * f
                 for var in VARIANTS:
                     v = np.asarray(self.samples[(cls, var, ax)]) * f
                     n = v.size
                     mean = float(v.mean())
                     std = float(v.std(ddof=1)) if n > 1 else 0.0
-                    se_bias = std / math.sqrt(n)
+                    se_mean = std / math.sqrt(n)
+                    # the truth is itself a Monte Carlo estimate (TE, HSFE): its standard
+                    # error adds to that of the mean estimate (independent samples)
+                    se_bias = math.hypot(se_mean, se_truth)
                     se_std = std / math.sqrt(2 * (n - 1)) if n > 1 else float("inf")
                     bias = mean - truth
                     q = np.quantile(v, [0.025, 0.16, 0.84, 0.975])
-                    out[cls][ax][var] = {
-                        "truth": truth, "mean": mean, "bias": bias,
-                        # a truth below 1e-9 arcsec is zero to rounding (e.g. a cubic fitting a
-                        # cubic): a relative bias is then meaningless, reported as NaN
+                    entry = {
+                        "truth": truth, "se_truth": se_truth, "mean": mean, "bias": bias,
+                        # a truth below 1e-9 arcsec is zero to rounding: a relative bias is
+                        # then meaningless, reported as NaN
                         "bias_percent": (100.0 * bias / truth if truth > 1e-9
                                          else (0.0 if abs(bias) <= 1e-12 else float("nan"))),
                         "std": std, "interval_68": [float(q[1]), float(q[2])],
                         "interval_95": [float(q[0]), float(q[3])],
-                        "se_bias": se_bias, "se_std": se_std,
+                        "se_mean": se_mean, "se_bias": se_bias, "se_std": se_std,
                         "bias_significant": bool(abs(bias) > 3.0 * se_bias) if se_bias > 0 else bool(bias != 0),
                         "truth_in_95": bool(q[0] <= truth <= q[3]),
+                        "role": "result",
                     }
+                    if cls in INPUT_CLASSES:
+                        # LSFE-C2 is the given marker calibration error: both variants are set
+                        # to it, so there is nothing to validate (an input, not a result)
+                        entry.update(role="input", bias_percent=float("nan"), bias_significant=False)
+                    out[cls][ax][var] = entry
         return out
 
     def to_json(self) -> dict:
