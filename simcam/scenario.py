@@ -618,9 +618,22 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Sc
     return validate_model(Scenario, data, source=source)
 
 
+#: embedded scenarios selectable as ``embedded:NAME`` (resources of simcam.data)
+EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noisy.toml"}
+
+
 def load_scenario(path: str | Path | None = None) -> Scenario:
-    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default."""
-    if path is None:
+    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default, and
+    ``"embedded:NAME"`` an embedded scenario of :data:`EMBEDDED_SCENARIOS` (``default``;
+    ``seed000_noisy``: the seed-000 camera with the seed's own noise and pixel errors)."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        name = path.split(":", 1)[1]
+        if name not in EMBEDDED_SCENARIOS:
+            raise ScenarioError(f"{path}: no embedded scenario {name!r} "
+                                f"(have {', '.join(sorted(EMBEDDED_SCENARIOS))})")
+        text = resources.files("simcam.data").joinpath(EMBEDDED_SCENARIOS[name]).read_text()
+        source = f"<embedded {EMBEDDED_SCENARIOS[name]}>"
+    elif path is None:
         text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:

@@ -91,3 +91,25 @@ def test_lab_knowledge_is_the_lab_s_not_the_simulator_s():
     assert d0["calibration_wavelength_nm"] == pytest.approx(np.mean(d0["star_wavelengths_nm"]), rel=1e-12)
     d1 = P.spectral_design(scenario_from_dict({}))
     assert np.max(np.abs(np.array(d1["star_wavelengths_nm"]) - d0["star_wavelengths_nm"])) > 1.0
+
+
+def test_embedded_noisy_scenario_is_the_default_with_the_seed_s_noise():
+    """`embedded:seed000_noisy` is the default camera and lab with three noise values
+    changed (source V, PRNU, DSNU); an unknown embedded name is a scenario error."""
+    from simcam.scenario import ScenarioError, default_scenario, load_scenario
+
+    noisy = load_scenario("embedded:seed000_noisy")
+    base = default_scenario()
+    assert load_scenario("embedded:default") == base
+    assert noisy.lab.source.match_v_mag > base.lab.source.match_v_mag
+    assert noisy.detector.prnu_rms > base.detector.prnu_rms and noisy.detector.dsnu_rms_e > base.detector.dsnu_rms_e
+    a = noisy.model_dump(mode="json")
+    b = base.model_dump(mode="json")
+    for key in ("name",):
+        a.pop(key), b.pop(key)
+    a["detector"].pop("prnu_rms"), b["detector"].pop("prnu_rms")
+    a["detector"].pop("dsnu_rms_e"), b["detector"].pop("dsnu_rms_e")
+    a["lab"]["source"].pop("match_v_mag"), b["lab"]["source"].pop("match_v_mag")
+    assert a == b
+    with pytest.raises(ScenarioError, match="no embedded scenario 'nope'"):
+        load_scenario("embedded:nope")
