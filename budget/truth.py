@@ -16,18 +16,26 @@ in px, per axis):
   each phase removed (the mean over stars): ``hsfe_truth_frames`` noisy frames per phase,
   split in two halves whose product is unbiased for the square (:func:`hsfe_truth`).
 
-Every truth carries its own standard error (``se_x_px``, ``se_y_px``; 0 where nothing
-is sampled), which the validator's significance test adds to that of the estimates.
 * **LSFE-S**: the rms, over the stellar population ``lsfe_spectral_types`` and a
   ``field_grid`` grid over the detector, of the spectrum-weighted chromatic displacement
-  relative to the calibration spectrum (the lab lamp without filter).
-* **LSFE-C1**: the distortion left after a cubic calibration: a full cubic fitted to the
-  true static displacement at the calibration grid's points, its residual rms over a
-  dense grid spanning the calibrated field.
-* **LSFE-C2**: the injected marker calibration error (sigma = 3-sigma value / 3).
+  about its reference (``calibration_spectrum``: by default the population mean at each
+  field point, whose common offset is calibrated at system level; or the lab lamp, or a
+  spectral type).
+* **LSFE-C1**: for a camera that applies its own distortion correction (the default,
+  ``optics.distortion_correction``), the rms over the calibrated field of the displacement
+  the calibrated camera still makes; for an uncalibrated camera (``kind = "none"``), the
+  residual over the field of a full cubic fitted to the true static displacement at the
+  calibration grid's points.
+* **LSFE-C2**: the injected marker calibration error (sigma = 3-sigma value / 3), an input
+  of the lab, not a measured result.
 * **LSFE** and **total**: independent sources, so root-sum-squares: LSFE =
   sqrt(S^2 + C1^2 + C2^2), total = sqrt(TE^2 + HSFE^2 + LSFE^2). (Seed 000's eq 31 adds
   C1 and C2 linearly; the validation reports how far that is from this.)
+
+Every truth carries its own standard error (``se_x_px``, ``se_y_px``; 0 where nothing
+is sampled), which the validator's significance test adds to that of the estimates.
+No truth calls an estimator of :mod:`budget.estimators` or the lab's spectral model
+(tests/test_truth_routes.py).
 """
 
 from __future__ import annotations
