@@ -15,7 +15,6 @@ in px, per axis):
   ``hsfe_phase_grid^2`` sub-pixel phases of the HSFE target, with the common motion of
   each phase removed (the mean over stars): ``hsfe_truth_frames`` noisy frames per phase,
   split in two halves whose product is unbiased for the square (:func:`hsfe_truth`).
-
 * **LSFE-S**: the rms, over the stellar population ``lsfe_spectral_types`` and a
   ``field_grid`` grid over the detector, of the spectrum-weighted chromatic displacement
   about its reference (``calibration_spectrum``: by default the population mean at each
