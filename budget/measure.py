@@ -37,8 +37,11 @@ import numpy as np
 import pandas as pd
 
 from simcam.cli_common import UserInputError, write_json_atomic
+from simcam.scenario import ValidationModel
 
 MANIFEST_COLUMNS = ("file", "condition", "frame", "filter_nm", "field", "dark")
+#: the centroid threshold (noise sigmas) of budget validate's default scenario: one path
+DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].default)
 
 
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
@@ -134,7 +137,7 @@ def measure_frames(
     reference: str | Path | None = None,
     method: str = "cog",
     window_px: int = 11,
-    threshold_sigma: float = 5.0,
+    threshold_sigma: float = DEFAULT_THRESHOLD_SIGMA,
     match_radius_px: float = 3.0,
     saturation_dn: float | None = None,
     weight_sigma_px: float | None = None,
@@ -145,6 +148,13 @@ def measure_frames(
 
     Manifest entries must name files inside DIR (no absolute paths, no ``..`` out of it,
     no symbolic link leading out) unless ``allow_outside``.
+
+    ``threshold_sigma`` is the centroid threshold in the windows (default the same as
+    ``budget validate``'s, ``validation.threshold_sigma``). Stars are found on the mean of
+    a condition's frames (dark subtracted) with :func:`budget.centroid.detect_stars`'s own
+    detection threshold, so a noise excursion of one frame cannot become a "star" that
+    then enters an estimate (issue 12: at 3 sigma on single frames two spurious stars
+    turned TE y into 0.77" instead of 0.20").
     """
     from budget.centroid import centroid_frames, detect_stars, subtract_dark
     from simcam.io import read_frame
@@ -208,7 +218,8 @@ def measure_frames(
         frames = _load(directory, rows["file"])
         darks = m[(m["dark"] == 1) & ((m["condition"] == cond) | m["condition"].isna())]
         dark = np.mean(_load(directory, darks["file"]), axis=0) if len(darks) else None
-        first = subtract_dark(frames[0], dark=dark) if dark is not None else frames[0]
+        stack = np.mean(np.asarray(frames, dtype=np.float64), axis=0)
+        first = subtract_dark(stack, dark=dark) if dark is not None else stack
         field = str(rows["field"].iloc[0]) if "field" in rows.columns and protocol == "chromatic" else ""
         if protocol == "distortion":
             ref_xy = ref_table[["x_ref", "y_ref"]].to_numpy(float)
@@ -217,10 +228,10 @@ def measure_frames(
         elif protocol == "hsfe" and prev_xy is not None:
             ref_xy = prev_xy
         else:
-            det = detect_stars(first, threshold_sigma=threshold_sigma)
+            det = detect_stars(first)
             if det.empty:
-                raise UserInputError(f"{directory / rows['file'].iloc[0]}: condition {cond}: no star above "
-                                     f"{threshold_sigma} sigma")
+                raise UserInputError(f"{directory / rows['file'].iloc[0]}: condition {cond}: no star "
+                                     f"detected in the mean of its frames")
             xy = det[["x_peak", "y_peak"]].to_numpy(float)
             ref_xy = xy[_raster_order(xy)]
         extra = {"condition": int(cond)}
@@ -276,7 +287,8 @@ def format_estimates(protocol: str, results: dict) -> str:
 @click.option("--weight-sigma-px", type=click.FloatRange(min=0, min_open=True), default=None,
               help="IWCoG: width of the Gaussian weight (the PSF's sigma), px.")
 @click.option("--window", "window_px", type=click.IntRange(min=3), default=11, show_default=True)
-@click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True)
+@click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_THRESHOLD_SIGMA,
+              show_default=True, help="Centroid threshold in the windows, in noise sigmas (as budget validate).")
 @click.option("--saturation-dn", type=float, default=None, help="Flag pixels at or above this level.")
 @click.option("--marker-3sigma", "marker_3sigma", type=click.FloatRange(min=0), default=0.0, show_default=True,
               help="Distortion: the grid target's marker calibration error, arcsec 3 sigma (seed 000's C2), "

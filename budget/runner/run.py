@@ -87,10 +87,16 @@ class StudyResult:
         """:func:`key_statistics` of one key."""
         cls, var, ax = key
         if key in self.trial_truths:
-            return key_statistics(self.samples[key], trial_truths=self.trial_truths[key],
-                                  sigmas=self.sigmas.get(key))
-        t = self.truths[(cls, ax)]
-        return key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
+            st = key_statistics(self.samples[key], trial_truths=self.trial_truths[key], sigmas=self.sigmas.get(key))
+        else:
+            t = self.truths[(cls, ax)]
+            st = key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
+        role = self.class_spec(cls).role if cls in {c.name for c in self.classes} else "result"
+        st["role"] = role
+        if role == "input":
+            # given to the method, not measured by it: nothing to validate
+            st.update(bias_percent=float("nan"), bias_significant=False)
+        return st
 
     def summary(self) -> dict:
         """``{class: {axis: {variant: statistics}}}``."""
