@@ -87,7 +87,7 @@ def main() -> None:
     emit_result("runner", [
         figure("two_worker_speedup", f"throughput of 2 workers / 1 worker, budget validate --trials {args.trials}",
                one / two, "x", better="higher", target=1.7 if main_job else None,
-               target_source="issue 13 (200 trials)" if main_job else None),
+               target_source="issue 13, 200 trials" if main_job else None),
         figure("fixed_cost_warm_s", "fixed cost of budget validate, warm numba cache (s)",
                warm - 2 * t_trial, "s", target=2.0, target_source="issue 13"),
         figure("fixed_cost_cold_s", "fixed cost of budget validate, empty numba cache (s)",

@@ -8,7 +8,9 @@
   ``--workers`` (default 2) processes through the shared runner, wall time including worker
   start-up; target <= 20 s on 2 cores.
 
-Usage: ``python benchmarks/bench_scanmirror.py [--trials 1000] [--workers 2] [--repeat 5]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_scanmirror.py [--trials 1000] [--workers 2] [--repeat 5] [--quick]``
 """
 
 from __future__ import annotations
@@ -22,7 +24,14 @@ import warnings
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import best_of_wall_cpu, format_table, machine_description  # noqa: E402
+from _common import (  # noqa: E402
+    add_quick_flag,
+    best_of_wall_cpu,
+    emit_result,
+    figure,
+    format_table,
+    machine_description,
+)
 
 import numpy as np  # noqa: E402
 
@@ -32,7 +41,10 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=5)
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.trials, args.repeat = min(args.trials, 20), min(args.repeat, 2)
     warnings.simplefilter("ignore")
     import pyproj
 
@@ -75,6 +87,15 @@ def main() -> None:
     print(format_table(("what", "points/trials", "wall s", "cpu s", "target s"), rows))
     print("load after:", " ".join(f"{x:.2f}" for x in os.getloadavg()))
     print("cpu s of the run: all processes; on an idle 2-core machine the wall time is about cpu / 2")
+    full = args.trials == 1000 and args.workers == 2
+    emit_result("scanmirror", [
+        figure("timeline_s", "full default timeline every 0.1 s (s)", wall, "s", target=0.5,
+               target_source="issue 15"),
+        figure("nominal_mapping_ms", "nominal mapping of the timeline's points (ms)", wall_n * 1e3, "ms",
+               peer="pyproj geos inverse", peer_value=wall_p * 1e3),
+        figure("trials_s", f"{args.trials} validation trials, {args.workers} processes (s)", total, "s",
+               target=20.0 if full else None, target_source="issue 15, 1000 trials on 2 cores" if full else None),
+    ], quick=args.quick, trials=args.trials, workers=args.workers)
 
 
 if __name__ == "__main__":

@@ -77,7 +77,7 @@ def main() -> None:
                statistics.median(times), "s", target=0.1, target_source="issue 4"),
         figure("trials_total_s", f"{res.trials} trials, {args.workers} workers, truth included (s)",
                total, "s", target=120.0 if res.trials == 1000 else None,
-               target_source="issue 4 (1000 trials)" if res.trials == 1000 else None),
+               target_source="issue 4, 1000 trials" if res.trials == 1000 else None),
     ], quick=args.quick, trials=res.trials, workers=args.workers)
 
 

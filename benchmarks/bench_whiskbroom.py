@@ -10,8 +10,9 @@
 For reference it also times one state's image motion at every pixel of the three arrays
 (3 x 96 x 4096) and the slanted-edge image of one trial.
 
-Run: ``python benchmarks/bench_whiskbroom.py [--repeats 5]``. JIT compilation is warmed
-up first; record the machine load printed with the figures.
+Run: ``python benchmarks/bench_whiskbroom.py [--repeats 5] [--quick]``. JIT compilation is
+warmed up first; record the machine load printed with the figures. The last line is
+``RESULT {json}`` (read by ``run_all.py``).
 """
 
 from __future__ import annotations
@@ -23,14 +24,25 @@ import sys
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
-from _common import best_of_wall_cpu, format_table, machine_description  # noqa: E402
+from _common import (  # noqa: E402
+    add_quick_flag,
+    best_of_wall_cpu,
+    emit_result,
+    figure,
+    format_table,
+    machine_description,
+)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--trials", type=int, default=1000)
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeats = min(args.repeats, 2)
+    best = {}
 
     import numpy as np
 
@@ -47,6 +59,7 @@ def main() -> None:
 
     for name, fn in (("synthesis, numba", synth("numba")), ("synthesis, numpy", synth("numpy"))):
         wall, cpu = best_of_wall_cpu(fn, repeat=args.repeats)
+        best[name] = wall
         rows.append((f"{name} ({args.trials} trials x {sy.field_points(sc)[0].size + 1} points)",
                      f"{wall * 1e3:.1f}", f"{cpu * 1e3:.1f}", "<= 1000"))
 
@@ -58,6 +71,7 @@ def main() -> None:
     for name, fn in (("pixel MTF, numba", lambda: tdi.pixel_mtf(0.002, 0.001, **kw)),
                      ("pixel MTF, numpy", lambda: tdi.pixel_mtf_numpy(0.002, 0.001, **kw))):
         wall, cpu = best_of_wall_cpu(fn, repeat=max(args.repeats, 20))
+        best[name] = wall
         rows.append((f"{name} ({cam.tdi_stages} stages x {cam.n_phase} phases x {t.columns} columns)",
                      f"{wall * 1e3:.2f}", f"{cpu * 1e3:.2f}", "<= 5"))
 
@@ -75,6 +89,16 @@ def main() -> None:
 
     print("machine:", ", ".join(f"{k} {v}" for k, v in machine_description().items()))
     print(format_table(("what", "best wall ms", "best CPU ms", "target ms"), rows))
+    full = args.trials == 1000
+    emit_result("whiskbroom", [
+        figure("synthesis_ms", f"Monte Carlo synthesis, {args.trials} trials (ms)",
+               best["synthesis, numba"] * 1e3, "ms", peer="plain numpy",
+               peer_value=best["synthesis, numpy"] * 1e3, target=1000.0 if full else None,
+               target_source="issue 14, 1000 trials" if full else None),
+        figure("pixel_mtf_ms", "pixel-level TDI MTF of one trial (ms)", best["pixel MTF, numba"] * 1e3,
+               "ms", peer="plain numpy", peer_value=best["pixel MTF, numpy"] * 1e3, target=5.0,
+               target_source="issue 14"),
+    ], quick=args.quick, trials=args.trials)
 
 
 if __name__ == "__main__":
