@@ -19,6 +19,20 @@ def _phi(z):
     return 0.5 * (1.0 + math.erf(z * 0.7071067811865476))
 
 
+_TABLE_HALF = 16
+_TABLE_RES = 512
+
+
+@njit(cache=True, inline="always")
+def _lookup(table, d):
+    u = (d + _TABLE_HALF) * _TABLE_RES
+    if u < 0.0 or u >= table.size - 2:
+        return 0.0
+    i = int(u)
+    f = u - i
+    return table[i] * (1.0 - f) + table[i + 1] * f
+
+
 @njit(cache=True)
 def render_tdi_windows(out, line0, col0, t_cross, xc, s_c, vx, ax, vs, as_, flux_e_s,
                        t_pass0, line_period, n_stages, sdir, sigma_px, substeps):
@@ -55,7 +69,15 @@ def render_tdi_windows(out, line0, col0, t_cross, xc, s_c, vx, ax, vs, as_, flux
         Midpoint steps per line period.
     """
     n, h, w = out.shape
+    # pixel-integrated Gaussian g(d) = Phi((d + 1/2)/s) - Phi((d - 1/2)/s) tabulated on
+    # |d| <= _TABLE_HALF px at 1/_TABLE_RES px, linear interpolation (error < 2e-6 of the peak)
+    nt = 2 * _TABLE_HALF * _TABLE_RES + 1
+    table = np.empty(nt + 1)
     inv_s = 1.0 / sigma_px
+    for i in range(nt):
+        d = -_TABLE_HALF + i / _TABLE_RES
+        table[i] = _phi((d + 0.5) * inv_s) - _phi((d - 0.5) * inv_s)
+    table[nt] = 0.0
     dt = line_period / substeps
     across = np.empty(w)
     for k in range(n):
@@ -73,7 +95,7 @@ def render_tdi_windows(out, line0, col0, t_cross, xc, s_c, vx, ax, vs, as_, flux
             ss = s_c[k] + vs[k] * tm + as_[k] * tm * tm
             for c in range(w):
                 cc = col0[k] + c
-                across[c] = _phi((cc + 0.5 - ss) * inv_s) - _phi((cc - 0.5 - ss) * inv_s)
+                across[c] = _lookup(table, cc - ss)
             for q in range(substeps):
                 t = t_first + m * line_period + (q + 0.5) * dt
                 tau = t - t_cross[k]
@@ -84,7 +106,7 @@ def render_tdi_windows(out, line0, col0, t_cross, xc, s_c, vx, ax, vs, as_, flux
                         continue
                     j = n_stages - 1 - int(math.floor((t_l - t) / line_period))
                     xp = sdir * (j - 0.5 * (n_stages - 1))
-                    along = _phi((xp + 0.5 - xs) * inv_s) - _phi((xp - 0.5 - xs) * inv_s)
+                    along = _lookup(table, xp - xs)
                     if along < 1e-12:
                         continue
                     a = weight * along

@@ -121,8 +121,8 @@ class StarsModel(_M):
 
 
 class ObservationModel(_M):
-    passes: Annotated[int, Field(ge=1, le=200)] = 8
-    shift_px: NonNeg = 640.0
+    passes: Annotated[int, Field(ge=1, le=200)] = 4
+    shift_px: NonNeg = 1280.0
     pass_interval_s: Pos = 30.0
 
 
@@ -155,7 +155,7 @@ class LabModel(_M):
     parallax: bool = True
     proper_motion: bool = True
     time_tag: Literal["mid_exposure", "readout"] = "mid_exposure"
-    match_radius_arcsec: Pos = 300.0
+    match_radius_arcsec: Pos = 120.0
     coverage_bins: Annotated[int, Field(ge=2, le=1000)] = 24
     max_iter: Annotated[int, Field(ge=1, le=1000)] = 30
     rcond: Annotated[float, Field(gt=0.0, lt=1e-2)] = 1e-6

@@ -189,14 +189,14 @@ def detector_params(scenario: LineCamScenario) -> _det.DetectorParams:
 
 
 def window_half_px(scenario: LineCamScenario) -> int:
-    """Half size of the windows: 3 sigma of the PSF plus half the smear, at least 3 px."""
+    """Half size of the windows: 3 sigma of the PSF plus half the smear plus half a pixel, at least 3 px."""
     cam, att = scenario.camera, scenario.attitude
     n = cam.tdi_stages
     along = abs(att.rate_mismatch) * n
     w = cam.matched_rate_rad_s
     # across-track drift per exposure: f w_x T N (+ X w_z, zero on the line centre)
     across = abs(math.radians(att.cross_rate_deg_s)) / w * n
-    return max(3, int(math.ceil(3.0 * cam.psf_sigma_px + 0.5 * max(along, across) + 1.0)))
+    return max(3, int(math.ceil(3.0 * cam.psf_sigma_px + 0.5 * max(along, across) + 0.5)))
 
 
 def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip, *,
