@@ -8,35 +8,57 @@ from budget import __version__
 from simcam.cli_common import run_cli
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+#: command name -> "module:attribute"; each module is imported only when its command runs
+#: (or when ``--help`` lists them), so a command pays only for its own imports
+COMMANDS = {
+    "combine": "budget.combine:combine_command",
+    "measure": "budget.measure:measure_command",
+    "simulate": "budget.simulate:simulate_command",
+    "harmonics": "budget.harmonics_cli:harmonics_group",
+    "sweep": "budget.sweep:sweep_command",
+    "plot": "budget.sweep_plot:plot_command",
+}
+
+
+class _LazyGroup(click.Group):
+    """The ``budget`` group: sub-commands from :data:`COMMANDS` and one group per registered
+    study (:mod:`budget.runner.registry`), imported on first use."""
+
+    def list_commands(self, ctx):
+        from budget.runner.registry import study_names
+
+        return sorted(set(COMMANDS) | set(study_names()) | {"validate"} | set(self.commands))
+
+    def get_command(self, ctx, cmd_name):
+        import importlib
+
+        if cmd_name in self.commands:
+            return self.commands[cmd_name]
+        if cmd_name in COMMANDS:
+            module_name, attr = COMMANDS[cmd_name].split(":")
+            cmd = getattr(importlib.import_module(module_name), attr)
+        elif cmd_name == "validate":
+            # `budget validate`: the seed-000 study, as it always was
+            from budget.runner.cli import validate_command_for
+
+            cmd = validate_command_for("starcam", help_text="Monte Carlo validation of the seed-000 lab methods "
+                                                            "on SCENARIO (default: the embedded seed-000 scenario).")
+        else:
+            from budget.runner.cli import study_group
+            from budget.runner.registry import study_names
+
+            if cmd_name not in study_names():
+                return None
+            cmd = study_group(cmd_name)
+        self.add_command(cmd, cmd_name)
+        return cmd
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="budget")
 def cli() -> None:
-    """Error-budget tools: run the lab's estimators on frames or tables, combine budgets."""
-
-
-def _register() -> None:
-    # Sub-commands live next to the code they drive; registered here only.
-    import importlib
-
-    for module_name, attr in (
-        ("budget.combine", "combine_command"),
-        ("budget.measure", "measure_command"),
-        ("budget.simulate", "simulate_command"),
-        ("budget.validate", "validate_command"),
-        ("budget.harmonics_cli", "harmonics_group"),
-        ("budget.sweep", "sweep_command"),
-        ("budget.sweep_plot", "plot_command"),
-    ):
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == module_name:
-                continue
-            raise
-        cli.add_command(getattr(module, attr))
-
-
-_register()
+    """Error-budget tools: run the lab's estimators on frames or tables, validate lab methods
+    against injected truth (one study per source method), sweep design parameters."""
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -117,6 +117,54 @@ def _residual_extrema(before, b, coef, out_max, out_min):  # pragma: no cover - 
         out_min[k] = mn
 
 
+@numba.njit(cache=True)
+def _rows_times(x, m):  # pragma: no cover - compiled
+    """``x @ m.T`` row by row in a fixed summation order.
+
+    A BLAS product of a batch may round a row differently depending on how many rows the
+    batch has; this loop gives each trial's row the same bits whatever batch it is in, so
+    results do not depend on how trials are split between workers.
+    """
+    nk, p = x.shape
+    nj = m.shape[0]
+    out = np.empty((nk, nj))
+    for k in range(nk):
+        for j in range(nj):
+            acc = 0.0
+            for i in range(p):
+                acc += x[k, i] * m[j, i]
+            out[k, j] = acc
+    return out
+
+
+@numba.njit(cache=True)
+def _quad_forms(coef, g, bm, bt):  # pragma: no cover - compiled
+    """Per row k: ``coef[k].bm``, ``coef[k].bt`` and ``coef[k] . g . coef[k]``, fixed order."""
+    nk, p = coef.shape
+    cm = np.empty(nk)
+    ct = np.empty(nk)
+    q = np.empty(nk)
+    for k in range(nk):
+        a = 0.0
+        b = 0.0
+        c = 0.0
+        for i in range(p):
+            a += coef[k, i] * bm[i]
+            b += coef[k, i] * bt[i]
+            gi = 0.0
+            for j in range(p):
+                gi += g[i, j] * coef[k, j]
+            c += coef[k, i] * gi
+        cm[k] = a
+        ct[k] = b
+        q[k] = c
+    return cm, ct, q
+
+
+def _mul(x, m):
+    return _rows_times(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(m, dtype=np.float64))
+
+
 @dataclass
 class Prepared:
     """Everything about one scenario that does not change between trials."""
@@ -197,8 +245,10 @@ def _dense_stats(before, b, coef):
     g = b.T @ b / n
     bt = b.T @ before / n
     bm = b.mean(axis=0)
-    mean = before.mean() - coef @ bm
-    ms = np.mean(before**2) - 2 * coef @ bt + np.einsum("ki,ij,kj->k", coef, g, coef)
+    cm, ct, q = _quad_forms(np.ascontiguousarray(coef, dtype=np.float64), np.ascontiguousarray(g),
+                            np.ascontiguousarray(bm), np.ascontiguousarray(bt))
+    mean = before.mean() - cm
+    ms = np.mean(before**2) - 2 * ct + q
     var = np.maximum(ms - mean**2, 0.0) * n / (n - 1)
     mx = np.empty(coef.shape[0])
     mn = np.empty(coef.shape[0])
@@ -239,21 +289,22 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
         ys.append(_measure_fast(tay, u, nr, nac, face, poly.mount_offset_arcsec, q, sr,
                                 ac.noise_arcsec, ac.resolution_arcsec))
     y1, y2, y3, y4 = ys
-    c_long = y1 @ p.pinv_long.T
-    long_at_short = c_long @ p.x_long_at_short.T
+    # every product row by row (_mul): a trial's numbers do not depend on its batch
+    c_long = _mul(y1, p.pinv_long)
+    long_at_short = _mul(c_long, p.x_long_at_short)
     y3c = y3 - long_at_short
-    c_short = y3c @ p.pinv_short.T
-    c_joint = np.concatenate([y1, y3], axis=1) @ p.pinv_joint.T
+    c_short = _mul(y3c, p.pinv_short)
+    c_joint = _mul(np.concatenate([y1, y3], axis=1), p.pinv_joint)
     out = {
         "y_long": y1, "y_long_verify": y2, "y_short": y3, "y_short_verify": y4,
         "c_long": c_long, "c_short": c_short, "c_joint": c_joint,
         "long_sigma3_before_arcsec": sigma3_arcsec(error_arcsec=y1),
-        "long_sigma3_after_arcsec": sigma3_arcsec(error_arcsec=y2 - c_long @ p.x_long.T),
+        "long_sigma3_after_arcsec": sigma3_arcsec(error_arcsec=y2 - _mul(c_long, p.x_long)),
         "short_sigma3_before_arcsec": sigma3_arcsec(error_arcsec=y3c),
-        "short_sigma3_after_arcsec": sigma3_arcsec(error_arcsec=y4 - long_at_short - c_short @ p.x_short.T),
+        "short_sigma3_after_arcsec": sigma3_arcsec(error_arcsec=y4 - long_at_short - _mul(c_short, p.x_short)),
     }
     xj_short = p.x_joint[nl:]
-    out["joint_short_sigma3_after_arcsec"] = sigma3_arcsec(error_arcsec=y4 - c_joint @ xj_short.T)
+    out["joint_short_sigma3_after_arcsec"] = sigma3_arcsec(error_arcsec=y4 - _mul(c_joint, xj_short))
     c_seq = np.concatenate([c_long, c_short], axis=1)
     s3, mean, mx = _dense_stats(p.dense_before_arcsec, p.b_seq, c_seq)
     out.update(dense_sigma3_after_arcsec=s3, dense_mean_after_arcsec=mean, dense_maxabs_after_arcsec=mx)

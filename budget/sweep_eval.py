@@ -1,28 +1,23 @@
-"""What one sweep point computes, and the arrays it yields.
+"""What one sweep point computes, and the arrays it yields, for any study.
 
 Every point runs in a worker (a local process, a Dask worker, or this process) through
 :func:`evaluate_point`, a pure function of the point's scenario, seed and settings: the
-same inputs give bit-identical outputs wherever it runs.
+same inputs give bit-identical outputs wherever it runs. The sweep's ``kind`` names a
+registered study (:mod:`budget.runner.registry`; ``camera`` is the seed-000 ``starcam``
+study), and nothing here knows one study from another:
 
-Modes (``evaluate`` in the sweep file):
+* ``validate``: :func:`budget.runner.run.run_study` with one worker (the parallelism is
+  across points): for each class, axis and estimator variant the truth (and its standard
+  error), the mean estimate, bias, spread (sample sd over trials; of the errors where the
+  truth is drawn per trial), their Monte Carlo standard errors and the 95 % interval of
+  the estimates, in the class's unit;
+* ``truth`` (fast, budget only): the study's truths (:meth:`Study.truths`) with their
+  standard errors, no trials and no estimator: the error budget the instrument really
+  has, not what the lab would measure. Only for studies whose truths are all properties
+  of the scenario (not drawn per trial).
 
-* camera, ``validate``: :func:`budget.validate.validate` with ``workers=1`` (the
-  parallelism is across points): for each class, axis and estimator variant the truth,
-  the mean estimate, bias, spread (sample sd over trials), their Monte Carlo standard
-  errors and the 95 % interval of the estimates, all in arcsec, 3 sigma;
-* camera, ``truth`` (fast, budget only): the truth of every class as
-  :func:`budget.validate.validate` computes it (:mod:`budget.truth`, same seed rule), no
-  trials and no estimator: the error budget the camera really has, not what the lab
-  would measure. Its only Monte Carlo element is the TE truth (``te_truth_frames``
-  noise-only frames), whose standard error is reported (``truth_se``);
-* inductosyn, ``validate``: :func:`budget.harmonics_validate.validate` (``trials``
-  simulated calibrations). Classes: ``before`` (error over the whole circle before
-  compensation; the lab's figure is the 3 sigma of the 23-face table once the
-  long-period fit is removed, as seed 001 reports it), ``residual`` (3 sigma
-  over the whole circle after compensation, mean over calibrations; the lab's figure is
-  the 23-face verification after compensation) and ``residual_max`` (max |residual -
-  mean| over the circle; no lab figure). Variants: ``published`` (the in-sequence
-  procedure, eqs 7-9) and ``improved`` (the joint fit). One axis, ``angle``.
+The truth has a ``variant`` dimension when a class of the study carries per-trial truths
+(each variant's compensation leaves its own error); otherwise it is per class and axis.
 """
 
 from __future__ import annotations
@@ -36,60 +31,74 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "INDUCTOSYN_CLASSES",
     "STOPPED_BY",
     "PointResult",
     "PointTask",
-    "camera_truths",
     "evaluate_point",
     "labels",
     "schema",
+    "study_for_kind",
 ]
 
-INDUCTOSYN_CLASSES = ("before", "residual", "residual_max")
-INDUCTOSYN_AXES = ("angle",)
 #: codes of ``stopped_by`` (CF flag values)
 STOPPED_BY = ("trials", "tolerance", "max_trials")
-#: spawn key of the truth seed inside budget.validate.validate (kept equal, tested)
+#: sweep kinds kept from before the study registry
+KIND_ALIASES = {"camera": "starcam"}
+
+
+def study_for_kind(kind: str):
+    """The registered study a sweep ``kind`` names."""
+    from budget.runner.registry import get_study
+
+    return get_study(KIND_ALIASES.get(kind, kind))
+
+
+def _layout(kind: str):
+    study = study_for_kind(kind)
+    classes = study.classes(study.load_scenario())
+    axes: list[str] = []
+    for c in classes:
+        for a in c.axes:
+            if a not in axes:
+                axes.append(a)
+    return study, classes, tuple(axes)
 
 
 def labels(kind: str) -> dict[str, tuple[str, ...]]:
     """Coordinate labels of the class, axis and variant dimensions of ``kind``."""
-    from budget.validate import AXES, CLASSES, VARIANTS
+    study, classes, axes = _layout(kind)
+    return {"class": tuple(c.name for c in classes), "axis": axes, "variant": tuple(study.variants)}
 
-    if kind == "camera":
-        return {"class": tuple(CLASSES), "axis": tuple(AXES), "variant": tuple(VARIANTS)}
-    return {"class": INDUCTOSYN_CLASSES, "axis": INDUCTOSYN_AXES, "variant": tuple(VARIANTS)}
+
+def truth_has_variant(kind: str) -> bool:
+    """Whether the truth of ``kind`` has a variant dimension (some class's truth is per trial)."""
+    return any(c.per_trial_truth for c in _layout(kind)[1])
 
 
 def schema(kind: str, evaluate: str) -> dict[str, tuple[tuple[str, ...], str, dict]]:
     """Variables of a point: name -> (dimensions besides the point's, dtype, attributes)."""
     ca, cav = ("class", "axis"), ("class", "axis", "variant")
-    u = "arcsec, 3 sigma"
-    out: dict[str, tuple[tuple[str, ...], str, dict]] = {}
-    if kind == "camera":
-        out["truth"] = (ca, "f8", {"units": u, "long_name": "truth of the error class (budget.truth)"})
-        out["truth_se"] = (ca, "f8", {"units": u, "long_name": "Monte Carlo standard error of the truth "
-                                      "(TE's sample of frames, propagated to LSFE and total; 0 = exact)"})
-    else:
-        out["truth"] = (cav, "f8", {"units": u, "long_name": "true error over the whole circle, "
-                                    "mean over calibrations"})
-        out["truth_spread"] = (cav, "f8", {"units": u, "long_name": "sd over calibrations of the true error"})
-        out["truth_se"] = (cav, "f8", {"units": u, "long_name": "standard error of the truth's mean"})
+    u = "the class's unit (class_units attribute)"
+    tdims = cav if truth_has_variant(kind) else ca
+    out: dict[str, tuple[tuple[str, ...], str, dict]] = {
+        "truth": (tdims, "f8", {"units": u, "long_name": "truth of the error class (mean over trials where "
+                                "it is drawn per trial)"}),
+        "truth_se": (tdims, "f8", {"units": u, "long_name": "Monte Carlo standard error of the truth (0 = exact)"}),
+    }
     if evaluate == "validate":
         out["mean"] = (cav, "f8", {"units": u, "long_name": "mean estimate over trials"})
         out["bias"] = (cav, "f8", {"units": u, "long_name": "mean estimate minus truth"})
-        out["spread"] = (cav, "f8", {"units": u, "long_name": "sample sd of the estimate over trials"})
-        out["se_bias"] = (cav, "f8", {"units": u, "long_name": "Monte Carlo standard error of the bias"})
+        out["spread"] = (cav, "f8", {"units": u, "long_name": "sample sd of the estimate over trials "
+                                     "(of estimate - truth where the truth is drawn per trial)"})
+        out["se_bias"] = (cav, "f8", {"units": u, "long_name": "Monte Carlo standard error of the bias "
+                                      "(with the truth's own)"})
         out["se_spread"] = (cav, "f8", {"units": u, "long_name": "Monte Carlo standard error of the spread"})
-        if kind == "camera":
-            out["ci95_low"] = (cav, "f8", {"units": u, "long_name": "2.5 % quantile of the estimates"})
-            out["ci95_high"] = (cav, "f8", {"units": u, "long_name": "97.5 % quantile of the estimates"})
+        out["ci95_low"] = (cav, "f8", {"units": u, "long_name": "2.5 % quantile of the estimates"})
+        out["ci95_high"] = (cav, "f8", {"units": u, "long_name": "97.5 % quantile of the estimates"})
         out["trials"] = ((), "i4", {"long_name": "Monte Carlo trials run"})
-        if kind == "camera":
-            out["stopped_by"] = ((), "i1", {"long_name": "why the trials stopped",
-                                           "flag_values": list(range(len(STOPPED_BY))),
-                                           "flag_meanings": " ".join(STOPPED_BY)})
+        out["stopped_by"] = ((), "i1", {"long_name": "why the trials stopped",
+                                       "flag_values": list(range(len(STOPPED_BY))),
+                                       "flag_meanings": " ".join(STOPPED_BY)})
     out["seed"] = ((), "u8", {"long_name": "seed of the point (docs/sweeps.md)"})
     out["compute_s"] = ((), "f8", {"units": "s", "long_name": "wall time of the point in its worker "
                                    "(not a result: varies from run to run)"})
@@ -108,7 +117,6 @@ class PointTask:
     seed: int
     trials: int | None = None
     tolerance_3sigma_arcsec: float | None = None
-    dense_step_deg: float | None = None
 
 
 @dataclass
@@ -124,97 +132,50 @@ class PointResult:
     cpu_s: float = float("nan")  # CPU time of the worker process on this point (not stored)
 
 
-def camera_truths(scenario, seed: int) -> dict:
-    """Every class's truth (:class:`budget.truth.ClassTruth`) as ``validate(scenario, seed=seed)``
-    has it: :func:`budget.validate.truths`."""
-    from budget.validate import truths
+def _evaluate(task: PointTask) -> dict:
+    from budget.runner.run import run_study
 
-    return truths(scenario, seed=seed)
+    study, classes, axes = _layout(task.kind)
+    lab = labels(task.kind)
+    cls_i = {c: i for i, c in enumerate(lab["class"])}
+    ax_i = {a: j for j, a in enumerate(axes)}
+    var_i = {v: k for k, v in enumerate(lab["variant"])}
+    shape = (len(cls_i), len(ax_i), len(var_i))
+    tv = truth_has_variant(task.kind)
+    tshape = shape if tv else shape[:2]
+    truth = np.full(tshape, np.nan)
+    truth_se = np.full(tshape, np.nan)
 
+    def put_truth(c, a, v, value, se):
+        idx = (cls_i[c], ax_i[a], var_i[v]) if tv else (cls_i[c], ax_i[a])
+        truth[idx], truth_se[idx] = value, se
 
-def _truth_arrays(scenario, truths) -> tuple[np.ndarray, np.ndarray]:
-    from budget.validate import AXES, CLASSES
-
-    f = 3.0 * scenario.camera.scale_arcsec_per_px
-    truth = np.array([[getattr(truths[c], f"{a}_px") * f for a in AXES] for c in CLASSES])
-    se = np.zeros_like(truth)
-    te = truths["te"]
-    i_te, i_total = CLASSES.index("te"), CLASSES.index("total")
-    for j, a in enumerate(AXES):
-        # the TE truth is a mean over stars of per-star sds from a sample of frames
-        s = te.details[f"standard_error_{a}_px"] * f / math.sqrt(max(te.details["stars"], 1))
-        se[i_te, j] = s
-        tot = truth[i_total, j]
-        se[i_total, j] = truth[i_te, j] / tot * s if tot > 0 else s  # d total / d TE = TE / total
-    return truth, se
-
-
-def _camera(task: PointTask) -> dict:
-    from budget.validate import AXES, CLASSES, VARIANTS, validate
-
-    scn = task.scenario
     if task.evaluate == "truth":
-        truth, se = _truth_arrays(scn, camera_truths(scn, task.seed))
-        return {"truth": truth, "truth_se": se}
-    res = validate(scn, trials=task.trials, tolerance_3sigma_arcsec=task.tolerance_3sigma_arcsec,
-                   seed=task.seed, workers=1, progress=False, keep_example=False)
-    truth, se = _truth_arrays(scn, res.truths)
-    s = res.summary()
-    shape = (len(CLASSES), len(AXES), len(VARIANTS))
-    out = {k: np.empty(shape) for k in ("mean", "bias", "spread", "se_bias", "se_spread", "ci95_low", "ci95_high")}
-    for i, c in enumerate(CLASSES):
-        for j, a in enumerate(AXES):
-            for k, v in enumerate(VARIANTS):
-                d = s[c][a][v]
-                out["mean"][i, j, k] = d["mean"]
-                out["bias"][i, j, k] = d["bias"]
-                out["spread"][i, j, k] = d["std"]
-                out["se_bias"][i, j, k] = d["se_bias"]
-                out["se_spread"][i, j, k] = d["se_std"]
-                out["ci95_low"][i, j, k], out["ci95_high"][i, j, k] = d["interval_95"]
-    out.update(truth=truth, truth_se=se, trials=np.int32(res.trials),
+        for (c, a), t in study.truths(task.scenario, task.seed).items():
+            for v in lab["variant"]:
+                put_truth(c, a, v, t.value, t.se)
+        return {"truth": truth, "truth_se": truth_se}
+    res = run_study(study, task.scenario, trials=task.trials, tolerance=task.tolerance_3sigma_arcsec,
+                    seed=task.seed, workers=1, progress=False)
+    out = {k: np.full(shape, np.nan) for k in ("mean", "bias", "spread", "se_bias", "se_spread",
+                                              "ci95_low", "ci95_high")}
+    for (c, a), t in res.truths.items():
+        for v in lab["variant"]:
+            put_truth(c, a, v, t.value, t.se)
+    for key in res.keys():
+        c, v, a = key
+        st = res.statistics(key)
+        i = (cls_i[c], ax_i[a], var_i[v])
+        out["mean"][i], out["bias"][i], out["spread"][i] = st["mean"], st["bias"], st["std"]
+        out["se_bias"][i], out["se_spread"][i] = st["se_bias"], st["se_std"]
+        out["ci95_low"][i], out["ci95_high"][i] = st["interval_95"]
+        if st["per_trial_truth"]:
+            # the mean over trials of each trial's truth, and its standard error
+            tt = res.trial_truths[key]
+            put_truth(c, a, v, float(tt.mean()), float(tt.std(ddof=1) / math.sqrt(tt.size)) if tt.size > 1 else 0.0)
+    out.update(truth=truth, truth_se=truth_se, trials=np.int32(res.trials),
                stopped_by=np.int8(STOPPED_BY.index(res.stopped_by)))
     return out
-
-
-def _inductosyn(task: PointTask) -> dict:
-    from budget.harmonics_validate import validate
-    from budget.validate import VARIANTS
-
-    trials = task.trials if task.trials is not None else task.scenario.validation.trials
-    out = validate(scenario=task.scenario, trials=trials, seed=task.seed, dense_step_deg=task.dense_step_deg)
-    s = out["summary"]
-    shape = (len(INDUCTOSYN_CLASSES), 1, len(VARIANTS))
-    r = {k: np.full(shape, np.nan) for k in ("truth", "truth_spread", "truth_se", "mean", "bias", "spread",
-                                            "se_bias", "se_spread")}
-    n = trials
-    # (truth key, lab estimate key) per class and variant (published = in sequence, improved = joint)
-    keys = {
-        "before": {"published": (None, "short_sigma3_before_arcsec"),
-                   "improved": (None, "short_sigma3_before_arcsec")},
-        "residual": {"published": ("dense_sigma3_after_arcsec", "short_sigma3_after_arcsec"),
-                     "improved": ("joint_dense_sigma3_after_arcsec", "joint_short_sigma3_after_arcsec")},
-        "residual_max": {"published": ("dense_maxabs_after_arcsec", None),
-                         "improved": ("joint_dense_maxabs_after_arcsec", None)},
-    }
-    for i, c in enumerate(INDUCTOSYN_CLASSES):
-        for k, v in enumerate(VARIANTS):
-            tk, ek = keys[c][v]
-            if tk is None:  # deterministic: the dense truth before compensation
-                t, ts = s["dense_sigma3_before_arcsec"], 0.0
-            else:
-                t, ts = s[tk]["mean"], s[tk]["std"]
-            r["truth"][i, 0, k], r["truth_spread"][i, 0, k] = t, ts
-            r["truth_se"][i, 0, k] = ts / math.sqrt(n)
-            if ek is not None:
-                m, sd = s[ek]["mean"], s[ek]["std"]
-                r["mean"][i, 0, k], r["spread"][i, 0, k], r["bias"][i, 0, k] = m, sd, m - t
-                # estimate and truth come from the same calibrations and are positively
-                # correlated: treating them as independent bounds the error from above
-                r["se_bias"][i, 0, k] = math.sqrt(sd**2 + ts**2) / math.sqrt(n)
-                r["se_spread"][i, 0, k] = sd / math.sqrt(2 * (n - 1))
-    r["trials"] = np.int32(n)
-    return r
 
 
 def evaluate_point(task: PointTask) -> PointResult:
@@ -228,7 +189,7 @@ def evaluate_point(task: PointTask) -> PointResult:
     with warnings.catch_warnings():
         # clipped variances and flagged stars are expected at some points (as in validate)
         warnings.simplefilter("ignore", RuntimeWarning)
-        values = _camera(task) if task.kind == "camera" else _inductosyn(task)
+        values = _evaluate(task)
     values["seed"] = np.uint64(task.seed)
     values["compute_s"] = np.float64(time.perf_counter() - t0)
     sch = schema(task.kind, task.evaluate)
@@ -240,8 +201,6 @@ def evaluate_point(task: PointTask) -> PointResult:
 
 
 def evaluate_in_worker(task: PointTask) -> PointResult:
-    """:func:`evaluate_point` in a Dask worker: one numba thread per task, as the local pool."""
-    from budget.validate import worker_init
-
-    worker_init()
+    """:func:`evaluate_point` in a Dask worker: the study's worker set-up (one numba thread), as the local pool."""
+    study_for_kind(task.kind).worker_init()
     return evaluate_point(task)

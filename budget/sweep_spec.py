@@ -1,7 +1,8 @@
 """Sweep files: what to vary, how to combine it, how to evaluate each point.
 
-A sweep file (TOML) names a base scenario of one of two kinds (``camera``: the seed-000
-star camera and lab; ``inductosyn``: the seed-001 encoder and its polygon calibration),
+A sweep file (TOML) names a base scenario of a registered study (``kind``: ``camera`` or
+``starcam`` for the seed-000 star camera and lab, ``inductosyn`` for the seed-001 encoder
+and its polygon calibration, and any other study of :mod:`budget.runner.registry`),
 the parameters to vary as dotted keys of that scenario with value lists or ranges, the
 combination mode (``product`` or ``zip``), how each point is evaluated (the Monte Carlo
 ``validate``, or the ``truth`` fast mode), and a seed. An optional ``[sensitivity]``
@@ -57,7 +58,6 @@ from pydantic import Field, model_validator
 from simcam.config_base import ScenarioError, StrictModel
 
 __all__ = [
-    "KINDS",
     "DistSpec",
     "Point",
     "SensitivitySpec",
@@ -71,7 +71,6 @@ __all__ = [
     "set_dotted",
 ]
 
-KINDS = ("camera", "inductosyn")
 #: rounding of generated range values (significant digits): 0.1 + 0.2 is 0.3
 RANGE_DIGITS = 12
 #: spawn key of the common seed of the Sobol samples (points use two-word keys)
@@ -171,7 +170,7 @@ class SweepSpec(StrictModel):
     """A sweep file, as parsed (see module docstring and docs/sweeps.md)."""
 
     name: str = ""
-    kind: Literal["camera", "inductosyn"] = "camera"
+    kind: str = "camera"
     base: str | None = None
     seed: int = Field(ge=0)
     mode: Literal["product", "zip"] = "product"
@@ -188,18 +187,16 @@ class SweepSpec(StrictModel):
         if not self.parameters and self.sensitivity is None:
             raise ValueError("nothing to do: give [parameters] (a grid) and/or [sensitivity]")
         _check_eval(self.evaluate, self.trials, self.tolerance_3sigma_arcsec)
-        if self.kind == "inductosyn":
-            for ev, tol, where in ((self.evaluate, self.tolerance_3sigma_arcsec, ""),
-                                   *(((self.sensitivity.evaluate, self.sensitivity.tolerance_3sigma_arcsec,
-                                       "sensitivity."),) if self.sensitivity else ())):
-                if ev != "validate":
-                    raise ValueError(f"{where}evaluate = 'truth' is not available for inductosyn sweeps: the "
-                                     "residual after compensation needs simulated calibrations (trials)")
-                if tol is not None:
-                    raise ValueError(f"{where}tolerance_3sigma_arcsec: the inductosyn validation runs a "
-                                     "fixed number of calibrations; give trials")
-        elif self.dense_step_deg is not None:
-            raise ValueError("dense_step_deg applies to inductosyn sweeps only")
+        from budget.runner.registry import STUDIES
+        from budget.sweep_eval import KIND_ALIASES, truth_has_variant
+
+        if KIND_ALIASES.get(self.kind, self.kind) not in STUDIES:
+            raise ValueError(f"kind: unknown study {self.kind!r} (known: camera, {', '.join(STUDIES)})")
+        for ev, where in ((self.evaluate, ""),
+                          *(((self.sensitivity.evaluate, "sensitivity."),) if self.sensitivity else ())):
+            if ev == "truth" and truth_has_variant(self.kind):
+                raise ValueError(f"{where}evaluate = 'truth' is not available for {self.kind} sweeps: a truth "
+                                 "of this study is drawn per trial and needs simulated trials")
         return self
 
 
@@ -398,69 +395,45 @@ def _as_lists(obj):
 
 
 # --------------------------------------------------------------------------- kinds
-def _default_raw(kind: str) -> tuple[dict, str]:
-    from importlib import resources
+def _study(kind: str):
+    from budget.sweep_eval import study_for_kind
 
-    name = "default_scenario.toml" if kind == "camera" else "inductosyn_default.toml"
-    text = resources.files("simcam.data").joinpath(name).read_text()
-    return tomllib.loads(text), f"<embedded {name}>"
+    return study_for_kind(kind)
+
+
+def _default_raw(kind: str) -> tuple[dict, str]:
+    return tomllib.loads(_study(kind).default_text()), f"<embedded {kind} default>"
 
 
 def validate_scenario(kind: str, data: dict, *, source: str):
     """Validate raw scenario data of ``kind`` into its model (ScenarioError naming fields)."""
-    if kind == "camera":
-        from simcam.scenario import scenario_from_dict
-
-        return scenario_from_dict(data, source=source)
-    from simcam.config_base import validate_model
-    from simcam.inductosyn import Inductosyn, InductosynScenario
-
-    sc = validate_model(InductosynScenario, data, source=source)
-    Inductosyn(params=sc.encoder, source=source)  # monotonic reading
-    return sc
+    return _study(kind).from_dict(data, source=source)
 
 
 def scenario_hash(kind: str, scenario) -> str:
-    """Hash of a resolved scenario (the camera's own ``hash``; the same rule for the encoder)."""
-    from simcam.config_base import model_hash
-
-    return scenario.hash if kind == "camera" else model_hash(scenario)
+    """Hash of a resolved scenario (the study's rule)."""
+    return _study(kind).scenario_hash(scenario)
 
 
 def scenario_text(kind: str, scenario) -> str:
-    """Resolved scenario as TOML (``load_scenario`` of its kind accepts it back)."""
-    if kind == "camera":
-        from simcam.scenario import scenario_to_toml
-
-        return scenario_to_toml(scenario)
-    import tomli_w
-
-    return tomli_w.dumps(scenario.model_dump(mode="json"))
+    """Resolved scenario as TOML (the study's ``load_scenario`` accepts it back)."""
+    return _study(kind).scenario_text(scenario)
 
 
 def check_simulable(kind: str, scenario, *, where: str) -> None:
-    """What the simulator would refuse later, checked now (cheaply).
-
-    Camera: every star of every protocol condition (and of the HSFE truth's sub-pixel
-    phases) lands on a chip at least half a window from its edges and the gap: the same
-    test :meth:`simcam.render.StarCamera.scene` applies when it renders. Inductosyn: the
-    calibration designs (24-face long, short and joint) separate the harmonics, checked by
-    :func:`budget.harmonics_validate.prepare` on a coarse truth grid.
-    """
+    """What the simulator would refuse later, checked now (cheaply): :meth:`Study.check`."""
     try:
-        if kind == "inductosyn":
-            from budget.harmonics_validate import prepare
-
-            prepare(scenario=scenario, dense_step_deg=1.0)
-        else:
-            _check_camera_geometry(scenario, where=where)
+        _study(kind).check(scenario, where=where)
     except ScenarioError:
         raise
     except ValueError as exc:  # the simulator's own input errors (DesignError, OpticsError, ...)
         raise ScenarioError(f"{where}: {exc}") from None
 
 
-def _check_camera_geometry(scenario, *, where: str) -> None:
+def check_camera_geometry(scenario, *, where: str) -> None:
+    """Seed 000: every star of every protocol condition (and of the HSFE truth's sub-pixel
+    phases) lands on a chip at least half a window from its edges and the gap, the test
+    :meth:`simcam.render.StarCamera.scene` applies when it renders."""
     from budget.protocols import PROTOCOLS, make_plan
     from simcam import optics
     from simcam.render import StarCamera
@@ -618,9 +591,14 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
         base_src = str(bp)
     base0 = validate_scenario(kind, raw, source=base_src)
     resolved0 = base0.model_dump(mode="python")
-    for key, value in spec.fixed.items():
+    fixed = dict(spec.fixed)
+    if spec.dense_step_deg is not None:  # shorthand kept from the inductosyn sweeps
+        set_dotted(copy.deepcopy(raw), resolved0, "validation.dense_step_deg", None,
+                   where=f"{source}: dense_step_deg")
+        fixed.setdefault("validation.dense_step_deg", spec.dense_step_deg)
+    for key, value in fixed.items():
         set_dotted(raw, resolved0, key, value, where=f"{source}: fixed")
-    base = validate_scenario(kind, raw, source=f"{source}: fixed (applied to {base_src})") if spec.fixed else base0
+    base = validate_scenario(kind, raw, source=f"{source}: fixed (applied to {base_src})") if fixed else base0
     resolved = base.model_dump(mode="python")
 
     params = [(k, expand_values(k, v, source=source)) for k, v in spec.parameters.items()]

@@ -42,7 +42,10 @@ import pathlib
 import re
 from importlib import resources
 
-import colour
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # colour (and the matplotlib it imports) loads only where a SpectralDistribution is made
+    import colour
 import numpy as np
 from scipy import constants as _const
 from scipy import optimize as _optimize
@@ -776,6 +779,8 @@ def array_to_sd(*, wavelength_nm, values, name: str = "") -> colour.SpectralDist
     v = _float_array(values, "values")
     if v.shape != lam.shape:
         raise SpectraError(f"values: shape {v.shape} differs from wavelength_nm {lam.shape}")
+    import colour
+
     return colour.SpectralDistribution(dict(zip(lam.tolist(), v.tolist(), strict=True)), name=name)
 
 
@@ -800,6 +805,8 @@ def sd_to_array(*, sd: colour.SpectralDistribution, wavelength_nm, fill: float =
     numpy.ndarray
         Sampled values, shape of ``wavelength_nm``.
     """
+    import colour
+
     if not isinstance(sd, colour.SpectralDistribution):
         raise SpectraError(f"sd: must be a colour.SpectralDistribution (got {type(sd).__name__})")
     lam = _wavelengths(wavelength_nm)

@@ -199,11 +199,11 @@ def test_polygon_that_cannot_separate_the_harmonics_is_rejected(tmp_path):
     ('seed = 1\nevaluate = "truth"\ntrials = 5\n[parameters]\n"camera.exposure_s" = [0.1]', "validate' only"),
     ('seed = 1\ntrials = 5\ntolerance_3sigma_arcsec = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
      "give one of them"),
-    (('seed = 1\nkind = "inductosyn"\ntolerance_3sigma_arcsec = 0.1\n[parameters]\n'
-      '"calibration.short_polygon.faces" = [23]'), "give trials"),
+    ('seed = 1\nkind = "nosuchstudy"\n[parameters]\n"camera.exposure_s" = [0.1]', "unknown study 'nosuchstudy'"),
     (('seed = 1\nkind = "inductosyn"\nevaluate = "truth"\n[parameters]\n'
       '"calibration.short_polygon.faces" = [23]'), "not available for inductosyn"),
-    ('seed = 1\ndense_step_deg = 0.01\n[parameters]\n"camera.exposure_s" = [0.1]', "inductosyn sweeps only"),
+    ('seed = 1\ndense_step_deg = 0.01\n[parameters]\n"camera.exposure_s" = [0.1]',
+     "dense_step_deg: 'validation.dense_step_deg': unknown key 'dense_step_deg' at validation"),
     ('seed = 1', "nothing to do"),
     ('seed = 1\n[fixed]\n"camera.exposure" = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
      "fixed: 'camera.exposure': unknown key 'exposure' at camera"),

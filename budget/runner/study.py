@@ -22,6 +22,8 @@ What a study provides
   changes from trial to trial (an injected error drawn per trial), the trial's own truth
   under the same key, and where the estimator states an uncertainty, its 1-sigma value
   (the runner reports coverage);
+* :meth:`Study.trial_batch` (optional): many trials at once, for studies whose trials are
+  vectorised; it must give, for each ``k``, exactly what :meth:`Study.trial` gives;
 * :meth:`Study.truths`: the truth of each class that is a property of the scenario, keyed
   ``(class, axis)``, with its own standard error (0 when exact);
 * :meth:`Study.report_sections`: the sections and plots its report adds.
@@ -162,6 +164,10 @@ class Study(ABC):
                                   source=f"embedded {self.name} default")
         return self.from_dict(read_toml(path=path), source=str(path))
 
+    def check(self, scenario: Any, *, where: str) -> None:
+        """What the simulator would refuse later, checked now and cheaply (sweeps check every
+        point before any work); raise ScenarioError (or the simulator's ValueError) naming ``where``."""
+
     def scenario_hash(self, scenario: Any) -> str:
         """Hash of the scenario's canonical content (the models' ``hash`` by default)."""
         return scenario.hash
@@ -181,6 +187,10 @@ class Study(ABC):
     def trial(self, scenario: Any, seed: int, k: int) -> TrialResult:
         """One simulated measurement and its estimates (see the module docstring)."""
 
+    def trial_batch(self, scenario: Any, seed: int, ks: list[int]) -> list[TrialResult]:
+        """Trials ``ks`` at once (override with a vectorised path; must equal :meth:`trial` per k)."""
+        return [self.trial(scenario, seed, k) for k in ks]
+
     @abstractmethod
     def truths(self, scenario: Any, seed: int) -> dict[tuple[str, str], Truth]:
         """The truth of every class without ``per_trial_truth``, keyed ``(class, axis)``."""
@@ -190,6 +200,10 @@ class Study(ABC):
         """Trials when the user gives neither a count nor a tolerance."""
         return int(scenario.validation.trials)
 
+    def default_tolerance(self, scenario: Any) -> float | None:
+        """Adaptive-stopping tolerance when the user gives neither trials nor a tolerance."""
+        return getattr(getattr(scenario, "validation", None), "tolerance", None)
+
     def max_trials(self, scenario: Any) -> int:
         """Cap on trials under adaptive stopping."""
         return int(getattr(scenario.validation, "max_trials", 10 * self.default_trials(scenario)))
@@ -197,6 +211,10 @@ class Study(ABC):
     def batch_trials(self, scenario: Any) -> int:
         """Trials between two convergence checks under adaptive stopping."""
         return int(getattr(scenario.validation, "batch_trials", 50))
+
+    def chunk_trials(self, scenario: Any) -> int:
+        """Most trials in one task sent to a worker (a few seconds of work at most)."""
+        return 10
 
     def worker_init(self) -> None:
         """Called once in each worker process (e.g. one numba thread per process)."""

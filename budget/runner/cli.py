@@ -1,0 +1,84 @@
+"""The command-line face of every study: ``budget <study> validate`` and the study's own commands."""
+
+from __future__ import annotations
+
+import click
+
+__all__ = ["study_group", "validate_command_for"]
+
+
+def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None) -> click.Command:
+    """``validate [SCENARIO] --trials --tolerance --seed --workers --scheduler --dask-local --json --report``."""
+
+    @click.command(name, help=help_text or f"Monte Carlo validation of the {study_name} study on SCENARIO "
+                                           "(default: its embedded scenario).")
+    @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
+    @click.option("--trials", type=click.IntRange(min=2), default=None,
+                  help="Number of Monte Carlo trials (default: the scenario's validation.trials).")
+    @click.option("--tolerance", type=click.FloatRange(min=0, min_open=True), default=None,
+                  help="Stop when every Monte Carlo standard error is below this (in the classes' unit).")
+    @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+    @click.option("--workers", type=click.IntRange(min=1), default=None,
+                  help="Local worker processes (default: all cores). Results do not depend on it.")
+    @click.option("--scheduler", default=None, help="Run the trials on a Dask cluster (tcp://HOST:PORT).")
+    @click.option("--dask-local", type=int, default=None, help="Run on a Dask LocalCluster of N processes.")
+    @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
+    @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
+    @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
+    def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, progress):
+        import sys
+
+        from budget.runner.registry import get_study
+        from budget.runner.report import format_table, write_report
+        from budget.runner.run import run_study
+        from simcam.cli_common import write_json_atomic
+
+        study = get_study(study_name)
+        scn = study.load_scenario(scenario)
+        if progress is None:
+            progress = sys.stderr.isatty()
+        if workers is None and scheduler is None and dask_local is None:
+            from budget.runner.executors import default_workers
+
+            workers = default_workers()
+        res = run_study(study, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
+                        scheduler=scheduler, dask_local=dask_local, progress=progress)
+        click.echo(f"{study.title}: scenario {getattr(scn, 'name', '')} (hash {study.scenario_hash(scn)}), "
+                   f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
+                   f"on {res.executor}")
+        click.echo(format_table(res))
+        if json_out:
+            write_json_atomic(json_out, res.to_json())
+        if report_dir:
+            click.echo(f"report: {write_report(res, report_dir)}")
+
+    return validate
+
+
+def study_group(study_name: str) -> click.Group:
+    """The click group of a registered study: ``validate`` plus :meth:`Study.commands`.
+
+    The study module is imported only when the group is invoked (or asked for help).
+    """
+    from budget.runner.registry import SUMMARIES
+
+    class _Lazy(click.Group):
+        def _load(self) -> None:
+            if getattr(self, "_loaded", False):
+                return
+            self._loaded = True
+            from budget.runner.registry import get_study
+
+            self.add_command(validate_command_for(study_name))
+            for cmd in get_study(study_name).commands():
+                self.add_command(cmd)
+
+        def list_commands(self, ctx):
+            self._load()
+            return super().list_commands(ctx)
+
+        def get_command(self, ctx, cmd_name):
+            self._load()
+            return super().get_command(ctx, cmd_name)
+
+    return _Lazy(name=study_name, help=f"{SUMMARIES.get(study_name, study_name)} Validation and its own commands.")

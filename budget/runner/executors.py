@@ -1,0 +1,213 @@
+"""Where independent tasks run: this process, local processes, or a Dask distributed cluster.
+
+An executor maps a picklable module-level function over a list of tasks and yields
+``(index, result)`` in the order tasks finish. Tasks carry everything they need (scenario,
+seed, trial numbers), so results do not depend on the executor, the number of workers or
+the order of completion.
+
+* :class:`InlineExecutor`: one after the other in this process;
+* :class:`ProcessExecutor`: a pool of local processes started with ``spawn`` (numba's thread
+  pools must not be forked), each initialised by ``initializer`` (one numba thread per
+  process: the processes are the parallelism). The pool is started on entering the
+  context, so workers import while the caller does serial work (the truths);
+* :class:`DaskExecutor`: an existing scheduler (``tcp://host:port``) or a
+  :class:`distributed.LocalCluster` of single-threaded worker processes.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import uuid
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator
+from typing import Any, Self
+
+__all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor"]
+
+
+def default_workers() -> int:
+    """All cores this process may use."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+class Executor(ABC):
+    """Runs tasks; a context manager that owns its workers."""
+
+    description: str = ""
+    workers: int = 1
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release the workers."""
+
+    @abstractmethod
+    def map_unordered(self, fn: Callable, tasks: list) -> Iterator[tuple[int, Any]]:
+        """Yield ``(index, fn(tasks[index]))`` as tasks finish."""
+
+
+class InlineExecutor(Executor):
+    """Tasks one after the other in this process."""
+
+    description = "this process"
+
+    def map_unordered(self, fn, tasks):
+        for i, t in enumerate(tasks):
+            yield i, fn(t)
+
+
+def _init_worker(initializer, args):
+    from budget.runner import lifecycle
+
+    lifecycle.exit_with_parent()
+    if initializer is not None:
+        initializer(*args)
+
+
+class ProcessExecutor(Executor):
+    """A pool of ``workers`` local processes (spawn)."""
+
+    def __init__(self, workers: int, *, initializer: Callable | None = None, initargs: tuple = ()):
+        if workers < 1:
+            raise ValueError(f"workers: must be >= 1, got {workers}")
+        self.workers = workers
+        self.description = f"{workers} local process{'es' if workers > 1 else ''}"
+        self._initializer = initializer
+        self._initargs = initargs
+        self._pool = None
+
+    def __enter__(self):
+        from concurrent.futures import ProcessPoolExecutor
+
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=_init_worker, initargs=(self._initializer, self._initargs))
+        # start every worker now (a pool spawns lazily): they import while the caller works
+        for _ in range(self.workers):
+            self._pool.submit(int)
+        return self
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def map_unordered(self, fn, tasks):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        if self._pool is None:
+            self.__enter__()
+        # a bounded number in flight: an interruption leaves little queued work behind
+        todo = list(reversed(list(enumerate(tasks))))
+        running: dict = {}
+        try:
+            while todo or running:
+                while todo and len(running) < 2 * self.workers:
+                    i, t = todo.pop()
+                    running[self._pool.submit(fn, t)] = i
+                finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i = running.pop(f)
+                    yield i, f.result()
+        finally:
+            for f in running:
+                f.cancel()
+
+
+def _dask_call(fn, task, initializer, initargs):
+    # one numba thread per Dask worker thread; the study's own worker set-up
+    if initializer is not None:
+        initializer(*initargs)
+    return fn(task)
+
+
+class DaskExecutor(Executor):
+    """Tasks on a Dask distributed cluster (an existing scheduler, or a LocalCluster)."""
+
+    def __init__(self, *, scheduler: str | None = None, local_workers: int | None = None,
+                 initializer: Callable | None = None, initargs: tuple = ()):
+        if (scheduler is None) == (local_workers is None):
+            raise ValueError("DaskExecutor: give scheduler or local_workers")
+        self.scheduler = scheduler
+        self.local_workers = local_workers
+        self.client = None
+        self.cluster = None
+        self.workers = local_workers or 0
+        self._initializer = initializer
+        self._initargs = initargs
+        self.description = (f"Dask LocalCluster of {local_workers} worker process(es)" if local_workers
+                            else f"Dask scheduler {scheduler}")
+
+    def __enter__(self):
+        from distributed import Client, LocalCluster
+
+        from simcam.cli_common import UserInputError
+
+        if self.local_workers is not None:
+            self.cluster = LocalCluster(n_workers=self.local_workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+        else:
+            try:
+                self.client = Client(self.scheduler, timeout="20s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise UserInputError(f"--scheduler {self.scheduler}: cannot connect: {exc}") from None
+            self.workers = sum(self.client.nthreads().values())
+            if self.workers == 0:
+                self.client.close()
+                raise UserInputError(f"--scheduler {self.scheduler}: the cluster has no workers")
+        return self
+
+    def close(self):
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        if self.cluster is not None:
+            self.cluster.close()
+            self.cluster = None
+
+    def map_unordered(self, fn, tasks):
+        from distributed import as_completed
+
+        if self.client is None:
+            self.__enter__()
+        tag = uuid.uuid4().hex[:8]
+        futures = [self.client.submit(_dask_call, fn, t, self._initializer, self._initargs,
+                                      key=f"task-{i}-{tag}", pure=False) for i, t in enumerate(tasks)]
+        index = {f.key: i for i, f in enumerate(futures)}
+        try:
+            for fut in as_completed(futures):
+                yield index[fut.key], fut.result()
+        finally:
+            self.client.cancel([f for f in futures if not f.done()])
+
+
+def make_executor(*, workers: int | None = None, scheduler: str | None = None, dask_local: int | None = None,
+                  initializer: Callable | None = None, initargs: tuple = ()) -> Executor:
+    """The executor asked for (at most one option; default all local cores; 1 worker: inline)."""
+    from simcam.cli_common import UserInputError
+
+    given = [n for n, v in (("--workers", workers), ("--scheduler", scheduler), ("--dask-local", dask_local))
+             if v is not None]
+    if len(given) > 1:
+        raise UserInputError(f"{' and '.join(given)}: give one of them")
+    if scheduler is not None:
+        if not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")):
+            raise UserInputError(f"--scheduler {scheduler}: expected an address like tcp://HOST:PORT")
+        return DaskExecutor(scheduler=scheduler, initializer=initializer, initargs=initargs)
+    if dask_local is not None:
+        if dask_local < 1:
+            raise UserInputError(f"--dask-local: must be >= 1 (got {dask_local})")
+        return DaskExecutor(local_workers=dask_local, initializer=initializer, initargs=initargs)
+    n = workers if workers is not None else default_workers()
+    if n < 1:
+        raise UserInputError(f"--workers: must be >= 1 (got {n})")
+    if n == 1:
+        if initializer is not None:
+            initializer(*initargs)
+        return InlineExecutor()
+    return ProcessExecutor(n, initializer=initializer, initargs=initargs)

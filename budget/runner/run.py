@@ -1,0 +1,218 @@
+"""The one Monte Carlo runner: any study, seeded trials, workers, adaptive stopping, statistics.
+
+``run_study(study, scenario, ...)``:
+
+1. starts the executor (its worker processes import while this process works);
+2. computes the study's truths (:meth:`Study.truths`, seeded by
+   ``SeedSequence(seed, spawn_key=(2**31,))``);
+3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
+   ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
+   when; trial 0's ``extra`` is kept for the report;
+4. with a tolerance, runs batches until every bias and spread standard error is below it
+   (JCGM 101:2008, 7.9) or the study's cap;
+5. summarises each ``(class, variant, axis)`` (:func:`budget.runner.stats.key_statistics`).
+
+The result, :class:`StudyResult`, gives the JSON payload (:meth:`StudyResult.to_json`,
+schema ``budget.study-result/1``: ``classes[class][axis][variant]`` holds the statistics,
+``class_info[class]`` the label, unit and description) and the report (:func:`budget.runner.report.write_report`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from budget.runner.stats import converged, key_statistics
+from budget.runner.study import ClassSpec, Study, TrialResult, Truth
+
+__all__ = ["SCHEMA", "StudyResult", "run_study"]
+
+SCHEMA = "budget.study-result/1"
+#: a request above this many trials is refused before any work (memory of the samples)
+MAX_TRIALS = 10_000_000
+
+
+def _run_chunk(args) -> list[tuple[int, TrialResult]]:
+    study, scenario, seed, ks = args
+    out = list(zip(ks, study.trial_batch(scenario, seed, list(ks))))
+    for k, r in out:
+        if k != 0:
+            r.extra = {}  # only trial 0's goes to the report: keep the traffic small
+    return out
+
+
+def _worker_init(study: Study) -> None:
+    study.worker_init()
+
+
+@dataclass
+class StudyResult:
+    """Trials, truths and statistics of one run of one study."""
+
+    study: Study
+    scenario: Any
+    seed: int
+    trials: int
+    stopped_by: str
+    classes: tuple[ClassSpec, ...]
+    truths: dict[tuple[str, str], Truth]
+    samples: dict[tuple[str, str, str], np.ndarray]
+    trial_truths: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    sigmas: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
+    example: TrialResult | None = None
+    elapsed_s: float = float("nan")
+    executor: str = ""
+
+    def class_spec(self, name: str) -> ClassSpec:
+        """The :class:`ClassSpec` called ``name``."""
+        for c in self.classes:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    def keys(self) -> list[tuple[str, str, str]]:
+        """Every (class, variant, axis) with estimates, in the study's class order."""
+        order = {c.name: i for i, c in enumerate(self.classes)}
+        var = {v: i for i, v in enumerate(self.study.variants)}
+        return sorted(self.samples, key=lambda k: (order.get(k[0], 999), k[2], var.get(k[1], 999), k[1]))
+
+    def statistics(self, key: tuple[str, str, str]) -> dict:
+        """:func:`key_statistics` of one key."""
+        cls, var, ax = key
+        if key in self.trial_truths:
+            return key_statistics(self.samples[key], trial_truths=self.trial_truths[key],
+                                  sigmas=self.sigmas.get(key))
+        t = self.truths[(cls, ax)]
+        return key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
+
+    def summary(self) -> dict:
+        """``{class: {axis: {variant: statistics}}}``."""
+        out: dict = {}
+        for key in self.keys():
+            cls, var, ax = key
+            out.setdefault(cls, {}).setdefault(ax, {})[var] = self.statistics(key)
+        return out
+
+    def to_json(self) -> dict:
+        """JSON payload (schema ``budget.study-result/1``)."""
+        from simcam import __version__
+
+        s = self.summary()
+        info = {c.name: {"label": c.label, "unit": c.unit, "description": c.description,
+                         "per_trial_truth": c.per_trial_truth, "axes": list(c.axes)}
+                for c in self.classes if c.name in s}
+        return {
+            "schema": SCHEMA, "study": self.study.name, "title": self.study.title,
+            "seed_document": self.study.seed_document, "version": __version__,
+            "scenario_name": getattr(self.scenario, "name", None),
+            "scenario_hash": self.study.scenario_hash(self.scenario),
+            "scenario_toml": self.study.scenario_text(self.scenario),
+            "seed": self.seed, "trials": self.trials, "stopped_by": self.stopped_by,
+            "variants": list(self.study.variants),
+            "truths": {f"{c}.{a}": {"value": t.value, "se": t.se,
+                                    **{k: v for k, v in t.details.items() if isinstance(v, (int, float, str, bool))}}
+                       for (c, a), t in self.truths.items()},
+            "class_info": info,
+            "classes": s,
+            "elapsed_s": self.elapsed_s, "executor": self.executor,
+        }
+
+
+def _check_trials(trials: int | None, tolerance: float | None) -> None:
+    from simcam.cli_common import UserInputError
+
+    if trials is not None and tolerance is not None:
+        raise UserInputError("--trials and --tolerance: give one of them")
+    if trials is not None and not (2 <= trials <= MAX_TRIALS):
+        raise UserInputError(f"--trials: must be between 2 and {MAX_TRIALS:,} (got {trials:,})")
+    if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
+        raise UserInputError(f"--tolerance: must be a positive number (got {tolerance})")
+
+
+def run_study(study: Study, scenario: Any, *, trials: int | None = None, tolerance: float | None = None,
+              seed: int = 0, workers: int | None = 1, scheduler: str | None = None,
+              dask_local: int | None = None, progress: bool = False) -> StudyResult:
+    """Run ``study`` on ``scenario`` (see the module docstring).
+
+    Parameters
+    ----------
+    trials : int, optional
+        Fixed number of trials (default: the study's, unless a tolerance is given).
+    tolerance : float, optional
+        Adaptive stopping: every Monte Carlo standard error below this, in the classes' unit.
+    seed : int
+        Run seed.
+    workers, scheduler, dask_local :
+        Where trials run (:func:`budget.runner.executors.make_executor`); results do not
+        depend on it.
+    progress : bool
+        A progress bar on stderr.
+    """
+    import time
+
+    from budget.runner.executors import make_executor
+
+    _check_trials(trials, tolerance)
+    t0 = time.perf_counter()
+    if trials is None and tolerance is None:
+        tolerance = study.default_tolerance(scenario)
+        if tolerance is None:
+            trials = study.default_trials(scenario)
+    cap = min(study.max_trials(scenario), MAX_TRIALS)
+    batch = study.batch_trials(scenario)
+    classes = tuple(study.classes(scenario))
+    executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
+                             initializer=_worker_init, initargs=(study,))
+    results: dict[int, TrialResult] = {}
+    stopped_by = "trials"
+    bar = None
+    with executor:
+        truths = study.truths(scenario, seed)
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=trials if trials else cap, desc=f"{study.name} trials", unit="trial", leave=False)
+        try:
+            while True:
+                done = len(results)
+                want = (trials - done) if tolerance is None else min(batch, cap - done)
+                if want <= 0:
+                    break
+                ks = list(range(done, done + want))
+                size = max(1, min(study.chunk_trials(scenario), len(ks) // (2 * max(executor.workers, 1))))
+                chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
+                tasks = [(study, scenario, seed, c) for c in chunks]
+                for _, part in executor.map_unordered(_run_chunk, tasks):
+                    for k, r in part:
+                        results[k] = r
+                    if bar is not None:
+                        bar.update(len(part))
+                if tolerance is not None:
+                    samples, tt, _ = _collect(results)
+                    if converged(samples, tt, tolerance):
+                        stopped_by = "tolerance"
+                        break
+                    if len(results) >= cap:
+                        stopped_by = "max_trials"
+                        break
+        finally:
+            if bar is not None:
+                bar.close()
+    samples, trial_truths, sigmas = _collect(results)
+    return StudyResult(study=study, scenario=scenario, seed=seed, trials=len(results), stopped_by=stopped_by,
+                       classes=classes, truths=truths, samples=samples, trial_truths=trial_truths,
+                       sigmas=sigmas, example=results.get(0), elapsed_s=time.perf_counter() - t0,
+                       executor=executor.description)
+
+
+def _collect(results: dict[int, TrialResult]):
+    """Arrays per key, ordered by trial number (whatever order the trials finished in)."""
+    ks = sorted(results)
+    first = results[ks[0]]
+    samples = {key: np.array([results[k].estimates[key] for k in ks], dtype=float) for key in first.estimates}
+    tt = {key: np.array([results[k].truths[key] for k in ks], dtype=float) for key in first.truths}
+    sg = {key: np.array([results[k].sigmas.get(key, np.nan) for k in ks], dtype=float) for key in first.sigmas}
+    return samples, tt, sg

@@ -1,0 +1,149 @@
+"""Seed 000 as a study of the runner (:mod:`budget.runner`).
+
+The trial is :func:`budget.validate.run_trial` (every protocol simulated and estimated by
+the lab's estimators) and the truths are :func:`budget.validate.truths`; this module only
+states them in the contract's terms: values in arcsec, 3 sigma (3 x sigma_px x the
+scenario's plate scale, as seed 000 reports them).
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+
+from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
+
+__all__ = ["STUDY", "StarCameraStudy"]
+
+_UNIT = "arcsec, 3 sigma"
+_CLASSES = (
+    ("te", "temporal error (TE)", "eqs 1-2: the mean over stars of each star's temporal centroid sd"),
+    ("hsfe", "high spatial frequency error (HSFE)", "eqs 3-12: the static, position-dependent centroid error "
+     "(pixel response, S-curve) as the 0.2 px stepped target sees it"),
+    ("lsfe_s", "chromatic LSFE (LSFE-S)", "eqs 13-16: the colour-dependent displacement of stars"),
+    ("lsfe_c1", "distortion calibration residual (LSFE-C1)", "eqs 17-30: what the distortion calibration leaves"),
+    ("lsfe_c2", "target marker error (LSFE-C2)", "the calibration target's marker error (an input of the lab)"),
+    ("lsfe", "low spatial frequency error (LSFE)", "eq 31 (published: C1 and C2 added linearly) or root-sum-square"),
+    ("total", "single-star total", "root-sum-square of TE, HSFE and LSFE"),
+)
+
+
+class StarCameraStudy(Study):
+    """Seed 000: a star camera's TE, HSFE and LSFE lab methods."""
+
+    name = "starcam"
+    title = "Star-camera lab methods (seed 000)"
+    seed_document = "000"
+    variants = ("published", "improved")
+
+    def default_text(self) -> str:
+        from simcam.scenario import DEFAULT_RESOURCE
+
+        return resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+
+    def from_dict(self, data: dict, *, source: str):
+        from simcam.scenario import scenario_from_dict
+
+        return scenario_from_dict(data, source=source)
+
+    def load_scenario(self, path=None):
+        from simcam.scenario import load_scenario
+
+        return load_scenario(path)
+
+    def scenario_text(self, scenario) -> str:
+        from simcam.scenario import scenario_to_toml
+
+        return scenario_to_toml(scenario)
+
+    def check(self, scenario, *, where: str) -> None:
+        from budget.sweep_spec import check_camera_geometry
+
+        check_camera_geometry(scenario, where=where)
+
+    def classes(self, scenario) -> tuple[ClassSpec, ...]:
+        return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc) for n, label, desc in _CLASSES)
+
+    def default_trials(self, scenario) -> int:
+        return int(scenario.validation.trials)
+
+    def default_tolerance(self, scenario):
+        return scenario.validation.tolerance_3sigma_arcsec
+
+    def max_trials(self, scenario) -> int:
+        return int(scenario.validation.max_trials)
+
+    def batch_trials(self, scenario) -> int:
+        return int(scenario.validation.batch_trials)
+
+    def worker_init(self) -> None:
+        from budget.validate import worker_init
+
+        worker_init()
+
+    @staticmethod
+    def _factor(scenario) -> float:
+        return 3.0 * scenario.camera.scale_arcsec_per_px
+
+    def trial(self, scenario, seed: int, k: int) -> TrialResult:
+        from budget.validate import run_trial
+
+        r = run_trial(scenario, seed, k, keep=(k == 0))
+        f = self._factor(scenario)
+        est = {key: v * f for key, v in r["values"].items()}
+        return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
+
+    def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
+        from budget.validate import truths
+
+        f = self._factor(scenario)
+        out = {}
+        for cls, t in truths(scenario, seed=seed).items():
+            for ax in ("x", "y"):
+                se_px = t.details.get(f"se_{ax}_px", 0.0)
+                if cls == "te" and "standard_error_x_px" in t.details:
+                    # a mean over stars of per-star sds from a sample of frames
+                    se_px = t.details[f"standard_error_{ax}_px"] / math.sqrt(max(t.details.get("stars", 1), 1))
+                out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, float(se_px) * f,
+                                       {k: v for k, v in t.details.items() if not isinstance(v, (list, dict))})
+        # LSFE and the total are root-sum-squares of independent classes: first-order
+        # propagation of the parts' standard errors, se = sqrt(sum (part / whole)^2 se_part^2)
+        for whole, parts in (("lsfe", ("lsfe_s", "lsfe_c1", "lsfe_c2")), ("total", ("te", "hsfe", "lsfe"))):
+            for ax in ("x", "y"):
+                w = out[(whole, ax)]
+                if w.value > 0:
+                    se = math.sqrt(sum((out[(p, ax)].value / w.value * out[(p, ax)].se) ** 2 for p in parts))
+                    out[(whole, ax)] = Truth(w.value, se, w.details)
+        return out
+
+    def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
+        from budget.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
+
+        ex = (result.example.extra.get("kept", {}) if result.example else {})
+        figs = []
+        if "hsfe" in ex:
+            plot_hsfe_residuals(ex["hsfe"]["estimates"]["published"], out_dir / "hsfe_residuals.png")
+            figs.append(out_dir / "hsfe_residuals.png")
+        if "chromatic" in ex:
+            plot_chromatic_residuals(ex["chromatic"]["data"].centroids, out_dir / "chromatic_residuals.png",
+                                     result.scenario.protocols.chromatic.reference_filter_nm)
+            figs.append(out_dir / "chromatic_residuals.png")
+        if "distortion" in ex:
+            plot_distortion_residuals(ex["distortion"]["estimates"]["published"], out_dir / "distortion_residuals.png")
+            figs.append(out_dir / "distortion_residuals.png")
+        te = result.truths.get(("te", "x"))
+        f = self._factor(result.scenario)
+        text = [f"Plate scale {result.scenario.camera.scale_arcsec_per_px:g} arcsec/px."]
+        if te is not None and "cramer_rao_x_px" in te.details:
+            text.append(f"TE truth against the Cramer-Rao bound of an unbiased centroid from the same pixels: "
+                        f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
+                        f"y {result.truths[('te', 'y')].value:.3f} vs {te.details['cramer_rao_y_px'] * f:.3f} "
+                        f"arcsec (3 sigma).")
+        text.append("Figures from trial 0: HSFE residuals per star and step (seed 000 fig. 6), colour "
+                    "differences per corner field (fig. 7), distortion residuals before and after the cubic "
+                    "fit (fig. 8).")
+        return [ReportSection("Seed-000 details", "\n\n".join(text), figs)]
+
+
+STUDY = StarCameraStudy()

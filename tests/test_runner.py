@@ -1,0 +1,88 @@
+"""The study runner (budget.runner) on a study with analytic answers (tests/toy_study.py)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from toy_study import STUDY, Toy
+
+from budget.runner.report import format_table, write_report
+from budget.runner.run import run_study
+from budget.runner.stats import key_statistics
+from simcam.cli_common import UserInputError
+
+
+def test_statistics_match_the_analytic_answers():
+    scn = Toy(m=8, sigma=2.0)
+    n = 4000
+    res = run_study(STUDY, scn, trials=n, seed=11)
+    s = res.summary()
+    # ddof=0 variance: E = sigma^2 (m-1)/m, bias -sigma^2/m = -0.5; sd of s^2 (ddof 0) is
+    # sigma^2 sqrt(2(m-1))/m = 1.87, so the mean's standard error is 1.87/sqrt(4000) = 0.030:
+    # 4 standard errors (fixed seed) bound the check
+    pub = s["variance"]["a"]["published"]
+    assert pub["bias"] == pytest.approx(-0.5, abs=4 * pub["se_bias"])
+    assert pub["bias_significant"]
+    imp = s["variance"]["a"]["improved"]
+    assert abs(imp["bias"]) < 4 * imp["se_bias"]
+    # the mean's error is exactly N(0, sigma^2/m): coverage 0.6827 +- binomial se 0.0074
+    cov = s["mean"]["a"]["published"]["coverage"]
+    assert cov["within_1sigma"] == pytest.approx(0.6827, abs=4 * cov["se_1sigma"])
+    assert cov["within_2sigma"] == pytest.approx(0.9545, abs=4 * cov["se_2sigma"])
+    # sd of the normalised error is 1 with a standard error of 1/sqrt(2(n-1)) = 0.011
+    assert cov["sd_normalised_error"] == pytest.approx(1.0, abs=4 / math.sqrt(2 * (n - 1)))
+    assert s["mean"]["a"]["published"]["std"] == pytest.approx(2.0 / math.sqrt(8), rel=4 / math.sqrt(2 * (n - 1)))
+
+
+def test_truth_standard_error_enters_the_significance_test():
+    x = np.full(100, 1.0) + np.linspace(-1e-3, 1e-3, 100)
+    assert key_statistics(x, truth=0.99, truth_se=0.0)["bias_significant"]
+    st = key_statistics(x, truth=0.99, truth_se=0.01)
+    assert not st["bias_significant"]
+    assert st["se_bias"] == pytest.approx(math.sqrt(x.std(ddof=1) ** 2 / 100 + 0.01**2), rel=1e-12)
+
+
+def test_results_do_not_depend_on_workers():
+    scn = Toy()
+    one = run_study(STUDY, scn, trials=40, seed=3, workers=1)
+    two = run_study(STUDY, scn, trials=40, seed=3, workers=2)
+    for key in one.samples:
+        assert np.array_equal(one.samples[key], two.samples[key])
+    for key in one.trial_truths:
+        assert np.array_equal(one.trial_truths[key], two.trial_truths[key])
+
+
+def test_adaptive_stopping_meets_the_tolerance():
+    res = run_study(STUDY, Toy(), tolerance=0.1, seed=2)
+    assert res.stopped_by == "tolerance"
+    for key in res.samples:
+        st = res.statistics(key)
+        assert st["se_bias"] <= 0.1 and st["se_std"] <= 0.1
+
+
+def test_bad_requests_are_refused_before_work():
+    with pytest.raises(UserInputError, match="give one of them"):
+        run_study(STUDY, Toy(), trials=5, tolerance=0.1)
+    with pytest.raises(UserInputError, match="--trials"):
+        run_study(STUDY, Toy(), trials=10**13)
+
+
+def test_json_and_report(tmp_path):
+    res = run_study(STUDY, Toy(), trials=30, seed=1)
+    payload = res.to_json()
+    json.dumps(payload, allow_nan=True)
+    assert payload["classes"]["variance"]["a"]["improved"]["truth"] == 4.0
+    assert payload["class_info"]["mean"]["per_trial_truth"] is True
+    rep = write_report(res, tmp_path / "rep")
+    text = rep.read_text()
+    assert "sample variance, a, published" in text and (tmp_path / "rep" / "estimates.png").is_file()
+    assert not list(tmp_path.glob(".rep.partial.*"))
+    assert "variance" in format_table(res)
+    # a folder that is not an earlier report is never replaced
+    other = tmp_path / "precious"
+    other.mkdir()
+    (other / "data.txt").write_text("keep")
+    with pytest.raises(UserInputError, match="not an earlier report"):
+        write_report(res, other)
+    assert (other / "data.txt").read_text() == "keep"
