@@ -131,23 +131,32 @@ def _focal_plane_at(camera: CameraTruth, plan: ScanPlan, a_gcrs, t, k):
     return camera.focal_plane(d)
 
 
-def crossing_times(camera: CameraTruth, plan: ScanPlan, a_gcrs, k, *, iterations: int = 6):
+def crossing_times(camera: CameraTruth, plan: ScanPlan, a_gcrs, k, *, t0=None, tol_s: float = 1e-10,
+                   max_iter: int = 20):
     """Times at which stars of GCRS directions ``a`` cross the line (``x = x_line``) in
-    passes ``k``, by Newton's method on the exact forward model (numeric derivative).
+    passes ``k``: secant iterations on the exact forward model, started from ``t0`` (default:
+    the middle of the pass) and a first step with the nominal image rate ``f w_y``.
 
     Returns ``(t, x - x_line, y)`` (s, mm, mm).
     """
     f = camera.focal_length_mm
     w = plan.rate_rad_s[1]
-    t = plan.t_mid_s[k].astype(float).copy()
-    h = 1e-3
-    for _ in range(iterations):
-        x, _ = _focal_plane_at(camera, plan, a_gcrs, t, k)
-        x2, _ = _focal_plane_at(camera, plan, a_gcrs, t + h, k)
-        slope = np.where(np.abs(x2 - x) > 0, (x2 - x) / h, f * w)
-        t = t - (x - camera.x_line_mm) / slope
-    x, y = _focal_plane_at(camera, plan, a_gcrs, t, k)
-    return t, x - camera.x_line_mm, y
+    t_a = plan.t_mid_s[k].astype(float).copy() if t0 is None else np.array(t0, dtype=float)
+    x_a, _ = _focal_plane_at(camera, plan, a_gcrs, t_a, k)
+    x_a = x_a - camera.x_line_mm
+    t_b = t_a - x_a / (f * w)
+    for _ in range(max_iter):
+        x_b, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k)
+        x_b = x_b - camera.x_line_mm
+        denom = x_b - x_a
+        slope = np.where(np.abs(denom) > 0, denom / np.where(t_b != t_a, t_b - t_a, 1.0), f * w)
+        slope = np.where(np.abs(slope) > 0.1 * abs(f * w), slope, f * w)
+        t_new = t_b - x_b / slope
+        t_a, x_a, t_b = t_b, x_b, t_new
+        if np.max(np.abs(t_b - t_a), initial=0.0) < tol_s:
+            break
+    x, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k)
+    return t_b, x - camera.x_line_mm, y
 
 
 # --------------------------------------------------------------------------- imaging
@@ -229,12 +238,17 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
     jj = np.tile(np.arange(m), n_st)
     a = strip.directions[kk, jj]
     # stars in front of the camera and near the strip only
-    bore = -plan.r_mid[kk][:, :, 2]
-    near = np.einsum("ij,ij->i", a, bore) > math.cos(strip_radius_rad(scenario))
+    # stars in front of the camera that the pass's line sweeps (body frame at mid-pass;
+    # margins of 2 % of the field and the strip for the misalignment and distortion)
+    body = np.einsum("nji,nj->ni", plan.r_mid[kk], a)
+    half_across = 0.5 * cam.n_pixels * p / cam.focal_length_mm * 1.02
+    half_along = 0.5 * plan.duration_s * abs(plan.rate_rad_s[1]) * 1.02
+    near = (body[:, 2] < 0) & (np.abs(np.arctan2(body[:, 1], -body[:, 2])) < half_across)
+    near &= np.abs(np.arctan2(body[:, 0], -body[:, 2])) < half_along
     kk, jj = kk[near], jj[near]
-    t, _, _ = crossing_times(camera, plan, strip.directions[kk, jj], kk, iterations=3)
+    t, _, _ = crossing_times(camera, plan, strip.directions[kk, jj], kk, tol_s=1e-3)
     a = strip.at(kk, jj, t)
-    t, xres, y = crossing_times(camera, plan, a, kk)
+    t, xres, y = crossing_times(camera, plan, a, kk, t0=t)
     s = y / p + 0.5 * (cam.n_pixels - 1)
     t_pass0 = plan.t_start_s
     line_c = (t - t_pass0[kk]) / T + 0.5 * N

@@ -1,0 +1,5 @@
+"""Commands of the linecam study (filled in below)."""
+
+
+def commands() -> list:
+    return []
