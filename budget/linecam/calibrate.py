@@ -207,11 +207,24 @@ def _apply(theta: np.ndarray, idx: np.ndarray, step: np.ndarray) -> None:
     theta[3:] += full[3:]
 
 
+def _pivot_basis(rows: np.ndarray) -> np.ndarray:
+    """A readable basis of the span of ``rows`` (k, p): column-pivoted QR picks k pivot
+    parameters, and the basis is ``inv(rows[:, piv]) @ rows`` (identity on the pivots), so
+    each combination names one pivot and what it trades with."""
+    if rows.shape[0] == 0:
+        return rows
+    from scipy.linalg import qr
+
+    _, _, piv = qr(rows, pivoting=True, mode="economic")
+    k = rows.shape[0]
+    return np.linalg.solve(rows[:, piv[:k]], rows)
+
+
 def _null_message(null_rows: np.ndarray, names: list[str], s: np.ndarray) -> str:
     groups = []
-    for v in null_rows:
+    for v in _pivot_basis(null_rows):
         v = v / np.max(np.abs(v))
-        groups.append(" + ".join(f"{c:+.2f} {n}" for c, n in zip(v, names) if abs(c) > 0.05))
+        groups.append(" ".join(f"{c:+.2f} {n}" for c, n in zip(v, names) if abs(c) > 0.05))
     cond = s[0] / s[-1] if s[-1] > 0 else np.inf
     return ("the observation plan cannot separate these parameters (condition number "
             f"{cond:.3g}): combinations {'; '.join(groups)} are unobservable; drop one parameter "
@@ -248,8 +261,7 @@ def separability(cam: NominalCamera, obs: Observations, *, rcond: float = 1e-6, 
     Jn = J / np.where(norms > 0, norms, 1.0)
     s, Vt, keep = _spectrum(Jn, rcond)
     null, names = [], set()
-    for v in Vt[~keep]:
-        v = v / norms  # back to px-at-line-end units of each parameter
+    for v in _pivot_basis(Vt[~keep] / norms):  # px-at-line-end units of each parameter
         v = v / np.max(np.abs(v))
         comb = {p: float(c) for p, c in zip(PARAMETERS, v) if abs(c) > 0.05}
         null.append(comb)

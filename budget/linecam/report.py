@@ -130,3 +130,27 @@ def report_sections(result, out_dir: Path) -> list[ReportSection]:
             plot_los_error(ex, out_dir / "linecam_los_error.png"), plot_coverage(ex, out_dir / "linecam_coverage.png")]
     md = example_markdown(ex) + "\n\n" + "\n".join(f"![{f.stem}]({f.name})" for f in figs)
     return [ReportSection(title="Line camera: the example trial", markdown=md, figures=figs)]
+
+
+def plot_los_field(payload: dict, path: Path) -> Path:
+    """Calibrated look angles minus nominal over the line, with the stated 1-sigma band
+    (real data: no truth to compare with)."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for m, r in payload["methods"].items():
+        L = r["los_field"]
+        g = np.asarray(L["sample_px"])
+        for ax, key, sk in ((axes[0], "along_minus_nominal_arcsec", "sigma_along_arcsec"),
+                            (axes[1], "across_minus_nominal_arcsec", "sigma_across_arcsec")):
+            v, s = np.asarray(L[key]), np.asarray(L[sk])
+            line, = ax.plot(g, v, label=m)
+            ax.fill_between(g, v - s, v + s, color=line.get_color(), alpha=0.2)
+    axes[0].set_ylabel("along-track look angle\nminus nominal (arcsec)")
+    axes[1].set_ylabel("across-track look angle\nminus nominal (arcsec)")
+    axes[1].set_xlabel("detector along the line (px)")
+    axes[0].set_title("calibrated LOS field (band: stated 1 sigma)")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
