@@ -148,25 +148,32 @@ def _cond(Js: np.ndarray) -> float:
 
 
 def calibrate_joint(cam: NominalCamera, obs: Observations, *, solve=PARAMETERS, rcond: float = 1e-6,
-                    max_iter: int = 20, tol_px: float = 1e-9, strict: bool = False) -> Calibration:
+                    gauge_sigma_px: float = 10.0, max_iter: int = 30, tol_px: float = 1e-9,
+                    strict: bool = False) -> Calibration:
     """Joint Gauss-Newton fit of the parameters ``solve`` (the others held at 0).
 
-    Each step solves the column-scaled linearised problem by SVD; directions with singular
-    values below ``rcond * s_max`` are gauge freedoms and get no step. ``strict``: such a
-    direction is an error naming the parameters involved (the user asked for parameters
-    the plan cannot separate).
+    Each step solves the column-scaled linearised problem (columns in px at the line's end
+    per unit) through the eigen-decomposition of its normal matrix. A direction is a gauge
+    freedom and gets no step when its singular value is below ``rcond * s_max`` or when the
+    data would determine it worse than ``gauge_sigma_px`` (``s0 / s > gauge_sigma_px``,
+    ``s0`` the rms residual of the current step): an exactly degenerate direction, and a
+    nearly degenerate one that only model errors or noise would pull along (a half-exposure
+    time-tag error, for instance, has a large component along pitch/dx0 and would otherwise
+    be "separated" through terms of order 1e-4). ``strict``: any such direction at the
+    solution is an error naming the parameters involved (the user asked for parameters the
+    plan cannot separate).
     """
     idx = np.array([PARAMETERS.index(p) for p in solve])
     _check_count(obs, idx.size)
     scale = parameter_scale(cam)[idx]
     theta = np.zeros(len(PARAMETERS))
+    dof = max(2 * len(obs) - idx.size, 1)
     it = 0
     for it in range(1, max_iter + 1):
         r = residuals(cam, theta, obs)
         J = jacobian(cam, theta, obs)[:, idx] / scale
         s, Vt, keep = _spectrum(J, rcond)
-        if strict and not keep.all():
-            raise CalibrationError(_null_message(Vt[~keep], [PARAMETERS[i] for i in idx], s))
+        keep &= np.sqrt(float(r @ r) / dof) < gauge_sigma_px * s
         step = -(Vt[keep].T @ ((Vt[keep] @ (J.T @ r)) / s[keep] ** 2)) / scale
         _apply(theta, idx, step)
         if np.max(np.abs(step) * scale) < tol_px:
@@ -174,6 +181,9 @@ def calibrate_joint(cam: NominalCamera, obs: Observations, *, solve=PARAMETERS, 
     r = residuals(cam, theta, obs)
     J = jacobian(cam, theta, obs)[:, idx] / scale
     s, Vt, keep = _spectrum(J, rcond)
+    keep &= np.sqrt(float(r @ r) / dof) < gauge_sigma_px * s
+    if strict and not keep.all():
+        raise CalibrationError(_null_message(Vt[~keep], [PARAMETERS[i] for i in idx], s))
     rank = int(keep.sum())
     s2 = float(r @ r) / max(2 * len(obs) - rank, 1)
     cov_s = (Vt[keep].T / s[keep] ** 2) @ Vt[keep] * s2

@@ -233,6 +233,7 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
                 out[m] = calibrate_published(cam, obs, coverage_bins=lab.coverage_bins, max_iter=lab.max_iter)
             else:
                 out[m] = calibrate_joint(cam, obs, solve=solve or PARAMETERS, rcond=lab.rcond,
+                                         gauge_sigma_px=lab.gauge_sigma_px,
                                          strict=solve is not None)
     except CalibrationError as exc:
         field = "solve" if "separate" in str(exc) else "rows"

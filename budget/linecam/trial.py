@@ -121,4 +121,4 @@ def run_calibrations(scenario: LineCamScenario, cam: NominalCamera, obs: Observa
     """Both variants on the same observations."""
     lab = scenario.lab
     return {"published": calibrate_published(cam, obs, coverage_bins=lab.coverage_bins, max_iter=lab.max_iter),
-            "improved": calibrate_joint(cam, obs, rcond=lab.rcond)}
+            "improved": calibrate_joint(cam, obs, rcond=lab.rcond, gauge_sigma_px=lab.gauge_sigma_px)}

@@ -159,6 +159,7 @@ class LabModel(_M):
     coverage_bins: Annotated[int, Field(ge=2, le=1000)] = 24
     max_iter: Annotated[int, Field(ge=1, le=1000)] = 30
     rcond: Annotated[float, Field(gt=0.0, lt=1e-2)] = 1e-6
+    gauge_sigma_px: Pos = 10.0
     grid_step_px: Annotated[int, Field(ge=1, le=4096)] = 16
 
 
