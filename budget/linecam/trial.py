@@ -21,7 +21,7 @@ from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
 from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
 from simcam.linecam.world import AttitudeReports, PassImages, SkyStrip, image_passes, sky_strip
 
-from .calibrate import Calibration, calibrate_joint, calibrate_published, los_field, separability
+from .calibrate import Calibration, calibrate_joint, calibrate_published, los_field
 from .model import NominalCamera, Observations
 from .pipeline import Centroids, Identified, Region, choose_region, extract_centroids, identify
 

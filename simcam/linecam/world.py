@@ -33,7 +33,7 @@ from simcam.sky.catalogue import Catalogue, hipparcos
 
 from . import kernels as _k
 from .attitude import ScanPlan, orbit_state, rodrigues, scan_plan
-from .camera import CameraTruth, sample_y_mm
+from .camera import CameraTruth
 from .scenario import LineCamScenario
 from .signal import star_electron_rate
 
