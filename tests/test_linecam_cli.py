@@ -109,3 +109,14 @@ def test_missing_column_and_bad_values_name_the_field(simulated, capsys, tmp_pat
     code, out = _run(["calibrate", str(bad), "--scenario", str(simulated / "small.toml")], capsys)
     assert code == 2 and f"{bad}: sample_px:" in out.err and "row 3" in out.err
     assert np.isfinite(df["time_s"]).all()
+
+
+def test_a_strip_with_too_few_stars_names_the_scenario(capsys, tmp_path):
+    scn = tmp_path / "few.toml"
+    scn.write_text(tomli_w.dumps({"stars": {"mag_limit": 3.0, "world_mag_limit": 3.0, "region": "manual",
+                                            "ra_deg": 192.9, "dec_deg": 27.1},
+                                  "observation": {"passes": 1}}))
+    code, out = _run(["simulate", str(scn)], capsys)
+    assert code == 2
+    line = out.err.strip()
+    assert "\n" not in line and line.startswith(f"error: {scn}: stars.mag_limit") and "too few stars" in line

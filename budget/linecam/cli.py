@@ -63,8 +63,15 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
     from .study import trial_extra
     from .trial import PARAM_UNITS, simulate, to_report_units
 
+    from simcam.cli_common import UserInputError
+
+    from .calibrate import CalibrationError
+
     scn = _scenario(scenario)
-    sim = simulate(scn, trial_seed_sequence(seed, k))
+    try:
+        sim = simulate(scn, trial_seed_sequence(seed, k))
+    except CalibrationError as exc:
+        raise UserInputError(f"{scn.source}: stars.mag_limit / observation.passes: {exc}") from None
     ex = trial_extra(scn, sim)
     truth = to_report_units(sim.theta_true)
     out = {"scenario_hash": scn.hash, "seed": seed, "trial": k, "identified": ex["identified"],

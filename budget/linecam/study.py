@@ -109,7 +109,7 @@ class LineCamStudy(Study):
         try:
             sim = simulate(scenario, trial_seed_sequence(seed, k))
         except CalibrationError as exc:
-            raise ScenarioError(f"stars.mag_limit / observation.passes: {exc}") from None
+            raise ScenarioError(f"{scenario.source}: stars.mag_limit / observation.passes: {exc}") from None
         return trial_result(scenario, sim, keep_extra=(k == 0))
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:

@@ -12,7 +12,7 @@ from functools import cached_property
 from importlib import resources
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, PrivateAttr, model_validator
 
 from simcam.config_base import StrictModel, model_hash, validate_model
 
@@ -182,6 +182,12 @@ class LineCamScenario(_M):
     errors: ErrorsModel = ErrorsModel()
     lab: LabModel = LabModel()
     validation: ValidationModel = ValidationModel()
+    #: where the scenario came from (a file name), for errors found later (in a worker)
+    _source: str = PrivateAttr(default="scenario")
+
+    @property
+    def source(self) -> str:
+        return self._source
 
     @cached_property
     def hash(self) -> str:
@@ -196,7 +202,9 @@ def default_text() -> str:
 
 def from_dict(data: dict, *, source: str) -> LineCamScenario:
     """Validate a mapping into :class:`LineCamScenario` (errors name ``source`` and field)."""
-    return validate_model(LineCamScenario, data, source=source)
+    sc = validate_model(LineCamScenario, data, source=source)
+    sc._source = source
+    return sc
 
 
 def load_default() -> LineCamScenario:
