@@ -64,3 +64,7 @@ def cli() -> None:
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     run_cli(cli, argv)
+
+
+if __name__ == "__main__":  # python -m budget.cli (benchmarks run it so)
+    main()

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 from photutils.centroids import centroid_com
 from scipy.special import erf
@@ -50,11 +52,11 @@ def test_cog_by_hand():
     # weights 1 at column 1 and 3 at column 2: x = (1*1 + 3*2) / 4 = 1.75, y = 1
     x, y, f, flag = centroid_cog(win, x0=100.0, y0=200.0, background=0.0, threshold_dn=0.5)
     assert x[0] == pytest.approx(101.75, abs=1e-14) and y[0] == pytest.approx(201.0, abs=1e-14)
-    assert f[0] == 4.0
+    assert f[0] == pytest.approx(4.0, rel=np.finfo(float).eps)  # sum of 1 and 3: at most one rounding
     # threshold subtracted: weights 0.5 and 2.5 -> x = (0.5*1 + 2.5*2) / 3 = 5.5/3
     x, _, f, flag = centroid_cog(win, x0=0.0, y0=0.0, background=0.0, threshold_dn=0.5,
                                  subtract_threshold=True)
-    assert x[0] == pytest.approx(5.5 / 3, abs=1e-14) and f[0] == 4.0
+    assert x[0] == pytest.approx(5.5 / 3, abs=1e-14) and f[0] == pytest.approx(4.0, rel=np.finfo(float).eps)
     # the brightest pixel (column 2) is on the 3x3 window's border
     assert flag[0] == CentroidFlag.EDGE
 
@@ -64,7 +66,7 @@ def test_border_background_by_hand():
     # border: 0..4, 20..24, 5, 10, 15, 9, 14, 19 -> 16 values, median (10 + 14) / 2 = 12
     med, sig = window_background(win)
     border = np.r_[0:5, 20:25, 5, 10, 15, 9, 14, 19].astype(float)
-    assert med[0] == 12.0
+    assert med[0] == pytest.approx(12.0, rel=np.finfo(float).eps)  # (10 + 14) / 2: one rounding at most
     assert sig[0] == pytest.approx(1.482602218505602 * np.median(np.abs(border - 12.0)))
 
 
@@ -226,6 +228,7 @@ def test_detect_match_and_windows():
     np.testing.assert_array_equal(m2, [-1, 0])
     win, x0, y0, flag = extract_windows(img, x_center=[3, 50], y_center=[30, 30], size_px=11)
     assert flag[0] == CentroidFlag.EDGE and flag[1] == 0
+    # the window origin is an integer pixel index and the pixels are copied: exact
     assert np.isnan(win[0, 0, 0]) and x0[1] == 45.0 and y0[1] == 25.0
     assert win[1, 5, 5] == img[30, 50]
 
@@ -325,5 +328,43 @@ def test_border_background_matches_numpy_on_random_windows():
         b = np.concatenate([win[q, 0], win[q, -1], win[q, 1:-1, 0], win[q, 1:-1, -1]])
         b = b[np.isfinite(b)]
         m = np.median(b)
-        assert med[q] == m
+        assert med[q] == pytest.approx(m, rel=np.finfo(float).eps)  # mean of two values: one rounding
         assert sig[q] == pytest.approx(1.482602218505602 * np.median(np.abs(b - m)), abs=1e-12)
+
+
+def _frame_with_stars(seed, *, big_star=False):
+    rng = np.random.default_rng(seed)
+    rows, cols = 300, 400
+    frame = rng.normal(100.0, 4.0, (rows, cols))
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    ref = np.array([[50.3, 40.7], [58.1, 44.2], [200.6, 150.4], [3.2, 120.8], [395.4, 290.1], [300.0, 200.0]])
+    for i, (x, y) in enumerate(ref):
+        if i == len(ref) - 1 and not big_star:
+            continue  # a reference without a star
+        s = 6.0 if (big_star and i == 2) else 1.2
+        frame += 900.0 * np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * s * s))
+    frame[150, 330] += 400.0  # a hot pixel, and a small noise blob near a reference
+    frame[44:46, 52:54] += 60.0
+    return np.round(frame).astype(np.uint16), ref
+
+
+@pytest.mark.parametrize("big_star", [False, True])
+def test_reference_list_path_equals_whole_frame_detection(monkeypatch, big_star):
+    """Detection in boxes around the references gives the table the whole-frame labelling
+    gives (stars close together, at the frame's edges, a missing star, a noise blob, dark
+    subtraction; a star larger than its box falls back to the whole frame)."""
+    import budget.centroid as c
+
+    frames = [_frame_with_stars(s, big_star=big_star)[0] for s in (1, 2)]
+    ref = _frame_with_stars(1, big_star=big_star)[1]
+    dark = np.random.default_rng(9).normal(2.0, 1.0, frames[0].shape)
+    opts = dict(reference_xy=ref, dark=dark, threshold_sigma=5.0, window_size_px=7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fast = c.centroid_frames(frames, **opts)
+        calls = []
+        real = c._detect_near
+        monkeypatch.setattr(c, "_detect_near", lambda *a, **k: calls.append(real(*a, **k)) or None)
+        full = c.centroid_frames(frames, **opts)
+    pd.testing.assert_frame_equal(fast, full)
+    assert (calls[0] is None) == big_star  # the big star's halo leaves its box: whole frame

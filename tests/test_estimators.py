@@ -80,7 +80,7 @@ def test_te_unchanged_by_constant_offset_and_scales_with_plate_scale():
     assert b.sigma_y_px == pytest.approx(a.sigma_y_px, rel=1e-9)
     c = temporal_error(t, plate_scale_arcsec=2 * PS)
     assert c.x_3sigma_arcsec == pytest.approx(2 * a.x_3sigma_arcsec, rel=1e-12)
-    assert c.sigma_x_px == a.sigma_x_px
+    assert c.sigma_x_px == a.sigma_x_px  # exact on purpose: the plate scale never enters the pixel sigma
 
 
 def _noisy_static(rng, *, w, n, sigma_x, sigma_y, conditions=(0,)):

@@ -97,7 +97,7 @@ def test_platform_steps_along_45_degrees():
     dx, dy = platform_offsets_px(steps=12, step_px=0.2, direction_deg=45.0, noise_px=0.0, seed=1, stream=5)
     np.testing.assert_allclose(np.hypot(np.diff(dx), np.diff(dy)), 0.2)
     np.testing.assert_allclose(dx, dy)
-    assert dx[0] == 0.0 and dx[1] > 0
+    assert dx[0] == 0.0 and dx[1] > 0  # pose 0 is 0 * step without noise: exactly zero by construction
     ex, ey = platform_offsets_px(steps=12, step_px=0.2, direction_deg=45.0, noise_px=0.01, seed=1, stream=5)
     ex2, _ = platform_offsets_px(steps=4, step_px=0.2, direction_deg=45.0, noise_px=0.01, seed=1, stream=5)
     np.testing.assert_array_equal(ex[:4], ex2)  # pose k's error does not depend on the sequence length

@@ -80,7 +80,7 @@ def test_airy_otf_is_normalised_pupil_overlap_area():
         area, _ = integrate.quad(lambda t: math.sqrt(1.0 - t * t), half, 1.0, epsabs=1e-14)
         ref = 4.0 * area / math.pi
         assert kpsf.airy_otf(v * 2.5, 2.5) == pytest.approx(ref, abs=1e-12)
-    assert kpsf.airy_otf(2.5, 2.5) == 0.0
+    assert kpsf.airy_otf(2.5, 2.5) == 0.0  # at and beyond the cut-off the OTF is set to 0 (no arithmetic)
     assert kpsf.airy_otf(3.0, 2.5) == 0.0
 
 
@@ -90,7 +90,7 @@ def test_disc_otf_is_hankel_transform_of_disc():
     for rho in (0.0, 1e-6, 0.05, 0.3, 0.9, 2.4):
         ref, _ = integrate.quad(lambda r: j0(2 * math.pi * rho * r) * 2 * math.pi * r, 0.0, a, epsabs=1e-14, limit=200)
         assert kpsf.disc_otf(a, rho) == pytest.approx(ref / (math.pi * a * a), abs=1e-13)
-    assert kpsf.disc_otf(0.0, 3.0) == 1.0
+    assert kpsf.disc_otf(0.0, 3.0) == 1.0  # zero radius: the branch returns 1, no arithmetic
 
 
 def test_airy_cutoff_units():
@@ -406,7 +406,7 @@ def test_lateral_colour_radial_sign_and_size():
     r_before = np.hypot(u, v)
     r_red = np.hypot(u + du[:, 2], v + dv[:, 2])
     assert np.all(r_red[:2] > r_before[:2])  # red moves outward
-    assert du[2, 2] == 0.0 and dv[2, 2] == 0.0  # on axis: no lateral colour
+    assert du[2, 2] == 0.0 and dv[2, 2] == 0.0  # on axis: u = v = 0 times p(dl), exactly zero
     assert du[0, 2] == pytest.approx(0.2 + 0.08)  # 1e-3 * 200 + 2e-6 * 200^2 px at the field edge
 
 

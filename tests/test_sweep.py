@@ -36,17 +36,18 @@ def _err(tmp_path, body: str) -> str:
 
 # --------------------------------------------------------------------------- values
 def test_ranges_expand_to_the_documented_values():
-    assert expand_values("k", {"start": 0.5, "stop": 1.5, "num": 5}, source="f") == [0.5, 0.75, 1.0, 1.25, 1.5]
+    # float values are rounded to 12 significant digits: compare with that tolerance
+    assert expand_values("k", {"start": 0.5, "stop": 1.5, "num": 5}, source="f") == pytest.approx([0.5, 0.75, 1.0, 1.25, 1.5], rel=1e-12)
     assert expand_values("k", {"start": 10, "stop": 50, "step": 20}, source="f") == [10, 30, 50]
     assert all(isinstance(v, int) for v in expand_values("k", {"start": 10, "stop": 50, "step": 20}, source="f"))
     # float steps are rounded to 12 significant digits and include the end point
-    assert expand_values("k", {"start": 0.1, "stop": 0.5, "step": 0.1}, source="f") == [0.1, 0.2, 0.3, 0.4, 0.5]
+    assert expand_values("k", {"start": 0.1, "stop": 0.5, "step": 0.1}, source="f") == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5], rel=1e-12)
     assert expand_values("k", {"start": 60, "stop": 10, "step": -25}, source="f") == [60, 35, 10]
-    assert expand_values("k", {"start": 1, "stop": 100, "num": 3, "scale": "log"}, source="f") == [1.0, 10.0, 100.0]
+    assert expand_values("k", {"start": 1, "stop": 100, "num": 3, "scale": "log"}, source="f") == pytest.approx([1.0, 10.0, 100.0], rel=1e-12)
     assert expand_values("k", ["a", "b"], source="f") == ["a", "b"]
     n = expand_values("k", {"start": 10, "stop": 40, "num": 4}, source="f")
     assert n == [10, 20, 30, 40] and all(isinstance(v, int) for v in n)
-    assert expand_values("k", {"start": 10, "stop": 20, "num": 4}, source="f")[1] == 13.3333333333
+    assert expand_values("k", {"start": 10, "stop": 20, "num": 4}, source="f")[1] == pytest.approx(13.3333333333, rel=1e-12)
 
 
 @pytest.mark.parametrize("spec, needle", [

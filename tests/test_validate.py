@@ -59,7 +59,7 @@ def test_results_identical_with_one_and_two_workers(small):
     # trial k does not depend on which other trials ran
     t2 = run_trial(small, 3, 2)
     for key, v in t2["values"].items():
-        assert a.samples[key][2] == v
+        assert a.samples[key][2] == v  # bit-identical on purpose: reproducibility
 
 
 def test_te_alone_is_recovered_within_monte_carlo_error():

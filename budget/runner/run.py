@@ -4,7 +4,8 @@
 
 1. starts the executor (its worker processes import while this process works);
 2. computes the study's truths (:meth:`Study.truths`, seeded by
-   ``SeedSequence(seed, spawn_key=(2**31,))``);
+   ``SeedSequence(seed, spawn_key=(2**31,))``): in this process with one worker, otherwise
+   as one more task beside the first trials, so that no worker waits for them;
 3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
    ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
    when; trial 0's ``extra`` is kept for the report;
@@ -35,8 +36,11 @@ SCHEMA = "budget.study-result/1"
 MAX_TRIALS = 10_000_000
 
 
-def _run_chunk(args) -> list[tuple[int, TrialResult]]:
+def _run_task(args):
+    """A worker's task: the truths (``ks`` is None) or a chunk of trials."""
     study, scenario, seed, ks = args
+    if ks is None:
+        return study.truths(scenario, seed)
     out = list(zip(ks, study.trial_batch(scenario, seed, list(ks))))
     for k, r in out:
         if k != 0:
@@ -169,8 +173,11 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
+    truths = None
     with executor:
-        truths = study.truths(scenario, seed)
+        if executor.workers <= 1:
+            truths = study.truths(scenario, seed)
+        # otherwise the truths are one more task, run by a worker beside the first trials
         if progress:
             from tqdm import tqdm
 
@@ -185,7 +192,12 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                 size = max(1, min(study.chunk_trials(scenario), len(ks) // (2 * max(executor.workers, 1))))
                 chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
                 tasks = [(study, scenario, seed, c) for c in chunks]
-                for _, part in executor.map_unordered(_run_chunk, tasks):
+                if truths is None and done == 0:
+                    tasks.insert(0, (study, scenario, seed, None))
+                for _, part in executor.map_unordered(_run_task, tasks):
+                    if isinstance(part, dict):
+                        truths = part
+                        continue
                     for k, r in part:
                         results[k] = r
                     if bar is not None:

@@ -1,0 +1,1 @@
+"""Lab methods on the GEO scan mirror (seed 003): compensation and normal-deviation estimation."""

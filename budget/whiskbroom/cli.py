@@ -1,0 +1,107 @@
+"""``budget whiskbroom synthesize``: the Monte Carlo synthesis of seed 002 (steps 1-5).
+
+Prints, for each mirror-rate error, the spread and extreme of Delta V_P, the first-order
+(GUM) spread beside the Monte Carlo one, and the stage limits; writes the JSON and a
+report (histograms of beta and Delta V_P, ground trace, MTF against stages with the 0.95
+line, the image-motion field over the arrays, Sobol indices).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+__all__ = ["synthesize_command", "run_synthesis", "main"]
+
+
+def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None,
+                  echo=click.echo):
+    import numpy as np
+
+    from simcam.cli_common import write_json_atomic
+    from simcam.whiskbroom import geometry as geo
+    from simcam.whiskbroom import scenario as wsc
+    from simcam.whiskbroom import synthesis as sy
+
+    sc = wsc.load(scenario_path)
+    res = sy.synthesize(sc, seed, trials=trials)
+    sob = sy.sobol_indices(sc, seed=seed)
+    echo(f"whiskbroom synthesis: scenario hash {sc.hash}, seed {seed}, {res.trials.size} trials, "
+         f"{sy.field_points(sc)[0].size} field points over {sc.camera.n_chips} x "
+         f"{sc.camera.tdi_stages} x {sc.camera.chip_cols} pixels")
+    echo(f"array turned to the drift angle {res.array_angle_deg:.3f} deg; |V_P| at the centre "
+         f"{res.nominal_speed_mm_s:.3f} mm/s (f = {sc.camera.focal_length_mm:g} mm)")
+    hdr = ("d_omega deg/s", "max|dV| mm/s", "std dV MC", "std dV GUM", "std dbeta MC deg",
+           "GUM deg", f"|eps| q{sc.synthesis.quantile:g}", "N pub", "N impr", "N pub (max)")
+    rows = [(f"{t['mirror_rate_error_deg_s']:g}", f"{t['dv_max_abs_mm_s']:.3f}", f"{t['dv_centre_std_mm_s']:.4f}",
+             f"{t['dv_centre_gum_mm_s']:.4f}", f"{t['dbeta_std_deg']:.4f}", f"{t['dbeta_gum_deg']:.4f}",
+             f"{t['eps_quantile']:.2e}", str(t["n_max_published"]), str(t["n_max_improved"]),
+             str(t["n_max_published_at_max"]))
+            for t in res.table]
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(hdr)]
+    echo("  ".join(h.rjust(w) for h, w in zip(hdr, widths)))
+    for r in rows:
+        echo("  ".join(c.rjust(w) for c, w in zip(r, widths)))
+    echo("Sobol total indices of Delta V_P (centre): " + ", ".join(
+        f"{n} {v:.3f}" for n, v in sorted(zip(sob["names"], sob["ST"]), key=lambda x: -x[1])[:5]))
+    payload = res.to_json()
+    payload["scenario_hash"] = sc.hash
+    payload["sobol"] = {n: {"S1": float(a), "ST": float(b), "S1_conf": float(c), "ST_conf": float(d)}
+                        for n, a, b, c, d in zip(sob["names"], sob["S1"], sob["ST"], sob["S1_conf"], sob["ST_conf"])}
+    payload["beta_deg"] = res.residuals[next(iter(res.residuals))].beta_deg
+    payload["dv_mm_s"] = {str(k): r.dv_mm_s for k, r in res.residuals.items()}
+    if json_out:
+        write_json_atomic(json_out, payload)
+    if report_dir:
+        from budget.whiskbroom import plots
+
+        out = Path(report_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        figs = [plots.plot_beta_hist(res, out / "beta_hist.png"), plots.plot_dv_hist(res, out / "dv_hist.png"),
+                plots.plot_mtf_vs_stages(res, out / "mtf_vs_stages.png", threshold=sc.synthesis.mtf_threshold,
+                                         n_phase=sc.camera.n_phase)]
+        nominal = sy.nominal_params(sc, math.radians(sc.orbit.gamma0_deg))
+        half = 0.5 * (sc.camera.n_chips * (sc.camera.chip_cols + sc.camera.chip_gap_px) - sc.camera.chip_gap_px - 1)
+        ex1, ex3 = sy._layout(sc, [0.5 * (sc.camera.tdi_stages - 1)], [-half, 0.0, half], sy.array_angle(sc))
+        times = np.linspace(0.0, sc.mirror.scan_duration_s, 101)
+        lat, lon = geo.scan_ground_trace(nominal, ex1, ex3, times)
+        figs.append(plots.plot_ground_trace(lat, lon, out / "ground_trace.png"))
+        fx1, fx3 = sy.full_field_points(sc, col_step=64, row_step=sc.camera.tdi_stages // 4)
+        v = geo.image_motion(nominal, fx1, fx3)[0]
+        figs.append(plots.plot_motion_field(fx1, fx3, v, out / "motion_field.png"))
+        md = ["# Whiskbroom TDICCD: Monte Carlo synthesis (seed 002)", "",
+              f"Scenario hash `{sc.hash}`, seed {seed}, {res.trials.size} trials.", "",
+              "| " + " | ".join(hdr) + " |", "|" + "---|" * len(hdr)]
+        md += ["| " + " | ".join(r) + " |" for r in rows]
+        md += ["", "Sobol indices of Delta V_P at the array centre (SALib, Saltelli sample):", "",
+               "| variable | S1 | ST |", "|---|---|---|"]
+        md += [f"| {n} | {a:.4f} | {b:.4f} |" for n, a, b in zip(sob["names"], sob["S1"], sob["ST"])]
+        md += [""] + [f"![{f.stem}]({f.name})" for f in figs]
+        (out / "report.md").write_text("\n".join(md) + "\n")
+        echo(f"report: {out / 'report.md'}")
+    return res
+
+
+@click.command("synthesize", help="Monte Carlo synthesis of the image-motion residual (seed 002 steps 1-5) "
+                                  "on SCENARIO (default: the embedded one).")
+@click.argument("scenario", required=False, type=click.Path(dir_okay=False))
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@click.option("--trials", type=click.IntRange(min=2), default=None, help="Trials (default: synthesis.trials).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
+@click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
+def synthesize_command(scenario, seed, trials, json_out, report_dir):
+    run_synthesis(scenario, seed=seed, trials=trials, json_out=json_out, report_dir=report_dir)
+
+
+def main(argv=None):
+    """Local entry for manual testing (``python -m budget.whiskbroom.cli synthesize``)."""
+    from simcam.cli_common import run_cli
+
+    group = click.Group("whiskbroom", commands={"synthesize": synthesize_command})
+    run_cli(group, argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

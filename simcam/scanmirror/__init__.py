@@ -1,0 +1,1 @@
+"""GEO two-axis scan mirror (seed 003): geometry, orbit, attitude, scan plan, star sensing."""

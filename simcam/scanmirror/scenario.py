@@ -1,0 +1,176 @@
+"""Scan-mirror scenario: strict frozen pydantic models and the embedded default
+(``simcam/scanmirror/data/default.toml``, commented)."""
+
+from __future__ import annotations
+
+from importlib.resources import files
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, PrivateAttr, field_validator, model_validator
+
+from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+
+__all__ = ["ScanMirrorScenario", "default_text", "scenario_from_dict", "OrbitConfig", "AttitudeConfig",
+           "MirrorConfig", "StarSensingConfig", "ScanPlan"]
+
+Vec3 = tuple[float, float, float]
+Pos = Annotated[float, Field(gt=0)]
+NonNeg = Annotated[float, Field(ge=0)]
+
+
+class OrbitConfig(StrictModel):
+    nominal_longitude_deg: Annotated[float, Field(ge=-180, le=360)] = 105.0
+    nominal_radius_km: Annotated[float, Field(gt=6378.1363 * 1.5)] = 42164.0
+    semi_major_axis_km: Annotated[float, Field(gt=6378.1363)] = 42164.0
+    eccentricity: Annotated[float, Field(ge=0, lt=1)] = 0.001
+    inclination_deg: Annotated[float, Field(ge=0, le=180)] = 0.5
+    raan_deg: Annotated[float, Field(ge=-360, le=360)] = 105.5
+    arg_perigee_deg: Annotated[float, Field(ge=-360, le=360)] = 0.0
+    true_anomaly_deg: Annotated[float, Field(ge=-360, le=360)] = 0.1
+    greenwich_angle_deg: Annotated[float, Field(ge=-360, le=360)] = 0.0
+    zonal_degree: Literal[0, 2, 3, 4] = 4
+    epoch_utc: str = "2012-03-01T00:00:00"
+    earth_shape: Literal["sphere", "ellipsoid"] = "sphere"
+    knowledge_sigma_km: NonNeg = 0.1
+
+    @model_validator(mode="after")
+    def _perigee_above_earth(self):
+        if self.semi_major_axis_km * (1 - self.eccentricity) <= 6378.1363:
+            raise ValueError("semi_major_axis_km * (1 - eccentricity): perigee inside the Earth")
+        return self
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _epoch(cls, v: str) -> str:
+        from astropy.time import Time
+
+        try:
+            Time(v, scale="utc")
+        except ValueError as exc:
+            raise ValueError(f"not an ISO time: {exc}") from None
+        return v
+
+
+class AttitudeConfig(StrictModel):
+    mode: Literal["pd", "profile"] = "pd"
+    inertia_kg_m2: tuple[Pos, Pos, Pos] = (1800.0, 1500.0, 2200.0)
+    kp_n_m_rad: tuple[Pos, Pos, Pos] = (4.5, 3.75, 5.5)
+    kd_n_m_s_rad: tuple[Pos, Pos, Pos] = (126.0, 105.0, 154.0)
+    disturbance_torque_n_m: Vec3 = (1e-4, -5e-5, 8e-5)
+    initial_deg: Vec3 = (0.02, -0.015, 0.025)
+    initial_sigma_deg: NonNeg = 0.005
+    profile_constant_deg: Vec3 = (0.005, -0.003, 0.004)
+    profile_amplitude_deg: Vec3 = (0.001, 0.001, 0.001)
+    profile_period_s: Pos = 300.0
+    knowledge_sigma_arcsec: NonNeg = 1.0
+
+
+class MirrorConfig(StrictModel):
+    deviation_constant_deg: Annotated[float, Field(ge=0, le=1)] = 0.0115
+    deviation_variable_deg: Annotated[float, Field(ge=0, le=1)] = 0.0057
+    deviation_period_s: Pos = 86164.0
+    deviation_phase_deg: float = 0.0
+    deviation_axis_deg: float = 30.0
+    random_axis: bool = True
+    constant_sigma_deg: NonNeg = 0.003
+
+
+class StarSensingConfig(StrictModel):
+    field_half_width_deg: Annotated[float, Field(gt=0, le=5)] = 1.0
+    mag_limit: float = 7.5
+    centroid_sigma_arcsec: Pos = 1.0
+    tracker_sigma_arcsec: Pos = 1.0
+    frames_per_dwell: Annotated[int, Field(ge=1, le=100)] = 4
+    published_uses_aberration: bool = False
+
+
+class CompensationConfig(StrictModel):
+    ground_step_s: Annotated[float, Field(gt=0, le=10)] = 0.1
+
+
+class ValidationConfig(StrictModel):
+    trials: Annotated[int, Field(ge=1)] = 1000
+    max_trials: Annotated[int, Field(ge=1)] = 4000
+    batch_trials: Annotated[int, Field(ge=1)] = 200
+    tolerance: Annotated[float, Field(gt=0)] | None = None
+    ground_step_s: Annotated[float, Field(gt=0, le=10)] = 0.5
+
+
+class DwellSegment(StrictModel):
+    kind: Literal["dwell"]
+    duration_s: Pos
+    star_sensing: bool = False
+
+
+class MoveSegment(StrictModel):
+    kind: Literal["move"]
+    to_alpha_deg: Annotated[float, Field(ge=-30, le=30)]
+    to_beta_deg: Annotated[float, Field(ge=-90, le=0)]
+    accel_s: NonNeg
+    const_s: NonNeg
+    decel_s: NonNeg
+
+    @model_validator(mode="after")
+    def _nonzero(self):
+        if self.accel_s + self.const_s + self.decel_s <= 0:
+            raise ValueError("accel_s + const_s + decel_s must be > 0")
+        return self
+
+
+class AreaScanSegment(StrictModel):
+    kind: Literal["area_scan"]
+    lines: Annotated[int, Field(ge=1, le=100000)]
+    line_deg: float
+    line_s: Pos
+    step_deg: float
+    turnaround_s: NonNeg
+
+    @model_validator(mode="after")
+    def _turn(self):
+        if self.turnaround_s >= self.line_s:
+            raise ValueError("turnaround_s must be shorter than line_s")
+        return self
+
+
+Segment = Annotated[Union[DwellSegment, MoveSegment, AreaScanSegment], Field(discriminator="kind")]
+
+
+class ScanPlan(StrictModel):
+    initial_alpha_deg: Annotated[float, Field(ge=-30, le=30)] = 1.0
+    initial_beta_deg: Annotated[float, Field(ge=-90, le=0)] = -46.5
+    segments: tuple[Segment, ...] = Field(min_length=1)
+
+
+class ScanMirrorScenario(StrictModel):
+    orbit: OrbitConfig = OrbitConfig()
+    attitude: AttitudeConfig = AttitudeConfig()
+    mirror: MirrorConfig = MirrorConfig()
+    star_sensing: StarSensingConfig = StarSensingConfig()
+    compensation: CompensationConfig = CompensationConfig()
+    validation: ValidationConfig = ValidationConfig()
+    scan_plan: ScanPlan
+    #: where the scenario came from (named in errors found later, e.g. in a worker process)
+    _source: str = PrivateAttr(default="scenario")
+
+    @property
+    def hash(self) -> str:
+        return model_hash(self)
+
+    @property
+    def source(self) -> str:
+        return self._source
+
+
+def default_text() -> str:
+    """The embedded default scenario (TOML with comments)."""
+    return files("simcam.scanmirror").joinpath("data/default.toml").read_text(encoding="utf-8")
+
+
+def scenario_from_dict(data: dict, *, source: str) -> ScanMirrorScenario:
+    """Validate a mapping; errors are :class:`ScenarioError` lines naming ``source`` and field."""
+    sc = validate_model(ScanMirrorScenario, data, source=source)
+    sc._source = source
+    n_scan = sum(1 for s in sc.scan_plan.segments if s.kind == "area_scan")
+    if n_scan < 1:
+        raise ScenarioError(f"{source}: scan_plan.segments: at least one area_scan is needed")
+    return sc
