@@ -209,3 +209,38 @@ def test_signal_chain_follows_pogson_and_the_patent_shortcut_sits_beside_it():
     # the shortcut ignores colour: an M star of the same V gives a different signal
     red = signal.star_electron_rate(cam, v_mag=5.0, b_v=1.4) / signal.star_electron_rate(cam, v_mag=5.0, b_v=0.65)
     assert abs(float(red) - 1) > 0.05
+
+
+def test_patents_rotated_blur_centroid_is_the_mid_exposure_position_too():
+    # seed 004 step 4.2: rotate the blurred star by its motion angle theta = atan2(B, A)
+    # (eq. 4.1 with the scan's body rates), centroid along and across the smear, rotate back.
+    # Reference: the exact crossing (mid-exposure) position, and the plain centre of
+    # gravity of the same weights (rotation-equivariance: equal to rounding)
+    from budget.linecam.pipeline import motion_angle, rotated_blur_centroid
+
+    sc = _single_star_scenario(rate_mismatch=0.08, cross_rate_deg_s=0.03)
+    cam = camera_truth(sc, np.zeros(10))
+    strip = sky_strip(sc, ra_deg=280.0, dec_deg=-5.0, mag_limit=6.5)
+    keys = np.arange(1, sc.observation.passes + 1, dtype=np.uint64)
+    im = image_passes(sc, cam, strip, frame_keys=keys, detector_key=np.uint64(9), noise=False)
+    T, N = sc.camera.line_period_s, sc.camera.tdi_stages
+    f_px = sc.camera.focal_length_mm / sc.camera.pitch_mm
+    w0 = sc.camera.matched_rate_rad_s
+    rates = (math.radians(0.03), w0 * 1.08, 0.0)
+    # relative motion against the TDI charge, in (sample, line) axes of the window:
+    # along track the packet follows at the nominal rate, so only the mismatch smears
+    smear, _ = motion_angle(f_px=f_px, x_px=0.0, y_px=0.0, rates_rad_s=rates, exposure_s=N * T)
+    assert smear > 2.0  # px: a real streak
+    theta = math.atan2(f_px * (rates[1] - w0), -f_px * rates[0])  # angle of (d line, d sample)
+    for i in range(min(20, im.windows_dn.shape[0])):
+        win = im.windows_dn[i] - sc.detector.offset_dn
+        # window axes are (line, sample): give the centroid (sample, line) coordinates
+        xs, ys, _, _ = rotated_blur_centroid(win, theta=math.pi / 2 - theta, x0=im.col0[i], y0=im.line0[i],
+                                             background=0.0)
+        tot = win.sum()
+        iy, ix = np.indices(win.shape)
+        assert xs == pytest.approx(im.col0[i] + (win * ix).sum() / tot, abs=1e-9)
+        assert ys == pytest.approx(im.line0[i] + (win * iy).sum() / tot, abs=1e-9)
+        t_tag = im.t_pass0_s[im.pass_index[i]] + (ys - 0.5 * N) * T
+        assert abs(t_tag - im.t_true_s[i]) / T < 0.03
+        assert abs(xs - im.sample_true[i]) < 0.03

@@ -33,8 +33,8 @@ from simcam.linecam.world import PassImages, SkyStrip
 
 from .model import NominalCamera, Observations
 
-__all__ = ["choose_region", "Region", "motion_angle", "Centroids", "extract_centroids", "identify",
-           "Identified"]
+__all__ = ["choose_region", "Region", "motion_angle", "rotated_blur_centroid", "Centroids", "extract_centroids",
+           "identify", "Identified"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,35 @@ def motion_angle(*, f_px: float, x_px, y_px, rates_rad_s, exposure_s: float) -> 
     A = (f_px * wy + np.asarray(y_px) * wz) * exposure_s
     B = (-f_px * wx - np.asarray(x_px) * wz) * exposure_s
     return np.hypot(A, B), np.arctan2(B, A)
+
+
+def rotated_blur_centroid(window, *, theta: float, x0: float = 0.0, y0: float = 0.0,
+                          background: float | None = None) -> tuple[float, float, float, float]:
+    """The patent's step 4.2: centroid of the blurred star normalised by its motion angle.
+
+    The window (background removed: the border median unless given) is read in
+    coordinates rotated by ``-theta`` (``G'(x', y') = G(R(theta) (x', y'))``), so that the
+    smear lies along ``x'``; the centroid is taken along (``x'``) and across (``y'``) the
+    smear and rotated back to window coordinates. Returns ``(x, y, along, across)``:
+    mosaic position (px) and the rotated-frame centroid. A centre of gravity is
+    rotation-equivariant, so ``(x, y)`` equals the plain centre of gravity of the same
+    weights (tested); the rotated frame is what the patent uses to separate smear from
+    noise across it.
+    """
+    w = np.asarray(window, dtype=float)
+    if background is None:
+        border = np.concatenate([w[0], w[-1], w[1:-1, 0], w[1:-1, -1]])
+        background = float(np.median(border))
+    g = np.clip(w - background, 0.0, None)
+    iy, ix = np.indices(w.shape, dtype=float)
+    c, s_ = math.cos(theta), math.sin(theta)
+    xr = c * ix + s_ * iy  # R(-theta) (x, y)
+    yr = -s_ * ix + c * iy
+    tot = g.sum()
+    along, across = float((g * xr).sum() / tot), float((g * yr).sum() / tot)
+    x = c * along - s_ * across
+    y = s_ * along + c * across
+    return x0 + x, y0 + y, along, across
 
 
 @dataclass
