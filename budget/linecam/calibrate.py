@@ -14,6 +14,8 @@
   cannot see) and get no step (minimum-norm solution); the covariance is the
   pseudo-inverse one. Its calibrated quantity is the look-angle field, which the gauge
   freedoms leave unchanged; parameters are reported with :func:`separability`.
+* :func:`calibrate_lookangle` -- the Wuhan group's look-angle polynomials of the line
+  (``tan psi(s)`` per axis, gauge-free, linear): the field without any camera parameters.
 * :func:`separability` -- condition number, singular values and the null space of a
   plan: which parameters a plan cannot separate.
 
@@ -31,7 +33,7 @@ from .model import (PARAMETERS, NominalCamera, Observations, interior_design, ja
                     los_jacobian, parameter_scale, residuals)
 
 __all__ = ["Calibration", "Separability", "calibrate_published", "calibrate_joint", "separability",
-           "coverage_weights", "los_field", "CalibrationError"]
+           "coverage_weights", "los_field", "CalibrationError", "LookAngleCalibration", "calibrate_lookangle"]
 
 
 class CalibrationError(ValueError):
@@ -289,3 +291,73 @@ def los_field(cam: NominalCamera, cal: Calibration, sample) -> dict:
     sd = np.sqrt(np.maximum(var, 0.0))
     m = np.size(sample)
     return {"along": along, "across": across, "sigma_along": sd[:m], "sigma_across": sd[m:]}
+
+
+@dataclass
+class LookAngleCalibration:
+    """The Wuhan group's look-angle model of a line (ZY-3 / Yaogan calibrations):
+    ``tan(along(s)) = sum_k a_k u^k``, ``tan(across(s)) = sum_k b_k u^k``,
+    ``u = (s - (n-1)/2) / r_n`` in [-1, 1], body frame; gauge-free and linear.
+
+    Attributes
+    ----------
+    a, b : numpy.ndarray
+        Coefficients (along, across), lowest power first.
+    cov_a, cov_b : numpy.ndarray
+        Their covariances (residual variance of each component times ``(A^T A)^-1``).
+    sigma0_px : float
+        Rms residual (px at the focal plane, both components).
+    condition : float
+        Condition number of the across-track normal matrix (the larger system).
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    cov_a: np.ndarray
+    cov_b: np.ndarray
+    sigma0_px: float
+    condition: float
+    r_norm_px: float
+    centre_px: float
+    method: str = "lookangle"
+
+    def field(self, sample) -> dict:
+        """Look angles (rad) and stated 1-sigma (rad) at detectors ``sample``."""
+        u = (np.asarray(sample, float) - self.centre_px) / self.r_norm_px
+        Va = np.vander(u, self.a.size, increasing=True)
+        Vb = np.vander(u, self.b.size, increasing=True)
+        ta, tb = Va @ self.a, Vb @ self.b
+        sa = np.sqrt(np.einsum("ij,jk,ik->i", Va, self.cov_a, Va)) / (1 + ta * ta)
+        sb = np.sqrt(np.einsum("ij,jk,ik->i", Vb, self.cov_b, Vb)) / (1 + tb * tb)
+        return {"along": np.arctan(ta), "across": np.arctan(tb), "sigma_along": sa, "sigma_across": sb}
+
+
+def calibrate_lookangle(cam: NominalCamera, obs: Observations, *, degree_along: int = 4,
+                        degree_across: int = 5) -> LookAngleCalibration:
+    """Linear least squares of the look-angle polynomials on the stars' body-frame tangents
+    ``b_x / -b_z`` (along) and ``b_y / -b_z`` (across) at their samples."""
+    n = len(obs)
+    if n <= degree_across + 1:
+        raise CalibrationError(f"{n} identified stars for a degree-{degree_across} look-angle polynomial: "
+                               "too few stars to solve")
+    centre = 0.5 * (cam.n_pixels - 1)
+    u = (obs.sample - centre) / cam.r_norm_px
+    ta = obs.b[:, 0] / -obs.b[:, 2]
+    tb = obs.b[:, 1] / -obs.b[:, 2]
+    out, covs, res = [], [], []
+    cond = 1.0
+    for t, deg in ((ta, degree_along), (tb, degree_across)):
+        A = np.vander(u, deg + 1, increasing=True)
+        N = A.T @ A
+        c = np.linalg.solve(N, A.T @ t)
+        r = t - A @ c
+        s2 = float(r @ r) / max(n - deg - 1, 1)
+        out.append(c)
+        covs.append(s2 * np.linalg.inv(N))
+        res.append(r)
+        lam = np.linalg.eigvalsh(N)
+        cond = float(lam[-1] / lam[0])
+    r_px = np.concatenate(res) * cam.f_px
+    return LookAngleCalibration(a=out[0], b=out[1], cov_a=covs[0], cov_b=covs[1],
+                                sigma0_px=float(np.sqrt(np.mean(r_px**2))), condition=cond,
+                                r_norm_px=cam.r_norm_px, centre_px=centre)

@@ -92,10 +92,10 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
                  "max_error_across_arcsec": float(np.max(np.abs(ec))),
                  "stated_rms_along_arcsec": float(np.sqrt(np.mean(sa**2))),
                  "stated_rms_across_arcsec": float(np.sqrt(np.mean(sc**2)))}
-        c = sim.calibrations[v]
-        out["variants"][v] = {"theta": dict(zip(PARAMETERS, to_report_units(c.theta).tolist())),
-                              "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px,
-                              "condition": c.condition, **stats}
+        c = sim.calibrations.get(v)
+        out["variants"][v] = stats if c is None else {
+            "theta": dict(zip(PARAMETERS, to_report_units(c.theta).tolist())),
+            "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition, **stats}
         click.echo(f"{v}: LOS error over the line rms {stats['rms_error_along_arcsec']:.3f}\" along, "
                    f"{stats['rms_error_across_arcsec']:.3f}\" across (stated {stats['stated_rms_along_arcsec']:.3f}\", "
                    f"{stats['stated_rms_across_arcsec']:.3f}\"); max {stats['max_error_along_arcsec']:.3f}\", "
@@ -218,12 +218,13 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     return Observations(b=b, sample=s, pass_index=passes, hip=hip.astype(np.int64)), t
 
 
-def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", "improved")) -> dict:
+def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", "improved", "lookangle")) -> dict:
     """Both estimators on the observations; errors name ``source`` and the field."""
     from simcam.cli_common import UserInputError
     from simcam.linecam.scenario import PARAMETERS
 
-    from .calibrate import CalibrationError, calibrate_joint, calibrate_published, los_field, separability
+    from .calibrate import (CalibrationError, calibrate_joint, calibrate_lookangle, calibrate_published, los_field,
+                            separability)
     from .model import NominalCamera
     from .trial import los_grid
 
@@ -233,7 +234,10 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
     try:
         sep = separability(cam, obs, rcond=lab.rcond) if 2 * len(obs) > len(PARAMETERS) else None
         for m in methods:
-            if m == "published":
+            if m == "lookangle":
+                out[m] = calibrate_lookangle(cam, obs, degree_along=lab.lookangle_degree_along,
+                                             degree_across=lab.lookangle_degree_across)
+            elif m == "published":
                 if solve is not None:
                     raise UserInputError(f"{source}: solve: the published method solves all ten parameters "
                                          "(exterior, then interior); use --method improved with --solve")
@@ -246,7 +250,8 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
         field = "solve" if "separate" in str(exc) else "rows"
         raise UserInputError(f"{source}: {field}: {exc}") from None
     grid = los_grid(scn)
-    return {"calibrations": out, "los": {m: los_field(cam, c, grid) for m, c in out.items()}, "grid": grid,
+    los = {m: (c.field(grid) if m == "lookangle" else los_field(cam, c, grid)) for m, c in out.items()}
+    return {"calibrations": out, "los": los, "grid": grid,
             "separability": sep, "camera": cam}
 
 
@@ -257,7 +262,8 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
 @click.option("--scenario", "scenario", type=click.Path(dir_okay=False), default=None,
               help="Scenario with the camera's nominal model and the lab settings (default: embedded).")
 @click.option("--epoch", default=None, help="UTC epoch of time_s (ISO; default: the scenario's orbit.epoch_utc).")
-@click.option("--method", type=click.Choice(["both", "published", "improved"]), default="both", show_default=True)
+@click.option("--method", type=click.Choice(["all", "published", "improved", "lookangle"]), default="all",
+              show_default=True, help="Estimator(s): the patent's steps, the joint fit, the look-angle polynomials.")
 @click.option("--solve", default=None,
               help="Comma-separated parameters for the improved fit (others held at nominal), e.g. "
                    "'yaw,df,k1,k2,p1,p2'; an inseparable set is an error. Default: all ten, gauge removed.")
@@ -280,7 +286,9 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             raise UserInputError(f"--solve: unknown parameter {bad[0] if bad else solve!r} "
                                  f"(known: {', '.join(PARAMETERS)})")
     obs, t = read_observations(observations, scn, epoch_utc=epoch)
-    methods = ("published", "improved") if method == "both" else (method,)
+    methods = ("published", "improved", "lookangle") if method == "all" else (method,)
+    if names is not None and method == "all":
+        methods = ("improved",)
     res = calibrate_table(obs, scn, source=src, solve=names, methods=methods)
     cam, sep = res["camera"], res["separability"]
     click.echo(f"{src}: {len(obs)} star observations")
@@ -294,11 +302,20 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
     nominal = los_angles(cam, np.zeros(len(PARAMETERS)), res["grid"])
     for m, c in res["calibrations"].items():
         L = res["los"][m]
-        th = to_report_units(c.theta)
-        sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
+        field = {"sample_px": res["grid"].tolist(),
+                 "along_minus_nominal_arcsec": ((L["along"] - nominal[0]) * ARCSEC_PER_RAD).tolist(),
+                 "across_minus_nominal_arcsec": ((L["across"] - nominal[1]) * ARCSEC_PER_RAD).tolist(),
+                 "sigma_along_arcsec": (L["sigma_along"] * ARCSEC_PER_RAD).tolist(),
+                 "sigma_across_arcsec": (L["sigma_across"] * ARCSEC_PER_RAD).tolist()}
         click.echo(f"{m}: rms residual {c.sigma0_px:.3f} px, condition {c.condition:.3g}, "
                    f"stated LOS rms {np.sqrt(np.mean(L['sigma_along'] ** 2)) * ARCSEC_PER_RAD:.3f}\" along, "
                    f"{np.sqrt(np.mean(L['sigma_across'] ** 2)) * ARCSEC_PER_RAD:.3f}\" across")
+        if m == "lookangle":
+            payload["methods"][m] = {"tan_along_coefficients": c.a.tolist(), "tan_across_coefficients": c.b.tolist(),
+                                     "sigma0_px": c.sigma0_px, "condition": c.condition, "los_field": field}
+            continue
+        th = to_report_units(c.theta)
+        sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
         for j, p in enumerate(PARAMETERS):
             if p in c.solved:
                 click.echo(f"  {p:6s} {th[j]:12.5g} +- {sd[j]:.3g} {PARAM_UNITS[p][0]}")
@@ -306,11 +323,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             "theta": dict(zip(PARAMETERS, th.tolist())), "sigma": dict(zip(PARAMETERS, sd.tolist())),
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
-            "los_field": {"sample_px": res["grid"].tolist(),
-                          "along_minus_nominal_arcsec": ((L["along"] - nominal[0]) * ARCSEC_PER_RAD).tolist(),
-                          "across_minus_nominal_arcsec": ((L["across"] - nominal[1]) * ARCSEC_PER_RAD).tolist(),
-                          "sigma_along_arcsec": (L["sigma_along"] * ARCSEC_PER_RAD).tolist(),
-                          "sigma_across_arcsec": (L["sigma_across"] * ARCSEC_PER_RAD).tolist()}}
+            "los_field": field}
     if json_out:
         write_json_atomic(json_out, payload)
     if report_dir:
@@ -321,7 +334,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
               "coverage_bins": scn.lab.coverage_bins,
               "residual_before_px": residuals(cam, np.zeros(len(PARAMETERS)), obs),
-              "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items()}}
+              "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items() if m != "lookangle"}}
         figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                 plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
         (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"

@@ -22,8 +22,10 @@ per-trial truths:
   errors are the gauge, not a failure of the method; ``docs/linecam.md`` explains.
 
 Variants: ``published`` (the patent's steps: exterior first, then interior, alternated;
-coverage weights; block-diagonal stated covariance) and ``improved`` (one joint fit,
-gauge directions removed, the look-angle field as the calibrated quantity).
+coverage weights; block-diagonal stated covariance), ``improved`` (one joint fit,
+gauge directions removed, the look-angle field as the calibrated quantity) and
+``lookangle`` (the Wuhan group's look-angle polynomials of the line, LOS classes only:
+it has no camera parameters).
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ class LineCamStudy(Study):
     name = "linecam"
     title = "Line camera star-observation calibration (seed 004)"
     seed_document = "004"
-    variants = ("published", "improved")
+    variants = ("published", "improved", "lookangle")
 
     # ------------------------------------------------------------ scenario
     def default_text(self) -> str:
@@ -164,6 +166,8 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
                 est[key] = float((cal[i] - nom[i]) * ARCSEC_PER_RAD)
                 tru[key] = float((true[i] - nom[i]) * ARCSEC_PER_RAD)
                 sig[key] = float(s[i])
+        if v not in sim.calibrations:  # the look-angle model has no camera parameters
+            continue
         c = sim.calibrations[v]
         th = to_report_units(c.theta)
         sd = np.sqrt(np.maximum(np.diag(c.cov), 0.0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))

@@ -21,14 +21,14 @@ from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
 from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
 from simcam.linecam.world import AttitudeReports, PassImages, SkyStrip, image_passes, sky_strip
 
-from .calibrate import Calibration, calibrate_joint, calibrate_published, los_field
+from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
 from .model import NominalCamera, Observations
 from .pipeline import Centroids, Identified, Region, choose_region, extract_centroids, identify
 
 __all__ = ["region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS", "los_grid",
            "PARAM_UNITS", "to_report_units"]
 
-VARIANTS = ("published", "improved")
+VARIANTS = ("published", "improved", "lookangle")
 
 #: report unit of each parameter and the factor from model units
 PARAM_UNITS = {"roll": ("arcsec", ARCSEC_PER_RAD), "pitch": ("arcsec", ARCSEC_PER_RAD),
@@ -110,6 +110,9 @@ def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *
     grid = los_grid(scenario)
     los_true = truth.los_angles(grid)
     los = {v: los_field(cam, c, grid) for v, c in cals.items()}
+    look = calibrate_lookangle(cam, ident.obs, degree_along=scenario.lab.lookangle_degree_along,
+                               degree_across=scenario.lab.lookangle_degree_across)
+    los["lookangle"] = look.field(grid)
     from .model import los_angles
 
     before = los_angles(cam, np.zeros(len(PARAMETERS)), grid)

@@ -160,6 +160,8 @@ class LabModel(_M):
     max_iter: Annotated[int, Field(ge=1, le=1000)] = 30
     rcond: Annotated[float, Field(gt=0.0, lt=1e-2)] = 1e-6
     gauge_sigma_px: Pos = 10.0
+    lookangle_degree_along: Annotated[int, Field(ge=0, le=9)] = 4
+    lookangle_degree_across: Annotated[int, Field(ge=1, le=9)] = 5
     grid_step_px: Annotated[int, Field(ge=1, le=4096)] = 16
 
 
