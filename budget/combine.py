@@ -20,7 +20,6 @@ Input TOML::
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -124,11 +123,9 @@ def load_budget_toml(path: str | Path) -> tuple[dict[str, dict[str, float]], int
     """
     path = Path(path)
     source = str(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+    from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
+    data = read_toml(path=path, source=source)
     allowed = set(COMPONENTS) | set(TOTALS) | {"stars"}
     unknown = sorted(set(data) - allowed)
     if unknown:

@@ -28,6 +28,7 @@ Improved (derived in ``docs/estimators.md``):
 * :func:`high_spatial_frequency_error_static` -- the static error itself, not its
   consecutive differences
 * :func:`distortion_calibration_residual` -- the distortion left after calibration
+* :func:`distortion_remaining_displacement` -- the displacement a calibrated camera still makes
 
 Rows with a non-zero ``flag`` or a non-finite ``x``/``y`` are excluded with an
 :class:`EstimatorWarning`; stars that then lack what an estimator needs are excluded
@@ -66,6 +67,7 @@ __all__ = [
     "distortion_residual_error",
     "distortion_residual_error_dof",
     "distortion_calibration_residual",
+    "distortion_remaining_displacement",
     "cubic_design_matrix",
     "target_marker_error",
     "low_spatial_frequency_error",
@@ -1298,6 +1300,68 @@ def distortion_calibration_residual(
     return DistortionEstimate(
         quantity="LSFE-C1", method="after-calibration",
         equations="docs/estimators.md (distortion left after calibration)",
+        sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
+        n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
+        n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
+        details=details, residuals=resid,
+    )
+
+
+def distortion_remaining_displacement(
+    table: pd.DataFrame,
+    *,
+    reference: pd.DataFrame,
+    plate_scale_arcsec: float,
+    marker_3sigma_arcsec: float,
+    condition: int | None = None,
+) -> DistortionEstimate:
+    """LSFE-C1 of a camera that applies its own distortion correction (improved variant).
+
+    A calibrated camera reports positions already corrected by an earlier calibration;
+    what the test grid sees, ``dX_j = Xbar_j - X0_j`` (eqs 19-20), is the displacement the
+    camera still makes at the point, plus the marker error of the reference (sigma_m =
+    C2 / 3) plus the temporal noise of the N-frame mean (variance ``v_j = s_j^2 / N_j``),
+    independent of each other. The spread over the points of what the camera still does
+    (the claim of LSFE-C1: the calibrated camera's residual low-frequency error) is then
+    (docs/estimators.md, distortion of a calibrated camera)::
+
+        sigma_C1^2 = s_dX^2 - sigma_m^2 - mean_j v_j
+
+    with ``s_dX^2`` the sample variance of ``dX`` (ddof 1, eqs 21-24), clipped at 0 with a
+    flag. Unlike eq 29 no cubic is fitted: the cubic part of ``dX`` is what eq 29 reports,
+    and on a calibrated camera whose residual is 0 it is the markers' ``sqrt(9/31)
+    sigma_m`` (32 points), not a distortion.
+
+    Parameters
+    ----------
+    table, reference, plate_scale_arcsec, condition, marker_3sigma_arcsec
+        As in :func:`distortion_calibration_residual`.
+
+    Returns
+    -------
+    DistortionEstimate
+    """
+    ps = _check_plate_scale(plate_scale_arcsec)
+    m3 = float(_nonneg("marker_3sigma_arcsec", marker_3sigma_arcsec))
+    log = _Log()
+    what = "LSFE-C1"
+    resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
+                                                   what=what, log=log)
+    w = len(resid)
+    sm2 = (m3 / (3.0 * ps)) ** 2
+    flags: list[str] = []
+    sig = {}
+    details: dict[str, Any] = {"marker_sigma_px": math.sqrt(sm2)}
+    for ax in ("x", "y"):
+        d = resid[f"d{ax}_px"].to_numpy()
+        sd2 = float(np.var(d, ddof=1))
+        noise2 = float(np.mean(resid[f"var_mean_{ax}_px2"].to_numpy()))
+        details[f"sigma_d{ax}_px"] = math.sqrt(sd2)
+        details[f"temporal_variance_of_means_{ax}_px2"] = noise2
+        sig[ax] = _root_of_difference(sd2, sm2 + noise2, ax, flags, log, what)
+    return DistortionEstimate(
+        quantity="LSFE-C1", method="remaining-displacement",
+        equations="docs/estimators.md (distortion of a calibrated camera)",
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
         n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
         n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),

@@ -6,8 +6,11 @@ error), never a simulator object.
 * :func:`fit_long_period`: eq 7, ``e_L = e0 + A_L1c cos t + A_L1s sin t + A_L2c cos 2t
   + A_L2s sin 2t`` by least squares (24-face polygon in the paper);
 * :func:`fit_short_period`: eq 8, ``e_S = A_S1c cos t_e + A_S1s sin t_e + A_S2c cos 2t_e
-  + A_S2s sin 2t_e`` (no constant, as published) on the data sorted by the fractional
-  degree, ``t_e = P t`` (23-face polygon);
+  + A_S2s sin 2t_e`` on the data sorted by the fractional degree, ``t_e = P t`` (23-face
+  polygon), plus a constant ``offset`` fitted as a nuisance term: a polygon and
+  autocollimator table is relative to its first face, so an offset is always in the data
+  (eq 8 as printed has none; without it seed 001's own Table 2 leaves a max residual of
+  21.3" instead of the published 2.7"). The offset is not part of the compensation;
 * :func:`calibrate_in_sequence`: the published procedure (long fit, compensate, short fit
   on the long-compensated data, eq 9 model);
 * :func:`fit_joint`: the improved variant, one least-squares fit of the mechanical and
@@ -32,6 +35,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simcam.cli_common import UserInputError
+
+#: one full turn in arcsec: no calibration reading errs by that much
+FULL_TURN_ARCSEC = 360.0 * 3600.0
+#: calibration angles beyond ten turns are not readings of one rotation
+MAX_ANGLE_DEG = 3600.0
 
 __all__ = [
     "CompensationModel",
@@ -71,16 +79,23 @@ class HarmonicSpec:
     elec_orders : electrical harmonic orders (``n`` means ``n * pole_pairs`` per turn).
     pole_pairs : electrical periods per turn.
     n_constants : number of constant terms (one per table: a mounting offset each).
+    nuisance_offset : with ``n_constants == 1``: the constant is a nuisance term (named
+        ``offset``), fitted but left out of :meth:`HarmonicFit.evaluate_arcsec` (the
+        table's zero is its first face, not a property of the encoder).
     """
 
     mech_orders: tuple[int, ...] = (1, 2)
     elec_orders: tuple[int, ...] = ()
     pole_pairs: int = 360
     n_constants: int = 1
+    nuisance_offset: bool = False
 
     def names(self) -> list[str]:
-        """Coefficient names (the paper's: e0, A_L1c, ..., A_S2s)."""
-        out = ["e0"] if self.n_constants == 1 else [f"e0_{k}" for k in range(self.n_constants)]
+        """Coefficient names (the paper's: e0, A_L1c, ..., A_S2s; ``offset`` for a nuisance constant)."""
+        if self.nuisance_offset and self.n_constants != 1:
+            raise ValueError("nuisance_offset: needs exactly one constant (n_constants=1)")
+        out = (["offset"] if self.nuisance_offset else ["e0"]) if self.n_constants == 1 else [
+            f"e0_{k}" for k in range(self.n_constants)]
         for m in self.mech_orders:
             out += [f"A_L{m}c", f"A_L{m}s"]
         for n in self.elec_orders:
@@ -313,8 +328,13 @@ class HarmonicFit:
                              table_index=np.full(a.shape, table) if self.spec.n_constants > 1 else None)
 
     def evaluate_arcsec(self, *, angle_deg, table: int = 0):
-        """Model error ``e(theta)`` (arcsec) with table ``table``'s constant."""
-        return self.design(angle_deg=angle_deg, table=table) @ self.coefficients_arcsec
+        """Model error ``e(theta)`` (arcsec) with table ``table``'s constant (a nuisance
+        ``offset`` is left out: it is the table's zero, not the encoder's error)."""
+        c = self.coefficients_arcsec
+        if self.spec.nuisance_offset:
+            c = c.copy()
+            c[0] = 0.0
+        return self.design(angle_deg=angle_deg, table=table) @ c
 
     def as_dict(self) -> dict:
         return {
@@ -360,10 +380,15 @@ def fit_long_period(*, angle_deg, error_arcsec, source: str = "data") -> Harmoni
 
 def fit_short_period(*, angle_deg, error_arcsec, pole_pairs: int = 360,
                      source: str = "data") -> HarmonicFit:
-    """Seed 001 eq 8: 1st and 2nd electrical harmonics, no constant, data sorted.
+    """Seed 001 eq 8: 1st and 2nd electrical harmonics plus a nuisance offset, data sorted.
 
     As published: the points are sorted by the fractional part of ``P theta / 360``
-    (the fractional degree for P = 360) and fitted in the electrical phase.
+    (the fractional degree for P = 360) and fitted in the electrical phase. Unlike the
+    printed eq 8 a constant ``offset`` is fitted too: the table is relative to its first
+    face (seed 001 Table 2 starts at 0), so its mean is an arbitrary zero; leaving the
+    constant out forces the harmonics to explain it (Table 2: max residual 21.3" and
+    coefficient errors +-6.07" without it; 2.69" and +-0.48" with it, the paper's 2.7").
+    The offset is reported but not compensated (:meth:`HarmonicFit.evaluate_arcsec`).
     """
     a = np.asarray(angle_deg, dtype=float)
     y = np.asarray(error_arcsec, dtype=float)
@@ -371,7 +396,8 @@ def fit_short_period(*, angle_deg, error_arcsec, pole_pairs: int = 360,
     order = np.argsort(cyc - np.floor(cyc), kind="stable")
     return fit_harmonics(angle_deg=a[order], error_arcsec=y[order],
                          spec=HarmonicSpec(mech_orders=(), elec_orders=(1, 2),
-                                           pole_pairs=pole_pairs, n_constants=0),
+                                           pole_pairs=pole_pairs, n_constants=1,
+                                           nuisance_offset=True),
                          source=source)
 
 
@@ -446,6 +472,15 @@ def calibrate_in_sequence(*, long_angle_deg, long_error_arcsec, short_angle_deg,
 
 
 # ---------------------------------------------------------------------- uncertainty
+def _compensated_design(fit: HarmonicFit, angle_deg) -> np.ndarray:
+    """Design rows of the compensated model (a nuisance offset column zeroed)."""
+    b = fit.design(angle_deg=angle_deg)
+    if fit.spec.nuisance_offset:
+        b = b.copy()
+        b[:, 0] = 0.0
+    return b
+
+
 def analytic_residual_band(*, fit: HarmonicFit, angle_deg, level: float = 0.9):
     """Exact credible band of the residual when face errors are absent.
 
@@ -459,7 +494,7 @@ def analytic_residual_band(*, fit: HarmonicFit, angle_deg, level: float = 0.9):
     """
     from scipy.stats import t as student_t
 
-    b = fit.design(angle_deg=angle_deg)
+    b = _compensated_design(fit, angle_deg)
     sd = np.sqrt(np.einsum("ij,jk,ik->i", b, fit.covariance_arcsec2, b))
     k = student_t.ppf(0.5 + level / 2, fit.dof)
     return -k * sd, k * sd
@@ -511,7 +546,7 @@ def posterior_band(*, fit: HarmonicFit, angle_deg, seed: int, face_error_arcsec:
     sampler.run_mcmc(start, n_steps, progress=False)
     chain = sampler.get_chain(discard=burn, flat=True)
     c = chain[:, :p]
-    b = fit.design(angle_deg=angle_deg)
+    b = _compensated_design(fit, angle_deg)
     r = (c - chat) @ b.T
     lo, med, hi = np.quantile(r, [0.5 - level / 2, 0.5, 0.5 + level / 2], axis=0)
     return {"lower_arcsec": lo, "upper_arcsec": hi, "median_arcsec": med, "samples": c,
@@ -540,13 +575,18 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
 
     path = str(path)
     try:
-        fh = open(path, newline="")
+        fh = open(path, newline="", encoding="utf-8")
     except FileNotFoundError:
         raise UserInputError(f"{path}: file not found") from None
     except OSError as exc:
         raise UserInputError(f"{path}: cannot read ({exc.strerror})") from None
-    with fh:
-        rows = [(i + 1, r) for i, r in enumerate(csv.reader(fh))]
+    try:
+        with fh:
+            rows = [(i + 1, r) for i, r in enumerate(csv.reader(fh))]
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}): is this a CSV table?") from None
+    except csv.Error as exc:
+        raise UserInputError(f"{path}: not a readable CSV table ({exc})") from None
     rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r)]
     if not rows:
         raise UserInputError(f"{path}: empty file (expected a header angle_deg,error_arcsec)")
@@ -570,6 +610,12 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
         if not (math.isfinite(a) and math.isfinite(e)):
             problems.append(f"{path}:{ln}: non-finite value")
             continue
+        if abs(e) >= FULL_TURN_ARCSEC or abs(a) > MAX_ANGLE_DEG:
+            # an angle error of a full turn or more, or an angle beyond a few turns, is
+            # not a calibration reading (and squares of such values overflow)
+            problems.append(f"{path}:{ln}: out of range: angle_deg {r[ia].strip()} (|angle| <= {MAX_ANGLE_DEG:g}), "
+                            f"error_arcsec {r[ie].strip()} (|error| < {FULL_TURN_ARCSEC:g}, one turn)")
+            continue
         ang.append(a)
         err.append(e)
     if problems:
@@ -580,5 +626,12 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
     a = np.array(ang)
     wrapped = np.round(np.mod(a, 360.0), 9)
     if np.unique(wrapped).size != a.size:
-        raise UserInputError(f"{path}: duplicated angle(s) (modulo 360 deg)")
+        lines = [ln for ln, _ in rows[1:]]
+        seen: dict = {}
+        for i, w in enumerate(wrapped):
+            if w in seen:
+                j = seen[w]
+                raise UserInputError(f"{path}:{lines[i]}: duplicated angle: angle_deg {ang[i]:g} repeats line {lines[j]}'s "
+                                     f"{ang[j]:g} (modulo 360 deg)")
+            seen[w] = i
     return a, np.array(err)

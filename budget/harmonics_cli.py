@@ -219,7 +219,8 @@ def _plot_fit(fits, path, pole_pairs) -> None:
               help="Step of the truth grid (default: scenario's, 0.001 deg).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None)
-@click.option("--progress/--no-progress", default=False, show_default=True)
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
 def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_dir, progress) -> None:
     """Monte Carlo validation of the calibration on SCENARIO (default: embedded)."""
     from budget.harmonics_validate import validate

@@ -37,8 +37,11 @@ import numpy as np
 import pandas as pd
 
 from simcam.cli_common import UserInputError, write_json_atomic
+from simcam.scenario import ValidationModel
 
 MANIFEST_COLUMNS = ("file", "condition", "frame", "filter_nm", "field", "dark")
+#: the centroid threshold (noise sigmas) of budget validate's default scenario: one path
+DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].default)
 
 
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
@@ -48,9 +51,13 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
         raise UserInputError(f"{path}: manifest not found (write manifest.csv in the frame directory "
                              "or pass --manifest; see `budget measure --help`)")
     try:
-        m = pd.read_csv(path, dtype={"file": str, "field": str})
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise UserInputError(f"{path}: not a readable CSV ({exc})") from None
+        m = pd.read_csv(path, dtype={"file": str, "field": str}, encoding="utf-8")
+    except pd.errors.EmptyDataError:
+        raise UserInputError(f"{path}: empty manifest (expected a header line: {','.join(MANIFEST_COLUMNS)})") from None
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}): is this a manifest CSV?") from None
+    except (pd.errors.ParserError, ValueError, OverflowError) as exc:
+        raise UserInputError(f"{path}: not a readable CSV ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
     unknown = [c for c in m.columns if c not in MANIFEST_COLUMNS]
     if unknown:
         raise UserInputError(f"{path}: unknown column(s) {', '.join(unknown)} (allowed: {', '.join(MANIFEST_COLUMNS)})")
@@ -61,6 +68,19 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
         raise UserInputError(f"{path}: no rows")
     if m["file"].isna().any():
         raise UserInputError(f"{path}: row {int(np.flatnonzero(m['file'].isna())[0]) + 2}: empty file name")
+    for c in ("dark", "frame", "filter_nm"):
+        if c in m.columns:
+            v = pd.to_numeric(m[c], errors="coerce")
+            bad = (v.isna() & m[c].notna()) | ~np.isfinite(v.fillna(0).astype(float))
+            if c != "filter_nm":
+                bad |= v.notna() & (v != np.round(v.fillna(0)))
+            if c == "dark":
+                bad |= v.notna() & ~v.isin([0, 1])
+            if bad.any():
+                row = int(np.flatnonzero(bad)[0])
+                want = {"dark": "0 or 1", "frame": "an integer", "filter_nm": "a finite number (nm)"}[c]
+                raise UserInputError(f"{path}: row {row + 2}: {c} must be {want}, got {m[c].iloc[row]!r}")
+            m[c] = v
     m["dark"] = m["dark"].fillna(0).astype(int) if "dark" in m.columns else 0
     lit = m["dark"] == 0
     cond = pd.to_numeric(m["condition"], errors="coerce")
@@ -76,6 +96,19 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     if "frame" not in m.columns:
         m["frame"] = m.groupby(["condition", "dark"]).cumcount()
     return m
+
+
+def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool) -> None:
+    """Refuse manifest entries that lead out of the dataset folder (unless allowed)."""
+    root = directory.resolve()
+    for i, f in enumerate(m["file"]):
+        try:
+            target = (directory / str(f)).resolve()
+        except (ValueError, OSError, RuntimeError) as exc:  # NUL byte, symlink loop
+            raise UserInputError(f"{manifest}: row {i + 2}: file {f!r} is not a usable path ({exc})") from None
+        if not allow_outside and target != root and root not in target.parents:
+            raise UserInputError(f"{manifest}: row {i + 2}: file {f!r} is outside the dataset folder {directory} "
+                                 "(pass --allow-outside-files to read it anyway)")
 
 
 def _load(directory: Path, files) -> list[np.ndarray]:
@@ -104,12 +137,25 @@ def measure_frames(
     reference: str | Path | None = None,
     method: str = "cog",
     window_px: int = 11,
-    threshold_sigma: float = 5.0,
+    threshold_sigma: float = DEFAULT_THRESHOLD_SIGMA,
     match_radius_px: float = 3.0,
     saturation_dn: float | None = None,
     weight_sigma_px: float | None = None,
+    allow_outside: bool = False,
+    progress: bool = False,
 ) -> tuple[pd.DataFrame, pd.DataFrame | None, dict]:
-    """Centroid the frames of DIR per its manifest; return (centroids, reference, header info)."""
+    """Centroid the frames of DIR per its manifest; return (centroids, reference, header info).
+
+    Manifest entries must name files inside DIR (no absolute paths, no ``..`` out of it,
+    no symbolic link leading out) unless ``allow_outside``.
+
+    ``threshold_sigma`` is the centroid threshold in the windows (default the same as
+    ``budget validate``'s, ``validation.threshold_sigma``). Stars are found on the mean of
+    a condition's frames (dark subtracted) with :func:`budget.centroid.detect_stars`'s own
+    detection threshold, so a noise excursion of one frame cannot become a "star" that
+    then enters an estimate (issue 12: at 3 sigma on single frames two spurious stars
+    turned TE y into 0.77" instead of 0.20").
+    """
     from budget.centroid import centroid_frames, detect_stars, subtract_dark
     from simcam.io import read_frame
 
@@ -122,14 +168,20 @@ def measure_frames(
             raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
         method_options["weight_sigma_px"] = float(weight_sigma_px)
     m = read_manifest(manifest or directory / "manifest.csv", protocol=protocol)
+    _confine(m, directory, manifest or directory / "manifest.csv", allow_outside=allow_outside)
     lit = m[m["dark"] == 0]
     conditions = sorted(lit["condition"].dropna().unique().tolist())
+    mpath = manifest or directory / "manifest.csv"
     if protocol in ("te", "distortion") and len(conditions) != 1:
-        raise UserInputError(f"{protocol}: expected one condition, the manifest has {len(conditions)}")
+        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
     if protocol == "hsfe" and len(conditions) < 2:
-        raise UserInputError("hsfe: needs at least 2 conditions (hexapod poses)")
+        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
     _, header = read_frame(directory / lit["file"].iloc[0])
-    adc_max = 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
+    try:
+        adc_max = 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
+    except (TypeError, ValueError, OverflowError):
+        raise UserInputError(f"{directory / lit['file'].iloc[0]}: header BITDEPTH = {header['BITDEPTH']!r} "
+                             "is not a number of bits") from None
     ref_table = None
     ref_xy_by_field: dict = {}
     if protocol == "distortion":
@@ -138,22 +190,36 @@ def measure_frames(
         rp = Path(reference)
         if not rp.is_file():
             raise UserInputError(f"{rp}: reference file not found")
-        ref_table = pd.read_csv(rp)
+        try:
+            ref_table = pd.read_csv(rp, encoding="utf-8")
+        except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+            raise UserInputError(f"{rp}: not a readable CSV table ({str(exc).splitlines()[0] if str(exc) else ''})") from None
         miss = [c for c in ("star", "x_ref", "y_ref") if c not in ref_table.columns]
         if miss:
             raise UserInputError(f"{rp}: missing column(s) {', '.join(miss)}")
+        for c in ("x_ref", "y_ref"):
+            v = pd.to_numeric(ref_table[c], errors="coerce")
+            if not np.isfinite(v.to_numpy(float)).all():
+                row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
+                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {ref_table[c].iloc[row]!r}")
+            ref_table[c] = v
+    from simcam.lifecycle import progress as progress_bar
+
     tables = []
     prev_xy = None
+    bar = progress_bar(total=len(m), desc="frames", unit="frame", enabled=progress)
     for cond in conditions:
         rows = lit[lit["condition"] == cond].sort_values("frame")
         if len(rows) < 2:
-            raise UserInputError(f"condition {cond}: {len(rows)} frame(s); at least 2 are needed")
+            raise UserInputError(f"{manifest or directory / 'manifest.csv'}: condition {cond}: {len(rows)} frame(s) "
+                                 f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
         if rows["frame"].duplicated().any():
             raise UserInputError(f"condition {cond}: frame {int(rows['frame'][rows['frame'].duplicated()].iloc[0])} listed twice")
         frames = _load(directory, rows["file"])
         darks = m[(m["dark"] == 1) & ((m["condition"] == cond) | m["condition"].isna())]
         dark = np.mean(_load(directory, darks["file"]), axis=0) if len(darks) else None
-        first = subtract_dark(frames[0], dark=dark) if dark is not None else frames[0]
+        stack = np.mean(np.asarray(frames, dtype=np.float64), axis=0)
+        first = subtract_dark(stack, dark=dark) if dark is not None else stack
         field = str(rows["field"].iloc[0]) if "field" in rows.columns and protocol == "chromatic" else ""
         if protocol == "distortion":
             ref_xy = ref_table[["x_ref", "y_ref"]].to_numpy(float)
@@ -162,9 +228,10 @@ def measure_frames(
         elif protocol == "hsfe" and prev_xy is not None:
             ref_xy = prev_xy
         else:
-            det = detect_stars(first, threshold_sigma=threshold_sigma)
+            det = detect_stars(first)
             if det.empty:
-                raise UserInputError(f"condition {cond}: no star above {threshold_sigma} sigma in {rows['file'].iloc[0]}")
+                raise UserInputError(f"{directory / rows['file'].iloc[0]}: condition {cond}: no star "
+                                     f"detected in the mean of its frames")
             xy = det[["x_peak", "y_peak"]].to_numpy(float)
             ref_xy = xy[_raster_order(xy)]
         extra = {"condition": int(cond)}
@@ -184,6 +251,8 @@ def measure_frames(
             prev_xy = ref_xy.copy()
             prev_xy[good.index.to_numpy()] = good.to_numpy()
         tables.append(t)
+        bar.update(len(rows) + len(darks))
+    bar.close()
     info = {"plate_scale_arcsec": header.get("PLTSCALE"), "files": int(len(m))}
     return pd.concat(tables, ignore_index=True), ref_table, info
 
@@ -218,15 +287,21 @@ def format_estimates(protocol: str, results: dict) -> str:
 @click.option("--weight-sigma-px", type=click.FloatRange(min=0, min_open=True), default=None,
               help="IWCoG: width of the Gaussian weight (the PSF's sigma), px.")
 @click.option("--window", "window_px", type=click.IntRange(min=3), default=11, show_default=True)
-@click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True)
+@click.option("--threshold-sigma", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_THRESHOLD_SIGMA,
+              show_default=True, help="Centroid threshold in the windows, in noise sigmas (as budget validate).")
 @click.option("--saturation-dn", type=float, default=None, help="Flag pixels at or above this level.")
 @click.option("--marker-3sigma", "marker_3sigma", type=click.FloatRange(min=0), default=0.0, show_default=True,
               help="Distortion: the grid target's marker calibration error, arcsec 3 sigma (seed 000's C2), "
                    "removed from the improved (after-calibration) LSFE-C1.")
 @click.option("--centroids", "centroids_out", type=click.Path(dir_okay=False), help="Write the centroid table (CSV).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the estimates as JSON.")
+@click.option("--allow-outside-files", "allow_outside", is_flag=True,
+              help="Let manifest entries name files outside DIRECTORY (absolute paths, '..').")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
 def measure_command(protocol, directory, manifest, reference, plate_scale, method, weight_sigma_px, window_px,
-                    threshold_sigma, saturation_dn, marker_3sigma, centroids_out, json_out) -> None:
+                    threshold_sigma, saturation_dn, marker_3sigma, centroids_out, json_out, allow_outside,
+                    progress) -> None:
     """Centroid the FITS frames in DIRECTORY and run the PROTOCOL's estimators (published and improved)."""
     from budget.protocols import estimate
 
@@ -236,7 +311,8 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
         warnings.simplefilter("always")
         cen, ref, info = measure_frames(protocol, directory, manifest=manifest, reference=reference, method=method,
                                         window_px=window_px, threshold_sigma=threshold_sigma,
-                                        saturation_dn=saturation_dn, weight_sigma_px=weight_sigma_px)
+                                        saturation_dn=saturation_dn, weight_sigma_px=weight_sigma_px,
+                                        allow_outside=allow_outside, progress=progress)
         ps = plate_scale if plate_scale is not None else info["plate_scale_arcsec"]
         if ps is None:
             raise UserInputError("no plate scale: pass --plate-scale (the frames have no PLTSCALE keyword)")

@@ -121,9 +121,14 @@ class ProtocolData:
     reference: pd.DataFrame | None = None
     plan: AcquisitionPlan | None = None
     windows: dict = field(default_factory=dict)
+    camera: object = None
 
     @property
     def truth(self) -> pd.DataFrame:
+        """Per star and condition: the scene's truth, plus ``x_reported``/``y_reported``, the
+        position the camera reports for the true image position (its own distortion
+        correction applied, :meth:`simcam.render.StarCamera.report_positions`; equal to
+        ``x_true``/``y_true`` for an uncalibrated camera): what a perfect centroid gives."""
         cached = self.__dict__.get("_truth")
         if cached is None:
             parts = []
@@ -132,7 +137,11 @@ class ProtocolData:
                 tr["condition"] = index
                 tr["field"] = field_label
                 parts.append(tr)
-            cached = self.__dict__["_truth"] = pd.concat(parts, ignore_index=True)
+            cached = pd.concat(parts, ignore_index=True)
+            if self.camera is not None:
+                cached["x_reported"], cached["y_reported"] = self.camera.report_positions(
+                    cached["x_true"].to_numpy(), cached["y_true"].to_numpy())
+            self.__dict__["_truth"] = cached
         return cached
 
 
@@ -270,8 +279,12 @@ def simulate(
             np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]), y0=np.concatenate(cols["y0"]),
             star=star, frame=frame, method=method, extra_columns=extra, **opts,
         )
+    if camera.onboard_correction is not None:
+        # the camera reports its centroids through its own distortion correction
+        # (optics.distortion_correction, simcam.correction), as a flight camera does
+        table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, table, truths, ref, plan, wins)
+    return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)
 
 
 _LAYOUTS: dict = {}
@@ -339,6 +352,7 @@ def estimate(
     marker_3sigma_arcsec: float = 0.0,
     spectral: dict | None = None,
     extra_variants: bool = True,
+    camera_corrects_distortion: bool = False,
 ) -> dict:
     """Run the published estimator of ``protocol`` and its improved variant(s) on a centroid table.
 
@@ -348,7 +362,9 @@ def estimate(
     radial parts kept apart, or, given the camera's ``spectral`` design (see
     :func:`spectral_design`), the stellar population through its spectral response;
     LSFE-C1: the distortion left after calibration, which needs the marker error
-    ``marker_3sigma_arcsec``, seed 000's C2). Other variants are returned under their
+    ``marker_3sigma_arcsec``, seed 000's C2; with ``camera_corrects_distortion`` (the camera
+    reports positions through its own distortion correction, as a flight camera does) the
+    displacement that calibrated camera still makes). Other variants are returned under their
     own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
     The same function serves simulated and real tables.
     """
@@ -378,44 +394,76 @@ def estimate(
     if protocol == "distortion":
         if reference is None:
             raise ValueError("distortion: the reference coordinates of the grid target are required")
+        improved = E.distortion_remaining_displacement if camera_corrects_distortion else E.distortion_calibration_residual
         out = {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
-               "improved": E.distortion_calibration_residual(centroids, reference=reference, plate_scale_arcsec=ps,
-                                                             marker_3sigma_arcsec=marker_3sigma_arcsec)}
+               "improved": improved(centroids, reference=reference, plate_scale_arcsec=ps,
+                                    marker_3sigma_arcsec=marker_3sigma_arcsec)}
         if extra_variants:
             out["fit_dof"] = E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)
         return out
     raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
 
 
+def lab_spectral_scenario(scenario: Scenario) -> Scenario:
+    """The camera as the lab believes it to be: the scenario with ``lab.knowledge``'s stated
+    errors applied to the QE peak, the filters' centres and widths and the lamp's colour
+    temperature (the stellar Teff error is applied in :func:`spectral_design`)."""
+    from simcam.scenario import with_updates
+
+    k = scenario.lab.knowledge
+    filters = [dict(f.model_dump(mode="python"), center_nm=f.center_nm + k.filter_center_nm_error,
+                    width_nm=f.width_nm + k.filter_width_nm_error) for f in scenario.lab.filters]
+    return with_updates(scenario, {
+        "detector.qe.peak_nm": scenario.detector.qe.peak_nm + k.qe_peak_nm_error,
+        "lab.source.temperature_k": scenario.lab.source.temperature_k + k.lamp_temperature_k_error,
+        "lab.filters": filters,
+        # (the plan's reference filter is named by its centre, which moves with the others)
+        "protocols.chromatic.reference_filter_nm": (scenario.protocols.chromatic.reference_filter_nm
+                                                    + k.filter_center_nm_error),
+    })
+
+
 def spectral_design(scenario: Scenario) -> dict:
-    """Effective wavelengths from the camera's spectral design (for the population LSFE-S).
+    """Effective wavelengths from the lab's model of the camera (for the population LSFE-S).
 
     The electron-weighted mean wavelength of the lab lamp through each filter, of the
-    unfiltered lamp (the calibration spectrum, or a star type named by
-    ``validation.calibration_spectrum``) and of each stellar type of
-    ``validation.lsfe_spectral_types``, through the scenario's optics transmission and QE.
-    These are design data a lab has (filter curves, lamp, sensor QE), not measurements.
+    calibration spectrum (``validation.calibration_spectrum``: the population mean, the
+    unfiltered lamp, or a star type) and of each stellar type of
+    ``validation.lsfe_spectral_types``, through the optics transmission and QE, all as
+    the lab believes them: :func:`lab_spectral_scenario` applies ``lab.knowledge``'s stated
+    errors (QE peak, filter centres and widths, lamp temperature), and each star's Teff is
+    the spectral model's, ``Teff (1 + star_teff_fraction_error)``. These are design data a
+    lab has (filter certificates, lamp, sensor QE, a spectral library), not measurements,
+    and not the simulator's own spectra. The returned filter keys are the filters' nominal
+    centres (as the centroid table labels them).
     """
     from simcam import spectra
     from simcam.sources import SourceSpectra
 
-    sp = SourceSpectra(scenario)
+    lab = lab_spectral_scenario(scenario)
+    k = scenario.lab.knowledge
+    sp = SourceSpectra(lab)
     wl = sp.wavelength_nm
 
     def mean_wl(rate):
         return float(np.dot(sp.weights(rate), wl))
 
-    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=f.center_nm)[1])
-            for f in scenario.lab.filters}
+    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=fl.center_nm)[1])
+            for f, fl in zip(scenario.lab.filters, lab.lab.filters)}
 
     def star_rate(st):
-        t = spectra.star_teff_k(spectral_type=st)
+        t = spectra.star_teff_k(spectral_type=st) * (1.0 + k.star_teff_fraction_error)
         flux = spectra.star_photon_flux_per_nm(v_mag=0.0, temperature_k=t, wavelength_nm=wl)
         return spectra.detected_electron_rate_per_nm(
             photon_flux_per_nm=flux, aperture_area_m2=sp.aperture_area_m2, transmission=sp.transmission,
             filter_transmission=1.0, qe=sp.qe, wavelength_nm=wl)
 
     cal = scenario.validation.calibration_spectrum
-    lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1]) if cal == "lamp" else mean_wl(star_rate(cal))
     stars = [mean_wl(star_rate(st)) for st in scenario.validation.lsfe_spectral_types]
+    if cal == "population_mean":
+        lam_cal = float(np.mean(stars))
+    elif cal == "lamp":
+        lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1])
+    else:
+        lam_cal = mean_wl(star_rate(cal))
     return {"filter_wavelength_nm": filt, "star_wavelengths_nm": stars, "calibration_wavelength_nm": lam_cal}

@@ -17,8 +17,14 @@ from budget.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_ta
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
-                          frames: int | None = None, overwrite: bool = False) -> pd.DataFrame:
-    """Render the plan of ``protocol`` to FITS frames in ``out``; return the manifest."""
+                          frames: int | None = None, overwrite: bool = False, compress: bool = False,
+                          progress: bool = False, source: str = "<embedded scenario>") -> pd.DataFrame:
+    """Render the plan of ``protocol`` to FITS frames in ``out``; return the manifest.
+
+    The request is checked against the memory and the free disk before any work, and a
+    large output is announced on stderr (:func:`simcam.io.check_render_request`);
+    ``compress`` writes Rice tile-compressed frames (lossless).
+    """
     from dataclasses import replace
 
     from simcam import io
@@ -29,8 +35,13 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     plan = make_plan(protocol, scenario, seed=seed, dark_frames=dark_frames)
     if frames is not None:
         plan = replace(plan, conditions=tuple(replace(c, frames=frames) for c in plan.conditions))
+    from simcam.lifecycle import progress as progress_bar
+
+    n_files = sum(c.frames + plan.dark_frames for c in plan.conditions)
+    io.check_render_request(scenario, frames=n_files, out=out, source=source, compress=compress)
     cam = StarCamera(scenario)
     rows, truths = [], []
+    bar = progress_bar(total=n_files, desc=f"{protocol} frames", unit="frame", enabled=progress)
     with io.atomic_directory(out, overwrite=overwrite) as tmp:
         for c in plan.conditions:
             lay = calibration_grid(scenario) if c.target == "calibration_grid" else star_grid(scenario, center_px=c.field_center_px)
@@ -44,7 +55,8 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
                 for f in range(count):
                     name = f"c{c.index:03d}_{tag}{f:04d}.fits"
                     data = cam.render_frame(scene, frame=f, seed=seed, expected_e=expected, dark=bool(dark))
-                    io.write_frame(tmp / name, data, io.frame_header(frame=f, **kw))
+                    io.write_frame(tmp / name, data, io.frame_header(frame=f, **kw), compress=compress)
+                    bar.update(1)
                     rows.append({"file": name, "condition": c.index, "frame": f, "filter_nm": c.filter_nm,
                                  "field": c.field or None, "dark": dark})
             t = scene.truth.copy()
@@ -59,6 +71,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
         if protocol == "distortion":
             reference_table(scenario, cam).to_csv(tmp / "reference.csv", index=False, float_format="%.10g")
         (tmp / "scenario.toml").write_text(scenario_to_toml(scenario))
+    bar.close()
     return manifest
 
 
@@ -74,13 +87,19 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 @click.option("--overwrite", is_flag=True)
 @click.option("--json", "json_out", type=click.Path(dir_okay=False),
               help="Write a summary (files, conditions, scenario hash, seed) as JSON.")
-def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out) -> None:
+@click.option("--compress", is_flag=True,
+              help="Rice tile-compressed FITS frames (lossless; `budget measure` reads them).")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out, compress,
+                     progress) -> None:
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget measure`."""
     from simcam.scenario import load_scenario
 
     scn = load_scenario(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
-                              overwrite=overwrite)
+                              overwrite=overwrite, compress=compress, progress=progress,
+                              source=str(scenario or "<embedded scenario>"))
     if json_out:
         from simcam import __version__
         from simcam.cli_common import write_json_atomic

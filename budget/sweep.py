@@ -19,6 +19,7 @@ Python API::
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -145,7 +146,8 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
             if progress:
                 from tqdm import tqdm
 
-                bar = tqdm(total=len(tasks), desc=label, unit="pt", leave=False)
+                bar = tqdm(total=len(tasks), desc=label, unit="pt", leave=False,
+                           disable=not sys.stderr.isatty())  # quiet when not on a terminal
             try:
                 for res in runner.run(tasks):
                     if res.version != simcam.__version__:

@@ -76,11 +76,21 @@ class ProcessRunner(Runner):
     def __enter__(self):
         from concurrent.futures import ProcessPoolExecutor
 
-        from budget.validate import worker_init
+        from simcam.lifecycle import worker_initializer
 
+        # guarded before the heavy imports: a killed parent leaves no worker (simcam.lifecycle)
         self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=worker_init)
+                                         initializer=worker_initializer("budget.validate:worker_init"))
         return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc is not None and not isinstance(exc, Exception) and self._pool is not None:
+            # interrupted (SIGINT/SIGTERM): end the workers now rather than finish their points
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(self._pool)
+            self._pool = None
+        self.close()
 
     def close(self):
         if self._pool is not None:

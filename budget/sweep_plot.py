@@ -185,12 +185,13 @@ def _heatmaps(ds, axis, variant, out_dir):
                                                for v in d[d0].values], fontsize=6, rotation=45)
             ax.set_yticks(range(d.sizes[d1]), [f"{v:g}" if isinstance(v, (float, np.floating)) else str(v)
                                                for v in d[d1].values], fontsize=6)
-            if z.size <= 144:
+            # cell values only where they fit: at most 8 columns and 12 rows, 2 significant digits
+            if z.shape[1] <= 8 and z.shape[0] <= 12:
                 lo, hi = im.get_clim()
                 for (iy, ix), val in np.ndenumerate(z):
                     if np.isfinite(val):
                         light = q == "truth" and hi > lo and (val - lo) / (hi - lo) > 0.6
-                        ax.text(ix, iy, f"{val:.3g}", ha="center", va="center", fontsize=5,
+                        ax.text(ix, iy, f"{val:.2g}", ha="center", va="center", fontsize=5,
                                 color="k" if (light or q == "bias") else "w")
             ax.set_title(str(cls), fontsize=9)
             ax.set_xlabel(d0, fontsize=7)
@@ -314,7 +315,15 @@ def _sobol_figure(sob, title, axis, out_dir):
                 ax.legend(fontsize=6)
                 legend = True
         ax.axhline(0, color="k", lw=0.5)
-        ax.set_ylim(-0.15, 1.15)
+        # the limits hold the whole error bars (indices estimated from few evaluations can
+        # leave [0, 1] by more than the usual margin)
+        if str(r["note"].values):
+            ax.set_ylim(-0.15, 1.15)
+        else:
+            lo = np.nanmin(np.r_[r.S1.values - r.S1_conf.values, r.ST.values - r.ST_conf.values, 0.0])
+            hi = np.nanmax(np.r_[r.S1.values + r.S1_conf.values, r.ST.values + r.ST_conf.values, 1.0])
+            ax.set_ylim(min(-0.15, lo - 0.05), max(1.15, hi + 0.05))
+        ax.set_ylabel("Sobol index", fontsize=7)
         ax.set_xticks(xi, params, fontsize=6, rotation=20, ha="right")
         ax.set_title(name, fontsize=9)
         ax.tick_params(labelsize=7)

@@ -217,6 +217,34 @@ def _round(v: float) -> float:
     return float(f"{v:.{RANGE_DIGITS}g}")
 
 
+#: memory while a range is expanded (peak, measured: about 160 bytes per value) and
+#: a lower bound of what one built point (its scenario) holds (measured: about 9.5 kB)
+_BYTES_PER_VALUE = 160
+_BYTES_PER_POINT = 8_000
+
+
+def _value_count(spec: Any) -> float:
+    """How many values a parameter's list or range gives, without expanding it (0 if unclear)."""
+    if isinstance(spec, list):
+        return float(len(spec))
+    if isinstance(spec, dict):
+        try:
+            if "num" in spec:
+                return float(spec["num"])
+            if "step" in spec:
+                return max(0.0, (float(spec["stop"]) - float(spec["start"])) / float(spec["step"])) + 1.0
+        except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
+            return 0.0
+    return 0.0
+
+
+def _check_count(n: float, *, what: str, per: int = _BYTES_PER_VALUE, unit: str = "value") -> None:
+    """Refuse, before it is built, a list of ``n`` items that cannot fit in memory."""
+    from simcam.lifecycle import check_memory
+
+    check_memory(float(n) * per, what=f"{what}: {float(n):.4g} {unit}s (at least {per} bytes each)")
+
+
 def expand_values(key: str, spec: Any, *, source: str) -> list:
     """The values of one swept parameter: a list as given, or a range table expanded.
 
@@ -254,6 +282,7 @@ def expand_values(key: str, spec: Any, *, source: str) -> list:
                 raise ScenarioError(f"{where}: num must be an integer (got {num!r})")
             if num < 1:
                 raise ScenarioError(f"{where}: empty range (num = {num})")
+            _check_count(num, what=f"{where}: num = {num}")
             if scale == "log":
                 if start <= 0 or stop <= 0:
                     raise ScenarioError(f"{where}: a log range needs start and stop > 0")
@@ -269,6 +298,7 @@ def expand_values(key: str, spec: Any, *, source: str) -> list:
                 raise ScenarioError(f"{where}: scale = 'log' needs num, not step")
             if isinstance(step, bool) or not isinstance(step, (int, float)) or not math.isfinite(step) or step == 0:
                 raise ScenarioError(f"{where}: step must be a non-zero number (got {step!r})")
+            _check_count(max(0.0, (stop - start) / step) + 1, what=f"{where}: start {start}, stop {stop}, step {step}")
             if all(isinstance(v, int) for v in (start, stop, step)):
                 vals = list(range(start, stop + (1 if step > 0 else -1), step))
             else:
@@ -569,11 +599,14 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
         mismatched zip lengths, a point or Sobol sample the scenario rejects (naming the
         point, the key and what is wrong) or that the simulator could not run.
     """
+    from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(f"{p}: sweep file not found")
-    text = p.read_text()
     source = str(p)
+    read_toml(path=p, source=source)  # refuses, naming the file, what the text cannot be
+    text = p.read_text(encoding="utf-8")
     spec = parse_sweep(text, source=source)
     kind = spec.kind
     if spec.base is None:
@@ -584,10 +617,7 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
             bp = p.parent / bp
         if not bp.is_file():
             raise ScenarioError(f"{source}: base: {bp}: scenario file not found")
-        try:
-            raw = tomllib.loads(bp.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{source}: base: {bp}: not valid TOML: {exc}") from None
+        raw = read_toml(path=bp, source=f"{source}: base: {bp}")
         base_src = str(bp)
     base0 = validate_scenario(kind, raw, source=base_src)
     resolved0 = base0.model_dump(mode="python")
@@ -601,6 +631,9 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
     base = validate_scenario(kind, raw, source=f"{source}: fixed (applied to {base_src})") if fixed else base0
     resolved = base.model_dump(mode="python")
 
+    counts = [_value_count(v) for v in spec.parameters.values()]
+    n_grid = (math.prod(counts) if spec.mode != "zip" else max(counts, default=0.0)) if counts else 0.0
+    _check_count(n_grid, what=f"{source}: parameters", per=_BYTES_PER_POINT, unit="point")
     params = [(k, expand_values(k, v, source=source)) for k, v in spec.parameters.items()]
     for k, _ in params:  # unknown keys once, before any point is built
         set_dotted(copy.deepcopy(raw), resolved, k, None, where=f"{source}: parameters")
@@ -619,6 +652,10 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
             check_simulable(kind, sc, where=where)
         return sc
 
+    n_points = (math.prod(len(v) for _, v in params) if spec.mode != "zip" else max((len(v) for _, v in params), default=0))
+    if sens is not None:
+        n_points += sens.samples * (len(sens.parameters) + 2)
+    _check_count(n_points, what=f"{source}: parameters", per=_BYTES_PER_POINT, unit="point")
     points = []
     for i, values in enumerate(_grid(spec, params, source)):
         points.append(Point(i, values, build(values, f"point {i}"), point_seed(spec.seed, values)))

@@ -29,10 +29,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from budget.protocols import PROTOCOLS, estimate, make_plan, simulate
+from simcam.lifecycle import worker_initializer
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
 AXES = ("x", "y")
+#: classes whose value is given to the lab, not measured by it: reported, never "validated"
+#: (LSFE-C2, the marker calibration error of the grid target, seed 000 section 1.4.3)
+INPUT_CLASSES = ("lsfe_c2",)
 #: protocol producing each measured class
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
@@ -44,7 +48,11 @@ _PARALLEL: bool | None = None
 
 
 def worker_init() -> None:
-    """Worker processes run single-threaded kernels: the processes are the parallelism."""
+    """Worker processes run single-threaded kernels: the processes are the parallelism.
+
+    Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
+    the worker exit when its parent dies.
+    """
     global _PARALLEL
     import numba
 
@@ -104,7 +112,8 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
             res = estimate(proto, data.centroids, plate_scale_arcsec=ps, reference=data.reference,
                            reference_filter_nm=scenario.protocols.chromatic.reference_filter_nm,
                            marker_3sigma_arcsec=scenario.lab.calibration_target.marker_error_3sigma_arcsec,
-                           spectral=spectral, extra_variants=keep)
+                           spectral=spectral, extra_variants=keep,
+                           camera_corrects_distortion=scenario.optics.distortion_correction.kind != "none")
             cls = {"te": "te", "hsfe": "hsfe", "chromatic": "lsfe_s", "distortion": "lsfe_c1"}[proto]
             for var in VARIANTS:
                 values[(cls, var, "x")] = res[var].sigma_x_px
@@ -154,27 +163,37 @@ class ValidationResult:
             for ax in AXES:
                 out[cls][ax] = {}
                 truth = getattr(self.truths[cls], f"{ax}_px") * f
+                se_truth = getattr(self.truths[cls], f"se_{ax}_px", 0.0) * f
                 for var in VARIANTS:
                     v = np.asarray(self.samples[(cls, var, ax)]) * f
                     n = v.size
                     mean = float(v.mean())
                     std = float(v.std(ddof=1)) if n > 1 else 0.0
-                    se_bias = std / math.sqrt(n)
+                    se_mean = std / math.sqrt(n)
+                    # the truth is itself a Monte Carlo estimate (TE, HSFE): its standard
+                    # error adds to that of the mean estimate (independent samples)
+                    se_bias = math.hypot(se_mean, se_truth)
                     se_std = std / math.sqrt(2 * (n - 1)) if n > 1 else float("inf")
                     bias = mean - truth
                     q = np.quantile(v, [0.025, 0.16, 0.84, 0.975])
-                    out[cls][ax][var] = {
-                        "truth": truth, "mean": mean, "bias": bias,
-                        # a truth below 1e-9 arcsec is zero to rounding (e.g. a cubic fitting a
-                        # cubic): a relative bias is then meaningless, reported as NaN
+                    entry = {
+                        "truth": truth, "se_truth": se_truth, "mean": mean, "bias": bias,
+                        # a truth below 1e-9 arcsec is zero to rounding: a relative bias is
+                        # then meaningless, reported as NaN
                         "bias_percent": (100.0 * bias / truth if truth > 1e-9
                                          else (0.0 if abs(bias) <= 1e-12 else float("nan"))),
                         "std": std, "interval_68": [float(q[1]), float(q[2])],
                         "interval_95": [float(q[0]), float(q[3])],
-                        "se_bias": se_bias, "se_std": se_std,
+                        "se_mean": se_mean, "se_bias": se_bias, "se_std": se_std,
                         "bias_significant": bool(abs(bias) > 3.0 * se_bias) if se_bias > 0 else bool(bias != 0),
                         "truth_in_95": bool(q[0] <= truth <= q[3]),
+                        "role": "result",
                     }
+                    if cls in INPUT_CLASSES:
+                        # LSFE-C2 is the given marker calibration error: both variants are set
+                        # to it, so there is nothing to validate (an input, not a result)
+                        entry.update(role="input", bias_percent=float("nan"), bias_significant=False)
+                    out[cls][ax][var] = entry
         return out
 
     def to_json(self) -> dict:
@@ -202,18 +221,28 @@ def truths(scenario, *, seed: int) -> dict:
     ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
     the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
     """
-    from budget.truth import ClassTruth, all_truths, hsfe_truth
+    from budget.truth import ClassTruth, all_truths, combine, hsfe_truth
 
     truth_seed = int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
     out = all_truths(_camera(scenario), seed=truth_seed)
     if scenario.validation.new_maps_per_trial:
-        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1])) for k in range(4)]
-        hx = math.sqrt(np.mean([h.x_px**2 for h in hs]))
-        hy = math.sqrt(np.mean([h.y_px**2 for h in hs]))
-        out["hsfe"] = ClassTruth("hsfe", hx, hy, {**hs[0].details, "map_realisations": len(hs)})
-        t, lf = out["te"], out["lsfe"]
-        out["total"] = ClassTruth("total", math.sqrt(t.x_px**2 + hx**2 + lf.x_px**2),
-                                  math.sqrt(t.y_px**2 + hy**2 + lf.y_px**2), out["total"].details)
+        val = scenario.validation
+        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1]), frames=val.hsfe_truth_frames,
+                         seed=int(np.random.SeedSequence(truth_seed, spawn_key=(3, k)).generate_state(1)[0]))
+              for k in range(4)]
+        vals = {}
+        for ax in AXES:
+            h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
+            # the truth is the rms over map realisations: the 4 maps sample it (se of a mean
+            # of 4 squares) and each map's own truth has its frame-sampling error
+            se_h2 = math.sqrt(h2.var(ddof=1) / h2.size
+                              + np.sum([(2 * getattr(h, f"{ax}_px") * getattr(h, f"se_{ax}_px")) ** 2
+                                        for h in hs]) / h2.size**2)
+            v = math.sqrt(h2.mean())
+            vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
+        out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
+                                 se_x_px=vals["x"][1], se_y_px=vals["y"][1])
+        out = combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
     return out
 
 
@@ -253,11 +282,14 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False)
+        import sys
+
+        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False,
+                   disable=not sys.stderr.isatty())  # quiet when not on a terminal
         bar.update(len(results))
     # "spawn": numba's OpenMP/TBB thread pools must not be forked
     pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                initializer=worker_init) if workers > 1 else None)
+                                initializer=worker_initializer("budget.validate:worker_init")) if workers > 1 else None)
     stopped_by = "trials"
     try:
         while True:
@@ -287,6 +319,13 @@ def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: fl
                 if len(results) >= cap:
                     stopped_by = "max_trials"
                     break
+    except BaseException as exc:
+        if pool is not None and not isinstance(exc, Exception):  # interrupted: stop the workers now
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(pool)
+            pool = None
+        raise
     finally:
         if pool is not None:
             pool.shutdown()
@@ -319,6 +358,22 @@ def default_workers() -> int:
 # --------------------------------------------------------------------------- CLI
 import click  # noqa: E402
 
+#: a lower bound of the memory one trial's results hold (one float64 per class, axis, variant)
+_BYTES_PER_TRIAL = 8 * len(CLASSES) * len(AXES) * len(VARIANTS)
+
+
+def _check_trials_fit(scn, *, trials, tolerance, source: str) -> None:
+    """Refuse a trial count whose results alone cannot fit in memory (before any work)."""
+    from simcam.lifecycle import check_memory
+
+    if trials is not None:
+        n, what = trials, f"--trials {trials}"
+    elif tolerance is None:
+        n, what = scn.validation.trials, f"{source}: validation.trials = {scn.validation.trials}"
+    else:
+        n, what = scn.validation.max_trials, f"{source}: validation.max_trials = {scn.validation.max_trials}"
+    check_memory(float(n) * _BYTES_PER_TRIAL, what=f"{what} (at least {_BYTES_PER_TRIAL} bytes per trial)")
+
 
 @click.command("validate")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
@@ -343,6 +398,7 @@ def validate_command(scenario, trials, tolerance, seed, workers, json_out, repor
     if trials is not None and tolerance is not None:
         raise UserInputError("--trials and --tolerance: give one of them")
     scn = load_scenario(scenario)
+    _check_trials_fit(scn, trials=trials, tolerance=tolerance, source=str(scenario or "<embedded scenario>"))
     t0 = time.perf_counter()
     res = validate(scn, trials=trials, tolerance_3sigma_arcsec=tolerance, seed=seed,
                    workers=workers or default_workers(), progress=progress)

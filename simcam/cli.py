@@ -42,23 +42,35 @@ def scenario_command(scenario: str | None) -> None:
               help="Centre wavelength (nm) of a lab filter in front of the target (default: none).")
 @click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
 @click.option("--overwrite", is_flag=True, help="Replace a non-empty output directory.")
-def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite) -> None:
+@click.option("--compress", is_flag=True,
+              help="Full frames as Rice tile-compressed FITS (lossless; `budget measure` reads them).")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, compress, progress) -> None:
     """Render the star target of SCENARIO (default: embedded seed-000) to FITS + truth.csv."""
     from simcam import io
     from simcam.render import Placement, StarCamera
     from simcam.scenario import load_scenario, scenario_to_toml
+    from simcam.lifecycle import progress as progress_bar
     from simcam.targets import star_grid
 
     t0 = time.perf_counter()
+    if compress and mode != "full":
+        raise UserInputError("--compress: only full frames are compressed (--mode full)")
     scn = load_scenario(scenario)
     if filter_nm is not None and filter_nm not in [f.center_nm for f in scn.lab.filters]:
         raise UserInputError(
             f"--filter {filter_nm:g}: no lab filter centred there (lab.filters: "
             f"{', '.join(f'{f.center_nm:g}' for f in scn.lab.filters)})"
         )
+    if mode == "full":  # before the camera allocates any full-frame map
+        io.check_render_request(scn, frames=n_frames, out=out, source=str(scenario or "<embedded scenario>"),
+                                echo=lambda _msg: None)
     cam = StarCamera(scn)
     placement = Placement(layout=star_grid(scn), filter_nm=filter_nm, condition=0, label="target")
     scene = cam.scene(placement)
+    io.check_render_request(scn, frames=n_frames, out=out, source=str(scenario or "<embedded scenario>"), mode=mode,
+                            n_stars=len(scene.truth), compress=compress and mode == "full")
     truth_rows = []
     manifest = []
     hdr_kw = dict(scenario=scn, seed=seed, condition=0, filter_nm=filter_nm,
@@ -67,13 +79,16 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite) ->
     with io.atomic_directory(out, overwrite=overwrite) as tmp:
         if mode == "full":
             expected = cam.expected_frame_e(scene)
+            bar = progress_bar(total=n_frames, desc="frames", unit="frame", enabled=progress)
             for f in range(n_frames):
                 frame = cam.render_frame(scene, frame=f, seed=seed, expected_e=expected)
                 name = f"frame_{f:04d}.fits"
-                io.write_frame(tmp / name, frame, io.frame_header(frame=f, **hdr_kw))
+                io.write_frame(tmp / name, frame, io.frame_header(frame=f, **hdr_kw), compress=compress)
+                bar.update(1)
                 manifest.append({"file": name, "frame": f, "condition": 0,
                                  "filter_nm": filter_nm, "field": "target"})
                 peak_dn.append(float(frame.max()))
+            bar.close()
         else:
             win = cam.render_windows(scene, frames=n_frames, seed=seed)
             io.write_windows(tmp / "windows.fits", win.pixels, win.col0, win.row0,

@@ -24,30 +24,51 @@ class UserInputError(ValueError):
 
 
 def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
-    """Run ``group``; turn user errors into a one-line message and exit status 2."""
+    """Run ``group``; turn user errors into a one-line message and exit status 2.
+
+    SIGINT, SIGTERM and SIGHUP stop the command through
+    :class:`simcam.lifecycle.Interrupted` (so its clean-up runs: temporary folders
+    removed, worker processes ended) and end in one line and exit status 128 + signal.
+    A request that does not fit in memory is one ``error:`` line and status 2.
+    """
+    from simcam.lifecycle import Interrupted, handle_termination
+
     try:
-        group.main(args=argv, standalone_mode=False)
-    except click.exceptions.Abort:
-        click.echo("aborted", err=True)
+        with handle_termination():
+            group.main(args=argv, standalone_mode=False)
+    except Interrupted as exc:
+        click.echo(f"interrupted ({exc.name})", err=True)
+        sys.exit(exc.exit_status)
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        click.echo("interrupted (SIGINT)", err=True)
         sys.exit(130)
     except click.ClickException as exc:
         exc.show()
         sys.exit(exc.exit_code)
     except (ScenarioError, UserInputError) as exc:
-        for line in str(exc).splitlines():
-            click.echo(f"error: {line}", err=True)
+        _error_lines(str(exc))
         sys.exit(2)
     except ValueError as exc:
         # Our packages' own ValueError subclasses (OpticsError, SpectraError, ...) report
         # bad input by convention; anything else is a bug and keeps its traceback.
         if type(exc).__module__.split(".")[0] not in ("simcam", "budget"):
             raise
-        for line in str(exc).splitlines():
-            click.echo(f"error: {line}", err=True)
+        _error_lines(str(exc))
         sys.exit(2)
     except FileNotFoundError as exc:
         click.echo(f"error: file not found: {exc.filename or exc}", err=True)
         sys.exit(2)
+    except MemoryError as exc:
+        # the size checks refuse what they can foresee; this is the last resort
+        msg = str(exc).strip() or "an allocation failed"
+        click.echo(f"error: not enough memory for this request ({msg}); reduce its size", err=True)
+        sys.exit(2)
+
+
+def _error_lines(text: str) -> None:
+    lines = [ln for ln in text.splitlines() if ln.strip()] or ["(no message)"]
+    for line in lines:
+        click.echo(f"error: {line}", err=True)
 
 
 def write_json_atomic(path: str | os.PathLike, payload: Any) -> None:

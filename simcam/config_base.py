@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -28,6 +29,10 @@ class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, strict=False, validate_default=True)
 
 
+#: pydantic's bound checks: a NaN or infinity fails them with a misleading message
+_BOUND_TYPES = ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "multiple_of")
+
+
 def format_validation_error(err: ValidationError, *, source: str | None = None) -> str:
     """Render a pydantic ValidationError as lines ``file: field.path: message``."""
     lines = []
@@ -38,6 +43,8 @@ def format_validation_error(err: ValidationError, *, source: str | None = None) 
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         inp = e.get("input")
+        if isinstance(inp, float) and not math.isfinite(inp) and e["type"] in _BOUND_TYPES:
+            msg = "must be a finite number"  # not "should be less than 1" for a NaN
         shown = "" if e["type"] in ("extra_forbidden", "missing") else f" (got {inp!r})"
         if len(shown) > 80:
             shown = shown[:77] + "...)"

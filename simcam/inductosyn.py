@@ -280,16 +280,16 @@ def load_scenario(path: str | None = None) -> InductosynScenario:
     if path is None:
         source, text = "inductosyn_default.toml", default_scenario_toml()
     else:
+        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
         source = str(path)
+        text = None
+        data = read_toml(path=path, source=source)
+    if text is not None:
         try:
-            with open(path, "rb") as fh:
-                text = fh.read().decode()
-        except FileNotFoundError:
-            raise ScenarioError(f"{source}: file not found") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
     scenario = validate_model(InductosynScenario, data, source=source)
     Inductosyn(params=scenario.encoder, source=source)  # monotonicity check
     return scenario

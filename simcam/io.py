@@ -67,14 +67,23 @@ def frame_header(
 
 @contextmanager
 def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
-    """Yield a temporary directory that replaces ``out`` only if the block completes."""
+    """Yield a temporary directory that replaces ``out`` only if the block completes.
+
+    The temporary folder ``.NAME.partial.<pid>.*`` is removed on any exception, SIGINT,
+    and (under :func:`simcam.lifecycle.handle_termination`) SIGTERM; folders of this kind
+    left by a run that was killed outright (SIGKILL, power cut) are removed here, with a
+    line on stderr (:func:`simcam.lifecycle.remove_stale_partials`).
+    """
+    from simcam.lifecycle import partial_prefix, remove_stale_partials
+
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"--out {out}: exists and is not a directory")
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise UserInputError(f"--out {out}: directory is not empty (use --overwrite to replace it)")
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial.", dir=out.parent))
+    remove_stale_partials(out)
+    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
     try:
         yield tmp
     except BaseException:
@@ -85,9 +94,21 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     os.replace(tmp, out)
 
 
-def write_frame(path: str | os.PathLike, data: np.ndarray, header: fits.Header) -> None:
-    """Write one mosaic frame as a primary HDU."""
-    fits.PrimaryHDU(data=data, header=header).writeto(path, overwrite=False)
+#: lossless tile compression of integer frames (FITS tiled image convention, astropy)
+COMPRESSION = "RICE_1"
+
+
+def write_frame(path: str | os.PathLike, data: np.ndarray, header: fits.Header, *, compress: bool = False) -> None:
+    """Write one mosaic frame: a primary HDU, or (``compress``) a Rice tile-compressed
+    image extension after an empty primary HDU (lossless for integer frames; read back
+    by :func:`read_frame`)."""
+    if not compress:
+        fits.PrimaryHDU(data=data, header=header).writeto(path, overwrite=False)
+        return
+    if not np.issubdtype(np.asarray(data).dtype, np.integer):
+        raise ValueError("compress: only integer frames are compressed (Rice is lossless for integers only)")
+    comp = fits.CompImageHDU(data=data, header=header, compression_type=COMPRESSION)
+    fits.HDUList([fits.PrimaryHDU(), comp]).writeto(path, overwrite=False)
 
 
 def write_windows(path: str | os.PathLike, pixels: np.ndarray, col0: np.ndarray, row0: np.ndarray,
@@ -106,19 +127,45 @@ def write_windows(path: str | os.PathLike, pixels: np.ndarray, col0: np.ndarray,
 
 
 def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
-    """Read a frame (any FITS primary image): data as float64 and its header."""
+    """Read a frame: the first 2-D image of the file (the primary HDU, or a tile-compressed
+    image extension), as float64, and its header.
+
+    Raises
+    ------
+    UserInputError
+        Missing file, not FITS, truncated or damaged, no 2-D image, or every pixel NaN;
+        the message names the file.
+    """
+    import warnings
+
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"{path}: frame file not found")
     try:
-        with fits.open(path, memmap=False) as hdul:
-            data = hdul[0].data
-            header = hdul[0].header.copy()
-    except OSError as exc:
-        raise UserInputError(f"{path}: not a readable FITS file ({exc})") from None
-    if data is None or data.ndim != 2:
-        raise UserInputError(f"{path}: primary HDU holds no 2-D image")
-    return np.asarray(data, dtype=np.float64), header
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with fits.open(path, memmap=False) as hdul:
+                data = header = None
+                for hdu in hdul:
+                    if hdu.is_image and hdu.header.get("NAXIS", 0) == 2:
+                        data = np.array(hdu.data, dtype=np.float64)
+                        header = hdu.header.copy()
+                        break
+                if data is None and len(hdul) and hdul[0].data is not None:
+                    raise UserInputError(f"{path}: primary HDU holds no 2-D image (shape {hdul[0].data.shape})")
+    except UserInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - astropy reports damage in many ways; all are bad input here
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UserInputError(f"{path}: not a readable FITS file ({msg})") from None
+    truncated = [w for w in caught if "truncated" in str(w.message).lower()]
+    if truncated:
+        raise UserInputError(f"{path}: truncated FITS file ({str(truncated[0].message).splitlines()[0]})")
+    if data is None:
+        raise UserInputError(f"{path}: holds no 2-D image")
+    if not np.isfinite(data).any():
+        raise UserInputError(f"{path}: every pixel is NaN or infinite")
+    return data, header
 
 
 def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, fits.Header]:
@@ -126,10 +173,57 @@ def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.nd
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"{path}: windows file not found")
-    with fits.open(path, memmap=False) as hdul:
-        pix = np.asarray(hdul[0].data, dtype=np.float64)
-        tab = hdul["WINDOWS"].data
-        return pix, np.asarray(tab["COL0"]), np.asarray(tab["ROW0"]), hdul[0].header.copy()
+    try:
+        with fits.open(path, memmap=False) as hdul:
+            pix = np.asarray(hdul[0].data, dtype=np.float64)
+            tab = hdul["WINDOWS"].data
+            return pix, np.asarray(tab["COL0"]), np.asarray(tab["ROW0"]), hdul[0].header.copy()
+    except Exception as exc:  # noqa: BLE001 - damaged or not a windows file: bad input
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UserInputError(f"{path}: not a readable windows file ({msg})") from None
+
+
+def frame_bytes(scenario, *, compress: bool = False) -> int:
+    """Bytes of one full frame file (uncompressed upper bound: header + padded data)."""
+    rows, cols = scenario.detector.mosaic_shape
+    per_px = 2 if scenario.detector.bits <= 16 else 4
+    block = 2880
+    data = -(-rows * cols * per_px // block) * block
+    return 2 * block + data
+
+
+#: float64 work arrays per pixel while one full frame is rendered (expected signal, a
+#: fixed-pattern map, the noisy frame): a lower bound, so nothing feasible is refused
+FULL_FRAME_WORK_ARRAYS = 3
+
+
+def check_render_request(scenario, *, frames: int, out, source: str, mode: str = "full",
+                         n_stars: int = 0, compress: bool = False, echo=None) -> int:
+    """Refuse, before any work, a render that cannot fit in memory or on disk; announce a
+    large one. Returns the estimated bytes written.
+
+    Memory: one full frame needs ``FULL_FRAME_WORK_ARRAYS`` float64 arrays of the mosaic
+    (windows mode: the float64 window cube of all frames). Disk: ``frames`` frame files of
+    :func:`frame_bytes` (an upper bound when compressed) or the uint16 window cube.
+    """
+    from simcam.lifecycle import announce_size, check_disk, check_memory
+
+    rows, cols = scenario.detector.mosaic_shape
+    det = scenario.detector
+    if mode == "full":
+        check_memory(FULL_FRAME_WORK_ARRAYS * 8.0 * rows * cols,
+                     what=f"{source}: detector: one full frame of {rows} x {cols} px "
+                          f"({det.n_chips} chips of {det.chip_rows} x {det.chip_cols})")
+        need = float(frames) * frame_bytes(scenario, compress=compress)
+    else:
+        w = scenario.render.window_px
+        cube = float(frames) * n_stars * w * w
+        check_memory(8.0 * cube, what=f"{source}: --frames {frames} x {n_stars} windows of {w} x {w} px")
+        need = 2.0 * cube
+    need += float(frames) * max(n_stars, 1) * 200.0  # truth.csv rows, about 200 bytes each
+    check_disk(out, need, what=f"--frames {frames} ({mode}{', compressed at most' if compress else ''})")
+    announce_size(need, where=out, echo=echo)
+    return int(need)
 
 
 def read_truth(path: str | os.PathLike) -> pd.DataFrame:

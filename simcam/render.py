@@ -146,6 +146,25 @@ class StarCamera:
         self.detector_key = key_from_seed(seed, STREAM_DETECTOR)
         self.background_e = det.background_e_per_s * scenario.camera.exposure_s
 
+    @property
+    def onboard_correction(self):
+        """The distortion correction this camera applies to its centroids
+        (:class:`simcam.correction.OnboardCorrection`, from ``optics.distortion_correction``),
+        or None for an uncalibrated camera. Computed once."""
+        if "_onboard" not in self.__dict__:
+            from simcam.correction import fit_onboard_correction
+
+            self.__dict__["_onboard"] = fit_onboard_correction(self)
+        return self.__dict__["_onboard"]
+
+    def report_positions(self, x_px, y_px):
+        """The positions the camera reports for measured mosaic centroids (its own
+        distortion correction applied; unchanged for an uncalibrated camera)."""
+        corr = self.onboard_correction
+        if corr is None:
+            return np.asarray(x_px, float), np.asarray(y_px, float)
+        return corr.apply(x_px, y_px)
+
     # ------------------------------------------------------------------ scene
     def scene(self, placement: Placement) -> Scene:
         """Compute positions, spectra, PSF stamps and truth of a placement (no noise).

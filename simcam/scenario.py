@@ -174,6 +174,45 @@ class LateralColourModel(_Model):
         return self
 
 
+class DistortionCorrectionModel(_Model):
+    """The distortion correction the camera applies to its own centroids (issue 12).
+
+    A camera under the seed-000 LSFE-C1 test already carries a distortion model from an
+    earlier calibration, with that calibration's own errors. ``kind = "fitted"`` (default):
+    at a ``rows x cols`` grid spanning ``extent_fraction`` of the mosaic (as
+    ``lab.calibration_target`` lays out its grid), the displacement of each point (true
+    distortion plus the lamp's lateral colour, in mosaic px) was measured with a marker
+    error of ``marker_error_3sigma_arcsec`` (3 sigma, per axis) and a centroid noise of
+    ``centroid_noise_px`` (1 sigma, per axis, of each point's mean), and a full bivariate
+    polynomial of total degree ``order`` in the measured coordinates was fitted to it by
+    least squares; the camera reports ``x - c_x(x, y)``, ``y - c_y(x, y)``. The errors are
+    drawn once from the scenario seed (one physical camera). ``kind = "none"``: the camera
+    reports raw centroids (an uncalibrated camera). The defaults (cubic, 32 points, 0.5"
+    markers, 0.002 px centroid noise ~ the default camera's TE over 30 frames) leave a
+    remaining displacement near the marker floor of eq 29, sqrt(9/31) x 0.5" = 0.27".
+    """
+
+    kind: Literal["fitted", "none"] = "fitted"
+    rows: Annotated[int, Field(ge=2, le=64)] = 4
+    cols: Annotated[int, Field(ge=2, le=64)] = 8
+    extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
+    order: Annotated[int, Field(ge=1, le=7)] = 3
+    marker_error_3sigma_arcsec: NonNeg = 0.5
+    centroid_noise_px: NonNeg = 0.002
+
+    @model_validator(mode="after")
+    def _determined(self) -> DistortionCorrectionModel:
+        if self.kind == "fitted":
+            if self.order >= self.rows or self.order >= self.cols:
+                raise ValueError(f"order {self.order} needs more than {self.order} rows and columns of points "
+                                 f"(got rows = {self.rows}, cols = {self.cols})")
+            n_terms = (self.order + 1) * (self.order + 2) // 2
+            if self.rows * self.cols <= n_terms:
+                raise ValueError(f"order {self.order} has {n_terms} terms: needs more than {n_terms} points "
+                                 f"(got {self.rows * self.cols})")
+        return self
+
+
 class OpticsModel(_Model):
     """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field.
 
@@ -191,6 +230,7 @@ class OpticsModel(_Model):
     lens: Annotated[str, Field(min_length=1)] | None = None
     psf: PSFModel = PSFModel()
     distortion: DistortionModel = DistortionModel()
+    distortion_correction: DistortionCorrectionModel = DistortionCorrectionModel()
     lateral_colour: LateralColourModel = LateralColourModel()
 
 
@@ -322,8 +362,31 @@ class PlatformModel(_Model):
     positioning_noise_px: NonNeg = 0.0
 
 
+class LabKnowledgeModel(_Model):
+    """What the lab *believes* about the camera's spectral response (issue 12).
+
+    The improved LSFE-S estimator needs effective wavelengths of the lamp through each
+    filter, of the calibration spectrum and of the stellar population; a lab computes them
+    from its own models (data sheets, filter certificates, a spectral library), which
+    differ from the camera's true ones. Each field is a stated error, the lab's value minus
+    the true one: ``qe_peak_nm_error`` (the QE curve's peak wavelength), ``filter_center_nm_error``
+    (every filter's centre), ``filter_width_nm_error`` (every filter's FWHM),
+    ``lamp_temperature_k_error`` (the lamp's colour temperature) and
+    ``star_teff_fraction_error`` (the spectral model's effective temperature of each
+    stellar type, as a fraction: Teff_lab = Teff (1 + e)). All zero: the lab knows the
+    camera exactly (the estimator then shares the simulator's spectral inputs).
+    """
+
+    qe_peak_nm_error: Finite = 20.0
+    filter_center_nm_error: Finite = 3.0
+    filter_width_nm_error: Finite = 2.0
+    lamp_temperature_k_error: Finite = 50.0
+    star_teff_fraction_error: Annotated[float, Field(gt=-0.5, lt=0.5, allow_inf_nan=False)] = 0.03
+
+
 class LabModel(_Model):
-    """The lab: source, filters, collimator, targets, platform, target placement."""
+    """The lab: source, filters, collimator, targets, platform, target placement, and the
+    lab's own (imperfect) knowledge of the camera's spectral response (``knowledge``)."""
 
     source: SourceModel = SourceModel()
     filters: Annotated[tuple[FilterModel, ...], Field(strict=False)] = (
@@ -336,6 +399,7 @@ class LabModel(_Model):
     calibration_target: CalibrationGridModel = CalibrationGridModel()
     platform: PlatformModel = PlatformModel()
     target_center_px: Pair = (-1024.0, 0.0)
+    knowledge: LabKnowledgeModel = LabKnowledgeModel()
 
     @model_validator(mode="after")
     def _filters(self) -> LabModel:
@@ -435,8 +499,11 @@ class ValidationModel(_Model):
       positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
-      phases per axis, ``lsfe_spectral_types`` (the stellar population, equal weights) and
-      ``calibration_spectrum`` (``lamp``: the lab source without filter), ``field_grid``
+      phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
+      ``calibration_spectrum`` (the reference of the chromatic displacement:
+      ``population_mean``, the default, the mean over the population at each field point,
+      since the population's common offset is calibrated at system level (seed 000); or
+      ``lamp``, the lab source without filter; or a spectral type), ``field_grid``
       points per axis for the field averages.
     """
 
@@ -450,18 +517,20 @@ class ValidationModel(_Model):
     threshold_sigma: Pos = 3.0
     dark_frames: Annotated[int, Field(ge=0)] = 0
     te_truth_frames: Annotated[int, Field(ge=10)] = 1000
+    hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 2000
     hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
     lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
     )
-    calibration_spectrum: str = "lamp"
+    calibration_spectrum: str = "population_mean"
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
 
     @model_validator(mode="after")
     def _known_types(self) -> ValidationModel:
         from simcam.spectra import SpectraError, star_teff_k
 
-        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum == "lamp" else [self.calibration_spectrum])
+        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum in ("lamp", "population_mean")
+                                                   else [self.calibration_spectrum])
         for st in names:
             try:
                 star_teff_k(spectral_type=st)
@@ -546,20 +615,44 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Sc
             data = apply_lens(data)
         except ValueError as exc:
             raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
-    return validate_model(Scenario, data, source=source)
+    scn = validate_model(Scenario, data, source=source)
+    _check_derived_finite(scn, source=source)
+    return scn
+
+
+def _check_derived_finite(scn: "Scenario", *, source: str | None) -> None:
+    """Input check: products of fields that overflow (e.g. ``exposure_s = 1e308``) are
+    reported against the fields, not as a derived quantity deep in the simulator."""
+    dark = scn.detector.dark_current_e_per_s * scn.camera.exposure_s
+    if not math.isfinite(dark):
+        raise ScenarioError(f"{source or 'scenario'}: camera.exposure_s = {scn.camera.exposure_s:g}: the dark charge "
+                            f"per exposure (x detector.dark_current_e_per_s = {scn.detector.dark_current_e_per_s:g}) "
+                            "overflows; give an exposure in seconds")
+
+
+#: embedded scenarios selectable as ``embedded:NAME`` (resources of simcam.data)
+EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noisy.toml"}
 
 
 def load_scenario(path: str | Path | None = None) -> Scenario:
-    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default."""
-    if path is None:
+    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default, and
+    ``"embedded:NAME"`` an embedded scenario of :data:`EMBEDDED_SCENARIOS` (``default``;
+    ``seed000_noisy``: the seed-000 camera with the seed's own noise and pixel errors)."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        name = path.split(":", 1)[1]
+        if name not in EMBEDDED_SCENARIOS:
+            raise ScenarioError(f"{path}: no embedded scenario {name!r} "
+                                f"(have {', '.join(sorted(EMBEDDED_SCENARIOS))})")
+        text = resources.files("simcam.data").joinpath(EMBEDDED_SCENARIOS[name]).read_text()
+        source = f"<embedded {EMBEDDED_SCENARIOS[name]}>"
+    elif path is None:
         text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:
-        path = Path(path)
-        if not path.is_file():
-            raise ScenarioError(f"{path}: scenario file not found")
-        text = path.read_text()
+        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
         source = str(path)
+        return scenario_from_dict(read_toml(path=path, source=source), source=source)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

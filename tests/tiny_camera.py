@@ -29,6 +29,7 @@ TINY = textwrap.dedent("""
     wavelength_step_nm = 25.0
     [validation]
     te_truth_frames = 60
+    hsfe_truth_frames = 40
     hsfe_phase_grid = 2
     field_grid = 3
     batch_trials = 4

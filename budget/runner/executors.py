@@ -62,9 +62,11 @@ class InlineExecutor(Executor):
 
 
 def _init_worker(initializer, args):
-    from budget.runner import lifecycle
+    # the parent-death guard first (simcam.lifecycle): a parent killed while its workers
+    # still import leaves no worker behind
+    from simcam.lifecycle import exit_with_parent
 
-    lifecycle.exit_with_parent()
+    exit_with_parent()
     if initializer is not None:
         initializer(*args)
 
@@ -95,6 +97,15 @@ class ProcessExecutor(Executor):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is not None and self._pool is not None:
+            # an interruption or an error: end the workers now, leave no child behind
+            from simcam.lifecycle import stop_pool
+
+            stop_pool(self._pool)
+            self._pool = None
+        self.close()
 
     def map_unordered(self, fn, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait

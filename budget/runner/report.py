@@ -36,7 +36,8 @@ def format_table(result) -> str:
         cov = st.get("coverage")
         rows.append((cls, ax, var, _fmt(st["truth"]), _fmt(st["truth_se"]), _fmt(st["mean"]), _fmt(st["bias"]),
                      "n/a" if not math.isfinite(st["bias_percent"]) else f"{st['bias_percent']:+.1f}",
-                     "yes" if st["bias_significant"] else "no", _fmt(st["std"]),
+                     "input" if st.get("role") == "input" else ("yes" if st["bias_significant"] else "no"),
+                     _fmt(st["std"]),
                      f"{cov['within_1sigma']:.2f}" if cov else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
@@ -48,6 +49,9 @@ def finding(result, key) -> str:
     spec = result.class_spec(cls)
     st = result.statistics(key)
     unit = spec.unit
+    if st.get("role") == "input":
+        return (f"{spec.label}, {ax}, {var}: an input of the method ({_fmt(st['mean'])} {unit}), "
+                f"taken as given, not measured: nothing to validate.")
     truth = (f"the truth {_fmt(st['truth'])} {unit}" + (f" (+- {_fmt(st['truth_se'])})" if st["truth_se"] > 0 else "")
              if not st["per_trial_truth"] else "the truth of each trial")
     if st["bias_significant"]:

@@ -87,10 +87,16 @@ class StudyResult:
         """:func:`key_statistics` of one key."""
         cls, var, ax = key
         if key in self.trial_truths:
-            return key_statistics(self.samples[key], trial_truths=self.trial_truths[key],
-                                  sigmas=self.sigmas.get(key))
-        t = self.truths[(cls, ax)]
-        return key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
+            st = key_statistics(self.samples[key], trial_truths=self.trial_truths[key], sigmas=self.sigmas.get(key))
+        else:
+            t = self.truths[(cls, ax)]
+            st = key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
+        role = self.class_spec(cls).role if cls in {c.name for c in self.classes} else "result"
+        st["role"] = role
+        if role == "input":
+            # given to the method, not measured by it: nothing to validate
+            st.update(bias_percent=float("nan"), bias_significant=False)
+        return st
 
     def summary(self) -> dict:
         """``{class: {axis: {variant: statistics}}}``."""
@@ -168,6 +174,14 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     cap = min(study.max_trials(scenario), MAX_TRIALS)
     batch = study.batch_trials(scenario)
     classes = tuple(study.classes(scenario))
+    # what the trials will hold in memory, refused before any work if it cannot fit: per
+    # trial and key an estimate, maybe a truth and a stated sigma (8 bytes each, kept in
+    # Python dicts until the end: about 100 bytes a value)
+    from simcam.lifecycle import check_memory
+
+    n_values = sum(len(c.axes) for c in classes) * len(study.variants)
+    n_max = trials if trials is not None else cap
+    check_memory(float(n_max) * (300 + 3 * 100 * n_values), what=f"{n_max:,} trials of {study.name}")
     executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
                              initializer=_worker_init, initargs=(study,))
     results: dict[int, TrialResult] = {}

@@ -83,6 +83,9 @@ class ClassSpec:
     per_trial_truth : bool
         True when each trial carries its own truth (an error drawn per trial): the
         runner then compares estimate and truth trial by trial.
+    role : {"result", "input"}
+        ``"input"`` for a class the method takes as given rather than measures (seed 000's
+        target marker error): reported, never called biased.
     """
 
     name: str
@@ -91,6 +94,7 @@ class ClassSpec:
     axes: tuple[str, ...] = ("x", "y")
     description: str = ""
     per_trial_truth: bool = False
+    role: str = "result"
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,6 @@ scenario's plate scale, as seed 000 reports them).
 
 from __future__ import annotations
 
-import math
 from importlib import resources
 from pathlib import Path
 
@@ -23,7 +22,8 @@ _CLASSES = (
      "(pixel response, S-curve) as the 0.2 px stepped target sees it"),
     ("lsfe_s", "chromatic LSFE (LSFE-S)", "eqs 13-16: the colour-dependent displacement of stars"),
     ("lsfe_c1", "distortion calibration residual (LSFE-C1)", "eqs 17-30: what the distortion calibration leaves"),
-    ("lsfe_c2", "target marker error (LSFE-C2)", "the calibration target's marker error (an input of the lab)"),
+    ("lsfe_c2", "target marker error (LSFE-C2)", "the calibration target's marker error: an input of the lab "
+     "(both variants are set to it), not a result"),
     ("lsfe", "low spatial frequency error (LSFE)", "eq 31 (published: C1 and C2 added linearly) or root-sum-square"),
     ("total", "single-star total", "root-sum-square of TE, HSFE and LSFE"),
 )
@@ -63,7 +63,8 @@ class StarCameraStudy(Study):
         check_camera_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
-        return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc) for n, label, desc in _CLASSES)
+        return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n == "lsfe_c2" else "result")
+                     for n, label, desc in _CLASSES)
 
     def default_trials(self, scenario) -> int:
         return int(scenario.validation.trials)
@@ -101,20 +102,10 @@ class StarCameraStudy(Study):
         out = {}
         for cls, t in truths(scenario, seed=seed).items():
             for ax in ("x", "y"):
-                se_px = t.details.get(f"se_{ax}_px", 0.0)
-                if cls == "te" and "standard_error_x_px" in t.details:
-                    # a mean over stars of per-star sds from a sample of frames
-                    se_px = t.details[f"standard_error_{ax}_px"] / math.sqrt(max(t.details.get("stars", 1), 1))
-                out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, float(se_px) * f,
-                                       {k: v for k, v in t.details.items() if not isinstance(v, (list, dict))})
-        # LSFE and the total are root-sum-squares of independent classes: first-order
-        # propagation of the parts' standard errors, se = sqrt(sum (part / whole)^2 se_part^2)
-        for whole, parts in (("lsfe", ("lsfe_s", "lsfe_c1", "lsfe_c2")), ("total", ("te", "hsfe", "lsfe"))):
-            for ax in ("x", "y"):
-                w = out[(whole, ax)]
-                if w.value > 0:
-                    se = math.sqrt(sum((out[(p, ax)].value / w.value * out[(p, ax)].se) ** 2 for p in parts))
-                    out[(whole, ax)] = Truth(w.value, se, w.details)
+                # each ClassTruth carries its own Monte Carlo standard error (LSFE and the
+                # total propagate their parts'; budget.truth)
+                details = {k: v for k, v in t.details.items() if not isinstance(v, (list, dict))}
+                out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, getattr(t, f"se_{ax}_px") * f, details)
         return out
 
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:

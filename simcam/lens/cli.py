@@ -80,10 +80,18 @@ def write_plots(products, fit, out: Path) -> list[Path]:
         ax.set_xlabel("x (um)")
         ax.set_aspect("equal")
         half = products.pixel_pitch_um / 2.0
-        ax.add_patch(plt.Rectangle((-half, -half), 2 * half, 2 * half, fill=False, lw=0.6, color="k"))
+        ax.add_patch(plt.Rectangle((-half, -half), 2 * half, 2 * half, fill=False, lw=0.8, color="k",
+                                   label=f"1 px ({products.pixel_pitch_um:g} um)", zorder=3))
+        # the whole box in view, whatever the spot size
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        ax.set_xlim(min(x0, -1.2 * half), max(x1, 1.2 * half))
+        ax.set_ylim(min(y0, -1.2 * half), max(y1, 1.2 * half))
     axes[0][0].set_ylabel("y (um)")
+    axes[0][0].legend(fontsize=7, loc="upper left")
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(wl[0], wl[-1]))
+    fig.colorbar(sm, ax=list(axes[0]), shrink=0.8, pad=0.01).set_label("wavelength (nm)", fontsize=8)
     fig.suptitle(f"{products.prescription_name}: spot diagrams ({wl[0]:g}-{wl[-1]:g} nm, box = 1 px)", fontsize=10)
-    fig.tight_layout()
     files.append(out / "spot_diagrams.png")
     fig.savefig(files[-1], dpi=130)
     plt.close(fig)

@@ -357,8 +357,14 @@ def load_prescription(ref: str | Path) -> Prescription:
         if not path.is_file():
             raise LensError(f"{path}: lens prescription file not found (or use embedded:NAME, one of "
                             f"{', '.join(embedded_lens_names())})")
-        text = path.read_text()
+        from budget.runner.scenario_io import read_toml  # strict: non-UTF-8, empty, invalid
+        from simcam.config_base import ScenarioError
+
         source = str(path)
+        try:
+            return prescription_from_dict(read_toml(path=path, source=source), source=source)
+        except ScenarioError as exc:
+            raise LensError(str(exc)) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

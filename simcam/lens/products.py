@@ -61,6 +61,7 @@ __all__ = [
     "LensProducts",
     "best_focus_z",
     "cache_dir",
+    "cache_path",
     "compute_products",
     "lens_products",
     "psf_stamp",
@@ -78,6 +79,15 @@ def cache_dir() -> Path:
         return Path(env) / "lens"
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "simcam" / "lens"
+
+
+def cache_path(prescription) -> Path:
+    """Cache file of a prescription's products: ``cache_dir()/NAME-HASH.nc``, where NAME is
+    the prescription's name made a safe file name (:func:`simcam.lifecycle.safe_filename`):
+    a name from an input file never leads out of the cache folder."""
+    from simcam.lifecycle import safe_filename
+
+    return cache_dir() / f"{safe_filename(prescription.name, default='lens')}-{prescription.hash}.nc"
 
 
 # ----------------------------------------------------------------------------------------
@@ -464,7 +474,7 @@ def lens_products(prescription, *, use_cache: bool = True, variant: str | None =
     key = p.hash
     if use_cache and key in _MEMO:
         return _MEMO[key]
-    path = cache_dir() / f"{p.name}-{key}.nc"
+    path = cache_path(p)
     if use_cache and path.is_file():
         try:
             prod = LensProducts.load(path)

@@ -1,0 +1,427 @@
+"""Process lifecycle shared by every long command: signals, workers, partial output, sizes.
+
+One small module so that every command (``simcam render``, ``budget simulate``,
+``budget validate``, ``budget sweep``, the generic runner of ``budget.runner``) behaves the
+same under faults:
+
+* :func:`handle_termination`: SIGTERM and SIGHUP (and SIGINT) raise :class:`Interrupted`
+  in the main thread, so the ``except BaseException`` / ``finally`` clean-up that already
+  runs on Ctrl-C (temporary folders, worker pools) also runs when ``timeout`` or a batch
+  system stops the run. :func:`simcam.cli_common.run_cli` wraps every command in it and
+  turns the interruption into one line and exit status ``128 + signal``.
+* :func:`exit_with_parent`: called from a worker's initializer, the worker dies when its
+  parent does (``kill -9`` of the parent leaves no orphan burning a core).
+  :func:`stop_pool` ends a :class:`concurrent.futures.ProcessPoolExecutor`'s workers at once.
+* :func:`partial_prefix`, :func:`remove_stale_partials`: temporary output folders carry the
+  PID of the run that writes them (``.OUT.partial.<pid>.<random>``), so a later run knows
+  whether their owner is dead and removes them, saying so.
+* :func:`check_disk`, :func:`check_memory`, :func:`announce_size`: estimate what a request
+  needs before starting and refuse, naming the figure and the limit, what cannot fit.
+* :func:`progress`: a tqdm bar on a terminal, nothing when stderr is not one.
+* :func:`guarded_entry`: the console scripts' entry, so that Ctrl-C even while the heavy
+  modules are being imported ends in one line, not a traceback.
+
+Only the standard library is imported at module level (it runs before anything else in
+the console scripts).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+__all__ = [
+    "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
+    "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
+    "progress", "remove_stale_partials", "safe_filename", "stop_pool", "worker_initializer",
+]
+
+#: outputs at least this large are announced before they are written
+ANNOUNCE_BYTES = 1 << 30
+#: a request may use at most this fraction of the free disk / available memory
+SAFETY_FRACTION = 0.9
+
+
+class Interrupted(BaseException):
+    """The run was stopped by a signal (SIGINT, SIGTERM, SIGHUP).
+
+    A :class:`BaseException` like :class:`KeyboardInterrupt`, so ``except Exception``
+    does not swallow it while ``finally`` and ``except BaseException`` clean-up runs.
+
+    Attributes
+    ----------
+    signum : int
+        The signal number; the command exits with status ``128 + signum``.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+    @property
+    def exit_status(self) -> int:
+        """Shell convention: 128 + the signal number (130 for SIGINT, 143 for SIGTERM)."""
+        return 128 + self.signum
+
+    @property
+    def name(self) -> str:
+        """The signal's name, e.g. ``SIGTERM``."""
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
+
+
+class ResourceLimitError(ValueError):
+    """A request needs more disk or memory than there is (message: figure and limit).
+
+    A ``ValueError`` of this package: :func:`simcam.cli_common.run_cli` prints it as one
+    ``error:`` line with exit status 2.
+    """
+
+
+# ----------------------------------------------------------------------------- signals
+_STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None),
+                                  signal.SIGINT) if s is not None)
+
+
+def _raise_interrupted(signum, _frame):
+    # one-shot: a second signal during the clean-up must not interrupt the clean-up itself
+    # (a supervisor that insists sends SIGKILL)
+    for s in _STOP_SIGNALS:
+        try:
+            signal.signal(s, signal.SIG_IGN)
+        except (ValueError, OSError):
+            pass
+    raise Interrupted(signum)
+
+
+@contextmanager
+def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
+    """Within the block, the given signals raise :class:`Interrupted` (main thread only).
+
+    The previous handlers are restored on exit. Outside the main thread (where Python
+    cannot set handlers) the block runs unchanged.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {}
+    for s in signals:
+        try:
+            previous[s] = signal.signal(s, _raise_interrupted)
+        except (ValueError, OSError):
+            pass
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            try:
+                signal.signal(s, h if h is not None else signal.SIG_DFL)
+            except (ValueError, OSError):
+                pass
+
+
+def guarded_entry(module: str, attr: str = "main") -> None:
+    """Import ``module`` and call its ``attr()``; Ctrl-C or SIGTERM while importing ends
+    in one line on stderr and exit status 128 + signal instead of a traceback.
+
+    Used by the console scripts (``simcam``, ``budget``); the command itself runs under
+    :func:`simcam.cli_common.run_cli`, which handles signals from then on.
+    """
+    import importlib
+
+    try:
+        with handle_termination():
+            fn = getattr(importlib.import_module(module), attr)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
+        sys.stderr.write(f"interrupted ({signal.Signals(signum).name}) while starting; nothing was written\n")
+        sys.exit(128 + signum)
+    fn()
+
+
+def simcam_entry() -> None:
+    """Console script ``simcam``."""
+    guarded_entry("simcam.cli")
+
+
+def budget_entry() -> None:
+    """Console script ``budget``."""
+    guarded_entry("budget.cli")
+
+
+# ----------------------------------------------------------------------------- workers
+_PR_SET_PDEATHSIG = 1
+
+
+def _set_pdeathsig(sig: int) -> bool:
+    """Linux: ask the kernel to send ``sig`` to this process when its parent dies."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def exit_with_parent(*, poll_s: float = 0.5, use_pdeathsig: bool = True) -> None:
+    """Make this (worker) process exit when its parent process dies.
+
+    Call it first thing in a worker pool's ``initializer``. Two guards:
+
+    * on Linux, ``prctl(PR_SET_PDEATHSIG, SIGKILL)``: the kernel kills the worker as
+      soon as the parent dies, even while a compiled kernel holds the GIL. (The kernel
+      ties it to the parent *thread* that started the worker: pools that start workers
+      from a thread that ends before the process should pass ``use_pdeathsig=False``;
+      :class:`concurrent.futures.ProcessPoolExecutor` starts them from the submitting
+      thread.)
+    * everywhere, a daemon thread that polls :func:`os.getppid` every ``poll_s`` seconds
+      and calls :func:`os._exit` once the worker has been re-parented.
+
+    When the workers are gone, multiprocessing's resource tracker (which holds a pipe
+    from the parent and each worker) sees end-of-file and exits too.
+    """
+    global _GUARDED
+    if _GUARDED:
+        return
+    _GUARDED = True
+    import multiprocessing
+
+    owner = multiprocessing.parent_process()
+    parent = owner.pid if owner is not None and owner.pid else os.getppid()
+    if use_pdeathsig:
+        _set_pdeathsig(signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before the guard was set
+        os._exit(1)
+
+    def watch():
+        import time
+
+        while True:
+            time.sleep(poll_s)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+_GUARDED = False
+
+
+def _guarded_init(target: str) -> None:
+    exit_with_parent()
+    import importlib
+
+    module, _, name = target.partition(":")
+    getattr(importlib.import_module(module), name)()
+
+
+def worker_initializer(target: str):
+    """A pool ``initializer`` that guards the worker (:func:`exit_with_parent`) *before*
+    importing and calling ``target`` (``"package.module:function"``).
+
+    The guard then holds from the worker's first moments: a parent killed while its
+    workers are still importing numerical libraries (seconds on a loaded machine) leaves
+    no worker behind either. Picklable (a :func:`functools.partial` of this light module).
+    """
+    import functools
+
+    return functools.partial(_guarded_init, target)
+
+
+def stop_pool(pool) -> None:
+    """End a :class:`~concurrent.futures.ProcessPoolExecutor` now (on an interruption).
+
+    Queued work is cancelled, the worker processes are terminated (SIGTERM, then SIGKILL
+    after 2 s) and joined, so the caller leaves no child process behind.
+    """
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        try:
+            p.terminate()
+        except (OSError, ValueError, AttributeError):
+            pass
+    for p in procs:
+        try:
+            p.join(2.0)
+            if p.is_alive():
+                p.kill()
+                p.join(2.0)
+        except (OSError, ValueError, AttributeError, AssertionError):
+            pass
+    try:
+        pool.shutdown(wait=True, cancel_futures=True)
+    except Exception:  # noqa: BLE001 - a broken pool is what we expect here
+        pass
+
+
+# ----------------------------------------------------------------------------- partial output
+_PARTIAL_RE = re.compile(r"\.partial\.(\d+)\.")
+
+
+def partial_prefix(out: str | os.PathLike) -> str:
+    """Name prefix of the temporary sibling folder of ``out`` written by this process:
+    ``.NAME.partial.<pid>.`` (the PID tells a later run whether its owner is alive)."""
+    return f".{Path(out).name}.partial.{os.getpid()}."
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this PID exists (on this machine)."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # exists, owned by someone else
+    return True
+
+
+def remove_stale_partials(out: str | os.PathLike, *, echo: Callable[[str], None] | None = None) -> list[Path]:
+    """Remove the temporary folders ``.NAME.partial.<pid>.*`` beside ``out`` whose run is dead.
+
+    A folder whose PID is alive (another run writing the same output) is left alone, as
+    is one without a PID (an older format: its owner cannot be told). Each removal is
+    reported through ``echo`` (default: a line on stderr).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The folders removed.
+    """
+    out = Path(out)
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        return []
+    say = echo or (lambda msg: print(msg, file=sys.stderr))
+    removed = []
+    head = f".{out.name}.partial."
+    for p in parent.iterdir():
+        if not p.name.startswith(head):
+            continue
+        m = _PARTIAL_RE.match(p.name[len(out.name) + 1:])
+        if m is None or int(m.group(1)) == os.getpid() or pid_alive(int(m.group(1))):
+            continue
+        size = _tree_bytes(p)
+        shutil.rmtree(p, ignore_errors=True)
+        if not p.exists():
+            removed.append(p)
+            say(f"removed {p} ({format_bytes(size)}), left by an interrupted run (pid {m.group(1)}, no longer running)")
+    return removed
+
+
+def _tree_bytes(path: Path) -> int:
+    total = 0
+    for root, _dirs, files in os.walk(path):
+        for f in files:
+            try:
+                total += os.lstat(os.path.join(root, f)).st_size
+            except OSError:
+                pass
+    return total
+
+
+_UNSAFE_RE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+def safe_filename(name: str, *, default: str = "unnamed", max_len: int = 64) -> str:
+    """A file-name component made from an input string (a lens name, a sweep label).
+
+    Path separators, ``..``, control and other unusual characters become ``_``; leading
+    dots are removed (no hidden files, no ``..``); the result is never empty and at most
+    ``max_len`` characters. ``"../../EVIL"`` gives ``"EVIL"``; ``"f/4 lens"`` gives ``"f_4_lens"``.
+    """
+    s = _UNSAFE_RE.sub("_", str(name)).strip("_")
+    s = re.sub(r"\.{2,}", "_", s).lstrip("._-")
+    return s[:max_len] or default
+
+
+# ----------------------------------------------------------------------------- sizes
+def format_bytes(n: float) -> str:
+    """``1536`` -> ``'1.5 KiB'``."""
+    n = float(n)
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if abs(n) < 1024.0 or unit == "PiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024.0
+    return f"{n:.1f} EiB"  # pragma: no cover
+
+
+def _existing_ancestor(path: Path) -> Path:
+    p = path.absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def check_disk(path: str | os.PathLike, need_bytes: float, *, what: str) -> None:
+    """Refuse (:class:`ResourceLimitError`) when ``need_bytes`` exceed the free space there.
+
+    Parameters
+    ----------
+    path : where the output goes (need not exist yet)
+    need_bytes : the estimate, bytes
+    what : the request, for the message (e.g. ``"--frames 1000000000 full frames"``)
+    """
+    free = shutil.disk_usage(_existing_ancestor(Path(path))).free
+    if need_bytes > SAFETY_FRACTION * free:
+        raise ResourceLimitError(f"{what}: needs about {format_bytes(need_bytes)} of disk, "
+                                 f"{format_bytes(free)} free at {_existing_ancestor(Path(path))}")
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to a new allocation, bytes (Linux ``MemAvailable``; else psutil;
+    ``None`` when unknown)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        import psutil
+
+        return int(psutil.virtual_memory().available)
+    except Exception:  # noqa: BLE001 - optional
+        return None
+
+
+def check_memory(need_bytes: float, *, what: str) -> None:
+    """Refuse (:class:`ResourceLimitError`) when ``need_bytes`` exceed the available memory."""
+    avail = available_memory_bytes()
+    if avail is not None and need_bytes > SAFETY_FRACTION * avail:
+        raise ResourceLimitError(f"{what}: needs about {format_bytes(need_bytes)} of memory, "
+                                 f"{format_bytes(avail)} available")
+
+
+def announce_size(need_bytes: float, *, where: str | os.PathLike,
+                  echo: Callable[[str], None] | None = None, threshold: float = ANNOUNCE_BYTES) -> None:
+    """Say (stderr by default) how much will be written to ``where`` when it is large."""
+    if need_bytes >= threshold:
+        say = echo or (lambda msg: print(msg, file=sys.stderr))
+        say(f"writing about {format_bytes(need_bytes)} to {where}")
+
+
+# ----------------------------------------------------------------------------- progress
+def progress(*, total: int | None, desc: str, unit: str = "it", enabled: bool = True):
+    """A tqdm bar on stderr when it is a terminal (and ``enabled``); a silent one otherwise.
+
+    Use as ``with progress(total=n, desc="frames") as bar: ... bar.update(1)``.
+    """
+    from tqdm import tqdm
+
+    on = bool(enabled) and sys.stderr.isatty()
+    return tqdm(total=total, desc=desc, unit=unit, leave=False, disable=not on, file=sys.stderr)
