@@ -125,7 +125,21 @@ class StarCameraStudy(Study):
             figs.append(out_dir / "distortion_residuals.png")
         te = result.truths.get(("te", "x"))
         f = self._factor(result.scenario)
-        text = [f"Plate scale {result.scenario.camera.scale_arcsec_per_px:g} arcsec/px."]
+        scn = result.scenario
+        c1 = ("still displaces after its own distortion correction"
+              if scn.optics.distortion_correction.kind != "none"
+              else "a cubic calibration would leave (uncalibrated camera)")
+        text = [
+            "What is compared. **Truth**: the quantity each method claims to measure, computed from the "
+            "injected physics by a route that shares nothing with the estimators (budget.truth): TE, the mean "
+            "temporal centroid sd; HSFE, the rms static error of the expected centroid under the lab's noise; "
+            "LSFE-S, the rms chromatic displacement of the stellar population about its reference "
+            f"({scn.validation.calibration_spectrum}); LSFE-C1, what the camera {c1}; LSFE-C2, the given "
+            "marker error (an input). TE and HSFE truths are Monte Carlo estimates and carry a standard "
+            "error. **published**: seed 000's own estimator of each class (eqs 1-2, 3-12, 13-16, 17-30, 31). "
+            "**improved**: the estimator derived in docs/estimators.md that targets the truth with only what "
+            "a lab knows (its own, imperfect spectral model; the marker error it was given).",
+            f"Plate scale {scn.camera.scale_arcsec_per_px:g} arcsec/px."]
         if te is not None and "cramer_rao_x_px" in te.details:
             text.append(f"TE truth against the Cramer-Rao bound of an unbiased centroid from the same pixels: "
                         f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
