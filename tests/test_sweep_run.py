@@ -7,7 +7,6 @@ tests short; the equality tests are bit-for-bit.
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import subprocess

@@ -5,7 +5,8 @@
 1. starts the executor (its worker processes import while this process works);
 2. computes the study's truths (:meth:`Study.truths`, seeded by
    ``SeedSequence(seed, spawn_key=(2**31,))``): in this process with one worker, otherwise
-   as one more task beside the first trials, so that no worker waits for them;
+   piece by piece (:meth:`Study.truth_parts`) as tasks beside the first trials, so that the
+   truths' work is spread over the workers too;
 3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
    ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
    when; trial 0's ``extra`` is kept for the report;
@@ -36,11 +37,18 @@ SCHEMA = "budget.study-result/1"
 MAX_TRIALS = 10_000_000
 
 
+class _TruthPart:
+    """The result of one piece of the truths (:meth:`Study.truth_parts`), and which."""
+
+    def __init__(self, index: int, value: Any):
+        self.index, self.value = index, value
+
+
 def _run_task(args):
-    """A worker's task: the truths (``ks`` is None) or a chunk of trials."""
+    """A worker's task: a chunk of trials, or (``("truth", i, part)``) a piece of the truths."""
     study, scenario, seed, ks = args
-    if ks is None:
-        return study.truths(scenario, seed)
+    if isinstance(ks, tuple) and ks and ks[0] == "truth":
+        return _TruthPart(ks[1], study.truth_part(scenario, seed, ks[2]))
     out = list(zip(ks, study.trial_batch(scenario, seed, list(ks))))
     for k, r in out:
         if k != 0:
@@ -189,10 +197,13 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     stopped_by = "trials"
     bar = None
     truths = None
+    parts = study.truth_parts(scenario, seed)
+    part_results: dict[int, Any] = {}
     with executor:
         if executor.workers <= 1:
             truths = study.truths(scenario, seed)
-        # otherwise the truths are one more task, run by a worker beside the first trials
+        # otherwise the pieces of the truths are tasks, spread over the workers beside the
+        # first trials (the same numbers: each piece draws its own streams)
         if progress:
             from tqdm import tqdm
 
@@ -208,10 +219,13 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                 chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
                 tasks = [(study, scenario, seed, c) for c in chunks]
                 if truths is None and done == 0:
-                    tasks.insert(0, (study, scenario, seed, None))
+                    tasks[:0] = [(study, scenario, seed, ("truth", i, p)) for i, p in enumerate(parts)]
                 for _, part in executor.map_unordered(_run_task, tasks):
-                    if isinstance(part, dict):
-                        truths = part
+                    if isinstance(part, _TruthPart):
+                        part_results[part.index] = part.value
+                        if len(part_results) == len(parts):
+                            truths = study.truths_from_parts(scenario, seed,
+                                                             [part_results[i] for i in range(len(parts))])
                         continue
                     for k, r in part:
                         results[k] = r

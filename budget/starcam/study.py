@@ -95,12 +95,30 @@ class StarCameraStudy(Study):
         est = {key: v * f for key, v in r["values"].items()}
         return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
 
+    def truth_parts(self, scenario, seed: int) -> list:
+        from budget.validate import truth_parts
+
+        return truth_parts(scenario, seed=seed)
+
+    def truth_part(self, scenario, seed: int, part):
+        from budget.validate import truth_part
+
+        return truth_part(scenario, seed=seed, part=part)
+
+    def truths_from_parts(self, scenario, seed: int, results: list) -> dict[tuple[str, str], Truth]:
+        from budget.validate import truths_from_parts
+
+        return self._contract_truths(scenario, truths_from_parts(scenario, seed=seed, results=results))
+
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         from budget.validate import truths
 
+        return self._contract_truths(scenario, truths(scenario, seed=seed))
+
+    def _contract_truths(self, scenario, class_truths: dict) -> dict[tuple[str, str], Truth]:
         f = self._factor(scenario)
         out = {}
-        for cls, t in truths(scenario, seed=seed).items():
+        for cls, t in class_truths.items():
             for ax in ("x", "y"):
                 # each ClassTruth carries its own Monte Carlo standard error (LSFE and the
                 # total propagate their parts'; budget.truth)
