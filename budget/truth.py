@@ -191,44 +191,59 @@ def hsfe_truth(camera, *, frames: int, seed: int, chunk_frames: int = 100) -> Cl
     ``validation.dark_frames = K`` each chunk of ``chunk_frames`` frames gets its own mean
     of ``K`` dark frames, so the dark frames' noise is averaged over too.
     """
+    n = camera.scenario.validation.hsfe_phase_grid
+    cells = [hsfe_phase_cell(camera, frames=frames, seed=seed, phase=p, chunk_frames=chunk_frames)
+             for p in range(n * n)]
+    return hsfe_from_cells(camera, cells, frames=frames)
+
+
+def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames: int = 100):
+    """One sub-pixel phase of :func:`hsfe_truth` (``phase = i n + k``): the half-means of the
+    centroid error of each star and axis and their variances, ``(ma, mb, va, vb)``.
+
+    Phases draw independent streams (``SeedSequence(seed, spawn_key=(phase, half, chunk))``),
+    so they can be computed anywhere, in any order, and combined by :func:`hsfe_from_cells`.
+    """
     scn = camera.scenario
-    val = scn.validation
-    n = val.hsfe_phase_grid
+    n = scn.validation.hsfe_phase_grid
     if frames < 4 or frames % 2:
         raise ValueError(f"hsfe truth frames: an even number >= 4, got {frames}")
+    i, k = divmod(int(phase), n)
     plan = make_plan("hsfe", scn)
     ctr = plan.conditions[0].field_center_px
     layout = star_grid(scn, center_px=ctr)
     chunk = max(1, min(chunk_frames, frames // 2))
-    cells = []   # per phase: (mean_A, mean_B, var per frame) arrays of (2, W)
-    for i in range(n):
-        for k in range(n):
-            pl = Placement(layout=layout, platform_dx_px=(i + 0.5) / n, platform_dy_px=(k + 0.5) / n,
-                           condition=999_002)
-            scene = camera.scene(pl)
-            sx = [np.zeros((2, scene.n_stars)), np.zeros((2, scene.n_stars))]
-            cnt = [0, 0]
-            sq = np.zeros((2, scene.n_stars))
-            for half in (0, 1):
-                done = 0
-                c = 0
-                while done < frames // 2:
-                    m = min(chunk, frames // 2 - done)
-                    ss = np.random.SeedSequence(seed, spawn_key=(i * n + k, half, c))
-                    cseed = int(ss.generate_state(1)[0])
-                    ex, ey = _noisy_errors(camera, scene, frames=m, seed=cseed)
-                    e = np.stack([ex, ey])                    # (2, m, W)
-                    e = e - e.mean(axis=2, keepdims=True)      # common motion removed per frame
-                    sx[half] += e.sum(axis=1)
-                    sq += (e**2).sum(axis=1)
-                    cnt[half] += m
-                    done += m
-                    c += 1
-            ma, mb = sx[0] / cnt[0], sx[1] / cnt[1]
-            tot = cnt[0] + cnt[1]
-            mean = (sx[0] + sx[1]) / tot
-            var = (sq - tot * mean**2) / (tot - 1)            # per-frame variance of the error
-            cells.append((ma, mb, var / cnt[0], var / cnt[1]))
+    pl = Placement(layout=layout, platform_dx_px=(i + 0.5) / n, platform_dy_px=(k + 0.5) / n,
+                   condition=999_002)
+    scene = camera.scene(pl)
+    sx = [np.zeros((2, scene.n_stars)), np.zeros((2, scene.n_stars))]
+    cnt = [0, 0]
+    sq = np.zeros((2, scene.n_stars))
+    for half in (0, 1):
+        done = 0
+        c = 0
+        while done < frames // 2:
+            m = min(chunk, frames // 2 - done)
+            ss = np.random.SeedSequence(seed, spawn_key=(i * n + k, half, c))
+            cseed = int(ss.generate_state(1)[0])
+            ex, ey = _noisy_errors(camera, scene, frames=m, seed=cseed)
+            e = np.stack([ex, ey])                    # (2, m, W)
+            e = e - e.mean(axis=2, keepdims=True)      # common motion removed per frame
+            sx[half] += e.sum(axis=1)
+            sq += (e**2).sum(axis=1)
+            cnt[half] += m
+            done += m
+            c += 1
+    ma, mb = sx[0] / cnt[0], sx[1] / cnt[1]
+    tot = cnt[0] + cnt[1]
+    mean = (sx[0] + sx[1]) / tot
+    var = (sq - tot * mean**2) / (tot - 1)            # per-frame variance of the error
+    return ma, mb, var / cnt[0], var / cnt[1]
+
+
+def hsfe_from_cells(camera, cells, *, frames: int) -> ClassTruth:
+    """The HSFE truth (:func:`hsfe_truth`) from the cells of every phase, in phase order."""
+    n = camera.scenario.validation.hsfe_phase_grid
     ma = np.stack([c[0] for c in cells], axis=1)   # (2, phases, W)
     mb = np.stack([c[1] for c in cells], axis=1)
     va = np.stack([c[2] for c in cells], axis=1)
@@ -444,20 +459,3 @@ def combine(t: dict) -> dict:
     t["lsfe"] = rss_truth("lsfe", [t["lsfe_s"], t["lsfe_c1"], t["lsfe_c2"]], {"combination": "rss of S, C1, C2"})
     t["total"] = rss_truth("total", [t["te"], t["hsfe"], t["lsfe"]], {"combination": "rss of TE, HSFE, LSFE"})
     return t
-
-
-def all_truths(camera, *, seed: int) -> dict[str, ClassTruth]:
-    """Every class's truth, plus the root-sum-square LSFE and total.
-
-    ``seed`` seeds the sampled truths (TE and HSFE draw independent streams from it).
-    """
-    scn = camera.scenario
-    t = {
-        "te": te_truth(camera, frames=scn.validation.te_truth_frames, seed=seed),
-        "hsfe": hsfe_truth(camera, frames=scn.validation.hsfe_truth_frames,
-                           seed=int(np.random.SeedSequence(seed, spawn_key=(2,)).generate_state(1)[0])),
-        "lsfe_s": lsfe_s_truth(camera),
-        "lsfe_c1": lsfe_c1_truth(camera),
-        "lsfe_c2": lsfe_c2_truth(scn),
-    }
-    return combine(t)

@@ -214,21 +214,54 @@ class ValidationResult:
         }
 
 
-def truths(scenario, *, seed: int) -> dict:
-    """Every class's truth (:class:`budget.truth.ClassTruth`) of a validation run with ``seed``.
+def _truth_seed(seed: int) -> int:
+    return int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
 
-    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
-    ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
-    the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
-    """
-    from budget.truth import ClassTruth, all_truths, combine, hsfe_truth
 
-    truth_seed = int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
-    out = all_truths(_camera(scenario), seed=truth_seed)
-    if scenario.validation.new_maps_per_trial:
-        val = scenario.validation
-        hs = [hsfe_truth(_camera(scenario, trial_seeds(seed, k)[1]), frames=val.hsfe_truth_frames,
-                         seed=int(np.random.SeedSequence(truth_seed, spawn_key=(3, k)).generate_state(1)[0]))
+def truth_parts(scenario, *, seed: int) -> list[tuple]:
+    """The independent pieces of :func:`truths`, computable anywhere and in any order:
+    ``("rest",)`` (TE, LSFE-S, LSFE-C1, LSFE-C2) and one ``("hsfe", map, phase)`` per
+    sub-pixel phase of the HSFE truth (``map`` None for the scenario's pixel maps, or the
+    trial 0-3 whose maps are used when ``validation.new_maps_per_trial``)."""
+    val = scenario.validation
+    maps = list(range(4)) if val.new_maps_per_trial else [None]
+    return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
+
+
+def truth_part(scenario, *, seed: int, part: tuple):
+    """One piece of :func:`truths` (see :func:`truth_parts`)."""
+    from budget.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
+
+    ts = _truth_seed(seed)
+    val = scenario.validation
+    if part[0] == "rest":
+        cam = _camera(scenario)
+        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts), "lsfe_s": lsfe_s_truth(cam),
+                "lsfe_c1": lsfe_c1_truth(cam), "lsfe_c2": lsfe_c2_truth(scenario)}
+    _, m, p = part
+    if m is None:
+        cam = _camera(scenario)
+        hs = int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
+    else:
+        cam = _camera(scenario, trial_seeds(seed, m)[1])
+        hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p)
+
+
+def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
+    """:func:`truths` from the results of :func:`truth_parts`, in their order."""
+    from budget.truth import ClassTruth, combine, hsfe_from_cells
+
+    parts = truth_parts(scenario, seed=seed)
+    val = scenario.validation
+    out = dict(results[0])
+    cells: dict = {}
+    for part, r in zip(parts[1:], results[1:]):
+        cells.setdefault(part[1], []).append(r)
+    if not val.new_maps_per_trial:
+        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames)
+    else:
+        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames)
               for k in range(4)]
         vals = {}
         for ax in AXES:
@@ -242,8 +275,20 @@ def truths(scenario, *, seed: int) -> dict:
             vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
         out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
                                  se_x_px=vals["x"][1], se_y_px=vals["y"][1])
-        out = combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
-    return out
+    return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
+
+
+def truths(scenario, *, seed: int) -> dict:
+    """Every class's truth (:class:`budget.truth.ClassTruth`) of a validation run with ``seed``.
+
+    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
+    ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
+    the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
+    Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
+    over its workers and get the same numbers.
+    """
+    parts = truth_parts(scenario, seed=seed)
+    return truths_from_parts(scenario, seed=seed, results=[truth_part(scenario, seed=seed, part=p) for p in parts])
 
 
 def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: float | None = None,

@@ -38,7 +38,10 @@ from hypothesis import strategies as st
 from tiny_camera import TINY
 
 REPO = Path(__file__).resolve().parents[1]
-FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the same examples on every machine and run (CI must not depend on luck or on a
+# .hypothesis database left behind); 25 examples per reader keep the suite fast
+FUZZ = settings(max_examples=25, deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.too_slow])
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -64,7 +64,9 @@ def test_adaptive_stopping_meets_the_tolerance():
 def test_bad_requests_are_refused_before_work():
     with pytest.raises(UserInputError, match="give one of them"):
         run_study(STUDY, Toy(), trials=5, tolerance=0.1)
-    with pytest.raises(UserInputError, match="--trials"):
+    from simcam.lifecycle import ResourceLimitError
+
+    with pytest.raises(ResourceLimitError, match="--trials 10000000000000: needs about"):
         run_study(STUDY, Toy(), trials=10**13)
 
 

@@ -48,3 +48,23 @@ def test_inductosyn_study_equals_harmonics_validate():
     one = study.trial(scn, 2, 7)
     assert one.estimates == study.trial_batch(scn, 2, [5, 6, 7])[2].estimates
     assert one.truths == study.trial_batch(scn, 2, list(range(40)))[7].truths
+
+
+@pytest.mark.parametrize("new_maps", [False, True])
+def test_starcam_truths_spread_over_workers_are_the_same(new_maps):
+    """The truths computed piece by piece on two workers (the HSFE phases as separate
+    tasks) equal the truths computed in one piece, bit for bit."""
+    import tomllib
+
+    from budget.validate import truths
+    from simcam.scenario import scenario_from_dict
+
+    data = tomllib.loads(TINY)
+    data["validation"]["new_maps_per_trial"] = new_maps
+    scn = scenario_from_dict(data, source="tiny")
+    study = get_study("starcam")
+    res = run_study(study, scn, trials=2, seed=4, workers=2)
+    whole = study._contract_truths(scn, truths(scn, seed=4))
+    assert res.truths.keys() == whole.keys()
+    for key, t in whole.items():
+        assert (res.truths[key].value, res.truths[key].se) == (t.value, t.se), key

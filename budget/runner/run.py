@@ -5,7 +5,8 @@
 1. starts the executor (its worker processes import while this process works);
 2. computes the study's truths (:meth:`Study.truths`, seeded by
    ``SeedSequence(seed, spawn_key=(2**31,))``): in this process with one worker, otherwise
-   as one more task beside the first trials, so that no worker waits for them;
+   piece by piece (:meth:`Study.truth_parts`) as tasks beside the first trials, so that the
+   truths' work is spread over the workers too;
 3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
    ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
    when; trial 0's ``extra`` is kept for the report;
@@ -32,15 +33,22 @@ from budget.runner.study import ClassSpec, Study, TrialResult, Truth
 __all__ = ["SCHEMA", "StudyResult", "run_study"]
 
 SCHEMA = "budget.study-result/1"
-#: a request above this many trials is refused before any work (memory of the samples)
+#: cap of adaptive runs whatever the study says (each trial's values are kept)
 MAX_TRIALS = 10_000_000
 
 
+class _TruthPart:
+    """The result of one piece of the truths (:meth:`Study.truth_parts`), and which."""
+
+    def __init__(self, index: int, value: Any):
+        self.index, self.value = index, value
+
+
 def _run_task(args):
-    """A worker's task: the truths (``ks`` is None) or a chunk of trials."""
+    """A worker's task: a chunk of trials, or (``("truth", i, part)``) a piece of the truths."""
     study, scenario, seed, ks = args
-    if ks is None:
-        return study.truths(scenario, seed)
+    if isinstance(ks, tuple) and ks and ks[0] == "truth":
+        return _TruthPart(ks[1], study.truth_part(scenario, seed, ks[2]))
     out = list(zip(ks, study.trial_batch(scenario, seed, list(ks))))
     for k, r in out:
         if k != 0:
@@ -136,8 +144,8 @@ def _check_trials(trials: int | None, tolerance: float | None) -> None:
 
     if trials is not None and tolerance is not None:
         raise UserInputError("--trials and --tolerance: give one of them")
-    if trials is not None and not (2 <= trials <= MAX_TRIALS):
-        raise UserInputError(f"--trials: must be between 2 and {MAX_TRIALS:,} (got {trials:,})")
+    if trials is not None and trials < 2:
+        raise UserInputError(f"--trials: must be at least 2 (got {trials})")
     if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
         raise UserInputError(f"--tolerance: must be a positive number (got {tolerance})")
 
@@ -181,17 +189,21 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
 
     n_values = sum(len(c.axes) for c in classes) * len(study.variants)
     n_max = trials if trials is not None else cap
-    check_memory(float(n_max) * (300 + 3 * 100 * n_values), what=f"{n_max:,} trials of {study.name}")
+    check_memory(float(n_max) * (300 + 3 * 100 * n_values),
+                 what=f"--trials {n_max}" if trials is not None else f"up to {n_max} trials of {study.name}")
     executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
                              initializer=_worker_init, initargs=(study,))
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
     truths = None
+    parts = study.truth_parts(scenario, seed)
+    part_results: dict[int, Any] = {}
     with executor:
         if executor.workers <= 1:
             truths = study.truths(scenario, seed)
-        # otherwise the truths are one more task, run by a worker beside the first trials
+        # otherwise the pieces of the truths are tasks, spread over the workers beside the
+        # first trials (the same numbers: each piece draws its own streams)
         if progress:
             from tqdm import tqdm
 
@@ -207,10 +219,13 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                 chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
                 tasks = [(study, scenario, seed, c) for c in chunks]
                 if truths is None and done == 0:
-                    tasks.insert(0, (study, scenario, seed, None))
+                    tasks[:0] = [(study, scenario, seed, ("truth", i, p)) for i, p in enumerate(parts)]
                 for _, part in executor.map_unordered(_run_task, tasks):
-                    if isinstance(part, dict):
-                        truths = part
+                    if isinstance(part, _TruthPart):
+                        part_results[part.index] = part.value
+                        if len(part_results) == len(parts):
+                            truths = study.truths_from_parts(scenario, seed,
+                                                             [part_results[i] for i in range(len(parts))])
                         continue
                     for k, r in part:
                         results[k] = r

@@ -199,6 +199,19 @@ class Study(ABC):
     def truths(self, scenario: Any, seed: int) -> dict[tuple[str, str], Truth]:
         """The truth of every class without ``per_trial_truth``, keyed ``(class, axis)``."""
 
+    def truth_parts(self, scenario: Any, seed: int) -> list:
+        """Independent pieces of :meth:`truths` a runner may spread over its workers
+        (default: one piece, the whole of :meth:`truths`)."""
+        return [None]
+
+    def truth_part(self, scenario: Any, seed: int, part: Any) -> Any:
+        """One piece (see :meth:`truth_parts`); by default the whole of :meth:`truths`."""
+        return self.truths(scenario, seed)
+
+    def truths_from_parts(self, scenario: Any, seed: int, results: list) -> dict[tuple[str, str], Truth]:
+        """:meth:`truths` from its pieces' results, in :meth:`truth_parts` order; must equal it."""
+        return results[0]
+
     # ------------------------------------------------------------ run settings
     def default_trials(self, scenario: Any) -> int:
         """Trials when the user gives neither a count nor a tolerance."""

@@ -95,12 +95,30 @@ class StarCameraStudy(Study):
         est = {key: v * f for key, v in r["values"].items()}
         return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
 
+    def truth_parts(self, scenario, seed: int) -> list:
+        from budget.validate import truth_parts
+
+        return truth_parts(scenario, seed=seed)
+
+    def truth_part(self, scenario, seed: int, part):
+        from budget.validate import truth_part
+
+        return truth_part(scenario, seed=seed, part=part)
+
+    def truths_from_parts(self, scenario, seed: int, results: list) -> dict[tuple[str, str], Truth]:
+        from budget.validate import truths_from_parts
+
+        return self._contract_truths(scenario, truths_from_parts(scenario, seed=seed, results=results))
+
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         from budget.validate import truths
 
+        return self._contract_truths(scenario, truths(scenario, seed=seed))
+
+    def _contract_truths(self, scenario, class_truths: dict) -> dict[tuple[str, str], Truth]:
         f = self._factor(scenario)
         out = {}
-        for cls, t in truths(scenario, seed=seed).items():
+        for cls, t in class_truths.items():
             for ax in ("x", "y"):
                 # each ClassTruth carries its own Monte Carlo standard error (LSFE and the
                 # total propagate their parts'; budget.truth)
@@ -125,7 +143,21 @@ class StarCameraStudy(Study):
             figs.append(out_dir / "distortion_residuals.png")
         te = result.truths.get(("te", "x"))
         f = self._factor(result.scenario)
-        text = [f"Plate scale {result.scenario.camera.scale_arcsec_per_px:g} arcsec/px."]
+        scn = result.scenario
+        c1 = ("still displaces after its own distortion correction"
+              if scn.optics.distortion_correction.kind != "none"
+              else "a cubic calibration would leave (uncalibrated camera)")
+        text = [
+            "What is compared. **Truth**: the quantity each method claims to measure, computed from the "
+            "injected physics by a route that shares nothing with the estimators (budget.truth): TE, the mean "
+            "temporal centroid sd; HSFE, the rms static error of the expected centroid under the lab's noise; "
+            "LSFE-S, the rms chromatic displacement of the stellar population about its reference "
+            f"({scn.validation.calibration_spectrum}); LSFE-C1, what the camera {c1}; LSFE-C2, the given "
+            "marker error (an input). TE and HSFE truths are Monte Carlo estimates and carry a standard "
+            "error. **published**: seed 000's own estimator of each class (eqs 1-2, 3-12, 13-16, 17-30, 31). "
+            "**improved**: the estimator derived in docs/estimators.md that targets the truth with only what "
+            "a lab knows (its own, imperfect spectral model; the marker error it was given).",
+            f"Plate scale {scn.camera.scale_arcsec_per_px:g} arcsec/px."]
         if te is not None and "cramer_rao_x_px" in te.details:
             text.append(f"TE truth against the Cramer-Rao bound of an unbiased centroid from the same pixels: "
                         f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "

@@ -1,0 +1,127 @@
+"""One simulated star-observation calibration of the line camera (seed 004), end to end.
+
+World (:mod:`simcam.linecam`): injected interior and exterior errors drawn per trial, the
+stars of the strip imaged pass by pass through the true camera, the attitude reports.
+Lab (:mod:`budget.linecam`): centroids and time tags, identification against its own
+apparent places, the published and the joint calibrations, their look-angle fields.
+Truth: the true look-angle field of the injected camera (:meth:`CameraTruth.los_angles`,
+through the Newton-free explicit Brown correction of :mod:`simcam.optics` and the true
+principal distance and misalignment; nothing of the lab's model).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
+from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
+from simcam.linecam.world import AttitudeReports, PassImages, SkyStrip, image_passes, sky_strip
+
+from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
+from .model import NominalCamera, Observations
+from .pipeline import Centroids, Identified, Region, choose_region, extract_centroids, identify
+
+__all__ = ["region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS", "los_grid",
+           "PARAM_UNITS", "to_report_units"]
+
+VARIANTS = ("published", "improved", "lookangle")
+
+#: report unit of each parameter and the factor from model units
+PARAM_UNITS = {"roll": ("arcsec", ARCSEC_PER_RAD), "pitch": ("arcsec", ARCSEC_PER_RAD),
+               "yaw": ("arcsec", ARCSEC_PER_RAD), "dx0": ("px", 1.0), "dy0": ("px", 1.0),
+               "df": ("mm", 1.0), "k1": ("1e-4", 1e4), "k2": ("1e-4", 1e4), "p1": ("1e-4", 1e4),
+               "p2": ("1e-4", 1e4)}
+
+
+def to_report_units(theta) -> np.ndarray:
+    return np.asarray(theta, float) * np.array([PARAM_UNITS[p][1] for p in PARAMETERS])
+
+
+@lru_cache(maxsize=16)
+def region(scenario: LineCamScenario) -> Region:
+    """The strip centre: step 2 ("auto", the densest strip for the lab's magnitude limit) or
+    the scenario's (ra, dec)."""
+    st, cam = scenario.stars, scenario.camera
+    if st.region == "manual":
+        return Region(ra_deg=st.ra_deg, dec_deg=st.dec_deg, stars=-1, candidates=0)
+    from simcam.sky.catalogue import hipparcos
+
+    return choose_region(hipparcos(), mag_limit=st.mag_limit,
+                         across_rad=cam.n_pixels * cam.pitch_mm / cam.focal_length_mm,
+                         along_rad=math.radians(st.strip_length_deg), pa_deg=st.scan_pa_deg)
+
+
+def world_strip(scenario: LineCamScenario) -> SkyStrip:
+    """The stars the world images (all effects on, down to ``world_mag_limit``)."""
+    r = region(scenario)
+    return sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg, mag_limit=scenario.stars.world_mag_limit)
+
+
+def lab_strip(scenario: LineCamScenario) -> SkyStrip:
+    """The lab's catalogue selection (``mag_limit``) and apparent places (its switches)."""
+    r = region(scenario)
+    lab = scenario.lab
+    return sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg, mag_limit=scenario.stars.mag_limit,
+                     aberration=lab.aberration, parallax=lab.parallax, proper_motion=lab.proper_motion)
+
+
+def los_grid(scenario: LineCamScenario) -> np.ndarray:
+    """Detectors at which LOS fields are compared: every ``grid_step_px`` and the last one."""
+    n = scenario.camera.n_pixels
+    g = np.arange(0, n, scenario.lab.grid_step_px, dtype=float)
+    return g if g[-1] == n - 1 else np.append(g, n - 1)
+
+
+@dataclass
+class Simulation:
+    """Everything of one trial (the report and the commands use the parts)."""
+
+    theta_true: np.ndarray
+    truth: CameraTruth
+    images: PassImages
+    centroids: Centroids
+    identified: Identified
+    calibrations: dict
+    grid: np.ndarray
+    los_true: tuple
+    los: dict
+    los_before: tuple
+
+
+def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *, noise: bool = True) -> Simulation:
+    """One trial: draw the errors, image, centroid, identify, calibrate (both variants)."""
+    rng = np.random.default_rng(seed_sequence)
+    theta = draw_errors(scenario, rng)
+    truth = camera_truth(scenario, theta)
+    wstrip = world_strip(scenario)
+    keys = rng.integers(1, 2**63, size=wstrip.plan.passes + 1, dtype=np.uint64)
+    images = image_passes(scenario, truth, wstrip, frame_keys=keys[1:], detector_key=keys[0], noise=noise)
+    cents = extract_centroids(images, scenario)
+    reports = AttitudeReports(wstrip.plan, scenario.attitude.knowledge_noise_arcsec / ARCSEC_PER_RAD, rng)
+    att = reports.report(cents.t_s, cents.pass_index).as_matrix()
+    cam = NominalCamera.from_model(scenario.camera)
+    ident = identify(cam, lab_strip(scenario), sample=cents.sample, t_s=cents.t_s, pass_index=cents.pass_index,
+                     attitude=att, match_radius_arcsec=scenario.lab.match_radius_arcsec)
+    cals = run_calibrations(scenario, cam, ident.obs)
+    grid = los_grid(scenario)
+    los_true = truth.los_angles(grid)
+    los = {v: los_field(cam, c, grid) for v, c in cals.items()}
+    look = calibrate_lookangle(cam, ident.obs, degree_along=scenario.lab.lookangle_degree_along,
+                               degree_across=scenario.lab.lookangle_degree_across)
+    los["lookangle"] = look.field(grid)
+    from .model import los_angles
+
+    before = los_angles(cam, np.zeros(len(PARAMETERS)), grid)
+    return Simulation(theta_true=theta, truth=truth, images=images, centroids=cents, identified=ident,
+                      calibrations=cals, grid=grid, los_true=los_true, los=los, los_before=before)
+
+
+def run_calibrations(scenario: LineCamScenario, cam: NominalCamera, obs: Observations) -> dict[str, Calibration]:
+    """Both variants on the same observations."""
+    lab = scenario.lab
+    return {"published": calibrate_published(cam, obs, coverage_bins=lab.coverage_bins, max_iter=lab.max_iter),
+            "improved": calibrate_joint(cam, obs, rcond=lab.rcond, gauge_sigma_px=lab.gauge_sigma_px)}
