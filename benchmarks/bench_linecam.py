@@ -15,7 +15,9 @@
 The JIT is warmed up before timing; best of ``--repeat``. The machine is shared: the load
 is printed with the figures (``machine_description``).
 
-Run: ``python benchmarks/bench_linecam.py [--repeat 7] [--trials 1000] [--skip-validation | --only-validation]``
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Run: ``python benchmarks/bench_linecam.py [--repeat 7] [--trials 1000] [--skip-validation | --only-validation] [--quick]``
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import best_of, format_table, machine_description  # noqa: E402
+from _common import add_quick_flag, best_of, emit_result, figure, format_table, machine_description  # noqa: E402
 
 
 def main() -> None:
@@ -38,7 +40,11 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--skip-validation", action="store_true")
     ap.add_argument("--only-validation", action="store_true")
+    add_quick_flag(ap)
     args = ap.parse_args()
+    if args.quick:
+        args.repeat, args.trials = min(args.repeat, 2), min(args.trials, 20)
+    figs = []
 
     import numba
     from astropy.time import Time
@@ -61,9 +67,10 @@ def main() -> None:
     rows = []
 
     if args.only_validation:
-        _validation(args, rows, STUDY, scn)
+        figs.append(_validation(args, rows, STUDY, scn))
         print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
         print(format_table(["what", "size", "ms"], rows))
+        emit_result("linecam", figs, quick=args.quick, trials=args.trials)
         return
 
     # ------------------------------------------------------------ 1. selection + identification
@@ -107,6 +114,12 @@ def main() -> None:
     rows.append(["identification, KD-tree", f"{sample.size} centroids", f"{t_kd * 1e3:.2f}"])
     rows.append(["identification, numpy brute force (peer)", f"{sample.size} centroids", f"{t_bf * 1e3:.2f}"])
     rows.append(["-> selection and identification (target <= 50 ms)", "", f"{(t_sel + t_kd) * 1e3:.1f}"])
+    figs += [
+        figure("select_identify_ms", "star selection and identification, 10 deg strip (ms)",
+               (t_sel + t_kd) * 1e3, "ms", target=50.0, target_source="issue 16"),
+        figure("identify_ms", "identification of one pass's centroids, KD-tree (ms)", t_kd * 1e3, "ms",
+               peer="numpy brute force", peer_value=t_bf * 1e3),
+    ]
 
     # ------------------------------------------------------------ 2. one calibration
     obs = idf.obs
@@ -128,17 +141,25 @@ def main() -> None:
     rows.append(["calibration, published (exterior/interior)", f"{n} stars", f"{t_pub * 1e3:.2f}"])
     rows.append(["calibration, improved (joint, gauge removed)", f"{n} stars", f"{t_joint * 1e3:.2f}"])
     rows.append(["scipy least_squares, 8 parameters (peer)", f"{n} stars", f"{t_ls * 1e3:.2f}"])
+    figs += [
+        figure("calibration_joint_ms", f"one calibration, improved (joint), {n} stars (ms)", t_joint * 1e3,
+               "ms", peer="scipy least_squares, 8 parameters", peer_value=t_ls * 1e3, target=20.0,
+               target_source="issue 16"),
+        figure("calibration_published_ms", f"one calibration, published, {n} stars (ms)", t_pub * 1e3,
+               "ms", target=20.0, target_source="issue 16"),
+    ]
 
     # ------------------------------------------------------------ 3. validation
     if not args.skip_validation:
-        _validation(args, rows, STUDY, scn)
+        figs.append(_validation(args, rows, STUDY, scn))
 
     print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
     print(format_table(["what", "size", "ms"], rows))
+    emit_result("linecam", figs, quick=args.quick, trials=args.trials)
 
 
-def _validation(args, rows, STUDY, scn) -> None:
-    """Figure 3: run_study(trials, workers=2): wall time and the workers' CPU time."""
+def _validation(args, rows, STUDY, scn) -> dict:
+    """Figure 3: run_study(trials, workers=2): wall time and the workers' CPU time; its figure."""
     import resource
 
     from budget.runner.run import run_study
@@ -156,6 +177,10 @@ def _validation(args, rows, STUDY, scn) -> None:
     per = wall / res.trials
     rows.append(["  per trial (wall, 2 workers)", "", f"{per * 1e3:.1f}"])
     rows.append(["  CPU of the 2 workers, total (idle 2-core estimate: half)", "", f"{cpu * 1e3:.0f}"])
+    full = res.trials == 1000
+    return figure("validation_s", f"validation, {res.trials} trials, 2 worker processes (s)", wall, "s",
+                  target=60.0 if full else None,
+                  target_source="issue 16, 1000 trials on 2 cores" if full else None)
 
 
 if __name__ == "__main__":
