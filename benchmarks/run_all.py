@@ -12,6 +12,8 @@ A peer library that is not installed is reported as "not installed" by the bench
 (never a crash). A benchmark that fails, times out or prints no ``RESULT`` line is
 reported as such on the page, and the others still run.
 
+The peer libraries come with the ``bench`` extra: ``pip install -e '.[bench]'``.
+
 Usage (from the repository root)::
 
     python benchmarks/run_all.py                      # full settings -> docs/benchmarks.md
@@ -121,6 +123,26 @@ Full seed-001 calibration trials: polygon face errors and four passes of noise, 
 tables, the in-sequence and joint harmonic fits and the verification of both
 compensations over 3600 points of the circle. Target (issue 5): 10,000 trials in at most
 2 s. Details in [inductosyn.md](inductosyn.md)."""),
+    "whiskbroom": ("Whiskbroom TDI camera", """\
+The two speed figures of issue 14 (seed 002), numba beside plain numpy: the 1000-trial
+Monte Carlo synthesis over the arrays (draws, knowledge and true states, complex-step
+image motion at the sampled field, residuals, worst column; target at most 1 s) and the
+pixel-level MTF of one trial (96 stages, 4 clock phases, 1000 columns, along and across;
+target at most 5 ms); for reference one state's image motion at every pixel and the
+slanted-edge image of one trial. More in [whiskbroom.md](whiskbroom.md)."""),
+    "scanmirror": ("GEO scan mirror", """\
+The full default timeline of seed 003 (two area scans and the star dwell) with ground
+points every 0.1 s: world construction, plan, attitude, deviation, nominal and true ground
+points (target at most 0.5 s, issue 15), with PROJ's `geos` inverse (pyproj) beside our
+nominal mapping; one validation trial, and 1000 trials on 2 processes through the shared
+runner, worker start-up included (target at most 20 s). More in [scanmirror.md](scanmirror.md)."""),
+    "linecam": ("Line-camera star calibration", """\
+The three figures of issue 16 (seed 004): star selection (Hipparcos cone, apparent places
+through astropy/ERFA) and identification of one pass of a 10 deg strip (target at most
+50 ms), beside a numpy brute-force identification; one calibration of a few hundred star
+observations, published and improved (target at most 20 ms), beside scipy
+`least_squares` on the same residuals; and 1000 validation trials on 2 cores (target at
+most 60 s). More in [linecam.md](linecam.md)."""),
 }
 
 INTRO = """\
@@ -130,7 +152,8 @@ load), best of several repeats. This page is generated: `python benchmarks/run_a
 runs every `benchmarks/bench_*.py` in turn and writes it from what they printed; edit the
 template text in `benchmarks/run_all.py`, not this page. Each benchmark's last line,
 `RESULT {json}`, carries its key figures, from which the summary table below is built.
-Timings are never asserted in the test suite. On a shared virtual machine repeated runs
+The peers install with `pip install -e '.[bench]'` (photutils, GalSim, pyxel-sim, SEP); one
+that is missing is reported as "not installed". Timings are never asserted in the test suite. On a shared virtual machine repeated runs
 vary by 10-40 % (more when other jobs run): the load before and after each benchmark is
 recorded below; compare figures only within one run."""
 
