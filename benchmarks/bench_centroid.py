@@ -221,7 +221,7 @@ def main() -> None:
                peer_value=us("photutils centroid_com loop"), peer_status=status,
                target=2.0, target_source="issue 3"),
         figure("gauss_fit_us", "2-D Gaussian fit, 11x11 window (us/window)",
-               us("budget Gaussian LSQ fit"), "us", peer=f"photutils centroid_2dg",
+               us("budget Gaussian LSQ fit"), "us", peer="photutils centroid_2dg",
                peer_value=us(f"photutils centroid_2dg ({min(args.n_2dg, n)})"), peer_status=status),
         figure("full_frame_ref_ms", "full 4096x2048 frame, 25 stars, reference list (ms)",
                ff["ours_ref_s"] * 1e3, "ms", peer="photutils threshold + centroid_sources",

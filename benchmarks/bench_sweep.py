@@ -153,7 +153,7 @@ def main() -> None:
                        target_source="issue 6"),
                 figure("sweep_speedup_e2e", f"sweep, {args.points} truth-mode points: end-to-end points/s, "
                        "2 processes / 1", two_e / base_e2e, "x", better="higher"),
-                figure("sweep_points_per_s", f"sweep, 2 processes, end-to-end points/s", two_e,
+                figure("sweep_points_per_s", "sweep, 2 processes, end-to-end points/s", two_e,
                        "points/s", better="higher"),
             ]
             if "Dask LocalCluster 2" in by:

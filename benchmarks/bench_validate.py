@@ -27,6 +27,9 @@ sys.path.insert(1, os.path.dirname(_HERE))
 from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
 from budget import validate as V  # noqa: E402
+from budget.runner.executors import default_workers  # noqa: E402
+from budget.runner.run import run_study  # noqa: E402
+from budget.starcam.study import STUDY  # noqa: E402
 from simcam.scenario import default_scenario  # noqa: E402
 
 
@@ -34,7 +37,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=10)
     ap.add_argument("--trials", type=int, default=1000)
-    ap.add_argument("--workers", type=int, default=V.default_workers())
+    ap.add_argument("--workers", type=int, default=default_workers())
     add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
@@ -59,7 +62,7 @@ def main() -> None:
                     for p in ("te", "hsfe", "chromatic", "distortion") for c in make_plan(p, scn).conditions)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     t0 = time.perf_counter()
-    res = V.validate(scn, trials=args.trials, seed=1, workers=args.workers, keep_example=False)
+    res = run_study(STUDY, scn, trials=args.trials, seed=1, workers=args.workers)
     total = time.perf_counter() - t0
     print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
     print(format_table(

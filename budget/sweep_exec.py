@@ -193,6 +193,6 @@ def make_runner(*, workers: int | None = None, scheduler: str | None = None,
         return DaskRunner(scheduler=scheduler)
     if dask_local is not None:
         return DaskRunner(local_workers=dask_local)
-    from budget.validate import default_workers
+    from budget.runner.executors import default_workers
 
     return ProcessRunner(workers if workers is not None else default_workers())

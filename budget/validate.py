@@ -1,35 +1,25 @@
-"""Monte Carlo validation of the seed-000 lab methods: what each recovers of what was injected.
+"""The seed-000 trial and truths: what the study (:mod:`budget.starcam.study`) gives the runner.
 
-Each trial runs the four protocols (TE, HSFE, chromatic, distortion) on the simulator
-with independent temporal noise (and, where the scenario says so, new PRNU/DSNU maps,
-new marker errors, new hexapod positioning errors), through the same estimators as real
-data (:func:`budget.protocols.estimate`). For every class, axis and estimator variant the
-trials give the distribution of the estimate, which is compared with the class's truth
-(:mod:`budget.truth`): mean, bias (absolute and %), spread, 68 % and 95 % intervals,
-Monte Carlo standard errors and whether the bias is significant.
+Each trial (:func:`run_trial`) runs the four protocols (TE, HSFE, chromatic, distortion)
+on the simulator with independent temporal noise (and, where the scenario says so, new
+PRNU/DSNU maps, new marker errors, new hexapod positioning errors), through the same
+estimators as real data (:func:`budget.protocols.estimate`). :func:`truths` computes each
+class's truth (:mod:`budget.truth`), in independent pieces (:func:`truth_parts`) that the
+runner spreads over its workers. The runner (:mod:`budget.runner.run`) does the rest:
+trials on workers, adaptive stopping, statistics, JSON, report.
 
 Randomness: trial ``k`` draws everything from ``SeedSequence(seed, spawn_key=(k,))``, so a
 trial's result does not depend on how many workers run or in which order they finish.
-
-Adaptive stopping (in the spirit of JCGM 101:2008 section 7.9): with a tolerance ``T``
-(3 sigma arcsec), batches of trials run until the Monte Carlo standard error of every
-bias (``s / sqrt(K)``) and every spread (``s / sqrt(2 (K - 1))``, Gaussian approximation)
-is below ``T``, or until ``max_trials``.
 """
 
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
 import warnings
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from budget.protocols import PROTOCOLS, estimate, make_plan, simulate
-from simcam.lifecycle import worker_initializer
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -41,8 +31,6 @@ INPUT_CLASSES = ("lsfe_c2",)
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
 _CACHE: dict = {}
-#: trials per task sent to a worker process
-_CHUNK_TRIALS = 10
 #: numba threads inside this process's kernels (False in worker processes: one per core)
 _PARALLEL: bool | None = None
 
@@ -137,83 +125,6 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
     return out
 
 
-def _run_chunk(args):
-    scenario, seed, ks = args
-    return [run_trial(scenario, seed, k) for k in ks]
-
-
-@dataclass
-class ValidationResult:
-    """Trials, truths and summary statistics of a validation run."""
-
-    scenario: object
-    seed: int
-    truths: dict
-    samples: dict  # (class, variant, axis) -> np.ndarray of sigma_px per trial
-    trials: int
-    stopped_by: str
-    example: dict = field(default_factory=dict)
-
-    def summary(self) -> dict:
-        """Per class/axis/variant statistics in arcsec (3 sigma): truth, mean, bias, std, intervals, ..."""
-        f = 3.0 * self.scenario.camera.scale_arcsec_per_px
-        out: dict = {}
-        for cls in CLASSES:
-            out[cls] = {}
-            for ax in AXES:
-                out[cls][ax] = {}
-                truth = getattr(self.truths[cls], f"{ax}_px") * f
-                se_truth = getattr(self.truths[cls], f"se_{ax}_px", 0.0) * f
-                for var in VARIANTS:
-                    v = np.asarray(self.samples[(cls, var, ax)]) * f
-                    n = v.size
-                    mean = float(v.mean())
-                    std = float(v.std(ddof=1)) if n > 1 else 0.0
-                    se_mean = std / math.sqrt(n)
-                    # the truth is itself a Monte Carlo estimate (TE, HSFE): its standard
-                    # error adds to that of the mean estimate (independent samples)
-                    se_bias = math.hypot(se_mean, se_truth)
-                    se_std = std / math.sqrt(2 * (n - 1)) if n > 1 else float("inf")
-                    bias = mean - truth
-                    q = np.quantile(v, [0.025, 0.16, 0.84, 0.975])
-                    entry = {
-                        "truth": truth, "se_truth": se_truth, "mean": mean, "bias": bias,
-                        # a truth below 1e-9 arcsec is zero to rounding: a relative bias is
-                        # then meaningless, reported as NaN
-                        "bias_percent": (100.0 * bias / truth if truth > 1e-9
-                                         else (0.0 if abs(bias) <= 1e-12 else float("nan"))),
-                        "std": std, "interval_68": [float(q[1]), float(q[2])],
-                        "interval_95": [float(q[0]), float(q[3])],
-                        "se_mean": se_mean, "se_bias": se_bias, "se_std": se_std,
-                        "bias_significant": bool(abs(bias) > 3.0 * se_bias) if se_bias > 0 else bool(bias != 0),
-                        "truth_in_95": bool(q[0] <= truth <= q[3]),
-                        "role": "result",
-                    }
-                    if cls in INPUT_CLASSES:
-                        # LSFE-C2 is the given marker calibration error: both variants are set
-                        # to it, so there is nothing to validate (an input, not a result)
-                        entry.update(role="input", bias_percent=float("nan"), bias_significant=False)
-                    out[cls][ax][var] = entry
-        return out
-
-    def to_json(self) -> dict:
-        """JSON payload: scenario, hash, seed, version, trials, truths and the summary."""
-        from simcam import __version__
-        from simcam.scenario import scenario_to_toml
-
-        f = 3.0 * self.scenario.camera.scale_arcsec_per_px
-        return {
-            "scenario_name": self.scenario.name, "scenario_hash": self.scenario.hash,
-            "scenario_toml": scenario_to_toml(self.scenario), "seed": self.seed, "version": __version__,
-            "trials": self.trials, "stopped_by": self.stopped_by, "units": "arcsec, 3 sigma",
-            "plate_scale_arcsec": self.scenario.camera.scale_arcsec_per_px,
-            "truth_details": {k: {"x": t.x_px * f, "y": t.y_px * f,
-                                  **{d: v for d, v in t.details.items() if not isinstance(v, list)}}
-                              for k, t in self.truths.items()},
-            "classes": self.summary(),
-        }
-
-
 def _truth_seed(seed: int) -> int:
     return int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
 
@@ -289,174 +200,3 @@ def truths(scenario, *, seed: int) -> dict:
     """
     parts = truth_parts(scenario, seed=seed)
     return truths_from_parts(scenario, seed=seed, results=[truth_part(scenario, seed=seed, part=p) for p in parts])
-
-
-def validate(scenario, *, trials: int | None = None, tolerance_3sigma_arcsec: float | None = None,
-             seed: int = 0, workers: int = 1, progress: bool = False, keep_example: bool = True) -> ValidationResult:
-    """Run the Monte Carlo validation (see module docstring).
-
-    Parameters
-    ----------
-    scenario : simcam.scenario.Scenario
-    trials : int, optional
-        Fixed number of trials (default: the scenario's ``validation.trials``, unless a
-        tolerance is given).
-    tolerance_3sigma_arcsec : float, optional
-        Adaptive stopping tolerance on the Monte Carlo standard errors (3 sigma arcsec).
-    seed : int
-        Run seed.
-    workers : int
-        Processes (1: in this process). Results do not depend on it.
-    """
-    val = scenario.validation
-    tol = tolerance_3sigma_arcsec if tolerance_3sigma_arcsec is not None else (
-        val.tolerance_3sigma_arcsec if trials is None else None)
-    if trials is not None and tolerance_3sigma_arcsec is not None:
-        raise ValueError("trials and tolerance: give one of them")
-    if workers < 1:
-        raise ValueError(f"workers: must be >= 1, got {workers}")
-    truths_ = truths(scenario, seed=seed)
-    example = run_trial(scenario, seed, 0, keep=True) if keep_example else None
-    results: list = [] if example is None else [{"k": 0, "values": example["values"]}]
-    if tol is None and trials is None:
-        trials = val.trials
-    target = trials if tol is None else None
-    cap = val.max_trials
-    batch = val.batch_trials
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        import sys
-
-        bar = tqdm(total=target if target else cap, desc="trials", unit="trial", leave=False,
-                   disable=not sys.stderr.isatty())  # quiet when not on a terminal
-        bar.update(len(results))
-    # "spawn": numba's OpenMP/TBB thread pools must not be forked
-    pool = (ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                initializer=worker_initializer("budget.validate:worker_init")) if workers > 1 else None)
-    stopped_by = "trials"
-    try:
-        while True:
-            done = len(results)
-            want = (target - done) if target else min(batch, cap - done)
-            if want <= 0:
-                break
-            ks = list(range(done, done + want))
-            if pool is None:
-                for k in ks:
-                    results.append(run_trial(scenario, seed, k))
-                    if bar:
-                        bar.update(1)
-            else:
-                # small chunks (a few seconds of work each) keep both the workers and the
-                # progress bar busy to the end; the order of completion does not matter
-                size = max(1, min(_CHUNK_TRIALS, len(ks) // (2 * workers)))
-                chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
-                for res in pool.map(_run_chunk, [(scenario, seed, c) for c in chunks]):
-                    results.extend(res)
-                    if bar:
-                        bar.update(len(res))
-            if tol is not None:
-                if _converged(scenario, results, tol):
-                    stopped_by = "tolerance"
-                    break
-                if len(results) >= cap:
-                    stopped_by = "max_trials"
-                    break
-    except BaseException as exc:
-        if pool is not None and not isinstance(exc, Exception):  # interrupted: stop the workers now
-            from simcam.lifecycle import stop_pool
-
-            stop_pool(pool)
-            pool = None
-        raise
-    finally:
-        if pool is not None:
-            pool.shutdown()
-        if bar:
-            bar.close()
-    results.sort(key=lambda r: r["k"])
-    samples = {key: np.array([r["values"][key] for r in results]) for key in results[0]["values"]}
-    return ValidationResult(scenario, seed, truths_, samples, len(results), stopped_by,
-                            example=example.get("kept", {}) if example else {})
-
-
-def _converged(scenario, results, tol) -> bool:
-    if len(results) < 10:
-        return False
-    f = 3.0 * scenario.camera.scale_arcsec_per_px
-    n = len(results)
-    for key in results[0]["values"]:
-        v = np.array([r["values"][key] for r in results]) * f
-        s = v.std(ddof=1)
-        if s / math.sqrt(n) > tol or s / math.sqrt(2 * (n - 1)) > tol:
-            return False
-    return True
-
-
-def default_workers() -> int:
-    """All cores of this machine."""
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
-
-
-# --------------------------------------------------------------------------- CLI
-import click  # noqa: E402
-
-#: a lower bound of the memory one trial's results hold (one float64 per class, axis, variant)
-_BYTES_PER_TRIAL = 8 * len(CLASSES) * len(AXES) * len(VARIANTS)
-
-
-def _check_trials_fit(scn, *, trials, tolerance, source: str) -> None:
-    """Refuse a trial count whose results alone cannot fit in memory (before any work)."""
-    from simcam.lifecycle import check_memory
-
-    if trials is not None:
-        n, what = trials, f"--trials {trials}"
-    elif tolerance is None:
-        n, what = scn.validation.trials, f"{source}: validation.trials = {scn.validation.trials}"
-    else:
-        n, what = scn.validation.max_trials, f"{source}: validation.max_trials = {scn.validation.max_trials}"
-    check_memory(float(n) * _BYTES_PER_TRIAL, what=f"{what} (at least {_BYTES_PER_TRIAL} bytes per trial)")
-
-
-@click.command("validate")
-@click.argument("scenario", required=False, type=click.Path(dir_okay=False))
-@click.option("--trials", type=click.IntRange(min=2), default=None,
-              help="Number of Monte Carlo trials (default: the scenario's validation.trials).")
-@click.option("--tolerance", type=click.FloatRange(min=0, min_open=True), default=None,
-              help="Stop when every Monte Carlo standard error is below this (arcsec, 3 sigma).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Worker processes (default: all cores). Results do not depend on it.")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
-@click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr.")
-def validate_command(scenario, trials, tolerance, seed, workers, json_out, report_dir, progress) -> None:
-    """Monte Carlo validation of the seed-000 lab methods on SCENARIO (default: embedded seed-000)."""
-    import time
-
-    from budget.report import format_table, write_report
-    from simcam.cli_common import UserInputError, write_json_atomic
-    from simcam.scenario import load_scenario
-
-    if trials is not None and tolerance is not None:
-        raise UserInputError("--trials and --tolerance: give one of them")
-    scn = load_scenario(scenario)
-    _check_trials_fit(scn, trials=trials, tolerance=tolerance, source=str(scenario or "<embedded scenario>"))
-    t0 = time.perf_counter()
-    res = validate(scn, trials=trials, tolerance_3sigma_arcsec=tolerance, seed=seed,
-                   workers=workers or default_workers(), progress=progress)
-    dt = time.perf_counter() - t0
-    click.echo(f"{scn.name} (hash {scn.hash}), seed {seed}: {res.trials} trials "
-               f"(stopped by {res.stopped_by}) in {dt:.1f} s")
-    click.echo(format_table(res.summary()))
-    te = res.truths["te"]
-    f = 3.0 * scn.camera.scale_arcsec_per_px
-    click.echo(f"TE truth vs Cramer-Rao bound: x {te.x_px * f:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
-               f"y {te.y_px * f:.3f} vs {te.details['cramer_rao_y_px'] * f:.3f} arcsec (3 sigma)")
-    if json_out:
-        write_json_atomic(json_out, res.to_json())
-    if report_dir:
-        path = write_report(res, report_dir)
-        click.echo(f"report: {path}")

@@ -15,22 +15,26 @@ def test_registry_lists_the_built_studies():
         assert get_study(n).name == n
 
 
-def test_starcam_study_equals_validate():
-    from budget.validate import validate
-    from simcam.scenario import scenario_from_dict
-
+def test_starcam_study_equals_its_trials_and_truths():
+    """The runner adds nothing to seed 000's numbers: its samples are the seed-000 trials
+    (budget.validate.run_trial, the same protocols and estimators) in arcsec 3 sigma, its
+    truths budget.validate.truths, bit for bit."""
     import tomllib
+
+    from budget.validate import run_trial, truths
+    from simcam.scenario import scenario_from_dict
 
     scn = scenario_from_dict(tomllib.loads(TINY), source="tiny")
     study = get_study("starcam")
     res = run_study(study, scn, trials=3, seed=5, workers=1)
-    old = validate(scn, trials=3, seed=5, workers=1, keep_example=False)
     f = 3.0 * scn.camera.scale_arcsec_per_px
-    assert set(res.samples) == set(old.samples)
-    for key in old.samples:
-        assert np.array_equal(res.samples[key], old.samples[key] * f), key
+    direct = [run_trial(scn, 5, k)["values"] for k in range(3)]
+    assert set(res.samples) == set(direct[0])
+    for key in direct[0]:
+        assert np.array_equal(res.samples[key], np.array([d[key] * f for d in direct])), key
+    old = truths(scn, seed=5)
     for (cls, ax), t in res.truths.items():
-        assert t.value == getattr(old.truths[cls], f"{ax}_px") * f
+        assert t.value == getattr(old[cls], f"{ax}_px") * f
 
 
 def test_inductosyn_study_equals_harmonics_validate():

@@ -145,13 +145,15 @@ def zipped(tmp_path_factory):
 def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path):
     """A validation sweep's point holds validate(scenario, trials, seed).summary(); its
     truth equals the truth mode's for the same point."""
-    from budget.validate import AXES, CLASSES, VARIANTS, validate
+    from budget.runner.run import run_study
+    from budget.starcam.study import STUDY
+    from budget.validate import AXES, CLASSES, VARIANTS
 
     ds = zipped["ds"]
     assert ds.truth.dims == ("point", "class", "axis") and ds["mean"].dims == ("point", "class", "axis", "variant")
     assert list(ds["protocols.te.frames"].values) == [6, 12]
     p = load_sweep(zipped["path"]).points[1]
-    s = validate(p.scenario, trials=3, seed=p.seed, workers=1, keep_example=False).summary()
+    s = run_study(STUDY, p.scenario, trials=3, seed=p.seed, workers=1).summary()
     d = ds.isel(point=1)
     for c in CLASSES:
         for a in AXES:
@@ -159,9 +161,8 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
                 e = d.sel({"class": c, "axis": a, "variant": v})
                 r = s[c][a][v]
                 assert (float(e["mean"]), float(e.bias), float(e.spread)) == (r["mean"], r["bias"], r["std"])
-                # both carry the truth's own standard error in the bias's (issue 12, point 4);
-                # hypot and sqrt(a^2 + b^2) round differently: a relative 1e-12
-                assert float(e.se_bias) == pytest.approx(r["se_bias"], rel=1e-12)
+                # exact on purpose: a sweep point is the same run stored in another container
+                assert float(e.se_bias) == r["se_bias"]
                 assert [float(e.ci95_low), float(e.ci95_high)] == r["interval_95"]
                 assert float(e.truth) == r["truth"]
     assert int(d.trials) == 3 and int(d.stopped_by) == 0

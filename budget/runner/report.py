@@ -13,7 +13,6 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import numpy as np
 
 __all__ = ["finding", "format_table", "plot_estimates", "write_report"]
 
@@ -118,9 +117,15 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
     ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
     from simcam.cli_common import write_json_atomic
 
+    import sys
+
+    from simcam.lifecycle import partial_prefix, remove_stale_partials
+
     out = Path(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial.{os.getpid()}.", dir=out.parent))
+    # a report a killed run left half-written is removed (and said so), never taken as complete
+    remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
+    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
     try:
         study = result.study
         lines = [f"# {study.title}: Monte Carlo validation", "",

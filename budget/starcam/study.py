@@ -63,7 +63,9 @@ class StarCameraStudy(Study):
         check_camera_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
-        return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n == "lsfe_c2" else "result")
+        from budget.validate import INPUT_CLASSES
+
+        return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result")
                      for n, label, desc in _CLASSES)
 
     def default_trials(self, scenario) -> int:

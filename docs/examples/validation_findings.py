@@ -1,7 +1,7 @@
 """Re-make the tables of docs/validation.md ("What it reveals") from fresh validation runs.
 
 1. Both embedded cameras (``embedded:default``, ``embedded:seed000_noisy``) through
-   ``budget.validate.validate``: every class, truth with its Monte Carlo standard error,
+   the seed-000 study through the runner (``budget validate``): every class, truth with its Monte Carlo standard error,
    published and improved estimates (mean +- sd, bias %, significance against the
    combined standard error of the mean estimate and the truth).
 2. LSFE-C1 on calibrated cameras whose true remaining displacement is 0, below, at and
@@ -27,7 +27,10 @@ import numpy as np
 
 from budget.protocols import estimate, make_plan, simulate, spectral_design
 from budget.truth import lsfe_c1_truth, lsfe_s_truth
-from budget.validate import default_workers, trial_seeds, validate
+from budget.runner.executors import default_workers
+from budget.runner.run import run_study
+from budget.starcam.study import STUDY
+from budget.validate import trial_seeds
 from simcam.render import StarCamera
 from simcam.scenario import load_scenario, with_updates
 
@@ -65,10 +68,10 @@ def cell(s: dict) -> str:
 def camera_table(name: str, trials: int, workers: int) -> None:
     scn = load_scenario(f"embedded:{name}")
     t0 = time.perf_counter()
-    res = validate(scn, trials=trials, seed=1, workers=workers, keep_example=False)
+    res = run_study(STUDY, scn, trials=trials, seed=1, workers=workers)
     dt = time.perf_counter() - t0
     s = res.summary()
-    te = res.truths["te"]
+    te = res.truths[("te", "x")]
     f = 3 * scn.camera.scale_arcsec_per_px
     print(f"\n### `embedded:{name}`: {trials} trials, seed 1, {workers} workers, {dt:.0f} s\n")
     print(f"TE Cramer-Rao bound: x {te.details['cramer_rao_x_px'] * f:.3f}, y {te.details['cramer_rao_y_px'] * f:.3f}\n")
@@ -77,7 +80,7 @@ def camera_table(name: str, trials: int, workers: int) -> None:
     for cls, ax in ROWS:
         d = s[cls][ax]
         p = d["published"]
-        print(f"| {LABELS[cls]} | {ax} | {p['truth']:.3f} +- {p['se_truth']:.4f} | {cell(p)} | {cell(d['improved'])} |")
+        print(f"| {LABELS[cls]} | {ax} | {p['truth']:.3f} +- {p['truth_se']:.4f} | {cell(p)} | {cell(d['improved'])} |")
 
 
 def protocol_trials(scn, proto: str, trials: int, *, calibrated: bool) -> np.ndarray:
@@ -140,11 +143,11 @@ def one_effect_table(trials: int, workers: int) -> None:
     for name, cls in ONE_EFFECT:
         if name not in runs:
             scn = load_scenario(os.path.join(HERE, "scenarios", f"{name}.toml"))
-            runs[name] = validate(scn, trials=trials, seed=1, workers=workers, keep_example=False).summary()
+            runs[name] = run_study(STUDY, scn, trials=trials, seed=1, workers=workers).summary()
         for ax in ("x", "y"):
             d = runs[name][cls][ax]
             p = d["published"]
-            print(f"| `{name}` | {LABELS[cls]} | {ax} | {p['truth']:.3f} +- {p['se_truth']:.4f} | {cell(p)} | "
+            print(f"| `{name}` | {LABELS[cls]} | {ax} | {p['truth']:.3f} +- {p['truth_se']:.4f} | {cell(p)} | "
                   f"{cell(d['improved'])} |")
 
 
