@@ -115,7 +115,8 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
     grid_tasks, sens_tasks = plan_tasks(sw)
     state = check_store(out, sw)
-    runner = make_runner(workers=workers, scheduler=scheduler, dask_local=dask_local, inline=inline)
+    runner = make_runner(kind=sw.spec.kind, workers=workers, scheduler=scheduler, dask_local=dask_local,
+                         inline=inline)
     t0 = time.perf_counter()
     report = SweepReport(store=str(out), sweep_hash=sw.hash, runner=runner.description,
                          points=len(grid_tasks), already_done=0, computed=0, samples=len(sens_tasks))

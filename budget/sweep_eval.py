@@ -198,9 +198,3 @@ def evaluate_point(task: PointTask) -> PointResult:
         raise RuntimeError(f"point {task.index}: no value for {sorted(missing)}")
     return PointResult(task.group, task.index, {k: np.asarray(values[k], dtype=sch[k][1]) for k in sch},
                        simcam.__version__, os.getpid(), platform.node(), time.process_time() - c0)
-
-
-def evaluate_in_worker(task: PointTask) -> PointResult:
-    """:func:`evaluate_point` in a Dask worker: the study's worker set-up (one numba thread), as the local pool."""
-    study_for_kind(task.kind).worker_init()
-    return evaluate_point(task)
