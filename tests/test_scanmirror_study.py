@@ -79,3 +79,34 @@ def test_validate_names_the_file_of_a_starless_dwell(tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {bad}: star_sensing.mag_limit: no catalogue star")
+
+
+def test_star_dwell_count_is_a_sweepable_field():
+    """``star_sensing.dwells = N`` flies N star-sensing dwells, each extra one after a move of
+    ``extra_dwell_beta_step_deg`` in scan angle at the same step angle; more dwells see the
+    deviation from more directions, so the improved fit states a smaller uncertainty."""
+    import tomllib
+
+    import numpy as np
+
+    from budget.runner.registry import get_study
+    from budget.runner.run import run_study
+    from simcam.scanmirror.scanplan import evaluate_plan, plan_duration_s
+
+    study = get_study("scanmirror")
+    data = tomllib.loads(study.default_text())
+    sigma = {}
+    for n in (1, 2):
+        data.setdefault("star_sensing", {})["dwells"] = n
+        scn = study.from_dict(data, source="test")
+        plan = scn.effective_plan
+        stars = [s for s in plan.segments if s.kind == "dwell" and s.star_sensing]
+        assert len(stars) == n
+        t = np.arange(0.0, plan_duration_s(plan), 0.5)
+        p = evaluate_plan(plan, t)
+        beta = [np.rad2deg(p.beta_rad[p.star_dwell == j]).mean() for j in range(1, n + 1)]
+        # the extra dwell sits one step further in scan angle (exact: a held angle)
+        assert np.allclose(np.diff(beta), scn.star_sensing.extra_dwell_beta_step_deg, atol=1e-9)
+        res = run_study(study, scn, trials=6, seed=0, workers=1)
+        sigma[n] = np.nanmean(res.sigmas[("dtau", "improved", "x")])
+    assert sigma[2] < sigma[1]

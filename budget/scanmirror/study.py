@@ -77,7 +77,7 @@ class ScanMirrorStudy(Study):
             from simcam.scanmirror.world import World
 
             w = World(scenario)
-            last = int(evaluate_plan(scenario.scan_plan, np.arange(0.0, w.duration_s, 0.5)).scan.max())
+            last = int(evaluate_plan(scenario.effective_plan, np.arange(0.0, w.duration_s, 0.5)).scan.max())
             _SETUP[key] = Setup(scenario, scenario.validation.ground_step_s, scans=(last,),
                                 source=source or scenario.source)
         return _SETUP[key]

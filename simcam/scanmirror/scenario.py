@@ -6,6 +6,7 @@ from __future__ import annotations
 from importlib.resources import files
 from typing import Annotated, Literal, Union
 
+import numpy as np
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
@@ -78,6 +79,12 @@ class MirrorConfig(StrictModel):
 class StarSensingConfig(StrictModel):
     field_half_width_deg: Annotated[float, Field(gt=0, le=5)] = 1.0
     mag_limit: float = 7.5
+    #: star-sensing dwells per star-sensing segment of the plan: each one after the first
+    #: follows a move of ``extra_dwell_beta_step_deg`` in scan angle (a sweepable count;
+    #: :meth:`ScanMirrorScenario.effective_plan`)
+    dwells: Annotated[int, Field(ge=1, le=20)] = 1
+    extra_dwell_beta_step_deg: Annotated[float, Field(ge=-10, le=10)] = 1.0
+    extra_dwell_move_s: Annotated[float, Field(gt=0, le=60)] = 2.0
     centroid_sigma_arcsec: Pos = 1.0
     tracker_sigma_arcsec: Pos = 1.0
     frames_per_dwell: Annotated[int, Field(ge=1, le=100)] = 4
@@ -159,6 +166,35 @@ class ScanMirrorScenario(StrictModel):
     @property
     def source(self) -> str:
         return self._source
+
+    @property
+    def effective_plan(self) -> ScanPlan:
+        """The scan plan as flown: each star-sensing dwell followed by
+        ``star_sensing.dwells - 1`` more, each after a move of
+        ``star_sensing.extra_dwell_beta_step_deg`` in scan angle (``extra_dwell_move_s``,
+        half accelerating, half decelerating) at the same step angle; the plan as written
+        when ``dwells = 1``."""
+        ss = self.star_sensing
+        if ss.dwells == 1:
+            return self.scan_plan
+        from simcam.scanmirror.scanplan import evaluate_plan, segment_durations
+
+        segs = list(self.scan_plan.segments)
+        starts = np.concatenate([[0.0], np.cumsum(segment_durations(segs))])
+        out = []
+        for seg, t0, t1 in zip(segs, starts[:-1], starts[1:]):
+            out.append(seg)
+            if seg.kind != "dwell" or not seg.star_sensing:
+                continue
+            p = evaluate_plan(self.scan_plan, np.array([0.5 * (t0 + t1)]))
+            a, b = float(np.rad2deg(p.alpha_rad[0])), float(np.rad2deg(p.beta_rad[0]))
+            for j in range(1, ss.dwells):
+                half = 0.5 * ss.extra_dwell_move_s
+                out.append(MoveSegment(kind="move", to_alpha_deg=a, to_beta_deg=b + j * ss.extra_dwell_beta_step_deg,
+                                       accel_s=half, const_s=0.0, decel_s=half))
+                out.append(DwellSegment(kind="dwell", duration_s=seg.duration_s, star_sensing=True))
+        return ScanPlan(initial_alpha_deg=self.scan_plan.initial_alpha_deg,
+                        initial_beta_deg=self.scan_plan.initial_beta_deg, segments=tuple(out))
 
 
 def default_text() -> str:

@@ -79,7 +79,7 @@ class World:
         self.g0_rad = np.deg2rad(o.greenwich_angle_deg)
         self.R0_km = o.nominal_radius_km
         self.orbit_rate_rad_s = np.sqrt(self.earth.mu_km3_s2 / o.nominal_radius_km**3)
-        self.duration_s = plan_duration_s(sc.scan_plan)
+        self.duration_s = plan_duration_s(sc.effective_plan)
         self.r0_km, self.v0_km_s = elements_to_state(
             self.earth.mu_km3_s2, o.semi_major_axis_km, o.eccentricity, np.deg2rad(o.inclination_deg),
             np.deg2rad(o.raan_deg), np.deg2rad(o.arg_perigee_deg), np.deg2rad(o.true_anomaly_deg))
@@ -88,7 +88,7 @@ class World:
 
     # ------------------------------------------------------------------ parts
     def plan(self, t_s):
-        return evaluate_plan(self.scenario.scan_plan, t_s)
+        return evaluate_plan(self.scenario.effective_plan, t_s)
 
     def orbit_geometry(self, t_s, *, position_offset_rtn_km=None):
         """Exact ``A_r0r`` (N,3,3), radius R (N,), position and velocity in ``I`` at ``t_s``;
