@@ -1278,6 +1278,20 @@ def distortion_calibration_residual(
     -------
     DistortionEstimate
     """
+    def fit_residual_variance(resid, ax):
+        dd = resid[f"dd{ax}_px"].to_numpy()
+        return f"sigma_fit_residual_{ax}_px", float(np.sum(dd**2)) / (len(dd) - 10)
+
+    return _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
+                                 fit_residual_variance, min_points=11, method="after-calibration",
+                                 equations="docs/estimators.md (distortion left after calibration)")
+
+
+def _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
+                          variance, *, min_points, method, equations) -> DistortionEstimate:
+    """``sigma_C1^2 = V - sigma_m^2 - mean_j v_j`` per axis, clipped at 0 with a flag: a
+    variance ``V`` of the points (``variance(resid, axis) -> (detail name, V)``) less the
+    given marker variance and the temporal variance of the points' means."""
     ps = _check_plate_scale(plate_scale_arcsec)
     m3 = float(_nonneg("marker_3sigma_arcsec", marker_3sigma_arcsec))
     log = _Log()
@@ -1285,21 +1299,20 @@ def distortion_calibration_residual(
     resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
                                                    what=what, log=log)
     w = len(resid)
-    _need_points(w, 11, what)
+    if min_points:
+        _need_points(w, min_points, what)
     sm2 = (m3 / (3.0 * ps)) ** 2
     flags: list[str] = []
     sig = {}
     details: dict[str, Any] = {"marker_sigma_px": math.sqrt(sm2)}
     for ax in ("x", "y"):
-        dd = resid[f"dd{ax}_px"].to_numpy()
-        sres2 = float(np.sum(dd**2)) / (w - 10)
+        name, v = variance(resid, ax)
         noise2 = float(np.mean(resid[f"var_mean_{ax}_px2"].to_numpy()))
-        details[f"sigma_fit_residual_{ax}_px"] = math.sqrt(sres2)
+        details[name] = math.sqrt(v)
         details[f"temporal_variance_of_means_{ax}_px2"] = noise2
-        sig[ax] = _root_of_difference(sres2, sm2 + noise2, ax, flags, log, what)
+        sig[ax] = _root_of_difference(v, sm2 + noise2, ax, flags, log, what)
     return DistortionEstimate(
-        quantity="LSFE-C1", method="after-calibration",
-        equations="docs/estimators.md (distortion left after calibration)",
+        quantity="LSFE-C1", method=method, equations=equations,
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
         n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
         n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
@@ -1341,32 +1354,12 @@ def distortion_remaining_displacement(
     -------
     DistortionEstimate
     """
-    ps = _check_plate_scale(plate_scale_arcsec)
-    m3 = float(_nonneg("marker_3sigma_arcsec", marker_3sigma_arcsec))
-    log = _Log()
-    what = "LSFE-C1"
-    resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                   what=what, log=log)
-    w = len(resid)
-    sm2 = (m3 / (3.0 * ps)) ** 2
-    flags: list[str] = []
-    sig = {}
-    details: dict[str, Any] = {"marker_sigma_px": math.sqrt(sm2)}
-    for ax in ("x", "y"):
-        d = resid[f"d{ax}_px"].to_numpy()
-        sd2 = float(np.var(d, ddof=1))
-        noise2 = float(np.mean(resid[f"var_mean_{ax}_px2"].to_numpy()))
-        details[f"sigma_d{ax}_px"] = math.sqrt(sd2)
-        details[f"temporal_variance_of_means_{ax}_px2"] = noise2
-        sig[ax] = _root_of_difference(sd2, sm2 + noise2, ax, flags, log, what)
-    return DistortionEstimate(
-        quantity="LSFE-C1", method="remaining-displacement",
-        equations="docs/estimators.md (distortion of a calibrated camera)",
-        sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
-        n_stars=w, n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
-        n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
-        details=details, residuals=resid,
-    )
+    def displacement_variance(resid, ax):
+        return f"sigma_d{ax}_px", float(np.var(resid[f"d{ax}_px"].to_numpy(), ddof=1))
+
+    return _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
+                                 displacement_variance, min_points=0, method="remaining-displacement",
+                                 equations="docs/estimators.md (distortion of a calibrated camera)")
 
 
 def target_marker_error(
