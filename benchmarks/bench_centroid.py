@@ -1,4 +1,4 @@
-"""Centroid speed and agreement: budget.centroid against photutils, one run, same windows.
+"""Centroid speed and agreement: budget.centroid.core against photutils, one run, same windows.
 
 10,000 noisy 11x11 windows (pixel-integrated Gaussian PSF, Poisson shot noise and
 Gaussian read noise from one ``numpy.random.Generator``) go through
@@ -19,7 +19,7 @@ and, when SEP is installed, ``sep.winpos`` (windowed positions, Gaussian weight
 sigma 1 px) on the same mosaic.
 
 Then one 4096 x 2048 frame with a 5 x 5 star grid through the full-frame path
-(``budget.centroid.centroid_frames([frame], reference_xy=ref)``: level and noise from a
+(``budget.centroid.core.centroid_frames([frame], reference_xy=ref)``: level and noise from a
 row subsample, threshold, labelling of boxes around the references, matching, windows,
 CoG), and without the reference list (labelling the whole frame). Beside it, in the
 same run, photutils' full-frame path on the same frame: level and noise by
@@ -59,7 +59,7 @@ from _common import (  # noqa: E402
     optional_import,
 )
 
-from budget.centroid import (  # noqa: E402
+from budget.centroid.core import (  # noqa: E402
     centroid_cog,
     centroid_frames,
     centroid_gaussian_fit,

@@ -1,4 +1,4 @@
-"""Benchmark: full seed-001 calibration trials per second (budget.harmonics_validate).
+"""Benchmark: full seed-001 calibration trials per second (budget.inductosyn.validate).
 
 One trial = draw the polygon face errors and four passes of noise (24-face raw and
 verification, 23-face raw and verification: 94 points), simulate the lab tables, fit
@@ -36,8 +36,8 @@ def main() -> None:
     if args.quick:
         args.repeats = min(args.repeats, 2)
 
-    from budget.harmonics_validate import prepare, run_trials
-    from simcam.inductosyn import default_scenario
+    from budget.inductosyn.validate import prepare, run_trials
+    from simcam.encoder.inductosyn import default_scenario
 
     sc = default_scenario()
     t0 = time.perf_counter()

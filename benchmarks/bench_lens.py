@@ -1,4 +1,4 @@
-"""Lens tracing speed (simcam.lens) on the embedded star-camera lens, beside its peers.
+"""Lens tracing speed (simcam.starcam.lens) on the embedded star-camera lens, beside its peers.
 
 * **Bundle**: 100,000 rays of one field point and one wavelength through the 9 surfaces,
   Mitsuba ``llvm_ad_rgb`` intersections + double-precision refinement and refraction
@@ -34,9 +34,9 @@ sys.path.insert(1, os.path.dirname(_HERE))
 sys.path.insert(2, os.path.join(os.path.dirname(_HERE), "tests"))
 from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
-from simcam.lens.prescription import load_prescription  # noqa: E402
-from simcam.lens.products import LensProducts, compute_products  # noqa: E402
-from simcam.lens.tracer import LensTracer, field_bundle  # noqa: E402
+from simcam.starcam.lens.prescription import load_prescription  # noqa: E402
+from simcam.starcam.lens.products import LensProducts, compute_products  # noqa: E402
+from simcam.starcam.lens.tracer import LensTracer, field_bundle  # noqa: E402
 
 
 def timings(fn, repeat: int) -> list[float]:

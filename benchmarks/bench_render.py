@@ -45,9 +45,9 @@ from _common import (  # noqa: E402
     peak_traced_mb,
 )
 
-from simcam.render import Placement, StarCamera  # noqa: E402
-from simcam.scenario import default_scenario  # noqa: E402
-from simcam.targets import star_grid  # noqa: E402
+from simcam.starcam.render import Placement, StarCamera  # noqa: E402
+from simcam.starcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.targets import star_grid  # noqa: E402
 
 
 def numpy_frame(expected_e: np.ndarray, scn, seed: int) -> np.ndarray:

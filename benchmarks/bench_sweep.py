@@ -61,7 +61,7 @@ def _rates(rep) -> tuple[float, float]:
 
 
 def _throughput(path: str, d: str, repeat: int, configs) -> list:
-    from budget.sweep import run_sweep
+    from budget.sweeps.run import run_sweep
 
     rows = []
     for label, kw in configs:
@@ -85,9 +85,9 @@ def _throughput(path: str, d: str, repeat: int, configs) -> list:
 def _trial_cost(trials_list, repeat):
     import numpy as np
 
-    from budget.sweep_eval import PointTask, evaluate_point
-    from budget.validate import worker_init
-    from simcam.scenario import default_scenario, with_updates
+    from budget.sweeps.evaluate import PointTask, evaluate_point
+    from budget.starcam.validate import worker_init
+    from simcam.starcam.scenario import default_scenario, with_updates
 
     worker_init()  # one numba thread, as in a worker process
     base = default_scenario()

@@ -26,11 +26,11 @@ sys.path.insert(0, _HERE)
 sys.path.insert(1, os.path.dirname(_HERE))
 from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
 
-from budget import validate as V  # noqa: E402
+from budget.starcam import validate as V  # noqa: E402
 from budget.runner.executors import default_workers  # noqa: E402
 from budget.runner.run import run_study  # noqa: E402
 from budget.starcam.study import STUDY  # noqa: E402
-from simcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.scenario import default_scenario  # noqa: E402
 
 
 def main() -> None:
@@ -53,8 +53,8 @@ def main() -> None:
         t0 = time.perf_counter()
         V.run_trial(scn, 0, k)
         times.append(time.perf_counter() - t0)
-    from budget.protocols import make_plan
-    from simcam.targets import calibration_grid
+    from budget.starcam.protocols import make_plan
+    from simcam.starcam.targets import calibration_grid
 
     w_star = scn.lab.target.rows * scn.lab.target.cols
     w_cal = calibration_grid(scn).n_stars

@@ -84,7 +84,7 @@ Gaussian least-squares fit; photutils `centroid_com` in a loop, `centroid_source
 windows tiled into one image, `centroid_2dg` on a subset; SEP `winpos`. The rms position
 difference to photutils `centroid_com` is zero up to rounding for the identical
 definitions. Then one 4096 x 2048 frame with 25 stars: our full-frame path with a
-reference list (`budget.centroid.centroid_frames([frame], reference_xy=ref)`) and without
+reference list (`budget.centroid.core.centroid_frames([frame], reference_xy=ref)`) and without
 one, beside photutils (sigma-clipped level and noise, threshold, `centroid_sources` at the
 references) and SEP (background + extraction). Targets: at most 2 us per window for CoG
 (issue 3); at most 10 ms for the full frame with a reference list (issue 13)."""),
@@ -95,7 +95,7 @@ median; then K trials with the worker processes, wall time including the truths 
 workers' start-up. Targets (issue 4): one trial in at most 0.1 s on one core, 1000 trials
 in at most 2 minutes using both cores. Where a trial's time goes: the exact shot and read
 noise of the window pixels with their ADC, the border medians and the centres of gravity
-in one fused numba pass (`budget.kernels_trial`), most of it the Poisson draw; then the
+in one fused numba pass (`budget.starcam.kernels_trial`), most of it the Poisson draw; then the
 published and improved estimators; then tables and bookkeeping."""),
     "runner": ("Study machinery: start-up and workers", """\
 The README's main job (`budget validate --trials 200` on the embedded seed-000 scenario)

@@ -11,12 +11,12 @@ from simcam.cli_common import run_cli
 #: command name -> "module:attribute"; each module is imported only when its command runs
 #: (or when ``--help`` lists them), so a command pays only for its own imports
 COMMANDS = {
-    "combine": "budget.combine:combine_command",
-    "measure": "budget.measure:measure_command",
-    "simulate": "budget.simulate:simulate_command",
-    "harmonics": "budget.harmonics_cli:harmonics_group",
-    "sweep": "budget.sweep:sweep_command",
-    "plot": "budget.sweep_plot:plot_command",
+    "combine": "budget.starcam.combine:combine_command",
+    "measure": "budget.starcam.measure:measure_command",
+    "simulate": "budget.starcam.simulate:simulate_command",
+    "harmonics": "budget.inductosyn.cli:harmonics_group",
+    "sweep": "budget.sweeps.run:sweep_command",
+    "plot": "budget.sweeps.plot:plot_command",
 }
 
 

@@ -23,7 +23,7 @@ def cli() -> None:
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 def scenario_command(scenario: str | None) -> None:
     """Print the resolved SCENARIO (default: the embedded seed-000 one) as TOML."""
-    from simcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.scenario import load_scenario, scenario_to_toml
 
     scn = load_scenario(scenario)
     click.echo(f"# scenario hash {scn.hash}, simcam {__version__}")
@@ -49,10 +49,10 @@ def scenario_command(scenario: str | None) -> None:
 def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, compress, progress) -> None:
     """Render the star target of SCENARIO (default: embedded seed-000) to FITS + truth.csv."""
     from simcam import io
-    from simcam.render import Placement, StarCamera
-    from simcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.render import Placement, StarCamera
+    from simcam.starcam.scenario import load_scenario, scenario_to_toml
     from simcam.lifecycle import progress as progress_bar
-    from simcam.targets import star_grid
+    from simcam.starcam.targets import star_grid
 
     t0 = time.perf_counter()
     if compress and mode != "full":
@@ -120,7 +120,7 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, co
 
 
 def _register_lens_commands() -> None:
-    from simcam.lens.cli import optics_command
+    from simcam.starcam.lens.cli import optics_command
 
     cli.add_command(optics_command)
 

@@ -5,7 +5,7 @@ an earlier calibration; that model carries the errors of its own calibration. Th
 LSFE-C1 test (eqs 17-30) is run on such a camera, so the quantity it can measure is the
 displacement the *calibrated* camera still makes, not the raw lens distortion.
 
-Model (``optics.distortion_correction``, :class:`simcam.scenario.DistortionCorrectionModel`):
+Model (``optics.distortion_correction``, :class:`simcam.starcam.scenario.DistortionCorrectionModel`):
 at the points ``p_i`` of an earlier calibration grid, the camera's measured position
 (mosaic px) of the lamp's image is ``m_i = M(D(p_i) + s_lamp(D(p_i)))`` (``D`` the
 distortion, ``s_lamp`` the lamp-weighted lateral colour, ``M`` focal plane to mosaic),
@@ -71,9 +71,9 @@ class OnboardCorrection:
 
 def lamp_image_focal_px(camera, u_px, v_px):
     """Where the lab lamp (no filter) images the ideal focal point ``(u, v)``: distortion
-    then the lamp-weighted lateral colour (focal px), as :meth:`simcam.render.StarCamera.scene`
+    then the lamp-weighted lateral colour (focal px), as :meth:`simcam.starcam.render.StarCamera.scene`
     places an image."""
-    from simcam import optics
+    from simcam.starcam import optics
 
     scn = camera.scenario
     lc = scn.optics.lateral_colour

@@ -1,6 +1,6 @@
-"""Plain-numpy reference sequential ray tracer, written only for the tests of simcam.lens.
+"""Plain-numpy reference sequential ray tracer, written only for the tests of simcam.starcam.lens.
 
-It shares no code with ``simcam.lens`` (no Mitsuba, no Dr.Jit, its own sag, intersection
+It shares no code with ``simcam.starcam.lens`` (no Mitsuba, no Dr.Jit, its own sag, intersection
 and refraction formulas), so agreement with the Mitsuba tracer is an independent check.
 
 * Sphere / plane intersection in the vertex-referenced closed form (W. T. Welford,
@@ -105,7 +105,7 @@ def surfaces_from_prescription_dict(data):
     """Surfaces and a function of wavelength giving the indices, from the parsed TOML dict.
 
     Uses the glass coefficients passed in ``data["_glass_coeffs"]`` ({name: (B, C)}),
-    so that the test supplies catalogue numbers independently of simcam.lens.glass.
+    so that the test supplies catalogue numbers independently of simcam.starcam.lens.glass.
     """
     zs = 0.0
     out = []
@@ -125,7 +125,7 @@ def surfaces_from_prescription_dict(data):
 
 #: Sellmeier coefficients (B1..B3, C1..C3 in um^2) typed from the data sheets (SCHOTT
 #: optical glass data sheets; Malitson 1963 for CaF2, 1965 for fused silica), for the
-#: reference tracer: the tests do not take them from simcam.lens.glass.
+#: reference tracer: the tests do not take them from simcam.starcam.lens.glass.
 GLASS_COEFFS = {
     "N-BK7": ((1.03961212, 0.231792344, 1.01046945), (0.00600069867, 0.0200179144, 103.560653)),
     "F2": ((1.34533359, 0.209073176, 0.937357162), (0.00997743871, 0.0470450767, 111.886764)),

@@ -1,4 +1,4 @@
-"""Tests of budget.centroid (thresholded CoG, IWCoG, full-frame pipeline, flags)."""
+"""Tests of budget.centroid.core (thresholded CoG, IWCoG, full-frame pipeline, flags)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from photutils.centroids import centroid_com
 from scipy.special import erf
 
-from budget.centroid import (
+from budget.centroid.core import (
     CentroidFlag,
     CentroidWarning,
     centroid_cog,
@@ -296,7 +296,7 @@ def test_bad_input():
 
 def test_centroid_table_feeds_the_estimators():
     # plumbing: a centroid table from windows goes straight into TE
-    from budget.estimators import temporal_error
+    from budget.starcam.estimators import temporal_error
 
     rng = np.random.default_rng(21)
     w, n = 5, 30
@@ -353,7 +353,7 @@ def test_reference_list_path_equals_whole_frame_detection(monkeypatch, big_star)
     """Detection in boxes around the references gives the table the whole-frame labelling
     gives (stars close together, at the frame's edges, a missing star, a noise blob, dark
     subtraction; a star larger than its box falls back to the whole frame)."""
-    import budget.centroid as c
+    import budget.centroid.core as c
 
     frames = [_frame_with_stars(s, big_star=big_star)[0] for s in (1, 2)]
     ref = _frame_with_stars(1, big_star=big_star)[1]

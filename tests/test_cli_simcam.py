@@ -11,9 +11,9 @@ from click.testing import CliRunner
 from simcam import __version__
 from simcam.cli import cli, main
 from simcam.io import read_frame, read_windows
-from simcam.render import Placement, StarCamera
-from simcam.scenario import default_scenario, load_scenario, scenario_to_toml
-from simcam.targets import star_grid
+from simcam.starcam.render import Placement, StarCamera
+from simcam.starcam.scenario import default_scenario, load_scenario, scenario_to_toml
+from simcam.starcam.targets import star_grid
 
 SMALL = """
 [detector]

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from budget.combine import combine_budget, combine_command, load_budget_toml
+from budget.starcam.combine import combine_budget, combine_command, load_budget_toml
 from simcam.config_base import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]

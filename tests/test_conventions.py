@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy import constants, integrate
 
-from simcam.render import Placement, StarCamera
-from simcam.scenario import default_scenario, with_updates
-from simcam.targets import star_grid
+from simcam.starcam.render import Placement, StarCamera
+from simcam.starcam.scenario import default_scenario, with_updates
+from simcam.starcam.targets import star_grid
 
 NO_COLOUR = {
     "optics.lateral_colour.radial_px_per_nm": [],

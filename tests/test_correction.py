@@ -14,10 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from budget.truth import lsfe_c1_truth
+from budget.starcam.truth import lsfe_c1_truth
 from simcam.correction import poly_design
-from simcam.render import StarCamera
-from simcam.scenario import ScenarioError, scenario_from_dict
+from simcam.starcam.render import StarCamera
+from simcam.starcam.scenario import ScenarioError, scenario_from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},

@@ -1,4 +1,4 @@
-"""Tests of the distortion models in simcam.optics: analytic formulas written out by
+"""Tests of the distortion models in simcam.starcam.optics: analytic formulas written out by
 hand, finite-difference Jacobians, Newton inverses and sign conventions."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simcam.optics import (
+from simcam.starcam.optics import (
     CUBIC_MONOMIALS,
     BrownConradyDistortion,
     CompositeDistortion,

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simcam.geometry import Mosaic
-from simcam.scenario import ARCSEC_PER_RAD, default_scenario, with_updates
-from simcam.targets import calibration_grid, collimator_px_per_mm, pinhole_radius_px, platform_offsets_px, star_grid
+from simcam.starcam.geometry import Mosaic
+from simcam.starcam.scenario import ARCSEC_PER_RAD, default_scenario, with_updates
+from simcam.starcam.targets import calibration_grid, collimator_px_per_mm, pinhole_radius_px, platform_offsets_px, star_grid
 
 
 def test_nominal_mosaic_centres_and_gap():

@@ -1,4 +1,4 @@
-"""Tests of the harmonic fits, design analysis and uncertainty (budget.harmonics).
+"""Tests of the harmonic fits, design analysis and uncertainty (budget.inductosyn.harmonics).
 
 References: seed 001 eqs 7 (long period), 8 (short period), 9 (compensation); Tables 1-2
 (3 sigma = 3 x sample std); Student-t posterior of linear regression with flat prior
@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from budget.harmonics import (
+from budget.inductosyn.harmonics import (
     DesignError,
     HarmonicSpec,
     CompensationModel,

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from budget.harmonics_cli import harmonics_group
-from budget.harmonics import DesignError, HarmonicSpec, design_matrix
-from budget.harmonics_validate import (
+from budget.inductosyn.cli import harmonics_group
+from budget.inductosyn.harmonics import DesignError, HarmonicSpec, design_matrix
+from budget.inductosyn.validate import (
     prepare,
     run_trials,
     simulate_trial_exact,
@@ -22,7 +22,7 @@ from budget.harmonics_validate import (
     validate,
 )
 from simcam.cli_common import run_cli
-from simcam.inductosyn import AutocollimatorParams, default_scenario
+from simcam.encoder.inductosyn import AutocollimatorParams, default_scenario
 
 
 def budget_main(argv):
@@ -137,7 +137,7 @@ def test_monte_carlo_default_scenario_long():
 
 
 def test_aliasing_design_in_scenario_is_an_error():
-    from simcam.inductosyn import PolygonParams
+    from simcam.encoder.inductosyn import PolygonParams
 
     sc = _scenario(short_polygon=PolygonParams(faces=24))
     with pytest.raises(DesignError, match="calibration.short_polygon"):

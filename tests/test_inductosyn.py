@@ -1,4 +1,4 @@
-"""Tests of the inductosyn physical model and readout (simcam.inductosyn, simcam.polygon).
+"""Tests of the inductosyn physical model and readout (simcam.encoder.inductosyn, simcam.encoder.polygon).
 
 References: seed 001 eqs 1-6 (amplitude-discrimination readout), 7-9 (error model);
 the imperfection -> harmonic mapping derived in docs/inductosyn.md.
@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 from simcam.config_base import ScenarioError
-from simcam.inductosyn import (
+from simcam.encoder.inductosyn import (
     ARCSEC_PER_RAD,
     DriftParams,
     ElectricalErrors,
@@ -31,7 +31,7 @@ from simcam.inductosyn import (
     tracking_null_rad,
     winding_harmonic_order_map,
 )
-from simcam.polygon import face_taylor, measure_polygon, nominal_face_angles_deg
+from simcam.encoder.polygon import face_taylor, measure_polygon, nominal_face_angles_deg
 
 THETA_E = np.linspace(0.0, 2 * math.pi, 13, endpoint=False) + 0.1
 
@@ -266,7 +266,7 @@ def test_quantisation_residual_is_uniform():
 def test_polygon_measurement_noise_free_is_truth_at_reading():
     """A perfect rig (no noise, no face error, no offset, continuous readings) writes
     down exactly the truth at the reading."""
-    from simcam.inductosyn import AutocollimatorParams, PolygonParams
+    from simcam.encoder.inductosyn import AutocollimatorParams, PolygonParams
 
     sc = default_scenario()
     enc = Inductosyn(params=sc.encoder.model_copy(update={"resolution_deg": 0.0,

@@ -1,4 +1,4 @@
-"""Glass catalogue of simcam.lens: Sellmeier indices against the catalogue nd and vd.
+"""Glass catalogue of simcam.starcam.lens: Sellmeier indices against the catalogue nd and vd.
 
 The reference values below are typed from the glass makers' data sheets (SCHOTT optical
 glass data sheets; Malitson 1965 for fused silica, Malitson 1963 for CaF2), not from
@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from simcam.lens.errors import LensError
-from simcam.lens.glass import (
+from simcam.starcam.lens.errors import LensError
+from simcam.starcam.lens.glass import (
     AIR,
     CATALOGUE,
     FRAUNHOFER_C_NM,

@@ -9,10 +9,10 @@ import lens_reference as ref
 import numpy as np
 import pytest
 
-from simcam.lens.errors import LensError
-from simcam.lens.paraxial import paraxial
-from simcam.lens.prescription import load_prescription, prescription_from_dict
-from simcam.lens.tracer import LensTracer
+from simcam.starcam.lens.errors import LensError
+from simcam.starcam.lens.paraxial import paraxial
+from simcam.starcam.lens.prescription import load_prescription, prescription_from_dict
+from simcam.starcam.lens.tracer import LensTracer
 
 
 def singlet(r1, r2, d, glass="N-BK7", stop_gap=1.0, stop_first=True, stop_after=20.0):

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from simcam.lens.errors import LensError
-from simcam.lens.paraxial import paraxial
-from simcam.lens.prescription import (
+from simcam.starcam.lens.errors import LensError
+from simcam.starcam.lens.paraxial import paraxial
+from simcam.starcam.lens.prescription import (
     embedded_lens_names,
     load_prescription,
     prescription_from_dict,

@@ -1,4 +1,4 @@
-"""Traced products: PSF against Airy (and against simcam.optics' analytic disc x Airy), the
+"""Traced products: PSF against Airy (and against simcam.starcam.optics' analytic disc x Airy), the
 closed-form best focus against a numerical minimisation, the tables, the disk cache."""
 
 from __future__ import annotations
@@ -11,19 +11,19 @@ import pytest
 from scipy import integrate, optimize
 from scipy.special import j1
 
-from simcam import optics
-from simcam.lens import products as lp
-from simcam.lens.errors import LensError
-from simcam.lens.paraxial import paraxial
-from simcam.lens.prescription import load_prescription
-from simcam.lens.products import (
+from simcam.starcam import optics
+from simcam.starcam.lens import products as lp
+from simcam.starcam.lens.errors import LensError
+from simcam.starcam.lens.paraxial import paraxial
+from simcam.starcam.lens.prescription import load_prescription
+from simcam.starcam.lens.products import (
     LensProducts,
     best_focus_z,
     compute_products,
     lens_products,
     psf_stamp,
 )
-from simcam.lens.tracer import LensTracer, field_bundle, symmetric_pupil
+from simcam.starcam.lens.tracer import LensTracer, field_bundle, symmetric_pupil
 
 SMALL_ANALYSIS = """[analysis]
 field_max_deg = 3.6
@@ -90,7 +90,7 @@ def test_psf_of_a_point_spot_is_the_pixel_integrated_airy_pattern():
 
 
 def test_psf_of_a_uniform_disc_spot_matches_simcam_optics_disc_times_airy():
-    # a defocus-like spot: rays uniformly filling a disc of radius a; simcam.optics.render_stamps
+    # a defocus-like spot: rays uniformly filling a disc of radius a; simcam.starcam.optics.render_stamps
     # computes the same pixel-integrated (disc x Airy) image analytically (Goodman's OTFs)
     wl, n_f, pitch, a = 700.0, 3.4377, 5.5, 1.3
     x, y = symmetric_pupil(400_000)

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from test_lens_products import SMALL_ANALYSIS, small_star_camera
 
-from simcam import optics
+from simcam.starcam import optics
 from simcam.config_base import ScenarioError
-from simcam.lens import products as lp
-from simcam.lens.prescription import load_prescription
-from simcam.lens.products import LensProducts, lens_products
-from simcam.lens.simulator import simulator_optics
-from simcam.scenario import (
+from simcam.starcam.lens import products as lp
+from simcam.starcam.lens.prescription import load_prescription
+from simcam.starcam.lens.products import LensProducts, lens_products
+from simcam.starcam.lens.simulator import simulator_optics
+from simcam.starcam.scenario import (
     ARCSEC_PER_RAD,
     OpticsModel,
     Scenario,
@@ -205,8 +205,8 @@ def test_a_missing_lens_file_is_named(tmp_path):
 
 
 def test_rendering_through_the_lens_puts_stars_where_the_lens_images_them(lens_file):
-    from simcam.render import Placement, StarCamera
-    from simcam.targets import calibration_grid
+    from simcam.starcam.render import Placement, StarCamera
+    from simcam.starcam.targets import calibration_grid
 
     scn = lens_scenario(lens_file)
     presc = load_prescription(lens_file)

@@ -1,4 +1,4 @@
-"""The Mitsuba tracer of simcam.lens against the plain-numpy reference tracer (tests/lens_reference.py),
+"""The Mitsuba tracer of simcam.starcam.lens against the plain-numpy reference tracer (tests/lens_reference.py),
 and what happens to rays that miss, leave the clear aperture or are totally reflected.
 
 Real-ray positions must agree to 1e-9 mm on every surface, in both Mitsuba variants
@@ -19,9 +19,9 @@ import lens_reference as ref
 import numpy as np
 import pytest
 
-from simcam.lens.errors import LensError
-from simcam.lens.prescription import load_prescription
-from simcam.lens.tracer import (
+from simcam.starcam.lens.errors import LensError
+from simcam.starcam.lens.prescription import load_prescription
+from simcam.starcam.lens.tracer import (
     LOSS_REASONS,
     LensTracer,
     field_bundle,
@@ -269,7 +269,7 @@ def _run(code: str, env_update: dict, drop=("DRJIT_LIBLLVM_PATH",)):
 def test_a_fresh_process_finds_the_pypi_libllvm_and_uses_the_llvm_variant():
     out = _run(textwrap.dedent("""
         import os
-        from simcam.lens.backend import get_backend, MIN_LLVM_MAJOR
+        from simcam.starcam.lens.backend import get_backend, MIN_LLVM_MAJOR
         b = get_backend()
         assert b.variant == "llvm_ad_rgb" and b.llvm_version[0] >= MIN_LLVM_MAJOR, b
         assert os.environ["DRJIT_LIBLLVM_PATH"].endswith(".so"), os.environ["DRJIT_LIBLLVM_PATH"]
@@ -282,8 +282,8 @@ def test_a_fresh_process_finds_the_pypi_libllvm_and_uses_the_llvm_variant():
 def test_without_a_usable_libllvm_tracing_falls_back_to_scalar_with_a_warning(tmp_path):
     out = _run(textwrap.dedent("""
         import warnings
-        from simcam.lens.errors import LensBackendWarning, LensError
-        from simcam.lens.backend import get_backend
+        from simcam.starcam.lens.errors import LensBackendWarning, LensError
+        from simcam.starcam.lens.backend import get_backend
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             b = get_backend()
@@ -293,7 +293,7 @@ def test_without_a_usable_libllvm_tracing_falls_back_to_scalar_with_a_warning(tm
             get_backend("llvm_ad_rgb")
         except LensError as exc:
             print("refused:", exc)
-        from simcam.lens.tracer import LensTracer
+        from simcam.starcam.lens.tracer import LensTracer
         t = LensTracer("embedded:star_camera", variant="scalar_rgb")
         r = t.trace_field(field_deg=1.0, wavelength_nm=600.0, n_rays=5)
         assert r.alive.all()
@@ -305,8 +305,8 @@ def test_without_a_usable_libllvm_tracing_falls_back_to_scalar_with_a_warning(tm
 
 def test_newton_refinement_converges_from_a_poor_start():
     # the refinement alone, started 0.5 mm off along the ray, lands on the exact sag
-    from simcam.lens.surface import NUMPY, SurfaceShape
-    from simcam.lens.tracer import _refine_and_refract
+    from simcam.starcam.lens.surface import NUMPY, SurfaceShape
+    from simcam.starcam.lens.tracer import _refine_and_refract
 
     shape = SurfaceShape(curvature_per_mm=1 / 40.0, conic=-1.2, aspheric_coeffs=(3e-6,))
     x = np.linspace(-8, 8, 33)
@@ -322,7 +322,7 @@ def test_a_libllvm_whose_libcxx_links_are_missing_still_loads(tmp_path):
     # the karellen-llvm-core wheel ships libc++ as .so.1.0 files; its .pth hook makes the
     # .so.1 links on the first interpreter start. Without them a plain drjit import fails;
     # simcam preloads the .so.1.0 files (same sonames) and the llvm variant works.
-    from simcam.lens.backend import _karellen_libllvm
+    from simcam.starcam.lens.backend import _karellen_libllvm
 
     src = _karellen_libllvm()
     if src is None:
@@ -342,7 +342,7 @@ def test_a_libllvm_whose_libcxx_links_are_missing_still_loads(tmp_path):
     plain = _run("import drjit as dr; print(bool(dr.has_backend(dr.JitBackend.LLVM)))", env)
     assert plain.stdout.strip() == "False"  # the situation simcam repairs
     ours = _run(textwrap.dedent("""
-        from simcam.lens.backend import get_backend
+        from simcam.starcam.lens.backend import get_backend
         b = get_backend()
         assert b.variant == "llvm_ad_rgb", b
         print("ok")

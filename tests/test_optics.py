@@ -1,4 +1,4 @@
-"""Tests of simcam.optics PSF stamps, PSF width and lateral colour.
+"""Tests of simcam.starcam.optics PSF stamps, PSF width and lateral colour.
 
 Every numerical model is checked against an independent reference: scipy quadrature of
 the analytic PSF or transfer function, closed-form erf products, or hand-derived values.
@@ -14,8 +14,8 @@ import pytest
 from scipy import integrate
 from scipy.special import erf, j0, j1
 
-from simcam.kernels import psf as kpsf
-from simcam.optics import (
+from simcam.starcam.kernels import psf as kpsf
+from simcam.starcam.optics import (
     OpticsError,
     airy_cutoff_cyc_per_px,
     lateral_colour_shift_px,

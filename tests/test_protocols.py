@@ -11,11 +11,11 @@ import pytest
 from click.testing import CliRunner
 
 from budget.cli import cli as budget_cli
-from budget.measure import measure_frames
-from budget.protocols import estimate, make_plan, simulate
-from budget.simulate import write_protocol_frames
-from simcam.render import StarCamera
-from simcam.scenario import default_scenario, scenario_from_dict
+from budget.starcam.measure import measure_frames
+from budget.starcam.protocols import estimate, make_plan, simulate
+from budget.starcam.simulate import write_protocol_frames
+from simcam.starcam.render import StarCamera
+from simcam.starcam.scenario import default_scenario, scenario_from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -110,11 +110,11 @@ def frames_dir(tmp_path_factory, small):
 def _static_centroid_error(scn, proto, cond, frames=400):
     """Static error of the expected centroid of each star (truth order) in condition ``cond``
     of ``proto``'s plan (seed 5, 2 dark frames as written), and its standard error."""
-    from budget.protocols import PROTOCOL_STREAM
-    from budget.truth import _noisy_errors
-    from simcam.render import Placement
-    from simcam.scenario import with_updates
-    from simcam.targets import calibration_grid, star_grid
+    from budget.starcam.protocols import PROTOCOL_STREAM
+    from budget.starcam.truth import _noisy_errors
+    from simcam.starcam.render import Placement
+    from simcam.starcam.scenario import with_updates
+    from simcam.starcam.targets import calibration_grid, star_grid
 
     scn = with_updates(scn, {"validation.dark_frames": 2})
     cam = StarCamera(scn)
@@ -145,7 +145,7 @@ def test_measure_on_simulated_frames_matches_truth(frames_dir, proto):
         # Each star's frame mean against its true position corrected by the static error of
         # the expected centroid (threshold, window, pixel phase, PRNU/DSNU: the CoG's own
         # systematic error), computed for the same scene from 400 noisy frames centroided
-        # the same way (budget.truth._noisy_errors, 2 dark frames subtracted); within 5
+        # the same way (budget.starcam.truth._noisy_errors, 2 dark frames subtracted); within 5
         # standard errors of the difference, sqrt(se_mean^2 + se_static^2) per axis.
         bx, by, sbx, sby = _static_centroid_error(frames_dir["scenario"], proto, cond)
         j = nearest
@@ -253,7 +253,7 @@ def test_better_centroids_run_through_the_protocols(small, method):
 @pytest.mark.parametrize("dark_frames", [0, 2])
 def test_fused_fast_path_equals_windows_then_centroids(small, dark_frames):
     # simulate() without keep_windows exposes and centroids each window in one numba pass
-    # (budget.kernels_trial); with keep_windows it renders the windows and runs
+    # (budget.starcam.kernels_trial); with keep_windows it renders the windows and runs
     # centroid_windows on them. Same pixels, same centroid code: identical tables.
     cam = StarCamera(small)
     for proto in ("te", "hsfe", "chromatic", "distortion"):
@@ -279,7 +279,7 @@ def test_measure_finds_only_the_target_stars_at_the_validate_threshold(tmp_path)
     finds stars on the mean of a condition's frames: with two frames a single-frame 3-sigma
     detection would admit noise "stars" (issue 12); here exactly the 25 pinholes are
     found, each matched to one true star within 0.5 px."""
-    from budget.measure import DEFAULT_THRESHOLD_SIGMA
+    from budget.starcam.measure import DEFAULT_THRESHOLD_SIGMA
 
     assert DEFAULT_THRESHOLD_SIGMA == default_scenario().validation.threshold_sigma
     # the seed's V = 7.5 source (SMALL's brighter one saturates the TE pinholes)

@@ -93,37 +93,37 @@ def _fuzz_file(tmp: Path, name: str, payload: bytes, prog: str, argv, *, named=N
 
 
 def _load_sweep(path):
-    from budget.sweep_spec import load_sweep
+    from budget.sweeps.spec import load_sweep
 
     return load_sweep(path)
 
 
 def _load_scn(path):
-    from simcam.scenario import load_scenario
+    from simcam.starcam.scenario import load_scenario
 
     return load_scenario(path)
 
 
 def _load_ind(path):
-    from simcam.inductosyn import load_scenario
+    from simcam.encoder.inductosyn import load_scenario
 
     return load_scenario(str(path))
 
 
 def _load_budget(path):
-    from budget.combine import load_budget_toml
+    from budget.starcam.combine import load_budget_toml
 
     return load_budget_toml(path)
 
 
 def _load_lens(path):
-    from simcam.lens.prescription import load_prescription
+    from simcam.starcam.lens.prescription import load_prescription
 
     return load_prescription(path)
 
 
 def _load_csv(path):
-    from budget.harmonics import read_calibration_csv
+    from budget.inductosyn.harmonics import read_calibration_csv
 
     return read_calibration_csv(path=path)
 
@@ -338,8 +338,8 @@ def test_manifest_entries_stay_in_the_dataset_folder(tmp_path):
 
 
 def test_names_from_inputs_become_safe_file_names(tmp_path, monkeypatch):
-    from simcam.lens.prescription import load_prescription
-    from simcam.lens.products import cache_dir, cache_path
+    from simcam.starcam.lens.prescription import load_prescription
+    from simcam.starcam.lens.products import cache_dir, cache_path
     from simcam.lifecycle import safe_filename
 
     assert safe_filename("../../EVIL") == "EVIL" and safe_filename("..") == "unnamed"
@@ -358,7 +358,7 @@ def test_names_from_inputs_become_safe_file_names(tmp_path, monkeypatch):
 def test_compressed_frames_round_trip_exactly_and_are_measured(tmp_path):
     """Rice tile compression is lossless for integer frames: the frames read back equal the
     uncompressed ones bit for bit, so `budget measure` gives identical centroids."""
-    from budget.measure import measure_frames
+    from budget.starcam.measure import measure_frames
     from simcam.io import read_frame
 
     (tmp_path / "tiny.toml").write_text(TINY)
@@ -508,7 +508,7 @@ GRID = """
 
 @pytest.fixture(scope="module")
 def grid_ref(tmp_path_factory):
-    from budget.sweep import open_sweep, run_sweep
+    from budget.sweeps.run import open_sweep, run_sweep
 
     d = tmp_path_factory.mktemp("ref")
     (d / "tiny.toml").write_text(TINY)
@@ -522,7 +522,7 @@ def test_killed_sweep_leaves_no_worker_and_resumes_exactly(tmp_path, grid_ref, s
     """kill -9 of `budget sweep --workers 2` while its workers compute: they and the
     resource tracker are gone within 5 s; the next run finishes the store, equal to an
     uninterrupted run's."""
-    from budget.sweep import open_sweep, run_sweep
+    from budget.sweeps.run import open_sweep, run_sweep
 
     (tmp_path / "tiny.toml").write_text(TINY)
     (tmp_path / "sweep.toml").write_text(textwrap.dedent(GRID))

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.special import erf
 
-from simcam.render import Placement, RenderError, StarCamera
-from simcam.scenario import default_scenario, with_updates
-from simcam.targets import star_grid
+from simcam.starcam.render import Placement, RenderError, StarCamera
+from simcam.starcam.scenario import default_scenario, with_updates
+from simcam.starcam.targets import star_grid
 
 
 def _quiet(scn, **extra):
@@ -123,7 +123,7 @@ def test_pixel_mean_and_variance_match_the_noise_model():
     win = cam.render_windows(sc, frames=n, seed=11)
     pix = win.pixels[:, 0].astype(float)  # star 0's window, (n, 11, 11)
     # expected electrons per pixel with this detector's own PRNU/DSNU maps
-    from simcam.detector import dsnu_map, prnu_map
+    from simcam.starcam.detector import dsnu_map, prnu_map
 
     sig, col0, row0 = cam.expected_windows_e(sc)
     shape = sig.shape[1:]
@@ -171,7 +171,7 @@ def test_scene_cache_reuses_images_when_only_the_reference_changes():
     # exactly as a camera that never saw the first target computes it
     import pandas as pd
 
-    from simcam.targets import calibration_grid
+    from simcam.starcam.targets import calibration_grid
 
     scn = default_scenario()
     a, b = calibration_grid(scn, marker_seed=1), calibration_grid(scn, marker_seed=2)

@@ -7,7 +7,7 @@ import tomllib
 import pytest
 
 from simcam.config_base import ScenarioError
-from simcam.scenario import (
+from simcam.starcam.scenario import (
     ARCSEC_PER_RAD,
     Scenario,
     default_scenario,

@@ -17,12 +17,12 @@ def test_registry_lists_the_built_studies():
 
 def test_starcam_study_equals_its_trials_and_truths():
     """The runner adds nothing to seed 000's numbers: its samples are the seed-000 trials
-    (budget.validate.run_trial, the same protocols and estimators) in arcsec 3 sigma, its
-    truths budget.validate.truths, bit for bit."""
+    (budget.starcam.validate.run_trial, the same protocols and estimators) in arcsec 3 sigma, its
+    truths budget.starcam.validate.truths, bit for bit."""
     import tomllib
 
-    from budget.validate import run_trial, truths
-    from simcam.scenario import scenario_from_dict
+    from budget.starcam.validate import run_trial, truths
+    from simcam.starcam.scenario import scenario_from_dict
 
     scn = scenario_from_dict(tomllib.loads(TINY), source="tiny")
     study = get_study("starcam")
@@ -38,8 +38,8 @@ def test_starcam_study_equals_its_trials_and_truths():
 
 
 def test_inductosyn_study_equals_harmonics_validate():
-    from budget.harmonics_validate import prepare, run_trials
-    from simcam.inductosyn import default_scenario
+    from budget.inductosyn.validate import prepare, run_trials
+    from simcam.encoder.inductosyn import default_scenario
 
     scn = default_scenario()
     study = get_study("inductosyn")
@@ -60,8 +60,8 @@ def test_starcam_truths_spread_over_workers_are_the_same(new_maps):
     tasks) equal the truths computed in one piece, bit for bit."""
     import tomllib
 
-    from budget.validate import truths
-    from simcam.scenario import scenario_from_dict
+    from budget.starcam.validate import truths
+    from simcam.starcam.scenario import scenario_from_dict
 
     data = tomllib.loads(TINY)
     data["validation"]["new_maps_per_trial"] = new_maps

@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from budget.sweep_spec import expand_values, load_sweep, point_identity, point_seed
+from budget.sweeps.spec import expand_values, load_sweep, point_identity, point_seed
 from simcam.config_base import ScenarioError
 from tiny_camera import TINY
 
@@ -280,7 +280,7 @@ def test_hash_ignores_layout_but_not_content(tmp_path):
     assert h1 == h2 != h3
     # the base scenario's content is part of the hash
     (tmp_path / "tiny.toml").write_text(TINY.replace("frames = 10", "frames = 12"))
-    from budget.sweep_spec import load_sweep as again
+    from budget.sweeps.spec import load_sweep as again
 
     h4 = again(str(tmp_path / "h1.toml")).hash
     assert h4 != h1

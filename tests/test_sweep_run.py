@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from budget.sweep import open_sensitivity, open_sobol, open_sweep, run_sweep
-from budget.sweep_spec import load_sweep
+from budget.sweeps.run import open_sensitivity, open_sobol, open_sweep, run_sweep
+from budget.sweeps.spec import load_sweep
 from simcam.cli_common import UserInputError
 from tiny_camera import TINY
 
@@ -147,7 +147,7 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
     truth equals the truth mode's for the same point."""
     from budget.runner.run import run_study
     from budget.starcam.study import STUDY
-    from budget.validate import AXES, CLASSES, VARIANTS
+    from budget.starcam.validate import AXES, CLASSES, VARIANTS
 
     ds = zipped["ds"]
     assert ds.truth.dims == ("point", "class", "axis") and ds["mean"].dims == ("point", "class", "axis", "variant")
@@ -206,7 +206,7 @@ def test_killed_run_resumes_with_no_point_lost_or_computed_twice(grid, tmp_path)
 
     path = _write(tmp_path, GRID)
     store = tmp_path / "k"
-    code = f"from budget.sweep import run_sweep; run_sweep({path!r}, {str(store)!r}, inline=True)"
+    code = f"from budget.sweeps.run import run_sweep; run_sweep({path!r}, {str(store)!r}, inline=True)"
     log = open(tmp_path / "stderr.txt", "wb")  # noqa: SIM115 - closed below
     proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=log)
@@ -248,7 +248,7 @@ def test_store_of_another_sweep_file_is_refused_before_any_work(grid, tmp_path):
 
 # --------------------------------------------------------------------------- inductosyn
 def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
-    from budget.harmonics_validate import validate
+    from budget.inductosyn.validate import validate
 
     path = _write(tmp_path, """
         kind = "inductosyn"
@@ -292,7 +292,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
     assert "does not vary" in str(sob.note.sel({"class": "before", "axis": "angle", "variant": "published"}).values)
     assert np.isfinite(float(sob.ST.sel({"class": "residual", "axis": "angle", "variant": "published",
                                          "parameter": "calibration.autocollimator.noise_arcsec"})))
-    from budget.sweep_plot import plot_store
+    from budget.sweeps.plot import plot_store
 
     files = plot_store(tmp_path / "i", tmp_path / "plots")
     assert {f.name for f in files} == {"classes_vs_calibration.short_polygon.faces__angle.png",
@@ -333,7 +333,7 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
     assert "does not vary" in str(s.sel({"class": "lsfe_s"}).note.values)
     smp = open_sensitivity(tmp_path / "sob")
     assert smp.X.shape == (32, 2) and bool(smp.done.all())
-    from budget.sweep_plot import plot_store
+    from budget.sweeps.plot import plot_store
 
     files = plot_store(tmp_path / "sob", tmp_path / "plots")
     assert [f.name for f in files] == ["sobol__x.png"] and files[0].stat().st_size > 20_000
@@ -341,7 +341,7 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
 
 # --------------------------------------------------------------------------- plots, CLI
 def test_plots_of_grids_and_zips(grid, zipped, tmp_path):
-    from budget.sweep_plot import plot_store, precision_table
+    from budget.sweeps.plot import plot_store, precision_table
 
     files = plot_store(grid["store"], tmp_path / "g")
     names = {f.name for f in files}

@@ -1,6 +1,6 @@
 """Each class's truth is computed without the estimator's own model (issue 12, point 8).
 
-Every public estimator of budget.estimators, the protocol-level estimate() and the lab's
+Every public estimator of budget.starcam.estimators, the protocol-level estimate() and the lab's
 spectral model (spectral_design, lab_spectral_scenario) are replaced by functions that
 fail; each truth must still be computed. Plus independent references for the LSFE-S truth.
 """
@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-import budget.estimators as E
-import budget.protocols as P
-from budget import truth as T
+import budget.starcam.estimators as E
+import budget.starcam.protocols as P
+from budget.starcam import truth as T
 from simcam import spectra
-from simcam.render import StarCamera
-from simcam.scenario import scenario_from_dict
+from simcam.starcam.render import StarCamera
+from simcam.starcam.scenario import scenario_from_dict
 import tomllib
 
 from tiny_camera import TINY
@@ -54,7 +54,7 @@ def test_truth_does_not_use_the_estimators(monkeypatch, cam, cls):
 def _mean_wavelength_nm(st, scn):
     """Electron-weighted mean wavelength of a blackbody star through the true QE and optics,
     by trapezoidal quadrature on a 1 nm grid (independent of the render grid and of
-    simcam.sources)."""
+    simcam.starcam.sources)."""
     wl = np.arange(scn.render.wavelength_min_nm, scn.render.wavelength_max_nm + 0.5, 1.0)
     q = scn.detector.qe
     qe = spectra.cmos_qe_array(wavelength_nm=wl, peak_qe=q.peak_qe, peak_nm=q.peak_nm,
@@ -96,7 +96,7 @@ def test_lab_knowledge_is_the_lab_s_not_the_simulator_s():
 def test_embedded_noisy_scenario_is_the_default_with_the_seed_s_noise():
     """`embedded:seed000_noisy` is the default camera and lab with three noise values
     changed (source V, PRNU, DSNU); an unknown embedded name is a scenario error."""
-    from simcam.scenario import ScenarioError, default_scenario, load_scenario
+    from simcam.starcam.scenario import ScenarioError, default_scenario, load_scenario
 
     noisy = load_scenario("embedded:seed000_noisy")
     base = default_scenario()

@@ -15,12 +15,12 @@ import pytest
 from click.testing import CliRunner
 from scipy import stats
 
-from budget.protocols import estimate, make_plan, simulate
+from budget.starcam.protocols import estimate, make_plan, simulate
 from budget.runner.run import run_study
 from budget.starcam.study import STUDY
-from budget.validate import run_trial
-from simcam.render import StarCamera
-from simcam.scenario import default_scenario, scenario_from_dict
+from budget.starcam.validate import run_trial
+from simcam.starcam.render import StarCamera
+from simcam.starcam.scenario import default_scenario, scenario_from_dict
 
 BASE = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -114,7 +114,7 @@ def test_hsfe_invisible_effect_gives_estimate_consistent_with_zero():
     # sigma^2) ~ 1e-22 px (Poisson summation), and the noise smooths the threshold's edge:
     # its mean square (an unbiased split-half estimate) must be 0 within 3 of its own
     # standard errors.
-    from budget.truth import hsfe_truth
+    from budget.starcam.truth import hsfe_truth
 
     t = hsfe_truth(cam, frames=400, seed=7)
     for ax in ("x", "y"):
@@ -138,8 +138,8 @@ def test_lsfe_c1_on_a_calibrated_camera_with_zero_residual():
     * the improved (remaining displacement) variance before clipping, s_dX^2 - sigma_m^2 -
       mean v_j, is unbiased for 0: its mean over K trials within 4 standard errors of 0.
     """
-    from budget.truth import lsfe_c1_truth
-    from budget.validate import trial_seeds
+    from budget.starcam.truth import lsfe_c1_truth
+    from budget.starcam.validate import trial_seeds
 
     scn = _scn(detector=QUIET, optics={"distortion": {"k1": 5e-3, "k2": 0.0}, "lateral_colour": NO_OPTICS["lateral_colour"],
                                        "distortion_correction": {"order": 3, "marker_error_3sigma_arcsec": 0.0,
@@ -206,7 +206,7 @@ def test_adaptive_stopping_reaches_the_tolerance(small):
 
 def test_validate_cli_writes_json_and_report(tmp_path, small):
     from budget.cli import cli
-    from simcam.scenario import scenario_to_toml
+    from simcam.starcam.scenario import scenario_to_toml
 
     p = tmp_path / "s.toml"
     p.write_text(scenario_to_toml(small))

@@ -1,6 +1,6 @@
 """Seed 001 as a study of the runner (:mod:`budget.runner`).
 
-Trials are :func:`budget.harmonics_validate.run_trials` (vectorised: a chunk of trials at
+Trials are :func:`budget.inductosyn.validate.run_trials` (vectorised: a chunk of trials at
 once, each drawn from ``SeedSequence(seed, spawn_key=(k,))`` so a chunk equals its trials
 run one by one). Classes, in arcsec (3 sigma), variants ``published`` (the in-sequence
 procedure, eqs 7-9) and ``improved`` (the joint fit):
@@ -34,20 +34,20 @@ class InductosynStudy(Study):
     variants = ("published", "improved")
 
     def default_text(self) -> str:
-        from simcam.inductosyn import default_scenario_toml
+        from simcam.encoder.inductosyn import default_scenario_toml
 
         return default_scenario_toml()
 
     def from_dict(self, data: dict, *, source: str):
         from simcam.config_base import validate_model
-        from simcam.inductosyn import Inductosyn, InductosynScenario
+        from simcam.encoder.inductosyn import Inductosyn, InductosynScenario
 
         scn = validate_model(InductosynScenario, data, source=source)
         Inductosyn(params=scn.encoder, source=source)  # monotonicity check
         return scn
 
     def load_scenario(self, path=None):
-        from simcam.inductosyn import load_scenario
+        from simcam.encoder.inductosyn import load_scenario
 
         return load_scenario(path)
 
@@ -58,7 +58,7 @@ class InductosynStudy(Study):
 
     def check(self, scenario, *, where: str) -> None:
         # the calibration designs (24-face long, short and joint) separate the harmonics
-        from budget.harmonics_validate import prepare
+        from budget.inductosyn.validate import prepare
 
         prepare(scenario=scenario, dense_step_deg=1.0)
 
@@ -82,7 +82,7 @@ class InductosynStudy(Study):
         return 2000  # vectorised: a chunk costs little more than one trial
 
     def _prepared(self, scenario):
-        from budget.harmonics_validate import prepare
+        from budget.inductosyn.validate import prepare
         from simcam.config_base import model_hash
 
         key = model_hash(scenario)
@@ -92,7 +92,7 @@ class InductosynStudy(Study):
         return _PREPARED[key]
 
     def trial_batch(self, scenario, seed: int, ks: list[int]) -> list[TrialResult]:
-        from budget.harmonics_validate import run_trials
+        from budget.inductosyn.validate import run_trials
 
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
             return [self.trial(scenario, seed, k) for k in ks]
@@ -112,7 +112,7 @@ class InductosynStudy(Study):
         return self.trial_batch(scenario, seed, [k])[0]
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.harmonics import sigma3_arcsec
+        from budget.inductosyn.harmonics import sigma3_arcsec
 
         p = self._prepared(scenario)
         return {("before", "angle"): Truth(float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)), 0.0,

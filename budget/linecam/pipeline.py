@@ -5,7 +5,7 @@ the stars' centroids with their time tags, predict the footprint and identify th
   that holds the most catalogue stars brighter than the detectable magnitude (the
   patent's "simulated traversal of the whole sky").
 * Step 4, :func:`extract_centroids`: thresholded centre of gravity of each window
-  (:func:`budget.centroid.centroid_cog`) and the time tag. During the TDI exposure of
+  (:func:`budget.centroid.core.centroid_cog`) and the time tag. During the TDI exposure of
   ``N`` line periods the star moves (eq. 4.1); the patent rotates the blurred star by the
   motion angle ``theta = atan2(B, A)`` (:func:`motion_angle`) and centroids along and across
   the smear. A centre of gravity is equivariant under that rotation, so the rotated
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from budget.centroid import centroid_cog
+from budget.centroid.core import centroid_cog
 from simcam.linecam.attitude import strip_frame
 from simcam.linecam.scenario import ARCSEC_PER_RAD, LineCamScenario
 from simcam.linecam.world import PassImages, SkyStrip

@@ -1,7 +1,7 @@
 """Seed 000 as a study of the runner (:mod:`budget.runner`).
 
-The trial is :func:`budget.validate.run_trial` (every protocol simulated and estimated by
-the lab's estimators) and the truths are :func:`budget.validate.truths`; this module only
+The trial is :func:`budget.starcam.validate.run_trial` (every protocol simulated and estimated by
+the lab's estimators) and the truths are :func:`budget.starcam.validate.truths`; this module only
 states them in the contract's terms: values in arcsec, 3 sigma (3 x sigma_px x the
 scenario's plate scale, as seed 000 reports them).
 """
@@ -38,32 +38,32 @@ class StarCameraStudy(Study):
     variants = ("published", "improved")
 
     def default_text(self) -> str:
-        from simcam.scenario import DEFAULT_RESOURCE
+        from simcam.starcam.scenario import DEFAULT_RESOURCE
 
         return resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
 
     def from_dict(self, data: dict, *, source: str):
-        from simcam.scenario import scenario_from_dict
+        from simcam.starcam.scenario import scenario_from_dict
 
         return scenario_from_dict(data, source=source)
 
     def load_scenario(self, path=None):
-        from simcam.scenario import load_scenario
+        from simcam.starcam.scenario import load_scenario
 
         return load_scenario(path)
 
     def scenario_text(self, scenario) -> str:
-        from simcam.scenario import scenario_to_toml
+        from simcam.starcam.scenario import scenario_to_toml
 
         return scenario_to_toml(scenario)
 
     def check(self, scenario, *, where: str) -> None:
-        from budget.sweep_spec import check_camera_geometry
+        from budget.sweeps.spec import check_camera_geometry
 
         check_camera_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
-        from budget.validate import INPUT_CLASSES
+        from budget.starcam.validate import INPUT_CLASSES
 
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result")
                      for n, label, desc in _CLASSES)
@@ -81,7 +81,7 @@ class StarCameraStudy(Study):
         return int(scenario.validation.batch_trials)
 
     def worker_init(self) -> None:
-        from budget.validate import worker_init
+        from budget.starcam.validate import worker_init
 
         worker_init()
 
@@ -90,7 +90,7 @@ class StarCameraStudy(Study):
         return 3.0 * scenario.camera.scale_arcsec_per_px
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from budget.validate import run_trial
+        from budget.starcam.validate import run_trial
 
         r = run_trial(scenario, seed, k, keep=(k == 0))
         f = self._factor(scenario)
@@ -98,22 +98,22 @@ class StarCameraStudy(Study):
         return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
 
     def truth_parts(self, scenario, seed: int) -> list:
-        from budget.validate import truth_parts
+        from budget.starcam.validate import truth_parts
 
         return truth_parts(scenario, seed=seed)
 
     def truth_part(self, scenario, seed: int, part):
-        from budget.validate import truth_part
+        from budget.starcam.validate import truth_part
 
         return truth_part(scenario, seed=seed, part=part)
 
     def truths_from_parts(self, scenario, seed: int, results: list) -> dict[tuple[str, str], Truth]:
-        from budget.validate import truths_from_parts
+        from budget.starcam.validate import truths_from_parts
 
         return self._contract_truths(scenario, truths_from_parts(scenario, seed=seed, results=results))
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.validate import truths
+        from budget.starcam.validate import truths
 
         return self._contract_truths(scenario, truths(scenario, seed=seed))
 
@@ -123,13 +123,13 @@ class StarCameraStudy(Study):
         for cls, t in class_truths.items():
             for ax in ("x", "y"):
                 # each ClassTruth carries its own Monte Carlo standard error (LSFE and the
-                # total propagate their parts'; budget.truth)
+                # total propagate their parts'; budget.starcam.truth)
                 details = {k: v for k, v in t.details.items() if not isinstance(v, (list, dict))}
                 out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, getattr(t, f"se_{ax}_px") * f, details)
         return out
 
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from budget.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
+        from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
 
         ex = (result.example.extra.get("kept", {}) if result.example else {})
         figs = []
@@ -151,7 +151,7 @@ class StarCameraStudy(Study):
               else "a cubic calibration would leave (uncalibrated camera)")
         text = [
             "What is compared. **Truth**: the quantity each method claims to measure, computed from the "
-            "injected physics by a route that shares nothing with the estimators (budget.truth): TE, the mean "
+            "injected physics by a route that shares nothing with the estimators (budget.starcam.truth): TE, the mean "
             "temporal centroid sd; HSFE, the rms static error of the expected centroid under the lab's noise; "
             "LSFE-S, the rms chromatic displacement of the stellar population about its reference "
             f"({scn.validation.calibration_spectrum}); LSFE-C1, what the camera {c1}; LSFE-C2, the given "

@@ -6,8 +6,8 @@
    combined standard error of the mean estimate and the truth).
 2. LSFE-C1 on calibrated cameras whose true remaining displacement is 0, below, at and
    above eq 29's marker floor sqrt(9/31) x 0.5" = 0.27", and on an uncalibrated camera
-   (distortion protocol only: the truth of budget.truth.lsfe_c1_truth, the estimates of
-   budget.protocols.estimate, trial k seeded as in budget.validate).
+   (distortion protocol only: the truth of budget.starcam.truth.lsfe_c1_truth, the estimates of
+   budget.starcam.protocols.estimate, trial k seeded as in budget.starcam.validate).
 3. LSFE-S with the lab's spectral model exact and with the default stated errors
    (chromatic protocol only).
 4. The one-effect scenarios of ``docs/examples/scenarios``.
@@ -25,14 +25,14 @@ import warnings
 
 import numpy as np
 
-from budget.protocols import estimate, make_plan, simulate, spectral_design
-from budget.truth import lsfe_c1_truth, lsfe_s_truth
+from budget.starcam.protocols import estimate, make_plan, simulate, spectral_design
+from budget.starcam.truth import lsfe_c1_truth, lsfe_s_truth
 from budget.runner.executors import default_workers
 from budget.runner.run import run_study
 from budget.starcam.study import STUDY
-from budget.validate import trial_seeds
-from simcam.render import StarCamera
-from simcam.scenario import load_scenario, with_updates
+from budget.starcam.validate import trial_seeds
+from simcam.starcam.render import StarCamera
+from simcam.starcam.scenario import load_scenario, with_updates
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 LABELS = {"te": "TE", "hsfe": "HSFE", "lsfe_s": "LSFE-S", "lsfe_c1": "LSFE-C1", "lsfe_c2": "LSFE-C2",

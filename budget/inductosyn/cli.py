@@ -1,0 +1,258 @@
+"""`budget harmonics ...`: inductosyn calibration fits, design analysis and validation.
+
+Registered in :mod:`budget.cli` as the click group ``harmonics_group``. User mistakes
+raise :class:`simcam.config_base.ScenarioError` or
+:class:`simcam.cli_common.UserInputError`; ``budget.cli.main`` prints them as one line
+each and exits 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import click
+import numpy as np
+
+from simcam.cli_common import UserInputError, write_json_atomic
+
+__all__ = ["harmonics_group"]
+
+
+def _orders(text: str, what: str) -> tuple[int, ...]:
+    text = text.strip()
+    if not text:
+        return ()
+    try:
+        out = tuple(int(t) for t in text.split(","))
+    except ValueError:
+        raise UserInputError(f"--{what}: expected comma-separated positive integers, got {text!r}") from None
+    if any(o < 1 for o in out) or len(set(out)) != len(out):
+        raise UserInputError(f"--{what}: orders must be distinct positive integers, got {text!r}")
+    return out
+
+
+@click.group("harmonics", context_settings={"help_option_names": ["-h", "--help"]})
+def harmonics_group() -> None:
+    """Inductosyn angle-error harmonics (seed 001): fit, design, validate."""
+
+
+@harmonics_group.command("scenario")
+def scenario_command() -> None:
+    """Print the resolved default inductosyn scenario (TOML, all fields)."""
+    import tomli_w
+
+    from simcam.encoder.inductosyn import default_scenario
+
+    click.echo(tomli_w.dumps(default_scenario().model_dump(mode="json")), nl=False)
+
+
+@harmonics_group.command("design")
+@click.option("--faces", type=int, required=True, help="Polygon face count.")
+@click.option("--pole-pairs", type=int, default=360, show_default=True)
+@click.option("--mech-orders", default="1,2", show_default=True)
+@click.option("--elec-orders", default="1,2", show_default=True)
+@click.option("--no-constant", is_flag=True, help="Fit without a constant term.")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
+def design_command(faces, pole_pairs, mech_orders, elec_orders, no_constant, json_out) -> None:
+    """Rank, condition number and aliasing of a polygon calibration design."""
+    from budget.inductosyn.harmonics import HarmonicSpec, alias_order, analyse_design
+    from simcam.encoder.polygon import nominal_face_angles_deg
+
+    if faces < 3:
+        raise UserInputError("--faces: a polygon has at least 3 faces")
+    if pole_pairs < 1:
+        raise UserInputError("--pole-pairs: must be >= 1")
+    spec = HarmonicSpec(mech_orders=_orders(mech_orders, "mech-orders"),
+                        elec_orders=_orders(elec_orders, "elec-orders"), pole_pairs=pole_pairs,
+                        n_constants=0 if no_constant else 1)
+    an = analyse_design(angle_deg=nominal_face_angles_deg(faces=faces), spec=spec)
+    click.echo(f"{faces} faces, {pole_pairs} pole pairs: {len(an.names)} coefficients, "
+               f"rank {an.rank}, condition number {an.condition_number:.4g}")
+    for m in spec.mech_orders:
+        o, sg = alias_order(faces=faces, cycles_per_rev=m)
+        click.echo(f"  mechanical {m}: appears as mechanical order {o}" + (" (sine sign flipped)" if sg < 0 else ""))
+    for n in spec.elec_orders:
+        o, sg = alias_order(faces=faces, cycles_per_rev=n * pole_pairs)
+        click.echo(f"  electrical {n} ({n * pole_pairs}/turn): appears as mechanical order {o}"
+                   + (" (a constant)" if o == 0 else "") + (" (sine sign flipped)" if sg < 0 else ""))
+    if an.dependent_groups:
+        click.echo("  inseparable: " + "; ".join("{" + ", ".join(g) + "}" for g in an.dependent_groups))
+    if json_out:
+        write_json_atomic(json_out, {"faces": faces, "pole_pairs": pole_pairs, **an.as_dict()})
+
+
+@harmonics_group.command("fit")
+@click.argument("csv_files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--period", type=click.Choice(["long", "short", "both", "sequence"]), required=True,
+              help="long: eq 7; short: eq 8 (sorted by fractional degree); both: joint fit of "
+                   "mechanical and electrical harmonics (one constant per table); sequence: the "
+                   "published procedure, eq 7 on the first table then eq 8 on the second.")
+@click.option("--pole-pairs", type=int, default=360, show_default=True)
+@click.option("--mech-orders", default="1,2", show_default=True, help="For --period both.")
+@click.option("--elec-orders", default="1,2", show_default=True, help="For --period both.")
+@click.option("--requirement-arcsec", type=float, default=None,
+              help="Pointing requirement: report acceptance (3 sigma after <= requirement/3).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
+@click.option("--plot", "plot_out", type=click.Path(dir_okay=False), default=None)
+def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, requirement_arcsec,
+                json_out, plot_out) -> None:
+    """Fit harmonics to calibration table(s) CSV (columns angle_deg, error_arcsec)."""
+    import simcam
+    from budget.inductosyn.harmonics import (
+        accept,
+        calibrate_in_sequence,
+        fit_joint,
+        fit_long_period,
+        fit_short_period,
+        read_calibration_csv,
+        sigma3_arcsec,
+    )
+
+    if pole_pairs < 1:
+        raise UserInputError("--pole-pairs: must be >= 1")
+    tables = [read_calibration_csv(path=f) for f in csv_files]
+    nfiles = len(csv_files)
+    if period in ("long", "short") and nfiles != 1:
+        raise UserInputError(f"--period {period} takes one CSV file, got {nfiles}")
+    if period == "sequence" and nfiles != 2:
+        raise UserInputError("--period sequence takes two CSV files: the long-period (24-face) "
+                             "table, then the short-period (23-face) table")
+    fits = []
+    if period == "long":
+        fits.append(("eq 7", fit_long_period(angle_deg=tables[0][0], error_arcsec=tables[0][1],
+                                             source=csv_files[0])))
+    elif period == "short":
+        fits.append(("eq 8", fit_short_period(angle_deg=tables[0][0], error_arcsec=tables[0][1],
+                                              pole_pairs=pole_pairs, source=csv_files[0])))
+    elif period == "both":
+        fits.append(("joint", fit_joint(tables=tables, pole_pairs=pole_pairs,
+                                        mech_orders=_orders(mech_orders, "mech-orders"),
+                                        elec_orders=_orders(elec_orders, "elec-orders"),
+                                        sources=list(csv_files))))
+    else:
+        seq = calibrate_in_sequence(long_angle_deg=tables[0][0], long_error_arcsec=tables[0][1],
+                                    short_angle_deg=tables[1][0], short_error_arcsec=tables[1][1],
+                                    pole_pairs=pole_pairs)
+        fits += [("eq 7", seq["long"]), ("eq 8", seq["short"])]
+
+    coefficients = {}
+    for label, f in fits:
+        click.echo(f"{label} fit: {f.angle_deg.size} points, {len(f.names)} coefficients, "
+                   f"residual sigma {f.sigma_arcsec:.4g} arcsec ({f.dof} dof)")
+        for nm, v, s in zip(f.names, f.coefficients_arcsec, f.standard_errors_arcsec):
+            click.echo(f"  {nm:>7s} = {v:10.4f} +- {s:.4f} arcsec")
+            coefficients[nm] = {"value_arcsec": float(v), "std_arcsec": float(s)}
+    final = fits[-1][1]
+    if period == "sequence":
+        before = float(sigma3_arcsec(error_arcsec=tables[1][1]))
+    else:
+        before = final.sigma3_before_arcsec
+    after = final.sigma3_after_arcsec
+    mx = final.max_abs_after_arcsec
+    click.echo(f"3 sigma before: {before:.3f} arcsec   3 sigma after: {after:.3f} arcsec   "
+               f"max |residual|: {mx:.3f} arcsec")
+    payload = {"period": period, "inputs": list(csv_files), "pole_pairs": pole_pairs,
+               "coefficients": coefficients, "sigma3_before_arcsec": before,
+               "sigma3_after_arcsec": after, "max_abs_after_arcsec": mx,
+               "fits": {label: f.as_dict() for label, f in fits},
+               "version": simcam.__version__}
+    if requirement_arcsec is not None:
+        if not (requirement_arcsec > 0 and math.isfinite(requirement_arcsec)):
+            raise UserInputError("--requirement-arcsec: must be a positive number")
+        ok = accept(sigma3_after_arcsec=after, requirement_arcsec=requirement_arcsec)
+        payload["accepted"] = ok
+        payload["requirement_arcsec"] = requirement_arcsec
+        click.echo(f"acceptance (3 sigma after <= {requirement_arcsec / 3:.3f} arcsec): "
+                   f"{'yes' if ok else 'no'}")
+    if json_out:
+        write_json_atomic(json_out, payload)
+    if plot_out:
+        _plot_fit(fits, plot_out, pole_pairs)
+
+
+def _plot_fit(fits, path, pole_pairs) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(fits), 2, figsize=(10, 3.6 * len(fits)), squeeze=False)
+    for row, (label, f) in enumerate(fits):
+        a = f.angle_deg
+        short = not f.spec.mech_orders
+        if short:
+            cyc = pole_pairs * a / 360.0
+            x = (cyc - np.floor(cyc)) * 360.0
+            grid = np.linspace(0, 360, 721)
+            model = f.evaluate_arcsec(angle_deg=grid / pole_pairs)
+            xl = "electrical phase (deg)"
+        else:
+            x = a
+            grid = np.linspace(0, 360, 721)
+            model = f.evaluate_arcsec(angle_deg=grid) if not f.spec.elec_orders else None
+            xl = "angle (deg)"
+        ax = axes[row, 0]
+        ax.plot(x, f.error_arcsec, "o", ms=4, label="measured")
+        ax.plot(x, f.error_arcsec - f.residual_arcsec, "x", ms=5, label="model at the points")
+        if model is not None:
+            ax.plot(grid, model, lw=0.8, label="model")
+        ax.set_xlabel(xl)
+        ax.set_ylabel("error (arcsec)")
+        ax.set_title(f"{label}: 3 sigma before {f.sigma3_before_arcsec:.2f} arcsec")
+        ax.legend(fontsize=7)
+        ax = axes[row, 1]
+        ax.plot(x, f.residual_arcsec, "o", ms=4)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel(xl)
+        ax.set_ylabel("residual (arcsec)")
+        ax.set_title(f"after: 3 sigma {f.sigma3_after_arcsec:.2f}, max {f.max_abs_after_arcsec:.2f} arcsec")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+@harmonics_group.command("validate")
+@click.argument("scenario", required=False, type=click.Path(dir_okay=False))
+@click.option("--trials", type=int, default=None, help="Number of calibrations (default: scenario's).")
+@click.option("--seed", type=int, default=None, help="Seed (default: scenario's).")
+@click.option("--dense-step-deg", type=float, default=None,
+              help="Step of the truth grid (default: scenario's, 0.001 deg).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
+@click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None)
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_dir, progress) -> None:
+    """Monte Carlo validation of the calibration on SCENARIO (default: embedded)."""
+    from budget.inductosyn.validate import validate
+    from simcam.encoder.inductosyn import load_scenario
+
+    sc = load_scenario(scenario)
+    k = sc.validation.trials if trials is None else trials
+    s = sc.validation.seed if seed is None else seed
+    if k < 2:
+        raise UserInputError("--trials: need at least 2 trials for a spread")
+    if s < 0:
+        raise UserInputError("--seed: must be >= 0")
+    if dense_step_deg is not None and not (0 < dense_step_deg <= 1):
+        raise UserInputError("--dense-step-deg: must be in (0, 1]")
+    out = validate(scenario=sc, trials=k, seed=s, dense_step_deg=dense_step_deg,
+                   report_dir=report_dir, progress=progress)
+    sm = out["summary"]
+
+    def fmt(key):
+        v = sm[key]
+        return f"{v['mean']:.3f} [{v['p05']:.3f}, {v['p95']:.3f}]"
+
+    click.echo(f"scenario {out['scenario_hash']}  seed {s}  trials {k}  truth points {sm['dense_points']}")
+    click.echo(f"3 sigma before (dense truth): {sm['dense_sigma3_before_arcsec']:.3f} arcsec")
+    click.echo(f"long  period 24 faces: before {fmt('long_sigma3_before_arcsec')}  after {fmt('long_sigma3_after_arcsec')}")
+    click.echo(f"short period 23 faces: before {fmt('short_sigma3_before_arcsec')}  after {fmt('short_sigma3_after_arcsec')}")
+    click.echo(f"dense residual 3 sigma: in sequence {fmt('dense_sigma3_after_arcsec')}  "
+               f"joint {fmt('joint_dense_sigma3_after_arcsec')}")
+    click.echo(f"dense max |residual - mean|: in sequence {fmt('dense_maxabs_after_arcsec')}  "
+               f"joint {fmt('joint_dense_maxabs_after_arcsec')}")
+    click.echo(f"after drift (in sequence): {sm['dense_sigma3_after_drift_arcsec']['mean']:.3f} arcsec 3 sigma")
+    if json_out:
+        write_json_atomic(json_out, out)
+    if report_dir:
+        click.echo(f"report: {report_dir}/report.md")

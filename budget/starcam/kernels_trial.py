@@ -1,0 +1,115 @@
+"""numba kernel of the Monte Carlo fast path: windows exposed and centroided in one pass.
+
+:func:`expose_centroid_frames` gives, for each (frame, window), exactly what
+:func:`simcam.starcam.detector.expose_windows_frames` followed by the float64 conversion, the
+dark subtraction and :func:`budget.centroid.core.centroid_windows` (thresholded centre of
+gravity, border or given background, given threshold) give, bit for bit, because it
+calls the same pixel kernel (:func:`simcam.starcam.kernels.detector.noise_adc_frames`) and the same
+per-window centroid functions (:func:`budget.centroid.kernels.border_one`,
+:func:`budget.centroid.kernels.cog_one`). What it saves is memory traffic: a window
+lives in a scratch buffer of ``frames * h * w`` doubles instead of passing through a
+(frames, windows, h, w) array, its float64 copy and the concatenation of all
+conditions. ``tests/test_protocols.py`` checks the equality.
+
+Arrays and scalars only; the orchestration is in :func:`budget.starcam.protocols.simulate`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from budget.centroid.kernels import FLAG_LOST, border_one, cog_one
+from simcam.starcam.kernels.detector import noise_adc_frames
+
+
+@njit(cache=True)
+def _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+            frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
+            background, threshold, subtract_threshold, saturation, wins, buf,
+            out_x, out_y, out_flux, out_flag):
+    """Window ``k`` in every frame: pixels into ``wins`` (F, h, w), then each frame centroided."""
+    nf, h, w = wins.shape
+    noise_adc_frames(mean_e[k], wins, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset,
+                     read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize, max_dn)
+    for f in range(nf):
+        win = wins[f]
+        if dark_mean.shape[0]:
+            for i in range(h):
+                for j in range(w):
+                    win[i, j] = win[i, j] - dark_mean[k, i, j]
+        if border_background:
+            b, _ = border_one(win, buf, False)
+        else:
+            b = background[k]
+        thr = threshold[k]
+        pre = 0
+        if not (math.isfinite(b) and math.isfinite(thr)):
+            pre = FLAG_LOST
+            if not math.isfinite(thr):
+                thr = np.inf
+        x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr,
+                                 subtract_threshold, saturation)
+        out_x[f, k] = x
+        out_y[f, k] = y
+        out_flux[f, k] = fl
+        out_flag[f, k] = flag | pre
+
+
+@njit(cache=True)
+def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset,
+                                  read_noise, full_well, frame_keys, shot_noise, read_noise_on,
+                                  quantize, max_dn, dark_mean, border_background, background,
+                                  threshold, subtract_threshold, saturation,
+                                  out_x, out_y, out_flux, out_flag):
+    """Expose ``n`` windows in ``F`` frames and centroid each (see module docstring).
+
+    Parameters
+    ----------
+    mean_e : float64 (n, h, w)
+        Mean charge (e-) from :func:`simcam.starcam.detector.window_chain`.
+    row0, col0 : int64 (n,)
+        Mosaic origins of the windows (the centroid's ``y0``, ``x0``).
+    mosaic_cols, chip_cols, gain, offset, read_noise, full_well, max_dn
+        The chain's geometry and per-chip constants.
+    frame_keys : uint64 (F,)
+    shot_noise, read_noise_on, quantize : bool
+    dark_mean : float64 (n, h, w) or (0, h, w)
+        Mean star-free window (DN) subtracted from every frame; empty: none.
+    border_background : bool
+        Background from the border median (else ``background[k]``).
+    background, threshold : float64 (n,)
+        Given background (unused with ``border_background``) and threshold above it (DN).
+    subtract_threshold : bool
+    saturation : float
+    out_x, out_y, out_flux : float64 (F, n)
+    out_flag : int64 (F, n)
+    """
+    n, h, w = mean_e.shape
+    wins = np.empty((frame_keys.shape[0], h, w))
+    buf = np.empty(2 * w + 2 * max(h - 2, 0))
+    for k in range(n):
+        _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+                frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
+                background, threshold, subtract_threshold, saturation, wins, buf,
+                out_x, out_y, out_flux, out_flag)
+
+
+@njit(parallel=True, cache=True)
+def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset,
+                           read_noise, full_well, frame_keys, shot_noise, read_noise_on,
+                           quantize, max_dn, dark_mean, border_background, background,
+                           threshold, subtract_threshold, saturation,
+                           out_x, out_y, out_flux, out_flag):
+    """Threaded twin of :func:`expose_centroid_frames_serial` (windows in parallel; each
+    (frame, window) result is the same whatever the thread count)."""
+    n, h, w = mean_e.shape
+    for k in prange(n):
+        wins = np.empty((frame_keys.shape[0], h, w))
+        buf = np.empty(2 * w + 2 * max(h - 2, 0))
+        _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+                frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
+                background, threshold, subtract_threshold, saturation, wins, buf,
+                out_x, out_y, out_flux, out_flag)

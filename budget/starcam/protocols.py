@@ -1,0 +1,469 @@
+"""The seed-000 lab protocols as acquisition plans (data), and running them on the simulator.
+
+An :class:`AcquisitionPlan` is a list of conditions, each saying which target, where in
+the field, which hexapod pose, which filter and how many frames: exactly what a lab
+technician writes in a test procedure and what a manifest of real frames records. The
+plans are built from the scenario's ``[protocols]`` section (no protocol is a branch in
+code), and the same centroid tables come out of :func:`simulate` (simulated windows) and
+out of ``budget measure`` (real FITS frames).
+
+Plans (seed 000, section 1):
+
+* ``te`` (1.2): the 5x5 target, static, ``N`` frames;
+* ``hsfe`` (1.3): ``M`` conditions, the image moved ``step_px`` along ``direction_deg``
+  between consecutive conditions by the hexapod, ``N`` frames each;
+* ``chromatic`` (1.4.1): the target at each corner field, behind each filter, ``N``
+  frames each (condition index = field index x number of filters + filter index);
+* ``distortion`` (1.4.2): the calibrated grid target, ``N`` frames; its reference
+  coordinates come with the plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from simcam.starcam.scenario import Scenario
+from simcam.starcam.targets import calibration_grid, platform_offsets_px, star_grid
+
+PROTOCOLS = ("te", "hsfe", "chromatic", "distortion")
+#: noise-stream id of each protocol: condition streams are ``1000 * id + condition``
+PROTOCOL_STREAM = {"te": 1, "hsfe": 2, "chromatic": 3, "distortion": 4}
+#: SeedSequence root of the hexapod positioning errors (run seed)
+STREAM_PLATFORM = 401
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One acquisition condition of a plan."""
+
+    index: int
+    label: str
+    target: Literal["star_grid", "calibration_grid"]
+    frames: int
+    field_center_px: tuple[float, float] | None = None
+    platform_dx_px: float = 0.0
+    platform_dy_px: float = 0.0
+    filter_nm: float | None = None
+    field: str = ""
+
+
+@dataclass(frozen=True)
+class AcquisitionPlan:
+    """A protocol's conditions, in acquisition order."""
+
+    protocol: str
+    conditions: tuple[Condition, ...]
+    dark_frames: int = 0
+
+    def to_frame(self) -> pd.DataFrame:
+        """The plan as a table (one row per condition), as a lab procedure would list it."""
+        return pd.DataFrame([c.__dict__ for c in self.conditions])
+
+    @property
+    def n_frames_total(self) -> int:
+        """Frames to acquire, all conditions."""
+        return sum(c.frames for c in self.conditions)
+
+
+def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: int = 0) -> AcquisitionPlan:
+    """Build the acquisition plan of ``protocol`` from the scenario's ``[protocols]`` section.
+
+    ``seed`` (the run seed) draws the hexapod positioning errors when the scenario has
+    ``lab.platform.positioning_noise_px > 0``. ``dark_frames`` star-free frames per
+    condition are taken for dark subtraction (0: the window-border background is used).
+    """
+    p = scenario.protocols
+    if protocol == "te":
+        conds = (Condition(0, "static", "star_grid", p.te.frames, tuple(scenario.lab.target_center_px)),)
+    elif protocol == "hsfe":
+        h = p.hsfe
+        dx, dy = platform_offsets_px(
+            steps=h.conditions, step_px=h.step_px, direction_deg=h.direction_deg,
+            noise_px=scenario.lab.platform.positioning_noise_px, seed=seed, stream=STREAM_PLATFORM,
+        )
+        conds = tuple(
+            Condition(k, f"pose {k + 1}", "star_grid", h.frames, tuple(scenario.lab.target_center_px),
+                      float(dx[k]), float(dy[k]))
+            for k in range(h.conditions)
+        )
+    elif protocol == "chromatic":
+        c = p.chromatic
+        filters = [f.center_nm for f in scenario.lab.filters]
+        conds = tuple(
+            Condition(i * len(filters) + k, f"{name} {fnm:g} nm", "star_grid", c.frames,
+                      (float(ctr[0]), float(ctr[1])), filter_nm=fnm, field=name)
+            for i, (name, ctr) in enumerate(zip(c.field_names, c.field_centers_px))
+            for k, fnm in enumerate(filters)
+        )
+    elif protocol == "distortion":
+        conds = (Condition(0, "grid", "calibration_grid", p.distortion.frames),)
+    else:
+        raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
+    return AcquisitionPlan(protocol, conds, dark_frames=dark_frames)
+
+
+@dataclass
+class ProtocolData:
+    """What a protocol run yields: centroids (what the lab sees) and truth (what was injected).
+
+    ``truth_parts`` holds each condition's truth table with its condition index and field
+    label; the ``truth`` table (one row per star and condition) is assembled from them on
+    first use (the Monte Carlo validator never needs it).
+    """
+
+    protocol: str
+    centroids: pd.DataFrame
+    truth_parts: list
+    reference: pd.DataFrame | None = None
+    plan: AcquisitionPlan | None = None
+    windows: dict = field(default_factory=dict)
+    camera: object = None
+
+    @property
+    def truth(self) -> pd.DataFrame:
+        """Per star and condition: the scene's truth, plus ``x_reported``/``y_reported``, the
+        position the camera reports for the true image position (its own distortion
+        correction applied, :meth:`simcam.starcam.render.StarCamera.report_positions`; equal to
+        ``x_true``/``y_true`` for an uncalibrated camera): what a perfect centroid gives."""
+        cached = self.__dict__.get("_truth")
+        if cached is None:
+            parts = []
+            for table, index, field_label in self.truth_parts:
+                tr = table.copy()
+                tr["condition"] = index
+                tr["field"] = field_label
+                parts.append(tr)
+            cached = pd.concat(parts, ignore_index=True)
+            if self.camera is not None:
+                cached["x_reported"], cached["y_reported"] = self.camera.report_positions(
+                    cached["x_true"].to_numpy(), cached["y_true"].to_numpy())
+            self.__dict__["_truth"] = cached
+        return cached
+
+
+def centroid_options(camera, col0, threshold_sigma: float, *, dark_frames: int = 0) -> dict:
+    """Centroiding options for simulated windows: border background and a threshold at
+    ``threshold_sigma`` times the background's noise, known from the scenario.
+
+    The noise per pixel (DN) of a window on chip ``k``: temporal read, dark and stray-light
+    shot noise, and the DSNU's spatial scatter, ``sqrt(r^2 + d + b + dsnu^2) / g``; with
+    ``K`` dark frames subtracted the temporal part grows by ``sqrt(1 + 1/K)`` and the DSNU
+    cancels. Passing it explicitly keeps the threshold the same in noise-free truth
+    renderings as in noisy trials (a border-MAD threshold would collapse to 0 there).
+    """
+    scn = camera.scenario
+    det = scn.detector
+    chip = np.asarray(col0) // det.chip_cols
+    read = np.array([c.read_noise_e for c in det.chips])[chip]
+    gain = np.array([c.gain_e_per_dn for c in det.chips])[chip]
+    temporal = read**2 + det.dark_current_e_per_s * scn.camera.exposure_s + camera.background_e
+    if dark_frames:
+        var = temporal * (1.0 + 1.0 / dark_frames)
+    else:
+        var = temporal + det.dsnu_rms_e**2
+    return {"background": "border", "noise_dn": np.sqrt(var) / gain, "threshold_sigma": float(threshold_sigma)}
+
+
+def design_psf_sigma_px(scenario: Scenario) -> float:
+    """The PSF's Gaussian-equivalent sigma (px) at the field centre, from the optical design:
+    the Gaussian sigma, or for an Airy PSF ``0.42 lambda N / p`` at 600 nm (the Gaussian
+    that best matches the Airy core) combined in quadrature with its blur. Used as the
+    IWCoG weight width, as a lab would take it from its design."""
+    psf = scenario.optics.psf
+    if psf.kind == "gaussian":
+        return float(psf.sigma0_px)
+    airy = 0.42 * 0.6 * scenario.camera.f_number / scenario.camera.pixel_pitch_um
+    return float(np.hypot(airy, psf.sigma0_px))
+
+
+def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None = None) -> pd.DataFrame:
+    """Reference coordinates of the calibration grid as the lab has them (mosaic px).
+
+    The ideal projection of the calibrated point positions (nominal chip layout is the
+    camera's own), including the marker calibration error (seed 000 C2).
+    """
+    from simcam.starcam.geometry import Mosaic
+
+    lay = calibration_grid(scenario, marker_seed=marker_seed)
+    mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
+    _, x, y = mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+    return pd.DataFrame({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
+
+
+def simulate(
+    plan: AcquisitionPlan,
+    camera,
+    *,
+    seed: int,
+    method: str = "cog",
+    keep_windows: bool = False,
+    threshold_sigma: float = 3.0,
+    marker_seed: int | None = None,
+) -> ProtocolData:
+    """Run ``plan`` on a :class:`simcam.starcam.render.StarCamera` (windows mode) and centroid every frame.
+
+    Each condition's frames get the noise stream ``1000 * PROTOCOL_STREAM + index``, so
+    protocols, conditions and frames never share noise, and a condition's frames are
+    the same whatever else is simulated. With ``plan.dark_frames > 0`` the mean of that
+    many star-free frames is subtracted from each lit window first (seed 000's
+    inter-frame differencing). ``marker_seed`` draws new marker errors of the calibration
+    grid (default: the scenario's fixed target).
+    """
+    from budget.centroid.core import centroid_windows
+    from simcam.starcam.render import Placement
+
+    scn = camera.scenario
+    # the fused kernel (exposure and centroid in one pass, same values) serves the
+    # thresholded centre of gravity when the windows themselves are not wanted
+    fused = method == "cog" and not keep_windows
+    truths, wins = [], {}
+    cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt", "field",
+                                             "x", "y", "flux", "flag")}
+    for c in plan.conditions:
+        layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
+                  else _star_grid(scn, c.field_center_px))
+        stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
+        placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                              filter_nm=c.filter_nm, condition=stream, label=c.label)
+        scene = camera.scene(placement)
+        W = scene.n_stars
+        n = c.frames
+        dark_mean = None
+        if plan.dark_frames:
+            dark = camera.render_windows(scene, frames=plan.dark_frames, seed=seed, dark=True)
+            dark_mean = dark.pixels.astype(np.float64).mean(axis=0)
+        chain = camera.window_chain(scene)
+        cc = _condition_columns(camera, scene, chain, c, threshold_sigma, plan.dark_frames)
+        noise_dn = cc["noise_dn"]
+        if fused:
+            x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
+                                                threshold_dn=cc["threshold_dn"])
+            for name, v in (("x", x), ("y", y), ("flux", flux), ("flag", flag)):
+                cols[name].append(v.reshape(-1))
+        else:
+            win = camera.render_windows(scene, frames=n, seed=seed)
+            pix = win.pixels.astype(np.float64)
+            if dark_mean is not None:
+                pix = pix - dark_mean[None]
+            cols["pix"].append(pix.reshape(W * n, *pix.shape[2:]))
+            cols["noise"].append(np.tile(noise_dn, n))
+            if keep_windows:
+                wins[c.index] = win
+        for name in ("x0", "y0", "star", "frame", "cond", "filt", "field"):
+            cols[name].append(cc[name])
+        truths.append((scene.truth, c.index, c.field))
+    extra = {"condition": np.concatenate(cols["cond"])}
+    if any(c.filter_nm is not None for c in plan.conditions):
+        extra["filter_nm"] = np.concatenate(cols["filt"])
+    if any(c.field for c in plan.conditions):
+        extra["field"] = np.concatenate(cols["field"])
+    star, frame = np.concatenate(cols["star"]), np.concatenate(cols["frame"])
+    if fused:
+        from budget.centroid.core import _table, _warn_flags
+
+        table = _table(star=star, frame=frame, x=np.concatenate(cols["x"]), y=np.concatenate(cols["y"]),
+                       flux=np.concatenate(cols["flux"]), flag=np.concatenate(cols["flag"]),
+                       flux_column="flux_dn", extra_columns=extra)
+        _warn_flags(table)
+    else:
+        # one centroiding call for the whole protocol (same options as per condition)
+        opts = {"background": "border", "noise_dn": np.concatenate(cols["noise"]),
+                "threshold_sigma": float(threshold_sigma)}
+        if method == "iwcog":
+            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
+        table = centroid_windows(
+            np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]), y0=np.concatenate(cols["y0"]),
+            star=star, frame=frame, method=method, extra_columns=extra, **opts,
+        )
+    if camera.onboard_correction is not None:
+        # the camera reports its centroids through its own distortion correction
+        # (optics.distortion_correction, simcam.correction), as a flight camera does
+        table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
+    ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
+    return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)
+
+
+_LAYOUTS: dict = {}
+
+
+def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
+    """The per-row columns of a condition's centroid table (window origins, star, frame,
+    condition, filter, field) and its windows' noise and threshold (DN): fixed for a scene
+    and condition, so kept on the scene (read-only) for the next trial."""
+    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames)
+    store = scene.__dict__.setdefault("_protocol_columns", {})
+    cc = store.get(key)
+    if cc is None:
+        W, n = scene.n_stars, c.frames
+        noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=dark_frames)["noise_dn"]
+        cc = {"noise_dn": noise_dn, "threshold_dn": float(threshold_sigma) * noise_dn,
+              "x0": np.tile(chain.col0, n), "y0": np.tile(chain.row0, n),
+              "star": np.tile(np.arange(W), n), "frame": np.repeat(np.arange(n), W),
+              "cond": np.full(W * n, c.index),
+              "filt": np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm),
+              "field": np.full(W * n, c.field, dtype=object)}
+        for v in cc.values():
+            v.flags.writeable = False
+        store[key] = cc
+    return cc
+
+
+def _star_grid(scn: Scenario, center_px):
+    """:func:`simcam.starcam.targets.star_grid` memoised per scenario and centre (it is deterministic;
+    its arrays are not modified downstream)."""
+    key = (scn.hash, None if center_px is None else tuple(center_px))
+    lay = _LAYOUTS.get(key)
+    if lay is None:
+        if len(_LAYOUTS) > 256:
+            _LAYOUTS.clear()
+        lay = _LAYOUTS[key] = star_grid(scn, center_px=center_px)
+    return lay
+
+
+def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean, threshold_dn):
+    """Frames of a scene's windows exposed and centroided in one pass (thresholded centre of
+    gravity, border background; :mod:`budget.starcam.kernels_trial`): x, y, flux, flag as (frames, W)."""
+    from budget.starcam import kernels_trial as _kt
+
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
+    W, h, w = chain.mean_e.shape
+    out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
+    out_flag = np.zeros((frames, W), dtype=np.int64)
+    dm = np.zeros((0, h, w)) if dark_mean is None else np.ascontiguousarray(dark_mean, dtype=np.float64)
+    parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
+    kern = _kt.expose_centroid_frames if parallel else _kt.expose_centroid_frames_serial
+    kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
+         chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
+         np.ascontiguousarray(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
+    return out_x, out_y, out_f, out_flag
+
+
+def estimate(
+    protocol: str,
+    centroids: pd.DataFrame,
+    *,
+    plate_scale_arcsec: float,
+    reference: pd.DataFrame | None = None,
+    reference_filter_nm: float | None = None,
+    marker_3sigma_arcsec: float = 0.0,
+    spectral: dict | None = None,
+    extra_variants: bool = True,
+    camera_corrects_distortion: bool = False,
+) -> dict:
+    """Run the published estimator of ``protocol`` and its improved variant(s) on a centroid table.
+
+    Returns ``{"published": ErrorEstimate, "improved": ErrorEstimate, ...}``: the
+    improved variant is the one derived in docs/estimators.md that targets what the class
+    is meant to be (TE: pooled rms; HSFE: the static error itself; LSFE-S: uniform and
+    radial parts kept apart, or, given the camera's ``spectral`` design (see
+    :func:`spectral_design`), the stellar population through its spectral response;
+    LSFE-C1: the distortion left after calibration, which needs the marker error
+    ``marker_3sigma_arcsec``, seed 000's C2; with ``camera_corrects_distortion`` (the camera
+    reports positions through its own distortion correction, as a flight camera does) the
+    displacement that calibrated camera still makes). Other variants are returned under their
+    own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
+    The same function serves simulated and real tables.
+    """
+    from budget.starcam import estimators as E
+
+    ps = plate_scale_arcsec
+    if protocol == "te":
+        return {"published": E.temporal_error(centroids, plate_scale_arcsec=ps),
+                "improved": E.temporal_error_pooled(centroids, plate_scale_arcsec=ps)}
+    if protocol == "hsfe":
+        out = {"published": E.high_spatial_frequency_error(centroids, plate_scale_arcsec=ps),
+               "improved": E.high_spatial_frequency_error_static(centroids, plate_scale_arcsec=ps)}
+        if extra_variants:
+            out["debiased"] = E.high_spatial_frequency_error_debiased(centroids, plate_scale_arcsec=ps)
+        return out
+    if protocol == "chromatic":
+        ref = None if reference_filter_nm is None else int(round(reference_filter_nm))
+        out = {"published": E.chromatic_error(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)}
+        if spectral is None or extra_variants:
+            out["decomposed"] = E.chromatic_error_decomposed(centroids, plate_scale_arcsec=ps, reference_filter_nm=ref)
+        if spectral is not None:
+            out["improved"] = E.chromatic_error_population(centroids, plate_scale_arcsec=ps,
+                                                           reference_filter_nm=ref, **spectral)
+        else:
+            out["improved"] = out["decomposed"]
+        return out
+    if protocol == "distortion":
+        if reference is None:
+            raise ValueError("distortion: the reference coordinates of the grid target are required")
+        improved = E.distortion_remaining_displacement if camera_corrects_distortion else E.distortion_calibration_residual
+        out = {"published": E.distortion_residual_error(centroids, reference=reference, plate_scale_arcsec=ps),
+               "improved": improved(centroids, reference=reference, plate_scale_arcsec=ps,
+                                    marker_3sigma_arcsec=marker_3sigma_arcsec)}
+        if extra_variants:
+            out["fit_dof"] = E.distortion_residual_error_dof(centroids, reference=reference, plate_scale_arcsec=ps)
+        return out
+    raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
+
+
+def lab_spectral_scenario(scenario: Scenario) -> Scenario:
+    """The camera as the lab believes it to be: the scenario with ``lab.knowledge``'s stated
+    errors applied to the QE peak, the filters' centres and widths and the lamp's colour
+    temperature (the stellar Teff error is applied in :func:`spectral_design`)."""
+    from simcam.starcam.scenario import with_updates
+
+    k = scenario.lab.knowledge
+    filters = [dict(f.model_dump(mode="python"), center_nm=f.center_nm + k.filter_center_nm_error,
+                    width_nm=f.width_nm + k.filter_width_nm_error) for f in scenario.lab.filters]
+    return with_updates(scenario, {
+        "detector.qe.peak_nm": scenario.detector.qe.peak_nm + k.qe_peak_nm_error,
+        "lab.source.temperature_k": scenario.lab.source.temperature_k + k.lamp_temperature_k_error,
+        "lab.filters": filters,
+        # (the plan's reference filter is named by its centre, which moves with the others)
+        "protocols.chromatic.reference_filter_nm": (scenario.protocols.chromatic.reference_filter_nm
+                                                    + k.filter_center_nm_error),
+    })
+
+
+def spectral_design(scenario: Scenario) -> dict:
+    """Effective wavelengths from the lab's model of the camera (for the population LSFE-S).
+
+    The electron-weighted mean wavelength of the lab lamp through each filter, of the
+    calibration spectrum (``validation.calibration_spectrum``: the population mean, the
+    unfiltered lamp, or a star type) and of each stellar type of
+    ``validation.lsfe_spectral_types``, through the optics transmission and QE, all as
+    the lab believes them: :func:`lab_spectral_scenario` applies ``lab.knowledge``'s stated
+    errors (QE peak, filter centres and widths, lamp temperature), and each star's Teff is
+    the spectral model's, ``Teff (1 + star_teff_fraction_error)``. These are design data a
+    lab has (filter certificates, lamp, sensor QE, a spectral library), not measurements,
+    and not the simulator's own spectra. The returned filter keys are the filters' nominal
+    centres (as the centroid table labels them).
+    """
+    from simcam import spectra
+    from simcam.starcam.sources import SourceSpectra
+
+    lab = lab_spectral_scenario(scenario)
+    k = scenario.lab.knowledge
+    sp = SourceSpectra(lab)
+    wl = sp.wavelength_nm
+
+    def mean_wl(rate):
+        return float(np.dot(sp.weights(rate), wl))
+
+    filt = {int(round(f.center_nm)): mean_wl(sp.electron_rate_per_nm(filter_nm=fl.center_nm)[1])
+            for f, fl in zip(scenario.lab.filters, lab.lab.filters)}
+
+    def star_rate(st):
+        t = spectra.star_teff_k(spectral_type=st) * (1.0 + k.star_teff_fraction_error)
+        flux = spectra.star_photon_flux_per_nm(v_mag=0.0, temperature_k=t, wavelength_nm=wl)
+        return spectra.detected_electron_rate_per_nm(
+            photon_flux_per_nm=flux, aperture_area_m2=sp.aperture_area_m2, transmission=sp.transmission,
+            filter_transmission=1.0, qe=sp.qe, wavelength_nm=wl)
+
+    cal = scenario.validation.calibration_spectrum
+    stars = [mean_wl(star_rate(st)) for st in scenario.validation.lsfe_spectral_types]
+    if cal == "population_mean":
+        lam_cal = float(np.mean(stars))
+    elif cal == "lamp":
+        lam_cal = mean_wl(sp.electron_rate_per_nm(filter_nm=None)[1])
+    else:
+        lam_cal = mean_wl(star_rate(cal))
+    return {"filter_wavelength_nm": filt, "star_wavelengths_nm": stars, "calibration_wavelength_nm": lam_cal}

@@ -1,0 +1,202 @@
+"""The seed-000 trial and truths: what the study (:mod:`budget.starcam.study`) gives the runner.
+
+Each trial (:func:`run_trial`) runs the four protocols (TE, HSFE, chromatic, distortion)
+on the simulator with independent temporal noise (and, where the scenario says so, new
+PRNU/DSNU maps, new marker errors, new hexapod positioning errors), through the same
+estimators as real data (:func:`budget.starcam.protocols.estimate`). :func:`truths` computes each
+class's truth (:mod:`budget.starcam.truth`), in independent pieces (:func:`truth_parts`) that the
+runner spreads over its workers. The runner (:mod:`budget.runner.run`) does the rest:
+trials on workers, adaptive stopping, statistics, JSON, report.
+
+Randomness: trial ``k`` draws everything from ``SeedSequence(seed, spawn_key=(k,))``, so a
+trial's result does not depend on how many workers run or in which order they finish.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from budget.starcam.protocols import PROTOCOLS, estimate, make_plan, simulate
+
+CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
+VARIANTS = ("published", "improved")
+AXES = ("x", "y")
+#: classes whose value is given to the lab, not measured by it: reported, never "validated"
+#: (LSFE-C2, the marker calibration error of the grid target, seed 000 section 1.4.3)
+INPUT_CLASSES = ("lsfe_c2",)
+#: protocol producing each measured class
+CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
+
+_CACHE: dict = {}
+#: numba threads inside this process's kernels (False in worker processes: one per core)
+_PARALLEL: bool | None = None
+
+
+def worker_init() -> None:
+    """Worker processes run single-threaded kernels: the processes are the parallelism.
+
+    Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
+    the worker exit when its parent dies.
+    """
+    global _PARALLEL
+    import numba
+
+    numba.set_num_threads(1)
+    _PARALLEL = False
+
+
+def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
+    """(noise seed, map seed, marker seed) of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``."""
+    s = np.random.SeedSequence(seed, spawn_key=(k,)).generate_state(3, dtype=np.uint32)
+    return int(s[0]), int(s[1]), int(s[2])
+
+
+def _camera(scenario, detector_seed=None):
+    from simcam.starcam.render import StarCamera
+
+    key = (scenario.hash, detector_seed)
+    cam = _CACHE.get(key)
+    if cam is None:
+        if len(_CACHE) > 4:
+            _CACHE.clear()
+        cam = StarCamera(scenario, detector_seed=detector_seed, parallel=_PARALLEL)
+        _CACHE[key] = cam
+    return cam
+
+
+def _spectral(scenario):
+    from budget.starcam.protocols import spectral_design
+
+    key = ("spectral", scenario.hash)
+    if key not in _CACHE:
+        _CACHE[key] = spectral_design(scenario)
+    return _CACHE[key]
+
+
+def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
+    """One validation trial: every protocol through the published and improved estimators.
+
+    Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}}``; with ``keep``
+    also ``"kept"``: the estimate objects and data of each protocol (for the report).
+    """
+    noise_seed, map_seed, marker_seed = trial_seeds(seed, k)
+    val = scenario.validation
+    cam = _camera(scenario, map_seed if val.new_maps_per_trial else None)
+    ps = scenario.camera.scale_arcsec_per_px
+    values: dict = {}
+    kept: dict = {}
+    spectral = _spectral(scenario)
+    with warnings.catch_warnings():
+        # clipped variances and flagged stars are expected in some trials; counted via flags
+        warnings.simplefilter("ignore")
+        for proto in PROTOCOLS:
+            plan = make_plan(proto, scenario, seed=noise_seed, dark_frames=val.dark_frames)
+            data = simulate(plan, cam, seed=noise_seed, method=val.centroid_method,
+                            threshold_sigma=val.threshold_sigma,
+                            marker_seed=marker_seed if val.new_markers_per_trial else None)
+            res = estimate(proto, data.centroids, plate_scale_arcsec=ps, reference=data.reference,
+                           reference_filter_nm=scenario.protocols.chromatic.reference_filter_nm,
+                           marker_3sigma_arcsec=scenario.lab.calibration_target.marker_error_3sigma_arcsec,
+                           spectral=spectral, extra_variants=keep,
+                           camera_corrects_distortion=scenario.optics.distortion_correction.kind != "none")
+            cls = {"te": "te", "hsfe": "hsfe", "chromatic": "lsfe_s", "distortion": "lsfe_c1"}[proto]
+            for var in VARIANTS:
+                values[(cls, var, "x")] = res[var].sigma_x_px
+                values[(cls, var, "y")] = res[var].sigma_y_px
+            if keep:
+                kept[proto] = {"estimates": res, "data": data}
+    c2 = scenario.lab.calibration_target.marker_error_3sigma_arcsec / 3.0 / ps
+    for var in VARIANTS:
+        for ax in AXES:
+            values[("lsfe_c2", var, ax)] = c2
+            s, c1 = values[("lsfe_s", var, ax)], values[("lsfe_c1", var, ax)]
+            if var == "published":  # seed 000 eq 31: C1 and C2 added linearly
+                lsfe = math.sqrt(s**2 + (c1 + c2) ** 2)
+            else:  # independent sources: root-sum-square
+                lsfe = math.sqrt(s**2 + c1**2 + c2**2)
+            values[("lsfe", var, ax)] = lsfe
+            values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2 + values[("hsfe", var, ax)] ** 2 + lsfe**2)
+    out = {"k": k, "values": values}
+    if keep:
+        out["kept"] = kept
+    return out
+
+
+def _truth_seed(seed: int) -> int:
+    return int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
+
+
+def truth_parts(scenario, *, seed: int) -> list[tuple]:
+    """The independent pieces of :func:`truths`, computable anywhere and in any order:
+    ``("rest",)`` (TE, LSFE-S, LSFE-C1, LSFE-C2) and one ``("hsfe", map, phase)`` per
+    sub-pixel phase of the HSFE truth (``map`` None for the scenario's pixel maps, or the
+    trial 0-3 whose maps are used when ``validation.new_maps_per_trial``)."""
+    val = scenario.validation
+    maps = list(range(4)) if val.new_maps_per_trial else [None]
+    return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
+
+
+def truth_part(scenario, *, seed: int, part: tuple):
+    """One piece of :func:`truths` (see :func:`truth_parts`)."""
+    from budget.starcam.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
+
+    ts = _truth_seed(seed)
+    val = scenario.validation
+    if part[0] == "rest":
+        cam = _camera(scenario)
+        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts), "lsfe_s": lsfe_s_truth(cam),
+                "lsfe_c1": lsfe_c1_truth(cam), "lsfe_c2": lsfe_c2_truth(scenario)}
+    _, m, p = part
+    if m is None:
+        cam = _camera(scenario)
+        hs = int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
+    else:
+        cam = _camera(scenario, trial_seeds(seed, m)[1])
+        hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p)
+
+
+def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
+    """:func:`truths` from the results of :func:`truth_parts`, in their order."""
+    from budget.starcam.truth import ClassTruth, combine, hsfe_from_cells
+
+    parts = truth_parts(scenario, seed=seed)
+    val = scenario.validation
+    out = dict(results[0])
+    cells: dict = {}
+    for part, r in zip(parts[1:], results[1:]):
+        cells.setdefault(part[1], []).append(r)
+    if not val.new_maps_per_trial:
+        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames)
+    else:
+        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames)
+              for k in range(4)]
+        vals = {}
+        for ax in AXES:
+            h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
+            # the truth is the rms over map realisations: the 4 maps sample it (se of a mean
+            # of 4 squares) and each map's own truth has its frame-sampling error
+            se_h2 = math.sqrt(h2.var(ddof=1) / h2.size
+                              + np.sum([(2 * getattr(h, f"{ax}_px") * getattr(h, f"se_{ax}_px")) ** 2
+                                        for h in hs]) / h2.size**2)
+            v = math.sqrt(h2.mean())
+            vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
+        out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
+                                 se_x_px=vals["x"][1], se_y_px=vals["y"][1])
+    return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
+
+
+def truths(scenario, *, seed: int) -> dict:
+    """Every class's truth (:class:`budget.starcam.truth.ClassTruth`) of a validation run with ``seed``.
+
+    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
+    ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
+    the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
+    Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
+    over its workers and get the same numbers.
+    """
+    parts = truth_parts(scenario, seed=seed)
+    return truths_from_parts(scenario, seed=seed, results=[truth_part(scenario, seed=seed, part=p) for p in parts])

@@ -1,0 +1,69 @@
+"""Where sweep points run: the runner's executors (:mod:`budget.runner.executors`).
+
+Each point is a :class:`budget.sweeps.evaluate.PointTask` evaluated by
+:func:`budget.sweeps.evaluate.evaluate_point`; points are independent (each carries its
+scenario and seed), so the results do not depend on the executor, the number of workers
+or the order in which they finish. The executors are the same as the Monte Carlo
+runner's (this process; local ``spawn`` processes guarded against outliving their parent
+and stopped on an interruption; a Dask scheduler or LocalCluster), each worker set up by
+the sweep's study (:meth:`Study.worker_init`: one numba thread per worker, the workers
+are the parallelism). Remote Dask workers need this package installed (same version:
+checked on every result).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+__all__ = ["SweepRunner", "make_runner"]
+
+
+def _init_for_kind(kind: str) -> None:
+    from budget.sweeps.evaluate import study_for_kind
+
+    study_for_kind(kind).worker_init()
+
+
+def _evaluate(task):
+    from budget.sweeps.evaluate import evaluate_point
+
+    return evaluate_point(task)
+
+
+class SweepRunner:
+    """Runs sweep points on an executor; a context manager that owns its workers."""
+
+    def __init__(self, executor):
+        self.executor = executor
+
+    @property
+    def description(self) -> str:
+        return self.executor.description
+
+    @property
+    def workers(self) -> int:
+        return self.executor.workers
+
+    def __enter__(self):
+        self.executor.__enter__()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.executor.__exit__(*exc)
+
+    def run(self, tasks: list) -> Iterator:
+        """Yield a :class:`PointResult` per task, in the order they finish."""
+        for _, res in self.executor.map_unordered(_evaluate, tasks):
+            yield res
+
+
+def make_runner(*, kind: str = "camera", workers: int | None = None, scheduler: str | None = None,
+                dask_local: int | None = None, inline: bool = False) -> SweepRunner:
+    """The runner asked for (at most one option; default all local cores), set up for ``kind``."""
+    from budget.runner.executors import InlineExecutor, make_executor
+
+    if inline:
+        _init_for_kind(kind)
+        return SweepRunner(InlineExecutor())
+    return SweepRunner(make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
+                                     initializer=_init_for_kind, initargs=(kind,)))

@@ -1,0 +1,417 @@
+"""``budget plot STORE``: the results of a sweep as figures.
+
+* one figure per swept parameter: each error class against the parameter, the truth as a
+  line (with a band of +-2 Monte Carlo standard errors where it has one) and, for a
+  validation sweep, the mean estimate of each variant with error bars of +-2 Monte Carlo
+  standard errors and a shaded band of +-1 spread (what one lab measurement scatters
+  by). In a 2-D sweep the other parameter's values are the colours (one variant);
+* 2-D (and larger) product sweeps: heatmaps of the truth of each class, and of the bias
+  of a variant, over the first two parameters (any further ones at their first value);
+* a validation sweep: the relative spread (spread / |mean|, the precision of one
+  measurement) against each parameter, with ``--precision`` drawn and the first value
+  from which each class and variant stays within it printed;
+* a sweep with ``[sensitivity]``: the Sobol indices (first order and total, with their
+  confidence intervals) of each class, as bars per parameter.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import click
+import numpy as np
+
+__all__ = ["plot_command", "plot_store", "precision_table"]
+
+VARIANT_STYLE = {"published": ("C0", "o"), "improved": ("C3", "s")}
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name.replace("*", "all"))
+
+
+def _x_axes(ds):
+    """(dimension, x coordinate name) pairs to plot against."""
+    dims = list(ds.attrs.get("point_dims", []))
+    if dims == ["point"]:
+        return [("point", ds.attrs["parameters"][0])]
+    return [(d, d) for d in dims if ds.sizes[d] > 1]
+
+
+def _panels(n: int):
+    import matplotlib.pyplot as plt
+
+    ncol = min(4, n)
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.0 * nrow), squeeze=False)
+    for k in range(n, nrow * ncol):
+        axes.flat[k].set_visible(False)
+    return fig, list(axes.flat)
+
+
+def _legend_first(axes, **kw) -> None:
+    """Legend on the first panel that has labelled artists (none: no legend)."""
+    for ax in axes:
+        if ax.get_visible() and ax.get_legend_handles_labels()[0]:
+            ax.legend(**kw)
+            return
+
+
+def _fixed_note(ds, keep: list[str]) -> tuple[dict, str]:
+    """Select index 0 of every point dimension not in ``keep``; and a caption of it."""
+    sel, txt = {}, []
+    for d in ds.attrs.get("point_dims", []):
+        if d not in keep and d in ds.dims:
+            sel[d] = 0
+            txt.append(f"{d} = {ds[d].values[0]}")
+    return sel, ("; ".join(txt))
+
+
+def _label(ds, xname: str) -> str:
+    if ds.attrs.get("point_dims") == ["point"] and len(ds.attrs["parameters"]) > 1:
+        return f"{xname} (+{len(ds.attrs['parameters']) - 1} zipped)"
+    return xname
+
+
+def _zip_note(ds) -> str:
+    if ds.attrs.get("point_dims") == ["point"] and len(ds.attrs["parameters"]) > 1:
+        return "\nzip: " + ", ".join(ds.attrs["parameters"])
+    return ""
+
+
+def _truth_band(ax, x, t, se, color, label):
+    ax.plot(x, t, "-", color=color, lw=1.3, label=label)
+    if se is not None and np.any(np.nan_to_num(se) > 0):
+        ax.fill_between(x, t - 2 * se, t + 2 * se, color=color, alpha=0.15, lw=0)
+
+
+def _line_figure(ds, xdim, xname, axis, variant, out_dir):
+    import matplotlib.pyplot as plt
+
+    others = [d for d in ds.attrs.get("point_dims", []) if d not in (xdim,) and ds.sizes.get(d, 1) > 1]
+    series = others[0] if others and xdim != "point" else None
+    sel, note = _fixed_note(ds, [xdim] + ([series] if series else []))
+    d = ds.isel(sel).sel(axis=axis)
+    classes = list(d["class"].values)
+    fig, axes = _panels(len(classes))
+    x = d[xname].values
+    has_mean = "mean" in d
+    tv = "variant" in d["truth"].dims
+    for ax, cls in zip(axes, classes):
+        c = d.sel({"class": cls})
+        if series is None:
+            if tv:
+                for v in c["variant"].values:
+                    col = VARIANT_STYLE.get(str(v), ("k", "o"))[0]
+                    _truth_band(ax, x, c.truth.sel(variant=v).values, c.truth_se.sel(variant=v).values,
+                                col, f"truth ({v})")
+            else:
+                _truth_band(ax, x, c.truth.values, c.truth_se.values, "k", "truth")
+            if has_mean:
+                for v in c["variant"].values:
+                    m = c["mean"].sel(variant=v).values
+                    if not np.any(np.isfinite(m)):
+                        continue
+                    col, mk = VARIANT_STYLE.get(str(v), ("C2", "^"))
+                    s = c["spread"].sel(variant=v).values
+                    ax.fill_between(x, m - s, m + s, color=col, alpha=0.12, lw=0)
+                    ax.errorbar(x, m, yerr=2 * c["se_bias"].sel(variant=v).values, fmt=mk, ms=4, color=col,
+                                capsize=2, lw=1, label=f"{v} mean")
+        else:
+            sv = d[series].values
+            cmap = plt.get_cmap("viridis")
+            for i, val in enumerate(sv):
+                col = cmap(i / max(1, len(sv) - 1))
+                ci = c.isel({series: i})
+                t = ci.truth.sel(variant=variant) if tv else ci.truth
+                se = ci.truth_se.sel(variant=variant) if tv else ci.truth_se
+                _truth_band(ax, x, t.values, se.values, col, f"{val:g}" if isinstance(val, (float, np.floating))
+                            else str(val))
+                if has_mean:
+                    m = ci["mean"].sel(variant=variant).values
+                    if np.any(np.isfinite(m)):
+                        ax.errorbar(x, m, yerr=2 * ci["se_bias"].sel(variant=variant).values, fmt="o", ms=3.5,
+                                    color=col, capsize=2, lw=0.8)
+        ax.set_title(str(cls))
+        ax.set_xlabel(_label(ds, xname), fontsize=7)
+        ax.set_ylabel(f"{axis}, arcsec 3 sigma", fontsize=7)
+        ax.tick_params(labelsize=7)
+    _legend_first(axes, fontsize=6, title=(series if series else None), title_fontsize=6)
+    head = f"{ds.attrs.get('title', '')}: axis {axis}"
+    if series and has_mean:
+        head += f"; lines: truth, markers: {variant} mean (+-2 MC s.e.)"
+    elif has_mean:
+        head += "; markers: mean (+-2 MC s.e.), band: +-1 spread; truth band +-2 s.e."
+    if note:
+        head += f"\n({note})"
+    fig.suptitle(head + _zip_note(ds), fontsize=9)
+    fig.tight_layout()
+    path = Path(out_dir) / f"classes_vs_{_safe(xname)}__{axis}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _heatmaps(ds, axis, variant, out_dir):
+    import matplotlib.pyplot as plt
+
+    dims = [d for d in ds.attrs.get("point_dims", []) if d != "point" and ds.sizes[d] > 1]
+    if len(dims) < 2:
+        return []
+    d0, d1 = dims[:2]
+    sel, note = _fixed_note(ds, [d0, d1])
+    d = ds.isel(sel).sel(axis=axis)
+    out = []
+    quantities = [("truth", "truth")]
+    if "bias" in d:
+        quantities.append(("bias", f"bias of the {variant} estimate"))
+    for q, title in quantities:
+        classes = list(d["class"].values)
+        fig, axes = _panels(len(classes))
+        for ax, cls in zip(axes, classes):
+            a = d[q].sel({"class": cls})
+            if "variant" in a.dims:
+                a = a.sel(variant=variant)
+            z = a.transpose(d1, d0).values
+            if q == "bias":
+                lim = np.nanmax(np.abs(z)) if np.any(np.isfinite(z)) else 1.0
+                im = ax.imshow(z, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
+            else:
+                im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+            fig.colorbar(im, ax=ax, shrink=0.85).ax.tick_params(labelsize=6)
+            ax.set_xticks(range(d.sizes[d0]), [f"{v:g}" if isinstance(v, (float, np.floating)) else str(v)
+                                               for v in d[d0].values], fontsize=6, rotation=45)
+            ax.set_yticks(range(d.sizes[d1]), [f"{v:g}" if isinstance(v, (float, np.floating)) else str(v)
+                                               for v in d[d1].values], fontsize=6)
+            # cell values only where they fit: at most 8 columns and 12 rows, 2 significant digits
+            if z.shape[1] <= 8 and z.shape[0] <= 12:
+                lo, hi = im.get_clim()
+                for (iy, ix), val in np.ndenumerate(z):
+                    if np.isfinite(val):
+                        light = q == "truth" and hi > lo and (val - lo) / (hi - lo) > 0.6
+                        ax.text(ix, iy, f"{val:.2g}", ha="center", va="center", fontsize=5,
+                                color="k" if (light or q == "bias") else "w")
+            ax.set_title(str(cls), fontsize=9)
+            ax.set_xlabel(d0, fontsize=7)
+            ax.set_ylabel(d1, fontsize=7)
+        fig.suptitle(f"{ds.attrs.get('title', '')}: {title}, axis {axis}, arcsec 3 sigma"
+                     + (f"\n({note})" if note else ""), fontsize=9)
+        fig.tight_layout()
+        path = Path(out_dir) / f"heatmap_{q}{'_' + variant if q == 'bias' else ''}__{axis}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        out.append(path)
+    return out
+
+
+def precision_table(ds, *, axis: str, precision: float) -> list[dict]:
+    """For a 1-D (or zip) validation sweep: per class and variant, the relative spread
+    (spread / |mean|) at each point and the first x from which it stays <= ``precision``."""
+    if "spread" not in ds:
+        return []
+    xs = _x_axes(ds)
+    if len(xs) != 1 or len(ds.attrs.get("point_dims", [])) != 1:
+        return []
+    xdim, xname = xs[0]
+    d = ds.sel(axis=axis).sortby(xname) if xdim == xname else ds.sel(axis=axis)
+    x = d[xname].values
+    rows = []
+    for cls in d["class"].values:
+        for v in d["variant"].values:
+            m = d["mean"].sel({"class": cls, "variant": v}).values
+            s = d["spread"].sel({"class": cls, "variant": v}).values
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rel = np.where(np.abs(m) > 0, s / np.abs(m), np.nan)
+            ok = np.isfinite(rel) & (rel <= precision)
+            first = None
+            for i in range(len(x)):
+                if ok[i:].all():
+                    first = x[i]
+                    break
+            t = d["truth"].sel({"class": cls, "variant": v} if "variant" in d["truth"].dims else {"class": cls})
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bias_pct = np.where(np.abs(t.values) > 0, 100 * (m - t.values) / np.abs(t.values), np.nan)
+            rows.append({"class": str(cls), "variant": str(v), "x": xname, "x_values": x.tolist(),
+                         "relative_spread": rel.tolist(), "bias_percent": bias_pct.tolist(),
+                         "constant": bool(np.all(np.isfinite(s)) and np.all(s == 0)),
+                         "no_estimate": bool(np.all(np.isnan(m))),
+                         "first_within": None if first is None else float(first)})
+    return rows
+
+
+def _relative_spread_figure(ds, axis, precision, out_dir):
+    import matplotlib.pyplot as plt
+
+    if "spread" not in ds:
+        return None
+    xs = _x_axes(ds)
+    if len(xs) != 1 or len(ds.attrs.get("point_dims", [])) != 1:
+        return None
+    xname = xs[0][1]
+    d = ds.sel(axis=axis)
+    x = d[xname].values
+    classes = list(d["class"].values)
+    fig, axes = _panels(len(classes))
+    for ax, cls in zip(axes, classes):
+        for v in d["variant"].values:
+            col, mk = VARIANT_STYLE.get(str(v), ("C2", "^"))
+            m = d["mean"].sel({"class": cls, "variant": v}).values
+            s = d["spread"].sel({"class": cls, "variant": v}).values
+            se = d["se_spread"].sel({"class": cls, "variant": v}).values
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rel = np.where(np.abs(m) > 0, s / np.abs(m), np.nan)
+                rel_se = np.where(np.abs(m) > 0, se / np.abs(m), np.nan)
+            if np.any(np.isfinite(rel) & (rel > 0)):
+                ax.errorbar(x, 100 * rel, yerr=200 * rel_se, fmt=mk + "-", ms=4, color=col, capsize=2, lw=1,
+                            label=str(v))
+            elif np.all(np.isnan(m)):
+                ax.text(0.5, 0.5, "no lab estimate (truth only)", ha="center", va="center",
+                        fontsize=7, transform=ax.transAxes)
+            elif np.all(np.isfinite(s)) and np.all(s == 0):
+                ax.text(0.5, 0.5, "no spread: a constant of the scenario", ha="center", va="center",
+                        fontsize=7, transform=ax.transAxes)
+        if precision is not None:
+            ax.axhline(100 * precision, color="k", lw=0.8, ls="--")
+        ax.set_yscale("log")
+        ax.set_title(str(cls))
+        ax.set_xlabel(_label(ds, xname), fontsize=7)
+        ax.set_ylabel("spread / |mean| (%)", fontsize=7)
+        ax.tick_params(labelsize=7)
+    _legend_first(axes, fontsize=6)
+    fig.suptitle(f"{ds.attrs.get('title', '')}: precision of one measurement, axis {axis} "
+                 "(error bars +-2 MC s.e.)" + (f"; dashed: {100 * precision:g} %" if precision else "")
+                 + _zip_note(ds), fontsize=9)
+    fig.tight_layout()
+    path = Path(out_dir) / f"relative_spread_vs_{_safe(xname)}__{axis}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _sobol_figure(sob, title, axis, out_dir):
+    import matplotlib.pyplot as plt
+
+    s = sob.sel(axis=axis) if "axis" in sob.dims else sob
+    extra = [dd for dd in s.S1.dims if dd not in ("class", "parameter")]
+    panels = [(str(c), {"class": c}) for c in s["class"].values]
+    if extra:
+        panels = [(f"{c} ({extra[0]} {v})", {"class": c, extra[0]: v})
+                  for c in s["class"].values for v in s[extra[0]].values]
+    fig, axes = _panels(len(panels))
+    params = list(s.parameter.values)
+    xi = np.arange(len(params))
+    legend = False
+    for ax, (name, sel) in zip(axes, panels):
+        r = s.sel(sel)
+        if str(r["note"].values):
+            ax.text(0.5, 0.5, str(r["note"].values), ha="center", va="center", fontsize=7, wrap=True,
+                    transform=ax.transAxes)
+        else:
+            ax.bar(xi - 0.18, r.S1.values, 0.36, yerr=r.S1_conf.values, capsize=2, color="C0", label="S1")
+            ax.bar(xi + 0.18, r.ST.values, 0.36, yerr=r.ST_conf.values, capsize=2, color="C1", label="ST")
+            if not legend:
+                ax.legend(fontsize=6)
+                legend = True
+        ax.axhline(0, color="k", lw=0.5)
+        # the limits hold the whole error bars (indices estimated from few evaluations can
+        # leave [0, 1] by more than the usual margin)
+        if str(r["note"].values):
+            ax.set_ylim(-0.15, 1.15)
+        else:
+            lo = np.nanmin(np.r_[r.S1.values - r.S1_conf.values, r.ST.values - r.ST_conf.values, 0.0])
+            hi = np.nanmax(np.r_[r.S1.values + r.S1_conf.values, r.ST.values + r.ST_conf.values, 1.0])
+            ax.set_ylim(min(-0.15, lo - 0.05), max(1.15, hi + 0.05))
+        ax.set_ylabel("Sobol index", fontsize=7)
+        ax.set_xticks(xi, params, fontsize=6, rotation=20, ha="right")
+        ax.set_title(name, fontsize=9)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(f"{title}: Sobol indices of the {sob.attrs.get('output', 'truth')} (axis {axis}), "
+                 f"{int(100 * sob.attrs.get('conf_level', 0.95))} % intervals, "
+                 f"{sob.attrs.get('evaluations', '?')} evaluations", fontsize=9)
+    fig.tight_layout()
+    path = Path(out_dir) / f"sobol__{axis}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "improved",
+               precision: float | None = None) -> list[Path]:
+    """Write the figures of a sweep store into ``out_dir``; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from budget.sweeps.store import open_sobol, open_sweep
+    from simcam.cli_common import UserInputError
+
+    ds = open_sweep(store)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files: list[Path] = []
+    axes_all = list(ds["axis"].values) if "axis" in ds.coords else []
+    sob = open_sobol(store)
+    if not axes_all and sob is not None and "axis" in sob.coords:
+        axes_all = list(sob["axis"].values)
+    ax_name = axis if axis is not None else (axes_all[0] if axes_all else None)
+    if axes_all and ax_name not in axes_all:
+        raise UserInputError(f"--axis {axis}: this store has axes {', '.join(map(str, axes_all))}")
+    if "variant" in ds.coords and variant not in ds["variant"].values:
+        raise UserInputError(f"--variant {variant}: this store has {', '.join(map(str, ds['variant'].values))}")
+    if ds.attrs.get("point_dims"):
+        for xdim, xname in _x_axes(ds):
+            files.append(_line_figure(ds, xdim, xname, ax_name, variant, out_dir))
+        files += _heatmaps(ds, ax_name, variant, out_dir)
+        rs = _relative_spread_figure(ds, ax_name, precision, out_dir)
+        if rs is not None:
+            files.append(rs)
+    if sob is not None:
+        files.append(_sobol_figure(sob, ds.attrs.get("title", ""), ax_name, out_dir))
+    return files
+
+
+@click.command("plot")
+@click.argument("store", type=click.Path(file_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Folder of the PNG files (default: STORE_plots beside the store).")
+@click.option("--axis", default=None, help="Axis to draw (camera: x or y; default the first).")
+@click.option("--variant", default="improved", show_default=True,
+              help="Variant drawn in 2-D line plots and bias heatmaps.")
+@click.option("--precision", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Relative precision to mark (e.g. 0.1) and report the first value that reaches it.")
+def plot_command(store, out_dir, axis, variant, precision) -> None:
+    """Draw the results of the sweep store STORE (budget sweep ... --out STORE)."""
+    from budget.sweeps.store import open_sweep
+
+    store_p = Path(store)
+    out = Path(out_dir) if out_dir else store_p.parent / f"{store_p.name}_plots"
+    files = plot_store(store, out, axis=axis, variant=variant, precision=precision)
+    ds = open_sweep(store)
+    if "done" in ds and not bool(ds["done"].all()):
+        click.echo(f"note: {int((~ds['done']).sum())} of {ds['done'].size} points are not done yet "
+                   "(run the sweep again to complete them)")
+    for f in files:
+        click.echo(str(f))
+    if precision is not None:
+        rows = precision_table(ds, axis=axis or str(ds["axis"].values[0]), precision=precision)
+        if not rows:
+            click.echo("--precision: needs a validation sweep along one parameter (or a zip)")
+        for r in rows:
+            if r["no_estimate"]:
+                click.echo(f"{r['class']:>12s} {r['variant']:>9s}: no lab estimate (truth only)")
+                continue
+            if r["constant"]:
+                click.echo(f"{r['class']:>12s} {r['variant']:>9s}: no spread (a constant of the scenario)")
+                continue
+            if r["first_within"] is None:
+                when = f"never in this range; at {r['x']} = {r['x_values'][-1]:g}"
+                i = -1
+            else:
+                i = r["x_values"].index(r["first_within"])
+                when = (f"already at the smallest {r['x']} = {r['first_within']:g}" if i == 0
+                        else f"from {r['x']} = {r['first_within']:g} on")
+            b, rel = r["bias_percent"][i], r["relative_spread"][i]
+            click.echo(f"{r['class']:>12s} {r['variant']:>9s}: spread/|mean| <= {precision:g} {when} "
+                       f"(spread/|mean| {100 * rel:.1f} %" + (f", bias {b:+.0f} % of the truth)" if np.isfinite(b)
+                                                             else ")"))

@@ -1,0 +1,224 @@
+"""Design-trade sweeps: many Monte Carlo validations, labelled, resumable, scaled out.
+
+``budget sweep SWEEP.toml --out STORE`` reads a sweep file (:mod:`budget.sweeps.spec`),
+checks every point before any work, and runs each point's evaluation
+(:mod:`budget.sweeps.evaluate`: the Monte Carlo validation, or the fast truth-only mode) on
+local processes (default: all cores), an existing Dask cluster (``--scheduler``) or a
+Dask LocalCluster (``--dask-local N``) (:mod:`budget.sweeps.execute`). Each point is written
+to the Zarr store as it finishes (:mod:`budget.sweeps.store`); running the same command
+again computes only the points not yet done. A ``[sensitivity]`` table adds Sobol
+indices (:mod:`budget.sweeps.sensitivity`). ``budget plot STORE`` draws the results
+(:mod:`budget.sweeps.plot`). See ``docs/sweeps.md``.
+
+Python API::
+
+    from budget.sweeps.run import run_sweep, open_sweep
+    report = run_sweep("docs/examples/sweeps/hsfe_psf_prnu.toml", "out/hsfe", workers=2)
+    ds = open_sweep("out/hsfe")          # xarray.Dataset, parameters as dimensions
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import click
+import numpy as np
+
+from budget.sweeps.spec import Sweep, load_sweep
+from budget.sweeps.store import open_sensitivity, open_sobol, open_sweep
+
+__all__ = [
+    "SweepReport",
+    "load_sweep",
+    "open_sensitivity",
+    "open_sobol",
+    "open_sweep",
+    "plan_tasks",
+    "run_sweep",
+    "sweep_command",
+]
+
+
+@dataclass
+class SweepReport:
+    """What a run did."""
+
+    store: str
+    sweep_hash: str
+    runner: str
+    points: int
+    already_done: int
+    computed: int
+    samples: int = 0
+    samples_already_done: int = 0
+    samples_computed: int = 0
+    sobol: bool = False
+    wall_s: float = 0.0
+    compute_s: list = field(default_factory=list)
+    cpu_s: list = field(default_factory=list)
+    completed: list = field(default_factory=list)  # (group, index, t since start, pid) per point
+
+    @property
+    def points_per_s(self) -> float:
+        n = self.computed + self.samples_computed
+        return n / self.wall_s if self.wall_s > 0 else float("nan")
+
+
+def plan_tasks(sweep: Sweep) -> tuple[list, list]:
+    """Point tasks of the grid and of the Sobol samples."""
+    from budget.sweeps.evaluate import PointTask
+
+    s = sweep.spec
+    grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials,
+                      s.tolerance_3sigma_arcsec) for p in sweep.points]
+    sens = []
+    if s.sensitivity is not None:
+        t = s.sensitivity
+        sens = [PointTask("sensitivity", p.index, s.kind, t.evaluate, p.scenario, p.seed, t.trials,
+                          t.tolerance_3sigma_arcsec) for p in sweep.sample_points]
+    return grid, sens
+
+
+def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None = None,
+              scheduler: str | None = None, dask_local: int | None = None, inline: bool = False,
+              progress: bool = False, on_point: Callable | None = None,
+              echo: Callable[[str], None] | None = None) -> SweepReport:
+    """Run (or resume) a sweep into the store ``out``.
+
+    Parameters
+    ----------
+    sweep : Sweep or path of a sweep file
+    out : path of the Zarr store (created, or resumed if it holds this sweep)
+    workers : local processes (default: all cores)
+    scheduler : address of an existing Dask scheduler (``tcp://host:port``)
+    dask_local : start a Dask LocalCluster of this many single-threaded workers
+    inline : run the points in this process (tests, debugging)
+    progress : show a progress bar (stderr)
+    on_point : called as ``on_point(group, index)`` after each point is written (hook)
+    echo : where to print one-line messages (default: nowhere)
+
+    Raises
+    ------
+    ScenarioError, UserInputError
+        Before any work: bad sweep file, a point the scenario or simulator rejects, a
+        store of another sweep, an unreachable scheduler.
+    """
+    from budget.sweeps.execute import make_runner
+    from budget.sweeps.store import StoreWriter, check_store, create_store
+    from simcam.cli_common import UserInputError
+
+    say = echo or (lambda _msg: None)
+    sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
+    grid_tasks, sens_tasks = plan_tasks(sw)
+    state = check_store(out, sw)
+    runner = make_runner(kind=sw.spec.kind, workers=workers, scheduler=scheduler, dask_local=dask_local,
+                         inline=inline)
+    t0 = time.perf_counter()
+    report = SweepReport(store=str(out), sweep_hash=sw.hash, runner=runner.description,
+                         points=len(grid_tasks), already_done=0, computed=0, samples=len(sens_tasks))
+    with runner:
+        if state == "new":
+            create_store(out, sw)
+        writer = StoreWriter(out, sw)
+        todo_grid = grid_tasks
+        if grid_tasks:
+            done = writer.done("grid")
+            todo_grid = [t for t in grid_tasks if not done[t.index]]
+            report.already_done = len(grid_tasks) - len(todo_grid)
+        todo_sens = sens_tasks
+        if sens_tasks:
+            done = writer.done("sensitivity")
+            todo_sens = [t for t in sens_tasks if not done[t.index]]
+            report.samples_already_done = len(sens_tasks) - len(todo_sens)
+        say(f"{sw.spec.name or sw.path} (hash {sw.hash}): {len(grid_tasks)} point(s)"
+            + (f", {len(sens_tasks)} Sobol sample(s)" if sens_tasks else "")
+            + (f"; resuming: {report.already_done + report.samples_already_done} already in {out}"
+               if state == "resume" else "") + f"; on {runner.description}")
+        import simcam
+
+        for label, tasks in (("points", todo_grid), ("Sobol samples", todo_sens)):
+            if not tasks:
+                continue
+            bar = None
+            if progress:
+                from tqdm import tqdm
+
+                bar = tqdm(total=len(tasks), desc=label, unit="pt", leave=False,
+                           disable=not sys.stderr.isatty())  # quiet when not on a terminal
+            try:
+                for res in runner.run(tasks):
+                    if res.version != simcam.__version__:
+                        raise UserInputError(
+                            f"a worker ({res.host}, pid {res.pid}) runs simcam {res.version}, this client "
+                            f"{simcam.__version__}: install the same version on every worker")
+                    writer.write(res)
+                    report.compute_s.append(float(res.values["compute_s"]))
+                    report.cpu_s.append(res.cpu_s)
+                    report.completed.append((res.group, res.index, time.perf_counter() - t0, res.pid))
+                    if res.group == "grid":
+                        report.computed += 1
+                    else:
+                        report.samples_computed += 1
+                    if bar:
+                        bar.update(1)
+                    if on_point is not None:
+                        on_point(res.group, res.index)
+            finally:
+                if bar:
+                    bar.close()
+        if sens_tasks and not writer.sobol_complete():
+            from budget.sweeps.sensitivity import analyze_samples
+
+            writer.write_sobol(analyze_samples(open_sensitivity(out), sw))
+            report.sobol = True
+    report.wall_s = time.perf_counter() - t0
+    return report
+
+
+# --------------------------------------------------------------------------- CLI
+def _fmt(v: float) -> str:
+    return "nan" if not np.isfinite(v) else f"{v:.3f}"
+
+
+@click.command("sweep")
+@click.argument("sweep_file", type=click.Path(dir_okay=False))
+@click.option("--out", "out", required=True, type=click.Path(),
+              help="Zarr store of the results (created, or resumed when it holds this sweep).")
+@click.option("--workers", type=int, default=None, help="Local worker processes (default: all cores).")
+@click.option("--scheduler", default=None, help="Send the points to an existing Dask scheduler, tcp://HOST:PORT.")
+@click.option("--dask-local", "dask_local", type=int, default=None,
+              help="Start a Dask LocalCluster of N single-threaded workers.")
+@click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr.")
+def sweep_command(sweep_file, out, workers, scheduler, dask_local, progress) -> None:
+    """Run the design-trade sweep SWEEP_FILE into the store --out (resumable; docs/sweeps.md)."""
+    rep = run_sweep(sweep_file, out, workers=workers, scheduler=scheduler, dask_local=dask_local,
+                    progress=progress, echo=click.echo)
+    n = rep.computed + rep.samples_computed
+    click.echo(f"{n} point(s) computed in {rep.wall_s:.1f} s"
+               + (f" ({rep.points_per_s:.2f} points/s)" if n else "")
+               + f"; store: {out} (xarray.open_zarr, or budget plot {out})")
+    sob = open_sobol(out) if rep.samples else None
+    if sob is not None:
+        sel = {d: sob[d].values[0] for d in sob.S1.dims if d not in ("class", "parameter")}
+        click.echo(f"Sobol indices ({sob.attrs['output']}, {int(sob.attrs['conf_level'] * 100)} % intervals"
+                   + "".join(f", {d} {v}" for d, v in sel.items()) + "):")
+        s1, st = sob.S1.sel(sel), sob.ST.sel(sel)
+        s1c, stc = sob.S1_conf.sel(sel), sob.ST_conf.sel(sel)
+        notes = sob.note.sel(sel)
+        skipped = [f"{c} ({notes.sel({'class': c}).item()})" for c in s1["class"].values
+                   if notes.sel({"class": c}).item()]
+        for cls in s1["class"].values:
+            if notes.sel({"class": cls}).item():
+                continue
+            cells = []
+            for p in s1.parameter.values:
+                a = dict(**{"class": cls}, parameter=p)
+                cells.append(f"{p}: S1 {_fmt(float(s1.sel(a)))} +- {_fmt(float(s1c.sel(a)))}, "
+                             f"ST {_fmt(float(st.sel(a)))} +- {_fmt(float(stc.sel(a)))}")
+            click.echo(f"  {cls:>12s}  " + "; ".join(cells))
+        if skipped:
+            click.echo("  no indices: " + "; ".join(skipped))

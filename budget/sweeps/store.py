@@ -1,0 +1,301 @@
+"""The sweep store: one Zarr directory, written point by point, resumable.
+
+Layout (Zarr format 2, the stable specification that every Zarr reader knows; xarray's
+``_ARRAY_DIMENSIONS`` convention, so ``xarray.open_zarr(STORE)`` gives the labelled
+dataset):
+
+* root group: the grid. Dimensions: the swept parameters (``mode = "product"``, or a
+  single parameter) or ``point`` with each parameter as a coordinate along it (``zip``),
+  then ``class``, ``axis`` and ``variant``. Variables: see
+  :func:`budget.sweeps.evaluate.schema`, plus ``done`` (1 once a point is complete).
+  Attributes: the sweep file's text, its hash, name, seed, the package version, the
+  base scenario (TOML) and its hash, kind, mode, evaluation settings.
+* group ``sensitivity``: the Sobol samples (dimension ``sample``; ``X`` the parameter
+  values) with the same variables per sample and ``done``;
+* group ``sobol``: the indices (``S1``, ``S1_conf``, ``ST``, ``ST_conf`` by output and
+  ``parameter``), written once every sample is done (attribute ``complete``).
+
+Atomicity: the store is created in a temporary directory and renamed into place; every
+point is its own chunk of every variable, and Zarr writes each chunk to a temporary file
+renamed over the old one; ``done`` is written last. A kill at any moment therefore leaves
+each point either complete and marked done, or not marked done (its chunks are rewritten,
+identically, by the next run). Only the process that runs the sweep writes (workers
+return their arrays), so there is one writer and remote workers need no access to it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from simcam.cli_common import UserInputError
+
+__all__ = [
+    "FORMAT",
+    "StoreWriter",
+    "check_store",
+    "create_store",
+    "open_sensitivity",
+    "open_sobol",
+    "open_sweep",
+    "store_attrs",
+]
+
+FORMAT = 1
+#: how point seeds are made (stored in the attributes)
+SEED_RULE = ("point seed = SeedSequence(seed, spawn_key=(w0, w1)).generate_state(1, uint64) >> 1, with (w0, w1) "
+             "the first two little-endian uint32 words of sha256 of the point's canonical identity "
+             "(sorted [key, value] pairs, numbers as repr(float)); Sobol samples share "
+             "SeedSequence(seed, spawn_key=(1,))")
+
+
+def _fill(dtype: str):
+    return np.nan if dtype.startswith("f") else 0
+
+
+def store_attrs(sweep) -> dict:
+    """Root attributes of a sweep's store."""
+    import simcam
+    from budget.sweeps.spec import scenario_hash, scenario_text
+
+    s = sweep.spec
+    return {
+        "title": s.name or Path(sweep.path).stem, "sweep_format": FORMAT, "sweep_hash": sweep.hash,
+        "sweep_file": sweep.text, "sweep_path": str(sweep.path), "seed": s.seed,
+        "version": simcam.__version__, "kind": s.kind, "mode": s.mode, "evaluate": s.evaluate,
+        "trials": -1 if s.trials is None else s.trials,
+        "tolerance_3sigma_arcsec": -1.0 if s.tolerance_3sigma_arcsec is None else s.tolerance_3sigma_arcsec,
+        "parameters": [k for k, _ in sweep.params], "point_dims": list(sweep.dims),
+        "points": len(sweep.points), "base_scenario": scenario_text(s.kind, sweep.base),
+        "base_scenario_hash": scenario_hash(s.kind, sweep.base), "seed_rule": SEED_RULE,
+        "units": "arcsec, 3 sigma",
+    }
+
+
+def _coord_array(values: list) -> np.ndarray:
+    if all(isinstance(v, bool) for v in values):
+        return np.array(values, dtype=bool)
+    if all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        return np.array(values, dtype=np.int64)
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return np.array(values, dtype=np.float64)
+    return np.array([str(v) for v in values])
+
+
+def _template(point_dims, point_shape, point_coords, kind, evaluate, attrs):
+    import dask.array as da
+    import xarray as xr
+
+    from budget.sweeps.evaluate import labels, schema
+
+    lab = labels(kind)
+    data_vars, enc = {}, {}
+    for name, (dims, dtype, vattrs) in schema(kind, evaluate).items():
+        shape = tuple(point_shape) + tuple(len(lab[d]) for d in dims)
+        chunks = (1,) * len(point_shape) + tuple(len(lab[d]) for d in dims)
+        data_vars[name] = (tuple(point_dims) + dims, da.full(shape, _fill(dtype), dtype=dtype, chunks=chunks), vattrs)
+        enc[name] = {"_FillValue": np.nan} if dtype.startswith("f") else {"_FillValue": None}
+    data_vars["done"] = (tuple(point_dims), da.zeros(point_shape, dtype="i1", chunks=(1,) * len(point_shape)),
+                         {"long_name": "1 once the point is complete (written last)"})
+    enc["done"] = {"_FillValue": None}
+    used = {d for v in schema(kind, evaluate).values() for d in v[0]}
+    coords = {d: list(lab[d]) for d in ("class", "axis", "variant") if d in used}
+    coords.update(point_coords)
+    return xr.Dataset(data_vars, coords=coords, attrs=attrs), enc
+
+
+def create_store(path: str | os.PathLike, sweep) -> None:
+    """Create the (empty) store of ``sweep`` at ``path``, atomically (temp dir + rename)."""
+    import xarray as xr
+
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    try:
+        attrs = store_attrs(sweep)
+        s = sweep.spec
+        if sweep.params:
+            dims = sweep.dims
+            if dims == ("point",):
+                pc = {k: ("point", _coord_array(v)) for k, v in sweep.params}
+                pc["point"] = np.arange(len(sweep.points))
+            else:
+                pc = {k: _coord_array(v) for k, v in sweep.params}
+            ds, enc = _template(dims, sweep.shape, pc, s.kind, s.evaluate, attrs)
+        else:
+            ds, enc = xr.Dataset(attrs=attrs), {}
+        ds.to_zarr(tmp, mode="w", zarr_format=2, consolidated=False, compute=False, encoding=enc)
+        if s.sensitivity is not None:
+            sens = s.sensitivity
+            n = len(sweep.sample_points)
+            names = sweep.sensitivity_names
+            sattrs = {"samples_N": sens.samples, "evaluate": sens.evaluate, "output": sens.output,
+                      "trials": -1 if sens.trials is None else sens.trials,
+                      "tolerance_3sigma_arcsec": -1.0 if sens.tolerance_3sigma_arcsec is None
+                      else sens.tolerance_3sigma_arcsec,
+                      "conf_level": sens.conf_level, "resamples": sens.resamples,
+                      "distributions": {k: d.model_dump(mode="json", exclude_none=True)
+                                        for k, d in sens.parameters.items()},
+                      "sampling": "SALib sobol.sample (Saltelli scheme, scrambled Sobol sequence), "
+                                  "calc_second_order = false: N (D + 2) samples"}
+            sds, senc = _template(("sample",), (n,), {"sample": np.arange(n), "parameter": names},
+                                  s.kind, sens.evaluate, sattrs)
+            sds["X"] = (("sample", "parameter"), np.asarray(sweep.samples, dtype=np.float64),
+                        {"long_name": "parameter values of each sample"})
+            sds.to_zarr(tmp, group="sensitivity", mode="w", zarr_format=2, consolidated=False,
+                        compute=False, encoding=senc)
+            # X is known now: write it (the template above only wrote metadata)
+            import zarr
+
+            zarr.open_group(str(tmp), mode="r+")["sensitivity/X"][...] = np.asarray(sweep.samples, dtype=np.float64)
+        import zarr
+
+        # the metadata never changes after this (points only write chunks): consolidated,
+        # so that plain xarray.open_zarr(STORE) reads it in one go
+        zarr.consolidate_metadata(str(tmp), zarr_format=2)
+        os.rename(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _read_attrs(path: Path) -> dict | None:
+    import zarr
+
+    try:
+        g = zarr.open_group(str(path), mode="r", use_consolidated=False)
+    except (OSError, ValueError):  # not a Zarr group (zarr NodeNotFoundError is a ValueError)
+        return None
+    return dict(g.attrs)
+
+
+def check_store(path: str | os.PathLike, sweep) -> str:
+    """``"new"`` (nothing there), ``"resume"`` (this sweep's store), or a UserInputError.
+
+    A store made from a different sweep file (another hash), by another package
+    version, or a path that holds something else, is refused before any work.
+    """
+    import simcam
+
+    path = Path(path)
+    if not path.exists():
+        return "new"
+    if path.is_dir() and not any(path.iterdir()):
+        return "new"  # an empty directory: the store is renamed onto it
+    attrs = _read_attrs(path) if path.is_dir() else None
+    if not attrs or "sweep_hash" not in attrs:
+        raise UserInputError(f"--out {path}: exists and is not a sweep store; choose another path")
+    if attrs["sweep_hash"] != sweep.hash:
+        raise UserInputError(
+            f"--out {path}: written by a different sweep file (hash {attrs['sweep_hash']}, "
+            f"{attrs.get('sweep_path', '?')}); {sweep.path} has hash {sweep.hash}. "
+            "Use another --out, or delete the store to start again")
+    if attrs.get("version") != simcam.__version__:
+        raise UserInputError(f"--out {path}: written by version {attrs.get('version')}, this is "
+                             f"{simcam.__version__}; results of two versions are not mixed: use another --out")
+    return "resume"
+
+
+class StoreWriter:
+    """Writes finished points into the store (single writer; see module docstring)."""
+
+    def __init__(self, path: str | os.PathLike, sweep):
+        import zarr
+
+        from budget.sweeps.evaluate import schema
+
+        self.path = Path(path)
+        self.sweep = sweep
+        self.root = zarr.open_group(str(self.path), mode="r+")
+        self._arrays: dict = {}
+        self._schema = {"grid": schema(sweep.kind, sweep.spec.evaluate)}
+        if sweep.spec.sensitivity is not None:
+            self._schema["sensitivity"] = schema(sweep.kind, sweep.spec.sensitivity.evaluate)
+
+    def _array(self, group: str, name: str):
+        key = (group, name)
+        if key not in self._arrays:
+            self._arrays[key] = self.root[name if group == "grid" else f"sensitivity/{name}"]
+        return self._arrays[key]
+
+    def _index(self, group: str, index: int) -> tuple[int, ...]:
+        return self.sweep.grid_index(index) if group == "grid" else (index,)
+
+    def done(self, group: str) -> np.ndarray:
+        """Flat boolean array: which points of ``group`` are complete."""
+        return np.asarray(self._array(group, "done")[...]).reshape(-1).astype(bool)
+
+    def write(self, result) -> None:
+        """Write one point's arrays, then mark it done."""
+        idx = self._index(result.group, result.index)
+        for name in self._schema[result.group]:
+            self._array(result.group, name)[idx] = result.values[name]
+        self._array(result.group, "done")[idx] = 1
+
+    def write_sobol(self, indices) -> None:
+        """Write the Sobol indices dataset as group ``sobol``, then mark it complete."""
+        import zarr
+
+        indices.to_zarr(str(self.path), group="sobol", mode="w", zarr_format=2, consolidated=False)
+        zarr.open_group(str(self.path), mode="r+", path="sobol", use_consolidated=False).attrs["complete"] = True
+        zarr.consolidate_metadata(str(self.path), zarr_format=2)
+
+    def sobol_complete(self) -> bool:
+        import zarr
+
+        try:
+            g = zarr.open_group(str(self.path), mode="r", path="sobol", use_consolidated=False)
+        except (OSError, ValueError):  # not a Zarr group (zarr NodeNotFoundError is a ValueError)
+            return False
+        return bool(g.attrs.get("complete", False))
+
+
+def _open(path, group=None):
+    import xarray as xr
+
+    path = Path(path)
+    attrs = _read_attrs(path) if path.is_dir() else None
+    if not attrs or "sweep_hash" not in attrs:
+        raise UserInputError(f"{path}: not a sweep store (made by `budget sweep ... --out {path}`)")
+    return xr.open_zarr(str(path), group=group, consolidated=False)
+
+
+def open_sweep(path: str | os.PathLike):
+    """The grid of a sweep store as an xarray Dataset (loaded; undone points are NaN)."""
+    ds = _open(path).load()
+    if "done" in ds:
+        ds["done"] = ds["done"].astype(bool)
+    return ds
+
+
+def open_sensitivity(path: str | os.PathLike):
+    """The Sobol samples and their outputs, or None when the sweep has no sensitivity."""
+    import zarr
+
+    _open(path)
+    g = zarr.open_group(str(path), mode="r", use_consolidated=False)
+    if "sensitivity" not in g:
+        return None
+    ds = _open(path, group="sensitivity").load()
+    ds["done"] = ds["done"].astype(bool)
+    return ds
+
+
+def open_sobol(path: str | os.PathLike):
+    """The Sobol indices dataset, or None when not (yet) computed."""
+    import zarr
+
+    _open(path)
+    try:
+        g = zarr.open_group(str(path), mode="r", path="sobol", use_consolidated=False)
+    except (OSError, ValueError):  # not a Zarr group (zarr NodeNotFoundError is a ValueError)
+        return None
+    if not g.attrs.get("complete", False):
+        return None
+    return _open(path, group="sobol").load()
+

@@ -1,0 +1,1 @@
+"""The round inductosyn angle encoder of seed 001 and its polygon calibration rig."""

@@ -1,0 +1,340 @@
+"""numba kernels of the detector signal chain (arrays and scalars in, no orchestration).
+
+Each pixel's value is a pure function of its expected signal, its mosaic pixel index
+and two stream keys, evaluated with the counter-based generator of :mod:`simcam.rng`:
+
+* detector key (fixed for a camera, "drawn once from the scenario seed"):
+  slot ``SLOT_PRNU`` (gain non-uniformity), ``SLOT_DSNU`` (dark non-uniformity),
+  ``SLOT_HOT`` (hot-pixel selection);
+* frame key (one per exposure): slot ``SLOT_READ`` (read noise), ``SLOT_SHOT``
+  (photon + dark shot noise).
+
+The counter of slot ``s`` of mosaic pixel ``p = row * mosaic_cols + col`` is
+``p * 2**16 + s * 2**12`` (see :mod:`simcam.rng`). Because nothing else enters, a full
+frame, a window and any thread split give bit-identical pixels.
+
+Physics (per pixel, chip ``k = col // chip_cols``), following the photon-transfer
+definitions of J. R. Janesick, *Photon Transfer* (SPIE Press, 2007), and
+EMVA Standard 1288 release 4.0 (2021) (linear camera model):
+
+* PRNU: ``g = max(0, 1 + prnu_rms * z1)``, ``z1 ~ N(0, 1)``;
+* dark signal with DSNU: ``d = max(0, dark_e + dsnu_rms_e * z2)`` plus
+  ``hot_dark_e`` if ``u3 < hot_fraction`` (``u3 ~ U(0, 1)``);
+* charge: ``n = Poisson(signal_e * g + d)`` (or its mean without shot noise), clipped at
+  the full well ``full_well_e[k]`` (the pixel's charge capacity, Janesick 2007);
+* read noise added at the output amplifier: ``n + read_noise_e[k] * z4``;
+* ADC: ``DN = n / gain_e_per_dn[k] + offset_dn[k]``, quantised as
+  ``floor(DN + 0.5)`` and clipped to ``[0, max_dn]`` (EMVA 1288 linear model, with the
+  quantisation noise variance 1/12 DN^2).
+
+Note for developers: numba's on-disk cache (``cache=True``) keys a kernel on its own
+source file only; after editing :mod:`simcam.rng`, delete the ``detector.*.nbi/nbc``
+files under ``simcam/starcam/kernels/__pycache__`` or the kernels keep the old generator
+(``tests/test_detector.py::test_kernel_equals_composition_of_rng_primitives`` fails
+if they do).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from simcam.rng import SLOT_BITS, DRAW_BITS, poisson_prepared, poisson_setup, std_normal, uniform01
+
+SLOT_PRNU = 0
+SLOT_DSNU = 1
+SLOT_HOT = 2
+SLOT_READ = 0
+SLOT_SHOT = 1
+
+_DRAW_SHIFT = np.uint64(DRAW_BITS)
+_SLOT_SHIFT = np.uint64(SLOT_BITS)
+
+
+@njit(cache=True, inline="always")
+def slot_counter(pixel, slot):
+    """First counter of slot ``slot`` of mosaic pixel ``pixel``: ``p * 2**16 + s * 2**12``.
+
+    Parameters
+    ----------
+    pixel : int
+        Mosaic pixel index ``row * mosaic_cols + col``.
+    slot : int
+        Slot number, 0..15.
+
+    Returns
+    -------
+    uint64
+    """
+    return (np.uint64(pixel) << _DRAW_SHIFT) | (np.uint64(slot) << _SLOT_SHIFT)
+
+
+@njit(cache=True, inline="always")
+def prnu_value(detector_key, pixel, prnu_rms):
+    """PRNU gain factor ``max(0, 1 + prnu_rms * z)`` of one pixel (dimensionless)."""
+    if prnu_rms == 0.0:
+        return 1.0
+    g = 1.0 + prnu_rms * std_normal(detector_key, slot_counter(pixel, SLOT_PRNU))
+    return g if g > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def dark_value(detector_key, pixel, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e):
+    """Mean dark signal of one pixel (e-): DSNU-perturbed level plus hot-pixel excess."""
+    d = dark_e
+    if dsnu_rms_e > 0.0:
+        d = dark_e + dsnu_rms_e * std_normal(detector_key, slot_counter(pixel, SLOT_DSNU))
+        if d < 0.0:
+            d = 0.0
+    if hot_fraction > 0.0:
+        if uniform01(detector_key, slot_counter(pixel, SLOT_HOT)) < hot_fraction:
+            d += hot_dark_e
+    return d
+
+
+@njit(cache=True)
+def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+               offset_dn, read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e,
+               hot_fraction, hot_dark_e, frame_key, detector_key, shot_noise, read_noise,
+               quantize, max_dn):
+    """One row segment ``signal_row[w]`` starting at mosaic ``(row, col0)`` into ``out_row``.
+
+    Two passes over a row-sized scratch buffer: the mean charge ``S g + d``; then
+    (:func:`_noise_adc_row`), chip by chip so that the per-chip constants are loaded
+    once, the Poisson draw, full well, read noise and ADC. Every value is a function of
+    the pixel index and the keys only, so the pass structure does not change the result.
+    """
+    w = signal_row.shape[0]
+    base = row * mosaic_cols + col0
+    e = np.empty(w, dtype=np.float64)
+    for jj in range(w):
+        e[jj] = (signal_row[jj] * prnu_value(detector_key, base + jj, prnu_rms)
+                 + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction,
+                              hot_dark_e))
+    _noise_adc_row(e, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                   read_noise_e, full_well_e, frame_key, shot_noise, read_noise, quantize,
+                   max_dn)
+
+
+@njit(parallel=True, cache=True)
+def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                 read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                 hot_dark_e, frame_key, detector_key, shot_noise, read_noise, quantize,
+                 max_dn, out):
+    """Detector chain for a rectangular block; rows in parallel; writes ``out``.
+
+    Parameters
+    ----------
+    signal_e : ndarray, shape (h, w), float
+        Expected photo-electrons before PRNU.
+    row0, col0 : int
+        Mosaic coordinates of ``signal_e[0, 0]``.
+    mosaic_cols, chip_cols : int
+        Mosaic width and chip width (columns).
+    gain_e_per_dn, offset_dn, read_noise_e, full_well_e : ndarray, shape (n_chips,)
+        Per-chip conversion gain (e-/DN), offset (DN), read noise (e- rms), full well (e-).
+    prnu_rms, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e : float
+        PRNU rms (fraction), mean dark (e-), DSNU rms (e-), hot-pixel fraction and
+        excess dark (e-).
+    frame_key, detector_key : uint64
+        Stream keys.
+    shot_noise, read_noise, quantize : bool
+        Switches of the temporal noise terms and of the ADC rounding/clipping.
+    max_dn : float
+        ``2**adc_bits - 1``.
+    out : ndarray, shape (h, w)
+        Output (uint16/uint32 when quantising, float64 otherwise).
+    """
+    h = signal_e.shape[0]
+    for i in prange(h):
+        expose_row(signal_e[i], out[i], row0 + i, col0, mosaic_cols, chip_cols,
+                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, prnu_rms, dark_e,
+                   dsnu_rms_e, hot_fraction, hot_dark_e, frame_key, detector_key,
+                   shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(parallel=True, cache=True)
+def expose_windows(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                   read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                   hot_dark_e, frame_key, detector_key, shot_noise, read_noise, quantize,
+                   max_dn, out):
+    """Detector chain for ``n`` equal windows ``signal_e[n, h, w]`` at ``(row0[n], col0[n])``.
+
+    Same arguments as :func:`expose_block`, with ``row0``/``col0`` int64 arrays of
+    length ``n``; (window, row) pairs run in parallel.
+    """
+    n, h, w = signal_e.shape
+    for t in prange(n * h):
+        k = t // h
+        i = t - k * h
+        expose_row(signal_e[k, i], out[k, i], row0[k] + i, col0[k], mosaic_cols, chip_cols,
+                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, prnu_rms, dark_e,
+                   dsnu_rms_e, hot_fraction, hot_dark_e, frame_key, detector_key,
+                   shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(parallel=True, cache=True)
+def prnu_block(row0, col0, mosaic_cols, detector_key, prnu_rms, out):
+    """PRNU factors of the block ``out[h, w]`` at ``(row0, col0)`` (dimensionless)."""
+    h, w = out.shape
+    for i in prange(h):
+        base = (row0 + i) * mosaic_cols + col0
+        for j in range(w):
+            out[i, j] = prnu_value(detector_key, base + j, prnu_rms)
+
+
+@njit(parallel=True, cache=True)
+def dark_block(row0, col0, mosaic_cols, detector_key, dark_e, dsnu_rms_e, hot_fraction,
+               hot_dark_e, out):
+    """Mean dark signal (e-) of the block ``out[h, w]`` at ``(row0, col0)``."""
+    h, w = out.shape
+    for i in prange(h):
+        base = (row0 + i) * mosaic_cols + col0
+        for j in range(w):
+            out[i, j] = dark_value(detector_key, base + j, dark_e, dsnu_rms_e, hot_fraction,
+                                   hot_dark_e)
+
+
+@njit(cache=True)
+def count_invalid(a, upper):
+    """Number of elements of ``a`` outside ``[0, upper]`` (NaN counts as outside)."""
+    n = 0
+    flat = a.ravel()
+    for i in range(flat.size):
+        x = flat[i]
+        if not (x >= 0.0 and x <= upper):
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def mean_charge_windows(signal_e, row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e,
+                        hot_fraction, hot_dark_e, detector_key, out):
+    """Mean charge ``S g + d`` (e-) of ``n`` windows: the fixed-pattern part of
+    :func:`expose_row`, computed once for many frames (same operations, same values).
+
+    ``signal_e``, ``out``: (n, h, w) float64; ``row0``, ``col0``: (n,) int64.
+    """
+    n, h, w = signal_e.shape
+    for k in range(n):
+        for i in range(h):
+            base = (row0[k] + i) * mosaic_cols + col0[k]
+            for jj in range(w):
+                out[k, i, jj] = (signal_e[k, i, jj] * prnu_value(detector_key, base + jj, prnu_rms)
+                                 + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e,
+                                              hot_fraction, hot_dark_e))
+
+
+@njit(cache=True, inline="always")
+def _noise_adc_pixel(v, pixel, g, off, rn, fw, frame_key, shot_noise, read_noise, quantize, max_dn):
+    """Temporal noise and ADC of one pixel of mean charge ``v`` (e-): Poisson, full well,
+    read noise, conversion and quantisation (module docstring). Returns DN (float)."""
+    mode, pj, pr, pb, pa, pvr = poisson_setup(v)
+    return _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, frame_key,
+                               shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(cache=True, inline="always")
+def _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, frame_key,
+                        shot_noise, read_noise, quantize, max_dn):
+    """:func:`_noise_adc_pixel` given ``simcam.rng.poisson_setup(v)`` (same value)."""
+    if shot_noise:
+        v = np.float64(poisson_prepared(v, mode, pj, pr, pb, pa, pvr, frame_key,
+                                        slot_counter(pixel, SLOT_SHOT)))
+    if v > fw:
+        v = fw
+    if read_noise:
+        v += rn * std_normal(frame_key, slot_counter(pixel, SLOT_READ))
+    v = v / g + off
+    if quantize:
+        v = math.floor(v + 0.5)
+        if v < 0.0:
+            v = 0.0
+        elif v > max_dn:
+            v = max_dn
+    return v
+
+
+@njit(cache=True, inline="always")
+def _chip_segment(col0, j, w, chip_cols):
+    """Chip of column ``j`` of a segment of ``w`` columns starting at mosaic column
+    ``col0``, and the end (exclusive) of the run of the segment's columns on that chip."""
+    chip = (col0 + j) // chip_cols
+    return chip, min(w, (chip + 1) * chip_cols - col0)
+
+
+@njit(cache=True)
+def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                   offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
+                   quantize, max_dn):
+    """Temporal noise and ADC of one window row given its mean charge (as :func:`expose_row`)."""
+    w = mean_row.shape[0]
+    base = row * mosaic_cols + col0
+    j = 0
+    while j < w:
+        chip, j_end = _chip_segment(col0, j, w, chip_cols)
+        g = gain_e_per_dn[chip]
+        off = offset_dn[chip]
+        rn = read_noise_e[chip]
+        fw = full_well_e[chip]
+        for jj in range(j, j_end):
+            out_row[jj] = _noise_adc_pixel(mean_row[jj], base + jj, g, off, rn, fw, frame_key,
+                                           shot_noise, read_noise, quantize, max_dn)
+        j = j_end
+
+
+@njit(cache=True)
+def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
+                     read_noise_e, full_well_e, frame_keys, shot_noise, read_noise, quantize,
+                     max_dn):
+    """:func:`_noise_adc_row` for a block ``mean[h, w]`` at mosaic ``(row0, col0)`` in ``F``
+    frames, into ``out[F, h, w]``: the same value per pixel and frame, computed pixel by
+    pixel with the frames innermost, so that the chip constants and the Poisson set-up
+    of each pixel's mean (:func:`simcam.rng.poisson_setup`) are computed once."""
+    h, w = mean.shape
+    nf = frame_keys.shape[0]
+    j = 0
+    while j < w:
+        chip, j_end = _chip_segment(col0, j, w, chip_cols)
+        g = gain_e_per_dn[chip]
+        off = offset_dn[chip]
+        rn = read_noise_e[chip]
+        fw = full_well_e[chip]
+        for i in range(h):
+            base = (row0 + i) * mosaic_cols + col0
+            for jj in range(j, j_end):
+                v = mean[i, jj]
+                mode, pj, pr, pb, pa, pvr = poisson_setup(v)
+                for f in range(nf):
+                    out[f, i, jj] = _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, base + jj, g, off,
+                                                        rn, fw, frame_keys[f], shot_noise, read_noise,
+                                                        quantize, max_dn)
+        j = j_end
+
+
+@njit(parallel=True, cache=True)
+def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                          offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
+                          read_noise, quantize, max_dn, out):
+    """Temporal noise and ADC of ``n`` windows in ``F`` frames, windows in parallel.
+
+    ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
+    ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
+    """
+    for k in prange(mean_e.shape[0]):
+        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+                         gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
+                         shot_noise, read_noise, quantize, max_dn)
+
+
+@njit(cache=True)
+def expose_windows_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                                 offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
+                                 read_noise, quantize, max_dn, out):
+    """Single-threaded twin of :func:`expose_windows_frames` (small batches, worker processes)."""
+    for k in range(mean_e.shape[0]):
+        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+                         gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
+                         shot_noise, read_noise, quantize, max_dn)

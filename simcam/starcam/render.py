@@ -1,0 +1,436 @@
+"""From a scenario and a target placement to pixels and the truth they carry.
+
+The chain for each pinhole star (stages in a fixed order, as in a detector pipeline):
+
+1. **target**: ideal focal-plane position ``(u, v)`` (simcam.starcam.targets), plus the hexapod's
+   image displacement for the pose;
+2. **distortion**: ``(u, v) -> D(u, v)`` (Brown-Conrady then cubic; simcam.starcam.optics);
+3. **spectrum**: electrons per nm reaching the detector from source x filter x optics
+   transmission x QE (simcam.starcam.sources / simcam.spectra), giving wavelength weights and the
+   electrons per exposure;
+4. **lateral colour**: a displacement per wavelength ``s(lambda, u, v)``; the image is the
+   weighted sum of the per-wavelength images, so its centroid moves by
+   ``sum_l w_l s_l`` (the spectrum-weighted chromatic displacement);
+5. **PSF**: pinhole disc x camera PSF, integrated over each pixel (simcam.starcam.optics);
+6. **detector**: PRNU, dark signal + DSNU, shot noise, read noise, full well, ADC
+   (simcam.starcam.detector), keyed per mosaic pixel so windows and full frames agree.
+
+The true position reported for a star is the centroid of its noise-free image:
+``D(u + platform) + sum_l w_l s_l``, mapped to mosaic pixel coordinates.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from simcam.starcam import optics
+from simcam.config_base import ScenarioError
+from simcam.starcam.detector import DetectorParams, expose, expose_windows_frames, window_chain
+from simcam.starcam.geometry import Mosaic
+from simcam.rng import child_keys, key_from_seed
+from simcam.starcam.scenario import Scenario
+from simcam.starcam.sources import SourceSpectra
+from simcam.starcam.targets import TargetLayout
+
+#: SeedSequence spawn-key roots
+STREAM_DETECTOR = 201  # scenario seed -> PRNU/DSNU maps
+STREAM_FRAMES = 301  # run seed -> temporal noise of each frame
+STREAM_DARK_FRAMES = 302  # run seed -> temporal noise of each star-free (lamp-off) frame
+
+
+class RenderError(ScenarioError):
+    """A placement cannot be rendered (a star off the detector, in the gap, ...)."""
+
+
+@dataclass(frozen=True)
+class Placement:
+    """One acquisition condition: a target layout, a hexapod pose and a filter.
+
+    ``condition`` numbers the frame streams: frames of different conditions get
+    independent noise; the same (seed, condition, frame) always gives the same noise.
+    """
+
+    layout: TargetLayout
+    platform_dx_px: float = 0.0
+    platform_dy_px: float = 0.0
+    filter_nm: float | None = None
+    condition: int = 0
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything deterministic about one placement: positions, spectra, stamps, truth."""
+
+    placement: Placement
+    chip: np.ndarray
+    x_ref_chip: np.ndarray  # chip px, reference wavelength position (after distortion)
+    y_ref_chip: np.ndarray
+    electrons: np.ndarray  # photo-electrons per exposure per star (before PRNU)
+    stamps: np.ndarray  # (W, L, L) flux fractions
+    stamp_col0: np.ndarray  # chip px of stamps[:, 0, 0]
+    stamp_row0: np.ndarray
+    truth: pd.DataFrame
+    background_e: float
+
+    @property
+    def n_stars(self) -> int:
+        """Number of stars W."""
+        return len(self.chip)
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Windows cut around each star for a set of frames.
+
+    ``pixels[f, j]`` is the window of star ``j`` in frame ``f``; its pixel ``[r, c]`` is
+    mosaic pixel ``(x = col0[j] + c, y = row0[j] + r)``.
+    """
+
+    pixels: np.ndarray
+    col0: np.ndarray
+    row0: np.ndarray
+    truth: pd.DataFrame
+    frame_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+
+
+class StarCamera:
+    """The simulated star camera in its lab, built from a :class:`Scenario`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The camera and lab.
+    detector_seed : int, optional
+        Seed of the fixed-pattern maps (PRNU, DSNU); default the scenario seed. A Monte
+        Carlo run that wants new maps per trial passes a trial seed here.
+    parallel : bool, optional
+        Use numba threads for batches of windows (default: by batch size). Worker
+        processes of a Monte Carlo run pass False. Results are identical either way.
+    """
+
+    def __init__(self, scenario: Scenario, *, detector_seed: int | None = None,
+                 parallel: bool | None = None):
+        self.scenario = scenario
+        #: numba threads for window batches (None: by size); results do not depend on it
+        self.parallel = parallel
+        self.mosaic = Mosaic.from_model(scenario.detector)
+        self.spectra = SourceSpectra(scenario)
+        o = scenario.optics
+        self.distortion = optics.CompositeDistortion(
+            brown_conrady=optics.BrownConradyDistortion(
+                k1=o.distortion.k1, k2=o.distortion.k2, p1=o.distortion.p1, p2=o.distortion.p2,
+                r_norm_px=o.r_norm_px,
+            ),
+            cubic=optics.CubicDistortion(
+                coeffs_x=tuple(o.distortion.cubic_x_px), coeffs_y=tuple(o.distortion.cubic_y_px),
+                r_norm_px=o.r_norm_px,
+            ),
+        )
+        det = scenario.detector
+        self.detector_params = DetectorParams(
+            gain_e_per_dn=tuple(c.gain_e_per_dn for c in det.chips),
+            offset_dn=tuple(c.offset_dn for c in det.chips),
+            read_noise_e=tuple(c.read_noise_e for c in det.chips),
+            full_well_e=tuple(c.full_well_e for c in det.chips),
+            adc_bits=det.bits,
+            prnu_rms=det.prnu_rms,
+            dark_e=det.dark_current_e_per_s * scenario.camera.exposure_s,
+            dsnu_rms_e=det.dsnu_rms_e,
+        )
+        seed = scenario.seed if detector_seed is None else detector_seed
+        self.detector_key = key_from_seed(seed, STREAM_DETECTOR)
+        self.background_e = det.background_e_per_s * scenario.camera.exposure_s
+
+    @property
+    def onboard_correction(self):
+        """The distortion correction this camera applies to its centroids
+        (:class:`simcam.correction.OnboardCorrection`, from ``optics.distortion_correction``),
+        or None for an uncalibrated camera. Computed once."""
+        if "_onboard" not in self.__dict__:
+            from simcam.correction import fit_onboard_correction
+
+            self.__dict__["_onboard"] = fit_onboard_correction(self)
+        return self.__dict__["_onboard"]
+
+    def report_positions(self, x_px, y_px):
+        """The positions the camera reports for measured mosaic centroids (its own
+        distortion correction applied; unchanged for an uncalibrated camera)."""
+        corr = self.onboard_correction
+        if corr is None:
+            return np.asarray(x_px, float), np.asarray(y_px, float)
+        return corr.apply(x_px, y_px)
+
+    # ------------------------------------------------------------------ scene
+    def scene(self, placement: Placement) -> Scene:
+        """Compute positions, spectra, PSF stamps and truth of a placement (no noise).
+
+        Scenes are deterministic, so they are cached (the last 256) per camera: Monte
+        Carlo trials that repeat a placement reuse its stamps. The lab's reference
+        coordinates of the targets (which carry the marker calibration error) enter only
+        the truth table's ``x_reference``/``y_reference``, so a placement that differs
+        from a cached one only there (a new calibrated target in each trial) reuses the
+        images and gets its own truth.
+        """
+        lay = placement.layout
+        key = (
+            lay.u_px.tobytes(), lay.v_px.tobytes(), lay.pinhole_radius_px, placement.platform_dx_px,
+            placement.platform_dy_px, placement.filter_nm, placement.condition, placement.label,
+        )
+        cache = self.__dict__.setdefault("_scene_cache", {})
+        hit = cache.get(key)
+        if hit is None:
+            if len(cache) >= 256:
+                cache.pop(next(iter(cache)))
+            hit = cache[key] = self._scene(placement)
+        old = hit.placement.layout
+        if (np.array_equal(old.reference_u_px, lay.reference_u_px)
+                and np.array_equal(old.reference_v_px, lay.reference_v_px)):
+            return hit
+        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        truth = hit.truth.copy()
+        truth["x_reference"] = x_refm
+        truth["y_reference"] = y_refm
+        derived = dataclasses.replace(hit, placement=placement, truth=truth)
+        for name in ("_windows_e", "_chain", "_chain_dark"):  # do not depend on the reference
+            if name in hit.__dict__:
+                object.__setattr__(derived, name, hit.__dict__[name])
+        return derived
+
+    def _scene(self, placement: Placement) -> Scene:
+        scn = self.scenario
+        lay = placement.layout
+        u0 = lay.u_px + placement.platform_dx_px
+        v0 = lay.v_px + placement.platform_dy_px
+        ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
+        wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=placement.filter_nm)
+        weights_1d = self.spectra.weights(e_rate)
+        electrons = self.spectra.electrons_per_exposure(e_rate)
+        W = lay.n_stars
+        lc = scn.optics.lateral_colour
+        su, sv = optics.lateral_colour_shift_px(
+            wavelength_nm=wl,
+            u_px=ud,
+            v_px=vd,
+            ref_wavelength_nm=lc.ref_wavelength_nm,
+            radial_coeffs=tuple(lc.radial_px_per_nm),
+            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
+            r_norm_px=scn.optics.r_norm_px,
+        )
+        chrom_u = su @ weights_1d
+        chrom_v = sv @ weights_1d
+        half = scn.render.window_px // 2
+        chip, xc, yc = self.mosaic.focal_to_chip(ud + chrom_u, vd + chrom_v, margin_px=half)
+        bad = np.flatnonzero(chip < 0)
+        if bad.size:
+            j = int(bad[0])
+            raise RenderError(
+                f"placement {placement.label or placement.condition}: star {j} at focal "
+                f"(u, v) = ({ud[j] + chrom_u[j]:.1f}, {vd[j] + chrom_v[j]:.1f}) px is off the "
+                f"detector or within {half} px of a chip edge or gap ({bad.size} of {W} stars); "
+                "move lab.target_center_px or the protocol's field centres"
+            )
+        # reference-wavelength position in the coordinates of the chip the image lands on
+        xr, yr = np.empty(W), np.empty(W)
+        for k in np.unique(chip):
+            sel = chip == k
+            xr[sel], yr[sel] = self.mosaic._chip_coords(ud[sel], vd[sel], int(k))
+        sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
+        sig = optics.psf_sigma_px(
+            u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
+            sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
+        )
+        stamps, c0, r0 = optics.render_stamps(
+            x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
+            sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
+            f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
+            wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
+            shift_x_px=sx, shift_y_px=sy,
+        )
+        x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
+        _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
+        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        truth = pd.DataFrame(
+            {
+                "star": np.arange(W),
+                "chip": chip,
+                "x_true": x_true,
+                "y_true": yc,
+                "u_ideal_px": lay.u_px,
+                "v_ideal_px": lay.v_px,
+                "x_ideal": x_ideal,
+                "y_ideal": y_ideal,
+                "x_reference": x_refm,
+                "y_reference": y_refm,
+                "platform_dx_px": np.full(W, placement.platform_dx_px),
+                "platform_dy_px": np.full(W, placement.platform_dy_px),
+                "distortion_dx_px": ud - u0,
+                "distortion_dy_px": vd - v0,
+                "chromatic_dx_px": chrom_u,
+                "chromatic_dy_px": chrom_v,
+                "electrons": np.full(W, electrons),
+                "psf_sigma_px": sig,
+                "filter_nm": np.full(W, np.nan if placement.filter_nm is None else placement.filter_nm),
+                "condition": np.full(W, placement.condition),
+            }
+        )
+        return Scene(
+            placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
+            electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
+            truth=truth, background_e=self.background_e,
+        )
+
+    # ------------------------------------------------------------------ signal
+    def _add_stamps(self, signal: np.ndarray, scene: Scene, *, chip: int, row0: int, col0: int) -> None:
+        """Add the star images of ``scene`` on ``chip`` into ``signal`` (chip px block at row0, col0).
+
+        Stamp pixels outside the chip are dropped (light lost off the sensor or in the gap).
+        """
+        rows, cols = signal.shape
+        L = scene.stamps.shape[-1]
+        cc = self.mosaic.chip_cols
+        cr = self.mosaic.chip_rows
+        for j in np.flatnonzero(scene.chip == chip):
+            r_lo = max(scene.stamp_row0[j], row0, 0)
+            r_hi = min(scene.stamp_row0[j] + L, row0 + rows, cr)
+            c_lo = max(scene.stamp_col0[j], col0, 0)
+            c_hi = min(scene.stamp_col0[j] + L, col0 + cols, cc)
+            if r_lo >= r_hi or c_lo >= c_hi:
+                continue
+            signal[r_lo - row0 : r_hi - row0, c_lo - col0 : c_hi - col0] += scene.electrons[j] * scene.stamps[
+                j, r_lo - scene.stamp_row0[j] : r_hi - scene.stamp_row0[j],
+                c_lo - scene.stamp_col0[j] : c_hi - scene.stamp_col0[j],
+            ]
+
+    def expected_frame_e(self, scene: Scene) -> np.ndarray:
+        """Noise-free photo-electrons per pixel of the whole mosaic (before PRNU and dark)."""
+        rows, cols = self.mosaic.shape
+        signal = np.full((rows, cols), scene.background_e, dtype=np.float64)
+        cc = self.mosaic.chip_cols
+        for k in range(self.mosaic.n_chips):
+            self._add_stamps(signal[:, k * cc : (k + 1) * cc], scene, chip=k, row0=0, col0=0)
+        return signal
+
+    def window_origins(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        """Mosaic (col0, row0) of each star's window, centred on its true position's pixel."""
+        half = self.scenario.render.window_px // 2
+        xc = scene.truth["x_true"].to_numpy() - scene.chip * self.mosaic.chip_cols
+        col0_chip = np.floor(xc + 0.5).astype(np.int64) - half
+        row0 = np.floor(scene.truth["y_true"].to_numpy() + 0.5).astype(np.int64) - half
+        return col0_chip + scene.chip * self.mosaic.chip_cols, row0
+
+    def expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Noise-free photo-electrons in each star's window (all stars' light included).
+
+        Computed once per scene (cached on it; callers must not modify the arrays).
+        """
+        cached = scene.__dict__.get("_windows_e")
+        if cached is None:
+            cached = self._expected_windows_e(scene)
+            object.__setattr__(scene, "_windows_e", cached)
+        return cached
+
+    def _expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        w = self.scenario.render.window_px
+        col0, row0 = self.window_origins(scene)
+        sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
+        cc = self.mosaic.chip_cols
+        for j in range(scene.n_stars):
+            k = int(scene.chip[j])
+            self._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+        return sig, col0, row0
+
+    # ------------------------------------------------------------------ noise
+    def window_chain(self, scene: Scene, *, dark: bool = False):
+        """The scene's windows through the detector's fixed pattern (:func:`simcam.starcam.detector.window_chain`):
+        mean charge per pixel and the chip constants, for the noise kernels. ``dark``: lamp
+        off (no star, no stray light). Cached on the scene (callers must not modify it).
+        """
+        name = "_chain_dark" if dark else "_chain"
+        cached = scene.__dict__.get(name)
+        if cached is None:
+            sig, col0, row0 = self.expected_windows_e(scene)
+            if dark:
+                sig = np.zeros_like(sig)
+            _, cols = self.mosaic.shape
+            cached = window_chain(signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
+                                  chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                                  detector_key=self.detector_key)
+            object.__setattr__(scene, name, cached)
+        return cached
+
+    def frame_keys(self, *, seed: int, condition: int, frames: int, first_frame: int = 0,
+                   dark: bool = False) -> np.ndarray:
+        """Keys of the temporal noise of frames ``first_frame ..``: the condition's key
+        ``SeedSequence(seed, spawn_key=(STREAM_FRAMES, condition))`` and, per frame ``f``,
+        its SplitMix64 child ``f`` (:func:`simcam.rng.child_keys`). Star-free (lamp-off)
+        frames use the stream ``STREAM_DARK_FRAMES`` instead.
+        """
+        ck = (seed, condition, dark)
+        cache = self.__dict__.setdefault("_condition_keys", {})
+        if ck not in cache:
+            if len(cache) > 4096:
+                cache.clear()
+            cache[ck] = key_from_seed(seed, STREAM_DARK_FRAMES if dark else STREAM_FRAMES, condition)
+        return child_keys(cache[ck], frames, start=first_frame)
+
+    def frame_key(self, *, seed: int, condition: int, frame: int, dark: bool = False) -> np.uint64:
+        """Key of one frame (see :meth:`frame_keys`)."""
+        return self.frame_keys(seed=seed, condition=condition, frames=1, first_frame=frame, dark=dark)[0]
+
+    def render_windows(
+        self,
+        scene: Scene,
+        *,
+        frames: int,
+        seed: int,
+        first_frame: int = 0,
+        shot_noise: bool = True,
+        read_noise: bool = True,
+        quantize: bool = True,
+        dark: bool = False,
+    ) -> Windows:
+        """Windows around every star for ``frames`` frames (the Monte Carlo fast path).
+
+        Pixels equal those of :meth:`render_frame` at the same mosaic pixels, same seed.
+        ``dark=True`` renders star-free frames (lamp off: no star, no stray light; dark
+        signal, DSNU, offset and noise only) at the same windows, for dark subtraction.
+        """
+        chain = self.window_chain(scene, dark=dark)
+        keys = self.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames,
+                               first_frame=first_frame, dark=dark)
+        pixels = expose_windows_frames(frame_keys=keys, chain=chain, shot_noise=shot_noise,
+                                       read_noise=read_noise, quantize=quantize, parallel=self.parallel)
+        col0, row0 = chain.col0, chain.row0
+        return Windows(pixels=pixels, col0=col0, row0=row0, truth=scene.truth,
+                       frame_index=np.arange(first_frame, first_frame + frames))
+
+    def render_frame(
+        self,
+        scene: Scene,
+        *,
+        frame: int,
+        seed: int,
+        expected_e: np.ndarray | None = None,
+        shot_noise: bool = True,
+        read_noise: bool = True,
+        quantize: bool = True,
+        dark: bool = False,
+    ) -> np.ndarray:
+        """One full mosaic frame (rows, cols) in DN (uint16 when quantised); ``dark``: lamp off."""
+        if dark:
+            expected_e = np.zeros(self.mosaic.shape)
+        elif expected_e is None:
+            expected_e = self.expected_frame_e(scene)
+        _, cols = self.mosaic.shape
+        key = self.frame_key(seed=seed, condition=scene.placement.condition, frame=frame, dark=dark)
+        return expose(
+            signal_e=expected_e, row0=0, col0=0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
+            params=self.detector_params, frame_key=key, detector_key=self.detector_key,
+            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
+        )

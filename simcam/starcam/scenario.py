@@ -1,0 +1,705 @@
+"""Star-camera scenario: typed, frozen models of the camera, lab and run, loaded from TOML.
+
+A scenario describes the camera (plate scale or focal length and pixel pitch, aperture,
+exposure), its optics (camera PSF, distortion, lateral colour), the detector (two-chip
+mosaic, noise, ADC), the lab (light source, filters, collimator and targets, hexapod)
+and how to render (window and stamp sizes, wavelength sampling). Every key has a
+documented default: the seed-000 camera and lab (``simcam scenario`` prints the resolved
+values as TOML that ``simcam render`` accepts back).
+
+Errors are :class:`simcam.config_base.ScenarioError` naming the file and the dotted
+field, e.g. ``scenario.toml: detector.read_noise_e: Input should be greater than or equal
+to 0 (got -1.0)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import tomllib
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import tomli_w
+from pydantic import ConfigDict, Field, model_validator
+
+from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+
+#: arcsec per radian (exact: 180 * 3600 / pi)
+ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
+
+NonNeg = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+Pos = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Fraction = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)]
+FloatSeq = Annotated[tuple[Finite, ...], Field(strict=False)]
+Pair = Annotated[tuple[Finite, Finite], Field(strict=False)]
+FloatTable = Annotated[tuple[FloatSeq, ...], Field(strict=False, min_length=1)]
+
+
+class _Model(StrictModel):
+    """Scenario base: strict types (no '5' for 5.0), frozen, unknown keys refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, validate_default=True)
+
+
+# --------------------------------------------------------------------------- camera
+class CameraModel(_Model):
+    """Camera geometry and exposure.
+
+    Give either ``plate_scale_arcsec`` or ``focal_length_mm``; the other follows from
+    ``pixel_pitch_um`` (plate scale = pitch / focal length, in arcsec per px).
+    """
+
+    plate_scale_arcsec: Pos | None = None
+    focal_length_mm: Pos | None = None
+    pixel_pitch_um: Pos = 5.5
+    aperture_diameter_mm: Pos = 60.0
+    exposure_s: Pos = 0.1
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_scale(cls, data: Any) -> Any:
+        # Documented default: 5.5 arcsec/px (seed 000) unless a focal length is given.
+        if isinstance(data, dict) and data.get("plate_scale_arcsec") is None and data.get("focal_length_mm") is None:
+            data = {**data, "plate_scale_arcsec": 5.5}
+        return data
+
+    @model_validator(mode="after")
+    def _one_scale(self) -> CameraModel:
+        if self.plate_scale_arcsec is None and self.focal_length_mm is None:
+            raise ValueError("give plate_scale_arcsec or focal_length_mm")
+        if self.plate_scale_arcsec is not None and self.focal_length_mm is not None:
+            implied = self.pixel_pitch_um * 1e-3 / self.focal_length_mm * ARCSEC_PER_RAD
+            if abs(implied - self.plate_scale_arcsec) > 1e-6 * implied:
+                raise ValueError(
+                    f"plate_scale_arcsec={self.plate_scale_arcsec} contradicts focal_length_mm="
+                    f"{self.focal_length_mm} with pixel_pitch_um={self.pixel_pitch_um} "
+                    f"(implies {implied:.6f}); give only one of them"
+                )
+        return self
+
+    @property
+    def scale_arcsec_per_px(self) -> float:
+        """Plate scale in arcsec per px at the optical axis."""
+        if self.plate_scale_arcsec is not None:
+            return float(self.plate_scale_arcsec)
+        return self.pixel_pitch_um * 1e-3 / self.focal_length_mm * ARCSEC_PER_RAD
+
+    @property
+    def focal_length_effective_mm(self) -> float:
+        """Focal length in mm (given, or from plate scale and pitch)."""
+        if self.focal_length_mm is not None:
+            return float(self.focal_length_mm)
+        return self.pixel_pitch_um * 1e-3 / (self.plate_scale_arcsec / ARCSEC_PER_RAD)
+
+    @property
+    def f_number(self) -> float:
+        """Focal ratio N = f / D."""
+        return self.focal_length_effective_mm / self.aperture_diameter_mm
+
+
+# --------------------------------------------------------------------------- optics
+class PSFModel(_Model):
+    """Camera PSF. ``gaussian``: sigma varies over the field as sigma0 + sigma_r2 (r/r_norm)^2.
+
+    ``airy``: diffraction by the circular aperture at each wavelength (f-number from the
+    camera), convolved with a Gaussian blur of the same field-dependent sigma (defocus,
+    jitter); set ``sigma0_px = 0`` for a pure Airy pattern.
+    """
+
+    kind: Literal["gaussian", "airy"] = "gaussian"
+    sigma0_px: NonNeg = 0.8
+    sigma_r2_px: Finite = 0.1
+
+    @model_validator(mode="after")
+    def _width(self) -> PSFModel:
+        if self.kind == "gaussian" and self.sigma0_px <= 0:
+            raise ValueError("sigma0_px must be > 0 for a gaussian PSF")
+        if self.sigma0_px + self.sigma_r2_px * 2.0 < 0:
+            raise ValueError("sigma0_px + sigma_r2_px (r/r_norm)^2 becomes negative in the field")
+        return self
+
+
+class DistortionModel(_Model):
+    """Polynomial distortion (px) of focal-plane coordinates normalised by ``r_norm_px``.
+
+    Brown-Conrady (k1, k2, p1, p2) then a full bivariate cubic (10 coefficients per axis,
+    monomials 1, x, y, x^2, xy, y^2, x^3, x^2 y, x y^2, y^3).
+    """
+
+    k1: Finite = 2.0e-4
+    k2: Finite = 5.0e-5
+    p1: Finite = 0.0
+    p2: Finite = 0.0
+    cubic_x_px: FloatSeq = (0.0,) * 10
+    cubic_y_px: FloatSeq = (0.0,) * 10
+
+    @model_validator(mode="after")
+    def _ten(self) -> DistortionModel:
+        for name in ("cubic_x_px", "cubic_y_px"):
+            if len(getattr(self, name)) != 10:
+                raise ValueError(f"{name} needs 10 coefficients, got {len(getattr(self, name))}")
+        return self
+
+
+class LateralColourModel(_Model):
+    """Chromatic lateral shift (px) as a polynomial in (lambda - lambda_ref) [nm].
+
+    du = (u / r_norm) P_radial + P_x, dv = (v / r_norm) P_radial + P_y, P(d) = sum c_k d^k,
+    k = 1.., coefficients in px per nm^k. The radial term is Seidel lateral colour; the
+    uniform term the prism-like shift of a decentred element. ``radial_px_per_nm`` may
+    also be a table (rows of equal length) ``c[k-1][m]``: ``P_radial = sum_k sum_m c_km
+    d^k (r / r_norm)^(2m)``, lateral colour growing as odd powers of the field radius ``r``
+    (what a traced lens gives, see ``optics.lens``).
+    """
+
+    ref_wavelength_nm: Pos = 600.0
+    radial_px_per_nm: FloatSeq | FloatTable = (1.0e-4,)
+    uniform_x_px_per_nm: FloatSeq = (6.0e-4,)
+    uniform_y_px_per_nm: FloatSeq = (3.5e-5,)
+
+    @model_validator(mode="after")
+    def _rectangular(self) -> LateralColourModel:
+        rows = self.radial_px_per_nm
+        if rows and isinstance(rows[0], tuple):
+            widths = {len(r) for r in rows}
+            if len(widths) != 1 or 0 in widths:
+                raise ValueError(f"radial_px_per_nm: table rows must have the same length >= 1 (got lengths "
+                                 f"{[len(r) for r in rows]})")
+        return self
+
+
+class DistortionCorrectionModel(_Model):
+    """The distortion correction the camera applies to its own centroids (issue 12).
+
+    A camera under the seed-000 LSFE-C1 test already carries a distortion model from an
+    earlier calibration, with that calibration's own errors. ``kind = "fitted"`` (default):
+    at a ``rows x cols`` grid spanning ``extent_fraction`` of the mosaic (as
+    ``lab.calibration_target`` lays out its grid), the displacement of each point (true
+    distortion plus the lamp's lateral colour, in mosaic px) was measured with a marker
+    error of ``marker_error_3sigma_arcsec`` (3 sigma, per axis) and a centroid noise of
+    ``centroid_noise_px`` (1 sigma, per axis, of each point's mean), and a full bivariate
+    polynomial of total degree ``order`` in the measured coordinates was fitted to it by
+    least squares; the camera reports ``x - c_x(x, y)``, ``y - c_y(x, y)``. The errors are
+    drawn once from the scenario seed (one physical camera). ``kind = "none"``: the camera
+    reports raw centroids (an uncalibrated camera). The defaults (cubic, 32 points, 0.5"
+    markers, 0.002 px centroid noise ~ the default camera's TE over 30 frames) leave a
+    remaining displacement near the marker floor of eq 29, sqrt(9/31) x 0.5" = 0.27".
+    """
+
+    kind: Literal["fitted", "none"] = "fitted"
+    rows: Annotated[int, Field(ge=2, le=64)] = 4
+    cols: Annotated[int, Field(ge=2, le=64)] = 8
+    extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
+    order: Annotated[int, Field(ge=1, le=7)] = 3
+    marker_error_3sigma_arcsec: NonNeg = 0.5
+    centroid_noise_px: NonNeg = 0.002
+
+    @model_validator(mode="after")
+    def _determined(self) -> DistortionCorrectionModel:
+        if self.kind == "fitted":
+            if self.order >= self.rows or self.order >= self.cols:
+                raise ValueError(f"order {self.order} needs more than {self.order} rows and columns of points "
+                                 f"(got rows = {self.rows}, cols = {self.cols})")
+            n_terms = (self.order + 1) * (self.order + 2) // 2
+            if self.rows * self.cols <= n_terms:
+                raise ValueError(f"order {self.order} has {n_terms} terms: needs more than {n_terms} points "
+                                 f"(got {self.rows * self.cols})")
+        return self
+
+
+class OpticsModel(_Model):
+    """Camera optics: transmission, PSF, distortion, lateral colour; ``r_norm_px`` normalises field.
+
+    ``lens`` (optional, default none: the analytic coefficients below): a lens prescription,
+    ``"embedded:star_camera"`` or a TOML file path (relative to the working directory).
+    The lens is ray traced (simcam.starcam.lens, cached on disk) and sets ``psf`` (Airy with the
+    geometric blur), ``distortion``, the lateral-colour coefficients and
+    ``camera.aperture_diameter_mm`` (its entrance pupil), fitted to the traced tables
+    (docs/lens.md); values given for those must equal what the lens gives. The camera's
+    nominal focal length must agree with the lens's within 0.1 %.
+    """
+
+    transmission: Fraction = 0.8
+    r_norm_px: Pos = 2048.0
+    lens: Annotated[str, Field(min_length=1)] | None = None
+    psf: PSFModel = PSFModel()
+    distortion: DistortionModel = DistortionModel()
+    distortion_correction: DistortionCorrectionModel = DistortionCorrectionModel()
+    lateral_colour: LateralColourModel = LateralColourModel()
+
+
+# --------------------------------------------------------------------------- detector
+class ChipModel(_Model):
+    """One sensor of the mosaic: placement error and its own ADC chain."""
+
+    offset_x_px: Finite = 0.0
+    offset_y_px: Finite = 0.0
+    rotation_deg: Finite = 0.0
+    gain_e_per_dn: Pos = 1.0
+    offset_dn: NonNeg = 100.0
+    read_noise_e: NonNeg = 3.0
+    full_well_e: Pos = 4000.0
+
+
+class QEModel(_Model):
+    """Parametric quantum-efficiency curve of a monochrome CMOS (see simcam.spectra)."""
+
+    peak_qe: Annotated[float, Field(gt=0.0, le=1.0)] = 0.6
+    peak_nm: Pos = 550.0
+    blue_cutoff_nm: Pos = 350.0
+    red_cutoff_nm: Pos = 1050.0
+
+
+class DetectorModel(_Model):
+    """Mosaic of identical-format chips side by side along x, with a gap between them."""
+
+    n_chips: Annotated[int, Field(ge=1, le=8)] = 2
+    chip_cols: Annotated[int, Field(ge=16)] = 2048
+    chip_rows: Annotated[int, Field(ge=16)] = 2048
+    gap_px: NonNeg = 20.0
+    bits: Annotated[int, Field(ge=8, le=16)] = 12
+    prnu_rms: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.01
+    dark_current_e_per_s: NonNeg = 20.0
+    dsnu_rms_e: NonNeg = 1.0
+    background_e_per_s: NonNeg = 10.0
+    qe: QEModel = QEModel()
+    chips: Annotated[tuple[ChipModel, ...], Field(strict=False)] = (
+        ChipModel(),
+        ChipModel(gain_e_per_dn=1.05),
+    )
+
+    @model_validator(mode="after")
+    def _chips(self) -> DetectorModel:
+        if len(self.chips) != self.n_chips:
+            raise ValueError(f"chips lists {len(self.chips)} chip(s) but n_chips = {self.n_chips}")
+        return self
+
+    @property
+    def mosaic_shape(self) -> tuple[int, int]:
+        """(rows, cols) of the mosaic array."""
+        return self.chip_rows, self.chip_cols * self.n_chips
+
+
+# --------------------------------------------------------------------------- lab
+class SourceModel(_Model):
+    """Light behind the target: a lamp (blackbody) or a star-like spectrum.
+
+    The source is scaled so that, with no filter, each pinhole gives the camera as many
+    electrons per exposure as a star of ``match_v_mag`` and ``match_spectral_type``.
+    ``kind = "star"`` gives the pinholes that star's own spectrum: a blackbody at the
+    Teff of ``match_spectral_type``, or at ``star_temperature_k`` when given.
+    """
+
+    kind: Literal["lamp", "star"] = "lamp"
+    temperature_k: Annotated[float, Field(ge=1000.0, le=60000.0)] = 2856.0
+    match_v_mag: Finite = 7.5
+    match_spectral_type: str = "G2V"
+    star_temperature_k: Annotated[float, Field(ge=1000.0, le=60000.0)] | None = None
+
+    @model_validator(mode="after")
+    def _known_type(self) -> SourceModel:
+        from simcam.spectra import SpectraError, star_teff_k
+
+        try:
+            star_teff_k(spectral_type=self.match_spectral_type)
+        except SpectraError as exc:
+            raise ValueError(f"match_spectral_type: {exc}") from None
+        return self
+
+
+class FilterModel(_Model):
+    """Interference filter in front of the target (flat top, smooth edges, FWHM = width)."""
+
+    center_nm: Pos
+    width_nm: Pos
+    peak_transmission: Annotated[float, Field(gt=0.0, le=1.0)] = 0.9
+
+
+class CollimatorModel(_Model):
+    """Collimator that projects the target to infinity."""
+
+    focal_length_mm: Pos = 1000.0
+
+
+class PinholeGridModel(_Model):
+    """Back-lit pinhole target in the collimator focal plane (seed 000: 5 x 5)."""
+
+    rows: Annotated[int, Field(ge=1, le=64)] = 5
+    cols: Annotated[int, Field(ge=1, le=64)] = 5
+    spacing_mm: Pos = 2.0
+    pinhole_diameter_um: NonNeg = 15.0
+    marker_error_3sigma_um: NonNeg = 0.0
+
+
+class CalibrationGridModel(_Model):
+    """Pre-calibrated grid target for the distortion test (seed 000: 32 points).
+
+    Points on a ``rows x cols`` grid spanning ``extent_fraction`` of the mosaic; their
+    reference coordinates carry a marker calibration error of ``marker_error_3sigma_arcsec``
+    (seed 000's C2: 0.5" 3 sigma from a total station).
+    """
+
+    rows: Annotated[int, Field(ge=2, le=64)] = 4
+    cols: Annotated[int, Field(ge=2, le=64)] = 8
+    extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
+    pinhole_diameter_um: NonNeg = 15.0
+    marker_error_3sigma_arcsec: NonNeg = 0.5
+
+
+class PlatformModel(_Model):
+    """Hexapod carrying the camera (seed 000: PI H-840).
+
+    Poses are image displacements in px; the positioning error is Gaussian with the given
+    rms per axis, drawn per pose from the run seed.
+    """
+
+    positioning_noise_px: NonNeg = 0.0
+
+
+class LabKnowledgeModel(_Model):
+    """What the lab *believes* about the camera's spectral response (issue 12).
+
+    The improved LSFE-S estimator needs effective wavelengths of the lamp through each
+    filter, of the calibration spectrum and of the stellar population; a lab computes them
+    from its own models (data sheets, filter certificates, a spectral library), which
+    differ from the camera's true ones. Each field is a stated error, the lab's value minus
+    the true one: ``qe_peak_nm_error`` (the QE curve's peak wavelength), ``filter_center_nm_error``
+    (every filter's centre), ``filter_width_nm_error`` (every filter's FWHM),
+    ``lamp_temperature_k_error`` (the lamp's colour temperature) and
+    ``star_teff_fraction_error`` (the spectral model's effective temperature of each
+    stellar type, as a fraction: Teff_lab = Teff (1 + e)). All zero: the lab knows the
+    camera exactly (the estimator then shares the simulator's spectral inputs).
+    """
+
+    qe_peak_nm_error: Finite = 20.0
+    filter_center_nm_error: Finite = 3.0
+    filter_width_nm_error: Finite = 2.0
+    lamp_temperature_k_error: Finite = 50.0
+    star_teff_fraction_error: Annotated[float, Field(gt=-0.5, lt=0.5, allow_inf_nan=False)] = 0.03
+
+
+class LabModel(_Model):
+    """The lab: source, filters, collimator, targets, platform, target placement, and the
+    lab's own (imperfect) knowledge of the camera's spectral response (``knowledge``)."""
+
+    source: SourceModel = SourceModel()
+    filters: Annotated[tuple[FilterModel, ...], Field(strict=False)] = (
+        FilterModel(center_nm=500.0, width_nm=100.0),
+        FilterModel(center_nm=600.0, width_nm=100.0),
+        FilterModel(center_nm=800.0, width_nm=100.0),
+    )
+    collimator: CollimatorModel = CollimatorModel()
+    target: PinholeGridModel = PinholeGridModel()
+    calibration_target: CalibrationGridModel = CalibrationGridModel()
+    platform: PlatformModel = PlatformModel()
+    target_center_px: Pair = (-1024.0, 0.0)
+    knowledge: LabKnowledgeModel = LabKnowledgeModel()
+
+    @model_validator(mode="after")
+    def _filters(self) -> LabModel:
+        centres = [f.center_nm for f in self.filters]
+        if len(set(centres)) != len(centres):
+            raise ValueError(f"filters: two filters share a centre wavelength ({centres})")
+        return self
+
+
+class RenderModel(_Model):
+    """Rendering controls: windows, PSF stamps, wavelength sampling."""
+
+    window_px: Annotated[int, Field(ge=3, le=63)] = 11
+    stamp_px: Annotated[int, Field(ge=8, le=128)] = 32
+    wavelength_min_nm: Pos = 400.0
+    wavelength_max_nm: Pos = 1000.0
+    wavelength_step_nm: Pos = 10.0
+
+    @model_validator(mode="after")
+    def _sizes(self) -> RenderModel:
+        if self.window_px % 2 == 0:
+            raise ValueError(f"window_px must be odd (a window centred on a pixel), got {self.window_px}")
+        if self.window_px > self.stamp_px:
+            raise ValueError(f"window_px ({self.window_px}) larger than stamp_px ({self.stamp_px})")
+        if self.wavelength_max_nm <= self.wavelength_min_nm:
+            raise ValueError("wavelength_max_nm must exceed wavelength_min_nm")
+        return self
+
+
+class TEProtocolModel(_Model):
+    """TE plan (seed 000 eqs 1-2): a static target, ``frames`` >= 2 (the seed asks N >= 30)."""
+
+    frames: Annotated[int, Field(ge=2)] = 30
+
+
+class HSFEProtocolModel(_Model):
+    """HSFE plan (seed 000 eqs 3-12): ``conditions`` poses, each moving the image by
+    ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one."""
+
+    conditions: Annotated[int, Field(ge=2)] = 12
+    frames: Annotated[int, Field(ge=1)] = 30
+    step_px: Finite = 0.2
+    direction_deg: Finite = 45.0
+
+
+class ChromaticProtocolModel(_Model):
+    """Chromatic plan (seed 000 eqs 13-16): the target at each field centre, each filter."""
+
+    frames: Annotated[int, Field(ge=1)] = 30
+    field_centers_px: Annotated[tuple[Pair, ...], Field(strict=False, min_length=1)] = (
+        (-1700.0, -700.0),
+        (1700.0, -700.0),
+        (-1700.0, 700.0),
+        (1700.0, 700.0),
+    )
+    field_names: Annotated[tuple[str, ...], Field(strict=False)] = (
+        "upper-left",
+        "upper-right",
+        "lower-left",
+        "lower-right",
+    )
+    reference_filter_nm: Pos = 600.0
+
+    @model_validator(mode="after")
+    def _names(self) -> ChromaticProtocolModel:
+        if len(self.field_names) != len(self.field_centers_px):
+            raise ValueError(
+                f"field_names has {len(self.field_names)} names for "
+                f"{len(self.field_centers_px)} field_centers_px"
+            )
+        return self
+
+
+class DistortionProtocolModel(_Model):
+    """Distortion plan (seed 000 eqs 17-30): the calibration grid, ``frames`` frames."""
+
+    frames: Annotated[int, Field(ge=1)] = 30
+
+
+class ProtocolsModel(_Model):
+    """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols)."""
+
+    te: TEProtocolModel = TEProtocolModel()
+    hsfe: HSFEProtocolModel = HSFEProtocolModel()
+    chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
+    distortion: DistortionProtocolModel = DistortionProtocolModel()
+
+
+class ValidationModel(_Model):
+    """Monte Carlo validation settings (read by budget.starcam.validate).
+
+    * ``trials`` / ``tolerance_3sigma_arcsec`` / ``max_trials`` / ``batch_trials``: a fixed
+      number of trials, or batches until the Monte Carlo standard error of every bias and
+      spread (3 sigma arcsec) is below the tolerance (JCGM 101 section 7.9), with a cap;
+    * ``new_maps_per_trial``, ``new_markers_per_trial``: draw new PRNU/DSNU maps and new
+      target marker errors in every trial (else fixed by the scenario seed); the hexapod
+      positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
+    * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
+    * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
+      phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
+      ``calibration_spectrum`` (the reference of the chromatic displacement:
+      ``population_mean``, the default, the mean over the population at each field point,
+      since the population's common offset is calibrated at system level (seed 000); or
+      ``lamp``, the lab source without filter; or a spectral type), ``field_grid``
+      points per axis for the field averages.
+    """
+
+    trials: Annotated[int, Field(ge=2)] = 200
+    tolerance_3sigma_arcsec: Annotated[float, Field(gt=0.0)] | None = None
+    max_trials: Annotated[int, Field(ge=2)] = 5000
+    batch_trials: Annotated[int, Field(ge=2)] = 50
+    new_maps_per_trial: bool = False
+    new_markers_per_trial: bool = True
+    centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
+    threshold_sigma: Pos = 3.0
+    dark_frames: Annotated[int, Field(ge=0)] = 0
+    te_truth_frames: Annotated[int, Field(ge=10)] = 1000
+    hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 2000
+    hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
+    lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
+        "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
+    )
+    calibration_spectrum: str = "population_mean"
+    field_grid: Annotated[int, Field(ge=2, le=64)] = 9
+
+    @model_validator(mode="after")
+    def _known_types(self) -> ValidationModel:
+        from simcam.spectra import SpectraError, star_teff_k
+
+        names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum in ("lamp", "population_mean")
+                                                   else [self.calibration_spectrum])
+        for st in names:
+            try:
+                star_teff_k(spectral_type=st)
+            except SpectraError as exc:
+                raise ValueError(f"spectral type {st!r}: {exc}") from None
+        return self
+
+
+class Scenario(_Model):
+    """A complete star-camera + lab scenario (see module docstring)."""
+
+    name: str = "seed-000 sub-arcsec star camera, lab"
+    seed: Annotated[int, Field(ge=0)] = 20180405
+    camera: CameraModel = CameraModel()
+    optics: OpticsModel = OpticsModel()
+    detector: DetectorModel = DetectorModel()
+    lab: LabModel = LabModel()
+    render: RenderModel = RenderModel()
+    protocols: ProtocolsModel = ProtocolsModel()
+    validation: ValidationModel = ValidationModel()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _lens(cls, data: Any) -> Any:
+        # optics.lens: trace the lens (or read its cached tables) and fill what it sets
+        if isinstance(data, dict):
+            optics = data.get("optics")
+            lens = optics.get("lens") if isinstance(optics, dict) else getattr(optics, "lens", None)
+            if lens is not None:
+                from simcam.starcam.lens.simulator import apply_lens
+
+                return apply_lens(data)
+        return data
+
+    @model_validator(mode="after")
+    def _cross(self) -> Scenario:
+        refs = [f.center_nm for f in self.lab.filters]
+        if self.lab.filters and self.protocols.chromatic.reference_filter_nm not in refs:
+            raise ValueError(
+                f"protocols.chromatic.reference_filter_nm = {self.protocols.chromatic.reference_filter_nm} "
+                f"is not one of lab.filters centres {refs}"
+            )
+        return self
+
+    @cached_property
+    def hash(self) -> str:
+        """Scenario hash: SHA-256 prefix of the canonical JSON of the resolved scenario
+        (without ``optics.lens`` when it is unset, so analytic scenarios keep their hash)."""
+        if self.optics.lens is not None:
+            return model_hash(self)
+        payload = json.dumps(self.model_dump(mode="json", exclude={"optics": {"lens"}}), sort_keys=True,
+                             separators=(",", ":"))
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, strict=True, validate_default=True, ignored_types=(cached_property,)
+    )
+
+
+# --------------------------------------------------------------------------- I/O
+DEFAULT_RESOURCE = "default_scenario.toml"
+
+
+def _strip_none(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _strip_none(v) for k, v in obj.items() if v is not None}
+    if isinstance(obj, (list, tuple)):
+        return [_strip_none(v) for v in obj]
+    return obj
+
+
+def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Scenario:
+    """Validate a dict (parsed TOML) into a :class:`Scenario`, or raise ScenarioError."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source or 'scenario'}: top level must be a table")
+    optics = data.get("optics")
+    if isinstance(optics, dict) and optics.get("lens") is not None:
+        # resolve the lens here too, so that its errors read "file: field: message"
+        from simcam.starcam.lens.simulator import apply_lens
+
+        try:
+            data = apply_lens(data)
+        except ValueError as exc:
+            raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
+    scn = validate_model(Scenario, data, source=source)
+    _check_derived_finite(scn, source=source)
+    return scn
+
+
+def _check_derived_finite(scn: "Scenario", *, source: str | None) -> None:
+    """Input check: products of fields that overflow (e.g. ``exposure_s = 1e308``) are
+    reported against the fields, not as a derived quantity deep in the simulator."""
+    dark = scn.detector.dark_current_e_per_s * scn.camera.exposure_s
+    if not math.isfinite(dark):
+        raise ScenarioError(f"{source or 'scenario'}: camera.exposure_s = {scn.camera.exposure_s:g}: the dark charge "
+                            f"per exposure (x detector.dark_current_e_per_s = {scn.detector.dark_current_e_per_s:g}) "
+                            "overflows; give an exposure in seconds")
+
+
+#: embedded scenarios selectable as ``embedded:NAME`` (resources of simcam.data)
+EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noisy.toml"}
+
+
+def load_scenario(path: str | Path | None = None) -> Scenario:
+    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default, and
+    ``"embedded:NAME"`` an embedded scenario of :data:`EMBEDDED_SCENARIOS` (``default``;
+    ``seed000_noisy``: the seed-000 camera with the seed's own noise and pixel errors)."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        name = path.split(":", 1)[1]
+        if name not in EMBEDDED_SCENARIOS:
+            raise ScenarioError(f"{path}: no embedded scenario {name!r} "
+                                f"(have {', '.join(sorted(EMBEDDED_SCENARIOS))})")
+        text = resources.files("simcam.data").joinpath(EMBEDDED_SCENARIOS[name]).read_text()
+        source = f"<embedded {EMBEDDED_SCENARIOS[name]}>"
+    elif path is None:
+        text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+        source = f"<embedded {DEFAULT_RESOURCE}>"
+    else:
+        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+
+        source = str(path)
+        return scenario_from_dict(read_toml(path=path, source=source), source=source)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+    return scenario_from_dict(data, source=source)
+
+
+def default_scenario() -> Scenario:
+    """The embedded seed-000 scenario."""
+    return load_scenario(None)
+
+
+def scenario_to_toml(scenario: Scenario) -> str:
+    """Resolved scenario as TOML text that :func:`load_scenario` accepts back."""
+    data = _strip_none(scenario.model_dump(mode="json"))
+    text = tomli_w.dumps(data)
+    # tomli_w writes every array one item per line; fold arrays of scalars onto one line.
+    return _ARRAY_RE.sub(lambda m: "[" + ", ".join(x.strip().rstrip(",") for x in m.group(1).split("\n") if x.strip()) + "]", text)
+
+
+_ARRAY_RE = re.compile(r"\[\n((?: +[^\[\]{}\n]+,\n)+) *\]")
+
+
+def with_updates(scenario: Scenario, dotted: dict[str, Any]) -> Scenario:
+    """Return a copy with dotted keys replaced (``{"detector.read_noise_e": 5}``), re-validated."""
+    data = scenario.model_dump(mode="python")
+    if scenario.optics.lens is not None:
+        # what the lens sets is recomputed after the update (unless the update sets it)
+        from simcam.starcam.lens.simulator import LENS_DERIVED_PATHS
+
+        for path in LENS_DERIVED_PATHS:
+            if any(k == path or k.startswith(path + ".") or path.startswith(k + ".") for k in dotted):
+                continue
+            *parents, leaf = path.split(".")
+            node = data
+            for part in parents:
+                node = node.get(part, {}) if isinstance(node, dict) else {}
+            if isinstance(node, dict):
+                node.pop(leaf, None)
+    for key, value in dotted.items():
+        node = data
+        parts = key.split(".")
+        for p in parts[:-1]:
+            if not isinstance(node, dict) or p not in node:
+                raise ScenarioError(f"{key}: unknown key {p!r}")
+            node = node[p]
+        if not isinstance(node, dict) or parts[-1] not in node:
+            raise ScenarioError(f"{key}: unknown key {parts[-1]!r}")
+        node[parts[-1]] = value
+    return scenario_from_dict(data, source="override")
