@@ -40,6 +40,7 @@ import functools
 import math
 import pathlib
 import re
+import statistics
 from importlib import resources
 
 from typing import TYPE_CHECKING
@@ -47,9 +48,6 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # colour (and the matplotlib it imports) loads only where a SpectralDistribution is made
     import colour
 import numpy as np
-from scipy import constants as _const
-from scipy import optimize as _optimize
-from scipy import special as _special
 
 __all__ = [
     "SpectraError",
@@ -92,12 +90,17 @@ __all__ = [
 # Constants
 # --------------------------------------------------------------------------------------
 
-H_PLANCK_J_S: float = _const.h
-"""Planck constant, J s (CODATA, exact in SI 2019)."""
-C_LIGHT_M_S: float = _const.c
-"""Speed of light in vacuum, m s^-1."""
-K_BOLTZMANN_J_K: float = _const.k
-"""Boltzmann constant, J K^-1."""
+# The SI defining constants (BIPM, The International System of Units, 9th ed. 2019, table 1):
+# exact by definition, so written here rather than importing scipy.constants (0.19 s of
+# start-up for four numbers); tests/test_spectra.py checks them against scipy.constants.
+H_PLANCK_J_S: float = 6.62607015e-34
+"""Planck constant, J s (exact in SI 2019)."""
+C_LIGHT_M_S: float = 299792458.0
+"""Speed of light in vacuum, m s^-1 (exact)."""
+K_BOLTZMANN_J_K: float = 1.380649e-23
+"""Boltzmann constant, J K^-1 (exact in SI 2019)."""
+ELEMENTARY_CHARGE_C: float = 1.602176634e-19
+"""Elementary charge, C (exact in SI 2019)."""
 
 V_ZERO_POINT_W_M2_NM: float = 3.631e-11
 """Flux density of a V = 0 star, W m^-2 nm^-1.
@@ -306,7 +309,9 @@ def total_photon_radiance(*, temperature_k: float) -> float:
         Photon radiance, photons s^-1 m^-2 sr^-1.
     """
     t = _positive_scalar(temperature_k, "temperature_k")
-    zeta3 = float(_special.zeta(3.0, 1.0))
+    from scipy.special import zeta  # on first use (0.2 s of start-up)
+
+    zeta3 = float(zeta(3.0, 1.0))
     return 4.0 * zeta3 * (K_BOLTZMANN_J_K * t) ** 3 / (H_PLANCK_J_S**3 * C_LIGHT_M_S**2)
 
 
@@ -541,7 +546,16 @@ def star_photon_flux_sd(
 # Interference filters
 # --------------------------------------------------------------------------------------
 
-_Z90 = float(_special.ndtri(0.9))  # 1.2815515655446004
+_Z90 = statistics.NormalDist().inv_cdf(0.9)  # 1.2815515655446004 (the standard library's AS 241)
+
+
+def _ndtr(x):
+    """Standard normal CDF, ``0.5 erfc(-x / sqrt 2)`` (``scipy.special.ndtr``'s formula, on the
+    standard library's ``math.erfc``: a filter curve is a few hundred points, and importing
+    ``scipy.special`` costs 0.2 s of every start)."""
+    return np.vectorize(lambda v: 0.5 * math.erfc(-v / math.sqrt(2.0)), otypes=[np.float64])(x)
+
+
 _RAISED_COSINE_10_90 = (math.acos(-0.8) - math.acos(0.8)) / math.pi  # 0.59033...
 _BANDPASS_SHAPES = ("raised_cosine", "erf")
 
@@ -577,8 +591,8 @@ def _erf_plateau_width(width_nm: float, sigma_nm: float) -> float:
     s = sigma_nm
 
     def f(a: float) -> float:
-        g0 = 2.0 * _special.ndtr(a / (2 * s)) - 1.0
-        gw = _special.ndtr((width_nm + a) / (2 * s)) - _special.ndtr((width_nm - a) / (2 * s))
+        g0 = 2.0 * _ndtr(a / (2 * s)) - 1.0
+        gw = _ndtr((width_nm + a) / (2 * s)) - _ndtr((width_nm - a) / (2 * s))
         return gw - 0.5 * g0
 
     # f < 0 for a -> 0+ (half-max of a Gaussian is at 1.1774 s < w/2 when a is tiny only if
@@ -590,7 +604,9 @@ def _erf_plateau_width(width_nm: float, sigma_nm: float) -> float:
             f"edge_nm: too wide for width_nm = {width_nm!r}: even a pure Gaussian with "
             f"these edges has FWHM > width_nm"
         )
-    return float(_optimize.brentq(f, lo, hi, xtol=1e-13 * width_nm, rtol=1e-15, maxiter=200))
+    from scipy.optimize import brentq  # on first use: scipy.optimize costs 0.2 s of start-up
+
+    return float(brentq(f, lo, hi, xtol=1e-13 * width_nm, rtol=1e-15, maxiter=200))
 
 
 def bandpass_array(
@@ -645,8 +661,8 @@ def bandpass_array(
         return p * 0.5 * (1.0 + np.cos(np.pi * u))
     sigma = e / (2.0 * _Z90)
     a = _erf_plateau_width(w, sigma)
-    g0 = 2.0 * _special.ndtr(a / (2 * sigma)) - 1.0
-    g = _special.ndtr((x + a / 2) / sigma) - _special.ndtr((x - a / 2) / sigma)
+    g0 = 2.0 * _ndtr(a / (2 * sigma)) - 1.0
+    g = _ndtr((x + a / 2) / sigma) - _ndtr((x - a / 2) / sigma)
     return np.clip(p * g / g0, 0.0, p)
 
 
@@ -729,7 +745,7 @@ def cmos_qe_array(
         raise SpectraError(f"blue_cutoff_nm: must be < peak_nm ({b!r} >= {pk!r})")
     if not r > pk:
         raise SpectraError(f"red_cutoff_nm: must be > peak_nm ({r!r} <= {pk!r})")
-    gap_nm = _HC_J_M / (SILICON_BANDGAP_EV * _const.e) / _NM
+    gap_nm = _HC_J_M / (SILICON_BANDGAP_EV * ELEMENTARY_CHARGE_C) / _NM
     if pk >= gap_nm:
         raise SpectraError(f"peak_nm: must be below the silicon cut-off {gap_nm:.1f} nm")
     half_width = np.where(lam <= pk, pk - b, r - pk)

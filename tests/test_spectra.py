@@ -35,6 +35,17 @@ H = ac.h.value
 C = ac.c.value
 K = ac.k_B.value
 
+def test_si_defining_constants_equal_scipy_and_astropy():
+    """The four SI 2019 defining constants written in simcam.spectra are the exact values
+    scipy.constants and astropy.constants hold (the same decimal literals, so equal floats)."""
+    from scipy import constants as sc
+
+    assert (sp.H_PLANCK_J_S, sp.C_LIGHT_M_S, sp.K_BOLTZMANN_J_K, sp.ELEMENTARY_CHARGE_C) == (
+        sc.h, sc.c, sc.k, sc.e)
+    assert (sp.H_PLANCK_J_S, sp.C_LIGHT_M_S, sp.K_BOLTZMANN_J_K, sp.ELEMENTARY_CHARGE_C) == (
+        H, C, K, ac.e.si.value)
+
+
 # Zero point of V = 0 (Bessell, Castelli & Plez 1998, Table A2), converted here.
 F0_V = (363.1e-11 * u.erg / (u.s * u.cm**2 * u.AA)).to(u.W / (u.m**2 * u.nm)).value
 

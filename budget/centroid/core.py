@@ -54,8 +54,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from budget.centroid import kernels as _k
 from simcam.cli_common import UserInputError
@@ -268,6 +266,8 @@ def detect_stars(
         thr = float(threshold_sigma) * nz
     sig = img - bg
     mask = np.isfinite(sig) & (sig > thr)
+    from scipy import ndimage  # on first use (a window-only run never labels a frame)
+
     labels, n = ndimage.label(mask, structure=np.ones((3, 3), dtype=bool))
     if n == 0:
         return pd.DataFrame({"x_peak": np.array([], dtype=np.int64),
@@ -306,6 +306,8 @@ def _detect_near(raw: np.ndarray, dark, ref: np.ndarray, *, background_dn: float
     thr = float(threshold_dn) if threshold_dn is not None else float(threshold_sigma) * float(noise_dn)
     if not thr > 0 and threshold_dn is None:
         raise UserInputError("noise_dn: frame noise is zero or unknown; give threshold_dn or noise_dn > 0")
+    from scipy import ndimage  # on first use (a window-only run never labels a frame)
+
     structure = np.ones((3, 3), dtype=bool)
     peaks: dict[tuple[int, int], tuple[float, int]] = {}
     boxes = []   # (r0, c0, labels, cut labels) of each box
@@ -446,6 +448,8 @@ def match_stars(
     out = np.full(ref.shape[0], -1, dtype=np.int64)
     if det.shape[0] == 0 or ref.shape[0] == 0:
         return out
+    from scipy.spatial import cKDTree  # on first use: 0.16 s of start-up
+
     dist, idx = cKDTree(det).query(ref, k=1, distance_upper_bound=float(match_radius_px))
     ok = np.isfinite(dist)
     # a detection claimed by several references goes to the closest one only

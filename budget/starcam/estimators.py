@@ -45,7 +45,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.special import gammaln
 
 from simcam.cli_common import UserInputError
 
@@ -471,12 +470,14 @@ def temporal_error(
 def c4(n: Any) -> Any:
     """Bias factor of the sample standard deviation: ``E[s] = c4(n) sigma`` (Gaussian).
 
-    ``c4(n) = sqrt(2 / (n - 1)) Gamma(n / 2) / Gamma((n - 1) / 2)``.
+    ``c4(n) = sqrt(2 / (n - 1)) Gamma(n / 2) / Gamma((n - 1) / 2)``, with the standard
+    library's log-gamma (``math.lgamma``; ``scipy.special`` would add 0.2 s to every start).
     """
     n = np.asarray(n, dtype=np.float64)
     if np.any(n < 2):
         raise UserInputError("c4: needs n >= 2")
-    return np.sqrt(2.0 / (n - 1.0)) * np.exp(gammaln(n / 2.0) - gammaln((n - 1.0) / 2.0))
+    lg = np.vectorize(math.lgamma, otypes=[np.float64])
+    return np.sqrt(2.0 / (n - 1.0)) * np.exp(lg(n / 2.0) - lg((n - 1.0) / 2.0))
 
 
 def temporal_error_pooled(

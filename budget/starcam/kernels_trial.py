@@ -106,7 +106,8 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
     """Threaded twin of :func:`expose_centroid_frames_serial` (windows in parallel; each
     (frame, window) result is the same whatever the thread count)."""
     n, h, w = mean_e.shape
-    for k in prange(n):
+    for kk in prange(n):
+        k = np.int64(kk)  # prange counts in uint64: the serial twin's _window, not a second compile
         wins = np.empty((frame_keys.shape[0], h, w))
         buf = np.empty(2 * w + 2 * max(h - 2, 0))
         _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,

@@ -333,12 +333,14 @@ def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean,
     W, h, w = chain.mean_e.shape
     out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
     out_flag = np.zeros((frames, W), dtype=np.int64)
-    dm = np.zeros((0, h, w)) if dark_mean is None else np.ascontiguousarray(dark_mean, dtype=np.float64)
+    # arguments of one type whatever the caller (a copy is writable and contiguous): numba
+    # compiles the kernel once, not once per array flag (a first run compiles every variant)
+    dm = np.zeros((0, h, w)) if dark_mean is None else np.array(dark_mean, dtype=np.float64)
     parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
     kern = _kt.expose_centroid_frames if parallel else _kt.expose_centroid_frames_serial
     kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
          chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
-         np.ascontiguousarray(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
+         np.array(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
     return out_x, out_y, out_f, out_flag
 
 

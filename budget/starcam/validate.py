@@ -31,8 +31,11 @@ INPUT_CLASSES = ("lsfe_c2",)
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
 
 _CACHE: dict = {}
-#: numba threads inside this process's kernels (False in worker processes: one per core)
-_PARALLEL: bool | None = None
+#: numba threads inside a trial's kernels: none. Processes are the parallelism (one worker per
+#: core by default); on a 2-core machine a threaded trial was no faster (0.103 s against
+#: 0.102 s), and a first run on a fresh install would compile every kernel twice, once
+#: threaded and once serial (about 11 s more)
+_PARALLEL: bool | None = False
 
 
 def worker_init() -> None:

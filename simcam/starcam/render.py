@@ -250,7 +250,7 @@ class StarCamera:
             sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
             f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
             wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
-            shift_x_px=sx, shift_y_px=sy,
+            shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
         )
         x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
         _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
@@ -295,16 +295,18 @@ class StarCamera:
         L = scene.stamps.shape[-1]
         cc = self.mosaic.chip_cols
         cr = self.mosaic.chip_rows
-        for j in np.flatnonzero(scene.chip == chip):
-            r_lo = max(scene.stamp_row0[j], row0, 0)
-            r_hi = min(scene.stamp_row0[j] + L, row0 + rows, cr)
-            c_lo = max(scene.stamp_col0[j], col0, 0)
-            c_hi = min(scene.stamp_col0[j] + L, col0 + cols, cc)
+        on = np.flatnonzero(scene.chip == chip)
+        # Python ints: max/min of numpy scalars cost a microsecond each, and a scene's
+        # windows call this once per window
+        for j, sr, sc in zip(on.tolist(), scene.stamp_row0[on].tolist(), scene.stamp_col0[on].tolist()):
+            r_lo = max(sr, row0, 0)
+            r_hi = min(sr + L, row0 + rows, cr)
+            c_lo = max(sc, col0, 0)
+            c_hi = min(sc + L, col0 + cols, cc)
             if r_lo >= r_hi or c_lo >= c_hi:
                 continue
             signal[r_lo - row0 : r_hi - row0, c_lo - col0 : c_hi - col0] += scene.electrons[j] * scene.stamps[
-                j, r_lo - scene.stamp_row0[j] : r_hi - scene.stamp_row0[j],
-                c_lo - scene.stamp_col0[j] : c_hi - scene.stamp_col0[j],
+                j, r_lo - sr : r_hi - sr, c_lo - sc : c_hi - sc,
             ]
 
     def expected_frame_e(self, scene: Scene) -> np.ndarray:

@@ -368,7 +368,7 @@ def folded_stamp_spectra(pos_x, pos_y, shift_x, shift_y, weights, sigma, radius,
     values at integer pixel offsets of an ``L``-periodic stamp are
     ``I[r, c] = Re( (1/L^2) sum_k A[k] exp(2 pi i (ky r + kx c) / L) )`` with
     ``A[k] = sum over q = k (mod L) of G(q / L)``. This kernel writes ``A`` (only the
-    Hermitian half plane, doubled), so ``Re(scipy.fft.ifft2(out))`` is the stamp.
+    Hermitian half plane, doubled), so ``Re(numpy.fft.ifft2(out))`` is the stamp.
 
     The Airy OTF depends only on ``|q|^2`` (an integer) and the wavelength, so it is
     tabulated once per call for all stars, as is the pinhole OTF when all stars share
