@@ -88,3 +88,30 @@ def test_json_and_report(tmp_path):
     with pytest.raises(UserInputError, match="not an earlier report"):
         write_report(res, other)
     assert (other / "data.txt").read_text() == "keep"
+
+
+class _AuxToy(type(STUDY)):
+    """The toy study with per-trial auxiliary figures (its trial number, a copy of an estimate) and details."""
+
+    def trial(self, scenario, seed, k):
+        r = super().trial(scenario, seed, k)
+        r.aux = {"trial_number": float(k), "variance_ddof1": r.estimates[("variance", "improved", "a")]}
+        return r
+
+    def details(self, result):
+        return {"mean_trial_number": float(result.aux["trial_number"].mean())}
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_aux_kept_for_every_trial_in_order_and_details_in_the_json(workers):
+    """TrialResult.aux comes back as one array per name in trial order, whoever ran the
+    trial; Study.details goes under "details" in the JSON (computed once)."""
+    study = _AuxToy()
+    res = run_study(study, Toy(), trials=25, seed=3, workers=workers)
+    assert res.aux["trial_number"].tolist() == list(range(25))
+    # the same float carried twice (estimate and aux) of the same trial: identical bits
+    assert np.array_equal(res.aux["variance_ddof1"], res.samples[("variance", "improved", "a")])
+    payload = res.to_json()
+    assert payload["details"] == {"mean_trial_number": 12.0}  # mean of 0..24, exact in binary
+    assert res.details() is res.details()
+    assert run_study(STUDY, Toy(), trials=3, seed=3).to_json()["details"] == {}

@@ -4,7 +4,42 @@ from __future__ import annotations
 
 import click
 
-__all__ = ["study_group", "validate_command_for"]
+__all__ = ["run_and_write", "study_group", "validate_command_for"]
+
+
+def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
+                  dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None):
+    """What ``validate`` does once its options are read: run the study through the runner,
+    print the header and the table (then ``more_lines(result)``, if given: a study's own
+    summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
+
+    ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal.
+    """
+    import sys
+
+    from budget.runner.report import format_table, write_report
+    from budget.runner.run import run_study
+    from simcam.cli_common import write_json_atomic
+
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if workers is None and scheduler is None and dask_local is None:
+        from budget.runner.executors import default_workers
+
+        workers = default_workers()
+    res = run_study(study, scenario, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
+                    scheduler=scheduler, dask_local=dask_local, progress=progress)
+    click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
+               f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
+               f"on {res.executor}")
+    click.echo(format_table(res))
+    for line in (more_lines(res) if more_lines is not None else []):
+        click.echo(line)
+    if json_out:
+        write_json_atomic(json_out, res.to_json())
+    if report_dir:
+        click.echo(f"report: {write_report(res, report_dir)}")
+    return res
 
 
 def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None) -> click.Command:
@@ -26,31 +61,12 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
     def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, progress):
-        import sys
-
         from budget.runner.registry import get_study
-        from budget.runner.report import format_table, write_report
-        from budget.runner.run import run_study
-        from simcam.cli_common import write_json_atomic
 
         study = get_study(study_name)
-        scn = study.load_scenario(scenario)
-        if progress is None:
-            progress = sys.stderr.isatty()
-        if workers is None and scheduler is None and dask_local is None:
-            from budget.runner.executors import default_workers
-
-            workers = default_workers()
-        res = run_study(study, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
-                        scheduler=scheduler, dask_local=dask_local, progress=progress)
-        click.echo(f"{study.title}: scenario {getattr(scn, 'name', '')} (hash {study.scenario_hash(scn)}), "
-                   f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
-                   f"on {res.executor}")
-        click.echo(format_table(res))
-        if json_out:
-            write_json_atomic(json_out, res.to_json())
-        if report_dir:
-            click.echo(f"report: {write_report(res, report_dir)}")
+        run_and_write(study, study.load_scenario(scenario), trials=trials, tolerance=tolerance, seed=seed,
+                      workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
+                      report_dir=report_dir, progress=progress)
 
     return validate
 

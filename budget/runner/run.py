@@ -16,7 +16,8 @@
 
 The result, :class:`StudyResult`, gives the JSON payload (:meth:`StudyResult.to_json`,
 schema ``budget.study-result/1``: ``classes[class][axis][variant]`` holds the statistics,
-``class_info[class]`` the label, unit and description) and the report (:func:`budget.runner.report.write_report`).
+``class_info[class]`` the label, unit and description, ``details`` the study's own figures,
+:meth:`Study.details`, empty for most studies) and the report (:func:`budget.runner.report.write_report`).
 """
 
 from __future__ import annotations
@@ -77,6 +78,15 @@ class StudyResult:
     example: TrialResult | None = None
     elapsed_s: float = float("nan")
     executor: str = ""
+    #: per-trial scalars of :attr:`TrialResult.aux`, in trial order
+    aux: dict[str, np.ndarray] = field(default_factory=dict)
+    _details: dict | None = field(default=None, repr=False)
+
+    def details(self) -> dict:
+        """:meth:`Study.details` of this result (computed once: the JSON and the report share it)."""
+        if self._details is None:
+            self._details = self.study.details(self)
+        return self._details
 
     def class_spec(self, name: str) -> ClassSpec:
         """The :class:`ClassSpec` called ``name``."""
@@ -135,6 +145,7 @@ class StudyResult:
                        for (c, a), t in self.truths.items()},
             "class_info": info,
             "classes": s,
+            "details": self.details(),
             "elapsed_s": self.elapsed_s, "executor": self.executor,
         }
 
@@ -243,10 +254,12 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             if bar is not None:
                 bar.close()
     samples, trial_truths, sigmas = _collect(results)
+    ks = sorted(results)
+    aux = {name: np.array([results[k].aux[name] for k in ks], dtype=float) for name in results[ks[0]].aux}
     return StudyResult(study=study, scenario=scenario, seed=seed, trials=len(results), stopped_by=stopped_by,
                        classes=classes, truths=truths, samples=samples, trial_truths=trial_truths,
                        sigmas=sigmas, example=results.get(0), elapsed_s=time.perf_counter() - t0,
-                       executor=executor.description)
+                       executor=executor.description, aux=aux)
 
 
 def _collect(results: dict[int, TrialResult]):

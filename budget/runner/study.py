@@ -26,7 +26,8 @@ What a study provides
   vectorised; it must give, for each ``k``, exactly what :meth:`Study.trial` gives;
 * :meth:`Study.truths`: the truth of each class that is a property of the scenario, keyed
   ``(class, axis)``, with its own standard error (0 when exact);
-* :meth:`Study.report_sections`: the sections and plots its report adds.
+* :meth:`Study.report_sections`: the sections and plots its report adds, and
+  :meth:`Study.details`: the study's own figures in the JSON result (under ``details``).
 
 Randomness: trial ``k`` of a run with ``seed`` must draw only from
 ``numpy.random.SeedSequence(seed, spawn_key=(k,))`` (see :func:`trial_seed_sequence`),
@@ -118,12 +119,17 @@ class TrialResult:
     own truth under the same key for classes with ``per_trial_truth``; ``sigmas`` the
     estimator's stated 1-sigma uncertainty where it states one. ``extra`` may carry
     anything small and picklable that the study's report wants (kept for trial 0 only).
+    ``aux`` holds per-trial scalars that the study's own report and details summarise
+    but that are not validated against a truth (a verification table's 3 sigma, a
+    nuisance constant): kept for every trial, as arrays in trial order
+    (:attr:`budget.runner.run.StudyResult.aux`); keep them few.
     """
 
     estimates: dict[Key, float]
     truths: dict[Key, float] = field(default_factory=dict)
     sigmas: dict[Key, float] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    aux: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -240,6 +246,12 @@ class Study(ABC):
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
         """Sections and plots this study adds to the common report (none by default)."""
         return []
+
+    def details(self, result: Any) -> dict:
+        """JSON-ready figures of this study beyond the per-class statistics (from the run's
+        samples, truths and :attr:`TrialResult.aux`); they go under ``details`` in the
+        result's JSON (:meth:`budget.runner.run.StudyResult.to_json`). None by default."""
+        return {}
 
     def commands(self) -> list:
         """Extra click commands of this study's CLI group besides ``validate``."""
