@@ -1,5 +1,7 @@
 """Monte Carlo validation of the seed-001 calibration and the `budget harmonics` CLI.
 
+The validation runs through the one runner (budget.runner.run_study on the inductosyn
+study); `budget harmonics validate` is its alias with the seed-001 report sections.
 References: seed 001 sections 3-4 (in-sequence procedure, 3 sigma as 3 x sample std,
 acceptance at requirement/3); the per-trial SeedSequence convention (docs/conventions.md).
 """
@@ -14,27 +16,34 @@ import pytest
 
 from budget.inductosyn.cli import harmonics_group
 from budget.inductosyn.harmonics import DesignError, HarmonicSpec, design_matrix
+from budget.inductosyn.study import COEFFICIENTS, PUBLISHED_COEFFICIENTS, STUDY
 from budget.inductosyn.validate import (
     prepare,
     run_trials,
     simulate_trial_exact,
-    summarise,
-    validate,
 )
+from budget.runner.cli import study_group
+from budget.runner.run import run_study
 from simcam.cli_common import run_cli
 from simcam.encoder.inductosyn import AutocollimatorParams, default_scenario
 
 
 def budget_main(argv):
-    """`budget harmonics ...` as budget.cli.main runs it (run_cli: user errors exit 2)."""
-    assert argv[0] == "harmonics"
-    run_cli(harmonics_group, argv[1:])
+    """`budget harmonics ...` / `budget inductosyn ...` as budget.cli.main runs them
+    (run_cli: user errors exit 2)."""
+    group = {"harmonics": harmonics_group, "inductosyn": study_group("inductosyn")}[argv[0]]
+    run_cli(group, argv[1:])
 
 
 def _scenario(**cal_updates):
     sc = default_scenario()
     cal = sc.calibration.model_copy(update=cal_updates)
     return sc.model_copy(update={"calibration": cal})
+
+
+def _with_step(sc, step_deg):
+    """The scenario with the truth grid's step ``validation.dense_step_deg``."""
+    return sc.model_copy(update={"validation": sc.validation.model_copy(update={"dense_step_deg": step_deg})})
 
 
 def test_fast_path_equals_exact_path_trial_by_trial():
@@ -102,38 +111,33 @@ def test_quantisation_only_coefficient_spread_matches_uniform_prediction():
 
 
 def test_monte_carlo_default_scenario_short():
-    """Short fixed-seed run (K=400) of the default unit: unbiased recovery of the
-    coefficients the in-sequence method can see (|bias| < 4 spread / sqrt(K)), the
-    ~145 arcsec short-period error reduced below requirement/3, the joint fit better."""
-    sc = default_scenario()
-    p = prepare(scenario=sc, dense_step_deg=0.05)
+    """Short fixed-seed run (K=400) of the default unit through the runner: unbiased
+    recovery of the coefficients the in-sequence method can see (|bias| < 4 spread /
+    sqrt(K): the bias is a mean of K trials), the ~145 arcsec short-period error reduced
+    below requirement/3, the joint fit better."""
+    sc = _with_step(default_scenario(), 0.05)
     k = 400
-    r = run_trials(prepared=p, trials=k, seed=123)
-    s = summarise(prepared=p, results=r)
-    for name, e in s["coefficients"].items():
-        if name == "e0" or e["in_sequence"] is None:
-            continue
-        v = e["in_sequence"]
-        assert abs(v["bias_arcsec"]) < 4 * v["spread_arcsec"] / math.sqrt(k), name
+    res = run_study(STUDY, sc, trials=k, seed=123, workers=1)
+    for name in PUBLISHED_COEFFICIENTS:
+        st = res.statistics(("coefficient", "published", name))
+        assert abs(st["bias"]) < 4 * st["std"] / math.sqrt(k), name
+    d = res.details()
     # the paper's 145.6" is 3 x a sample sd of 23 points, relative standard error
     # 1 / sqrt(2 x 22) (normal theory): the default unit agrees within 2 of those
-    assert abs(s["short_sigma3_before_arcsec"]["mean"] / 145.6 - 1) < 2 / math.sqrt(2 * 22)
-    assert s["dense_sigma3_after_arcsec"]["p95"] < sc.calibration.requirement_arcsec / 3
-    assert s["joint_dense_sigma3_after_arcsec"]["mean"] < s["dense_sigma3_after_arcsec"]["mean"]
+    assert abs(d["short_sigma3_before_arcsec"]["mean"] / 145.6 - 1) < 2 / math.sqrt(2 * 22)
+    assert d["dense_sigma3_after_arcsec"]["p95"] < sc.calibration.requirement_arcsec / 3
+    assert d["joint_dense_sigma3_after_arcsec"]["mean"] < d["dense_sigma3_after_arcsec"]["mean"]
 
 
 @pytest.mark.slow
 def test_monte_carlo_default_scenario_long():
     """K=20000: unbiasedness of every in-sequence coefficient at 4 standard errors."""
-    sc = default_scenario()
-    p = prepare(scenario=sc, dense_step_deg=0.1)
+    sc = _with_step(default_scenario(), 0.1)
     k = 20000
-    s = summarise(prepared=p, results=run_trials(prepared=p, trials=k, seed=321))
-    for name, e in s["coefficients"].items():
-        if name == "e0" or e["in_sequence"] is None:
-            continue
-        v = e["in_sequence"]
-        assert abs(v["bias_arcsec"]) < 4 * v["spread_arcsec"] / math.sqrt(k), name
+    res = run_study(STUDY, sc, trials=k, seed=321, workers=1)
+    for name in PUBLISHED_COEFFICIENTS:
+        st = res.statistics(("coefficient", "published", name))
+        assert abs(st["bias"]) < 4 * st["std"] / math.sqrt(k), name
 
 
 def test_aliasing_design_in_scenario_is_an_error():
@@ -144,15 +148,76 @@ def test_aliasing_design_in_scenario_is_an_error():
         prepare(scenario=sc, dense_step_deg=1.0)
 
 
-def test_validate_report_and_json(tmp_path):
-    out = validate(scenario=default_scenario(), trials=20, seed=3, dense_step_deg=0.05,
-                   report_dir=str(tmp_path / "rep"), posterior_steps=300)
-    for f in ("report.md", "error_curves.png", "residual_distribution.png", "posterior_band.png"):
-        assert (tmp_path / "rep" / f).stat().st_size > 0
-    assert len(out["scenario_hash"]) == 16 and out["seed"] == 3 and out["version"]
-    json.dumps(out)  # JSON-ready
-    md = (tmp_path / "rep" / "report.md").read_text()
-    assert "![posterior band](posterior_band.png)" in md
+#: what the seed-001 report adds to the runner's: its sections and plots
+SEED001_SECTIONS = ("## Seed 001: 3 sigma of the calibration stages", "## Seed 001: recovered coefficients",
+                    "## Seed 001: error curves, residual distribution, posterior band")
+SEED001_PLOTS = ("error_curves.png", "residual_distribution.png", "posterior_band.png")
+
+
+def test_harmonics_validate_report_and_json_through_the_runner(tmp_path, monkeypatch, capsys):
+    """`budget harmonics validate --report --json`: the runner's report (table, findings,
+    estimates plot, summary.json) with the seed-001 sections and plots; the JSON is the
+    runner's schema with the seed-001 figures under "details"; the seed defaults to the
+    scenario's validation.seed."""
+    monkeypatch.setattr(STUDY, "posterior_steps", 300)  # the band's emcee run, shortened for the test
+    rep, js = tmp_path / "rep", tmp_path / "v.json"
+    budget_main(["harmonics", "validate", "--trials", "20", "--dense-step-deg", "0.05",
+                 "--report", str(rep), "--json", str(js)])
+    out = capsys.readouterr().out
+    assert "coefficient  A_S1s" in out and "after drift (in sequence)" in out
+    for f in ("report.md", "estimates.png", "summary.json", "scenario.toml", *SEED001_PLOTS):
+        assert (rep / f).stat().st_size > 0, f
+    md = (rep / "report.md").read_text()
+    for title in ("## Findings", "## Table", *SEED001_SECTIONS):
+        assert title in md, title
+    for f in SEED001_PLOTS:
+        assert f"({f})" in md, f
+    assert "| e0 |" in md and "| A_S4s |" in md and "emcee 300 steps" in md
+    d = json.loads(js.read_text())
+    assert d["schema"] == "budget.study-result/1" and d["study"] == "inductosyn"
+    assert d["seed"] == default_scenario().validation.seed and d["trials"] == 20
+    assert len(d["scenario_hash"]) == 16 and d["version"]
+    assert "dense_step_deg = 0.05" in d["scenario_toml"]
+    det = d["details"]
+    assert det["dense_step_deg"] == 0.05 and det["dense_points"] == 7200  # 360 / 0.05
+    for key in ("long_sigma3_before_arcsec", "joint_dense_maxabs_after_arcsec", "dense_sigma3_after_drift_arcsec"):
+        assert set(det[key]) == {"mean", "std", "p05", "p50", "p95"}, key
+    assert set(d["classes"]["coefficient"]) == set(COEFFICIENTS)
+    assert set(d["classes"]["coefficient"]["A_S3c"]) == {"improved"}  # eq 8 fits electrical 1-2 only
+    assert json.loads((rep / "summary.json").read_text())["details"] == det
+
+
+def test_harmonics_validate_equals_inductosyn_validate(tmp_path, capsys):
+    """The alias and the study's own command are one computation: the same scenario
+    (the step given as an option or in the file) and seed give the same hash and the same
+    statistics and seed-001 figures. Compared with == : a bit-identity claim (the same
+    trials through the same runner, written to JSON and read back)."""
+    budget_main(["harmonics", "scenario"])
+    text = capsys.readouterr().out.replace("dense_step_deg = 0.001", "dense_step_deg = 0.1")
+    assert "dense_step_deg = 0.1" in text
+    scn = tmp_path / "s.toml"
+    scn.write_text(text)
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    budget_main(["harmonics", "validate", "--trials", "8", "--seed", "4", "--dense-step-deg", "0.1",
+                 "--json", str(a)])
+    budget_main(["inductosyn", "validate", str(scn), "--trials", "8", "--seed", "4", "--workers", "1",
+                 "--json", str(b)])
+    ja, jb = json.loads(a.read_text()), json.loads(b.read_text())
+    for key in ("scenario_hash", "seed", "trials", "truths", "details"):
+        assert ja[key] == jb[key], key
+    # bias_percent may be NaN (a zero truth): NaN != NaN, so compare the JSON text
+    assert json.dumps(ja["classes"], sort_keys=True) == json.dumps(jb["classes"], sort_keys=True)
+
+
+def test_harmonics_validate_bad_options_exit_2(capsys):
+    for argv, msg in ((["--dense-step-deg", "2"], "--dense-step-deg: must be in (0, 1]"),
+                      (["--trials", "1"], "--trials: need at least 2 trials"),
+                      (["--seed", "-1"], "--seed: must be >= 0")):
+        with pytest.raises(SystemExit) as ei:
+            budget_main(["harmonics", "validate", *argv])
+        assert ei.value.code == 2
+        err = capsys.readouterr().err
+        assert msg in err and "Traceback" not in err
 
 
 # --------------------------------------------------------------------------- CLI
@@ -203,7 +268,7 @@ def test_cli_validate_scenario_and_unknown_key(tmp_path, capsys):
     budget_main(["harmonics", "validate", str(sc), "--trials", "50", "--seed", "2",
                  "--dense-step-deg", "0.1", "--json", str(out)])
     d = json.loads(out.read_text())
-    assert d["trials"] == 50 and d["seed"] == 2
+    assert d["schema"] == "budget.study-result/1" and d["trials"] == 50 and d["seed"] == 2
     bad = tmp_path / "bad.toml"
     bad.write_text("[calibration]\nrequirement = 3\n")
     with pytest.raises(SystemExit) as ei:

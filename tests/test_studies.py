@@ -48,6 +48,12 @@ def test_inductosyn_study_equals_harmonics_validate():
                      trials=30, seed=2)
     assert np.array_equal(res.samples[("residual", "published", "angle")], ref["short_sigma3_after_arcsec"])
     assert np.array_equal(res.trial_truths[("residual", "improved", "angle")], ref["joint_dense_sigma3_after_arcsec"])
+    # the coefficients and the report's per-trial figures are run_trials' numbers too
+    assert np.array_equal(res.samples[("coefficient", "published", "A_S1s")], ref["c_short"][:, 1])
+    assert np.array_equal(res.samples[("coefficient", "improved", "A_S4s")], ref["c_joint"][:, -1])
+    assert np.array_equal(res.aux["e0_in_sequence_arcsec"], ref["c_long"][:, 0])
+    assert np.array_equal(res.aux["joint_dense_maxabs_after_arcsec"], ref["joint_dense_maxabs_after_arcsec"])
+    assert np.array_equal(res.example.extra["y_short"], ref["y_short"][0])
     # a trial's numbers do not depend on the batch it is computed in (row-wise products)
     one = study.trial(scn, 2, 7)
     assert one.estimates == study.trial_batch(scn, 2, [5, 6, 7])[2].estimates

@@ -214,45 +214,42 @@ def _plot_fit(fits, path, pole_pairs) -> None:
 @harmonics_group.command("validate")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 @click.option("--trials", type=int, default=None, help="Number of calibrations (default: scenario's).")
-@click.option("--seed", type=int, default=None, help="Seed (default: scenario's).")
+@click.option("--seed", type=int, default=None, help="Seed (default: scenario's validation.seed).")
 @click.option("--dense-step-deg", type=float, default=None,
-              help="Step of the truth grid (default: scenario's, 0.001 deg).")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
-@click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None)
+              help="Step of the truth grid (default: scenario's validation.dense_step_deg, 0.001 deg).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None,
+              help="Write the runner's JSON result (schema budget.study-result/1).")
+@click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
+              help="Write the runner's report with the seed-001 sections and plots.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_dir, progress) -> None:
-    """Monte Carlo validation of the calibration on SCENARIO (default: embedded)."""
-    from budget.inductosyn.validate import validate
-    from simcam.encoder.inductosyn import load_scenario
+    """Monte Carlo validation of the calibration on SCENARIO (default: embedded).
 
-    sc = load_scenario(scenario)
-    k = sc.validation.trials if trials is None else trials
+    The same run as `budget inductosyn validate` (the one runner, the inductosyn study), in
+    one process, with the scenario's seed by default, the truth grid's step as an option and
+    the seed-001 figures printed after the runner's table.
+    """
+    import sys
+
+    from budget.inductosyn.report import summary_lines
+    from budget.inductosyn.study import STUDY
+    from budget.runner.cli import run_and_write
+
+    sc = STUDY.load_scenario(scenario)
     s = sc.validation.seed if seed is None else seed
-    if k < 2:
+    if trials is not None and trials < 2:
         raise UserInputError("--trials: need at least 2 trials for a spread")
     if s < 0:
         raise UserInputError("--seed: must be >= 0")
-    if dense_step_deg is not None and not (0 < dense_step_deg <= 1):
-        raise UserInputError("--dense-step-deg: must be in (0, 1]")
-    out = validate(scenario=sc, trials=k, seed=s, dense_step_deg=dense_step_deg,
-                   report_dir=report_dir, progress=progress)
-    sm = out["summary"]
-
-    def fmt(key):
-        v = sm[key]
-        return f"{v['mean']:.3f} [{v['p05']:.3f}, {v['p95']:.3f}]"
-
-    click.echo(f"scenario {out['scenario_hash']}  seed {s}  trials {k}  truth points {sm['dense_points']}")
-    click.echo(f"3 sigma before (dense truth): {sm['dense_sigma3_before_arcsec']:.3f} arcsec")
-    click.echo(f"long  period 24 faces: before {fmt('long_sigma3_before_arcsec')}  after {fmt('long_sigma3_after_arcsec')}")
-    click.echo(f"short period 23 faces: before {fmt('short_sigma3_before_arcsec')}  after {fmt('short_sigma3_after_arcsec')}")
-    click.echo(f"dense residual 3 sigma: in sequence {fmt('dense_sigma3_after_arcsec')}  "
-               f"joint {fmt('joint_dense_sigma3_after_arcsec')}")
-    click.echo(f"dense max |residual - mean|: in sequence {fmt('dense_maxabs_after_arcsec')}  "
-               f"joint {fmt('joint_dense_maxabs_after_arcsec')}")
-    click.echo(f"after drift (in sequence): {sm['dense_sigma3_after_drift_arcsec']['mean']:.3f} arcsec 3 sigma")
-    if json_out:
-        write_json_atomic(json_out, out)
-    if report_dir:
-        click.echo(f"report: {report_dir}/report.md")
+    if dense_step_deg is not None:
+        if not (0 < dense_step_deg <= 1):
+            raise UserInputError("--dense-step-deg: must be in (0, 1]")
+        # the step is a field of the scenario (validation.dense_step_deg): the study, its
+        # hash and the JSON's scenario all carry it
+        sc = STUDY.from_dict({**sc.model_dump(mode="json"),
+                              "validation": {**sc.validation.model_dump(mode="json"),
+                                             "dense_step_deg": dense_step_deg}},
+                             source="--dense-step-deg")
+    run_and_write(STUDY, sc, trials=trials, seed=s, workers=1, json_out=json_out, report_dir=report_dir,
+                  progress=progress and sys.stderr.isatty(), more_lines=summary_lines)

@@ -13,16 +13,33 @@ procedure, eqs 7-9) and ``improved`` (the joint fit):
   verification table after compensation; the truth of each trial is the 3 sigma over the
   whole circle of that trial's compensated error (it changes with each calibration's
   polygon errors and noise).
+* ``coefficient``: the harmonic coefficients the fits recover (axes ``A_L1c`` ... ``A_S4s``;
+  the published procedure fits mechanical 1-2 and electrical 1-2, the joint fit electrical
+  1-4 as well), against the projection of the continuous true error, as a function of the
+  reading, on the same harmonics (:func:`budget.inductosyn.validate.reference_coefficients`).
+  The constant ``e0`` is not a class: it holds the polygon's mounting offset and is not
+  observable with a polygon; it is kept per trial in ``aux`` for the report.
+
+Per trial the study also keeps (``aux``) the other figures of the seed-001 report: the
+24-face table's 3 sigma before and after the eq 7 compensation, the largest true residual
+over the turn of either variant, the constants ``e0``; trial 0's tables and coefficients
+(``extra``) feed the report's plots. :mod:`budget.inductosyn.report` turns them into the
+seed-001 sections of the runner's report and the ``details`` of its JSON.
 """
 
 from __future__ import annotations
 
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth
 
-__all__ = ["STUDY", "InductosynStudy"]
+__all__ = ["COEFFICIENTS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
 
 _UNIT = "arcsec, 3 sigma"
 _PREPARED: dict = {}
+#: the harmonic coefficients validated (the constant e0 is not observable with a polygon)
+COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s",
+                "A_S3c", "A_S3s", "A_S4c", "A_S4s")
+#: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
+PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
 
 
 class InductosynStudy(Study):
@@ -70,6 +87,10 @@ class InductosynStudy(Study):
             ClassSpec("residual", "error after compensation", _UNIT, ("angle",),
                       "the 23-face verification's 3 sigma, against the 3 sigma over the whole circle of "
                       "the trial's compensated error", per_trial_truth=True),
+            ClassSpec("coefficient", "harmonic coefficient", "arcsec", COEFFICIENTS,
+                      "each fitted coefficient (eq 7 mechanical A_L, eq 8 electrical A_S; the joint fit "
+                      "also electrical 3-4), against the projection of the continuous true error (as a "
+                      "function of the reading) on the same harmonics"),
         )
 
     def max_trials(self, scenario) -> int:
@@ -91,32 +112,73 @@ class InductosynStudy(Study):
             _PREPARED[key] = prepare(scenario=scenario, dense_step_deg=scenario.validation.dense_step_deg)
         return _PREPARED[key]
 
+    #: emcee steps of the posterior band in the report (trial 0's joint fit)
+    posterior_steps = 1500
+
     def trial_batch(self, scenario, seed: int, ks: list[int]) -> list[TrialResult]:
+        import numpy as np
+
         from budget.inductosyn.validate import run_trials
 
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
             return [self.trial(scenario, seed, k) for k in ks]
         r = run_trials(prepared=self._prepared(scenario), trials=len(ks), seed=seed, first_trial=ks[0])
+        # the same columns in both variants' coefficient vectors: c_long = e0, A_L..;
+        # c_short = A_S1c..A_S2s; c_joint = e0 of each table, A_L.., A_S1c..A_S4s
+        seq = np.concatenate([r["c_long"][:, 1:], r["c_short"]], axis=1)
+        joint = r["c_joint"][:, 2:]
         out = []
-        for i in range(len(ks)):
+        for i, k in enumerate(ks):
             before = float(r["short_sigma3_before_arcsec"][i])
+            est = {("before", "published", "angle"): before, ("before", "improved", "angle"): before,
+                   ("residual", "published", "angle"): float(r["short_sigma3_after_arcsec"][i]),
+                   ("residual", "improved", "angle"): float(r["joint_short_sigma3_after_arcsec"][i])}
+            est.update({("coefficient", "published", nm): float(v) for nm, v in zip(PUBLISHED_COEFFICIENTS, seq[i])})
+            est.update({("coefficient", "improved", nm): float(v) for nm, v in zip(COEFFICIENTS, joint[i])})
+            aux = {name: float(r[name][i]) for name in _AUX}
+            aux["e0_in_sequence_arcsec"] = float(r["c_long"][i, 0])
+            aux["e0_joint_arcsec"] = float(r["c_joint"][i, 0])
+            extra = {}
+            if k == 0:  # the report's plots: trial 0's raw tables and coefficients
+                extra = {name: r[name][i].copy() for name in ("y_long", "y_short", "c_long", "c_short", "c_joint")}
             out.append(TrialResult(
-                estimates={("before", "published", "angle"): before, ("before", "improved", "angle"): before,
-                           ("residual", "published", "angle"): float(r["short_sigma3_after_arcsec"][i]),
-                           ("residual", "improved", "angle"): float(r["joint_short_sigma3_after_arcsec"][i])},
+                estimates=est,
                 truths={("residual", "published", "angle"): float(r["dense_sigma3_after_arcsec"][i]),
-                        ("residual", "improved", "angle"): float(r["joint_dense_sigma3_after_arcsec"][i])}))
+                        ("residual", "improved", "angle"): float(r["joint_dense_sigma3_after_arcsec"][i])},
+                extra=extra, aux=aux))
         return out
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         return self.trial_batch(scenario, seed, [k])[0]
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.inductosyn.harmonics import sigma3_arcsec
+        from budget.inductosyn.harmonics import HarmonicSpec, sigma3_arcsec
+        from budget.inductosyn.validate import JOINT_ELEC, reference_coefficients
 
         p = self._prepared(scenario)
-        return {("before", "angle"): Truth(float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)), 0.0,
-                                           {"dense_points": int(p.dense_true_deg.size)})}
+        out = {("before", "angle"): Truth(float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)), 0.0,
+                                          {"dense_points": int(p.dense_true_deg.size)})}
+        names = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC).names()
+        ref = reference_coefficients(p)
+        out.update({("coefficient", nm): Truth(float(v)) for nm, v in zip(names, ref) if nm in COEFFICIENTS})
+        return out
+
+    # ------------------------------------------------------------ report
+    def details(self, result) -> dict:
+        from budget.inductosyn.report import details
+
+        return details(result, self._prepared(result.scenario))
+
+    def report_sections(self, result, out_dir) -> list:
+        from budget.inductosyn.report import report_sections
+
+        return report_sections(result, self._prepared(result.scenario), out_dir,
+                               posterior_steps=self.posterior_steps)
+
+
+#: per-trial figures of run_trials kept in ``aux`` (no truth: the report summarises them)
+_AUX = ("long_sigma3_before_arcsec", "long_sigma3_after_arcsec", "dense_maxabs_after_arcsec",
+        "joint_dense_maxabs_after_arcsec")
 
 
 STUDY = InductosynStudy()

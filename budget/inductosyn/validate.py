@@ -13,27 +13,27 @@ reading map for every point), :func:`run_trials` the vectorised fast path (a sec
 expansion about each face: :class:`simcam.encoder.polygon.FaceTaylor`; batched least squares
 with precomputed pseudo-inverses; residual statistics over the dense grid by Gram
 identities and chunked products).
+
+The Monte Carlo run itself, its statistics, JSON and report are the runner's
+(:mod:`budget.runner`): the study :mod:`budget.inductosyn.study` calls :func:`run_trials`
+for its trials; :mod:`budget.inductosyn.report` holds the seed-001 figures and plots.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
-import simcam
 from budget.inductosyn.harmonics import (
     HarmonicSpec,
     calibrate_in_sequence,
     design_matrix,
     fit_joint,
-    posterior_band,
     sigma3_arcsec,
 )
-from simcam.config_base import model_hash
-from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario, apply_drift
+from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario
 from simcam.encoder.polygon import (
     face_taylor,
     measure_polygon,
@@ -41,8 +41,8 @@ from simcam.encoder.polygon import (
     quantise_arcsec,
 )
 
-__all__ = ["Prepared", "prepare", "run_trials", "simulate_trial_exact", "split_draws",
-           "summarise", "trial_draws", "trial_rng", "validate", "write_report"]
+__all__ = ["JOINT_ELEC", "LONG", "Prepared", "dense_stats", "prepare", "reference_coefficients",
+           "run_trials", "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]
 
 LONG = HarmonicSpec(mech_orders=(1, 2), elec_orders=(), n_constants=1)
 #: The improved variant fits electrical orders 1-4 jointly on both polygons: on 23 faces
@@ -240,7 +240,7 @@ def _measure_fast(taylor, u, nr, nac, face, mount, q_arcsec, sr, sac, res_ac):
     return -quantise_arcsec(value_arcsec=alpha, resolution_arcsec=res_ac)
 
 
-def _dense_stats(before, b, coef):
+def dense_stats(before, b, coef):
     """3 sigma, mean and max |r - mean| of ``r = before - b @ coef`` for each trial.
 
     The variance by the Gram identity ``<r^2> = <t^2> - 2 c.<B t> + c.<B^T B>.c``; the
@@ -311,9 +311,9 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     xj_short = p.x_joint[nl:]
     out["joint_short_sigma3_after_arcsec"] = sigma3_arcsec(error_arcsec=y4 - _mul(c_joint, xj_short))
     c_seq = np.concatenate([c_long, c_short], axis=1)
-    s3, mean, mx = _dense_stats(p.dense_before_arcsec, p.b_seq, c_seq)
+    s3, mean, mx = dense_stats(p.dense_before_arcsec, p.b_seq, c_seq)
     out.update(dense_sigma3_after_arcsec=s3, dense_mean_after_arcsec=mean, dense_maxabs_after_arcsec=mx)
-    s3j, meanj, mxj = _dense_stats(p.dense_before_arcsec, p.b_joint, c_joint)
+    s3j, meanj, mxj = dense_stats(p.dense_before_arcsec, p.b_joint, c_joint)
     out.update(joint_dense_sigma3_after_arcsec=s3j, joint_dense_mean_after_arcsec=meanj,
                joint_dense_maxabs_after_arcsec=mxj)
     return out
@@ -347,7 +347,7 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
     return {"tables": tables, "in_sequence": seq, "joint": joint}
 
 
-def _reference_coefficients(p: Prepared, step_deg: float = 0.01) -> np.ndarray:
+def reference_coefficients(p: Prepared, step_deg: float = 0.01) -> np.ndarray:
     """Fourier projection of the true error as a function of the reading.
 
     The continuous truth ``e(r) = r - f^-1(r)`` on a uniform grid of readings (no
@@ -361,262 +361,3 @@ def _reference_coefficients(p: Prepared, step_deg: float = 0.01) -> np.ndarray:
                                                      pole_pairs=p.scenario.encoder.pole_pairs))
     c, *_ = np.linalg.lstsq(b, e, rcond=None)
     return c
-
-
-def _stat(x) -> dict:
-    x = np.asarray(x, dtype=float)
-    return {"mean": float(np.mean(x)), "std": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
-            "p05": float(np.quantile(x, 0.05)), "p50": float(np.median(x)),
-            "p95": float(np.quantile(x, 0.95))}
-
-
-def summarise(*, prepared: Prepared, results: dict) -> dict:
-    """Bias and spread of the recovered coefficients and the 3 sigma figures."""
-    p = prepared
-    ref = _reference_coefficients(p)
-    names = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC).names()
-    seq = np.concatenate([results["c_long"], results["c_short"]], axis=1)  # e0, L.., S1-2
-    joint = np.concatenate([results["c_joint"][:, :1], results["c_joint"][:, 2:]], axis=1)
-    coef = {}
-    for j, nm in enumerate(names):
-        entry = {"reference_arcsec": float(ref[j])}
-        for lab, arr in (("in_sequence", seq), ("joint", joint)):
-            if j >= arr.shape[1]:
-                entry[lab] = None
-                continue
-            entry[lab] = {"bias_arcsec": float(arr[:, j].mean() - ref[j]),
-                          "spread_arcsec": float(arr[:, j].std(ddof=1)) if arr.shape[0] > 1 else 0.0}
-        if nm == "e0":
-            entry["note"] = ("zero offset: includes the polygon mounting offset and the "
-                             "short-period error at integer degrees; not observable with a "
-                             "polygon (eq 8's own table offset is a nuisance term, not listed)")
-        coef[nm] = entry
-    req = p.scenario.calibration.requirement_arcsec
-    keys = ["long_sigma3_before_arcsec", "long_sigma3_after_arcsec", "short_sigma3_before_arcsec",
-            "short_sigma3_after_arcsec", "joint_short_sigma3_after_arcsec",
-            "dense_sigma3_after_arcsec", "dense_maxabs_after_arcsec",
-            "joint_dense_sigma3_after_arcsec", "joint_dense_maxabs_after_arcsec"]
-    out = {"coefficients": coef,
-           "dense_sigma3_before_arcsec": float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)),
-           "dense_maxabs_before_arcsec": float(np.max(np.abs(
-               p.dense_before_arcsec - p.dense_before_arcsec.mean()))),
-           "dense_points": int(p.dense_true_deg.size)}
-    for k in keys:
-        out[k] = _stat(results[k])
-    out["acceptance_rate"] = {
-        "in_sequence": float(np.mean(results["short_sigma3_after_arcsec"] <= req / 3)),
-        "joint": float(np.mean(results["joint_short_sigma3_after_arcsec"] <= req / 3)),
-        "requirement_arcsec": req}
-    return out
-
-
-def _drift_figures(p: Prepared, results: dict, seed: int) -> dict:
-    sc = p.scenario
-    drifted = apply_drift(params=sc.encoder, drift=sc.drift, seed=seed)
-    enc = Inductosyn(params=drifted)
-    reading = enc.quantise_deg(reading_deg=enc.continuous_reading_deg(angle_deg=p.dense_true_deg))
-    before = (reading - p.dense_true_deg) * ARCSEC_PER_DEG
-    pp = sc.encoder.pole_pairs
-    b = np.concatenate([design_matrix(angle_deg=reading, spec=LONG),
-                        design_matrix(angle_deg=reading, spec=HarmonicSpec(
-                            mech_orders=(), elec_orders=(1, 2), pole_pairs=pp, n_constants=0))], axis=1)
-    c = np.concatenate([results["c_long"], results["c_short"]], axis=1)
-    s3, _, mx = _dense_stats(before, b, c)
-    return {"drift_seed": seed, "dense_sigma3_after_drift_arcsec": _stat(s3),
-            "dense_maxabs_after_drift_arcsec": _stat(mx)}
-
-
-def validate(*, scenario: InductosynScenario, trials: int, seed: int,
-             dense_step_deg: float | None = None, report_dir: str | None = None,
-             progress: bool = False, posterior_steps: int = 1500) -> dict:
-    """Monte Carlo validation: run, summarise and (optionally) write the report.
-
-    Returns
-    -------
-    dict (JSON-ready) with the scenario, its hash, the seed, the package version and the
-    summary (:func:`summarise`), plus the drift figures.
-    """
-    step = dense_step_deg if dense_step_deg is not None else scenario.validation.dense_step_deg
-    p = prepare(scenario=scenario, dense_step_deg=step)
-    chunk = 2000
-    parts = []
-    it = range(0, trials, chunk)
-    if progress:
-        from tqdm import tqdm
-
-        import sys
-
-        it = tqdm(it, desc="trials", unit="chunk", leave=False, disable=not sys.stderr.isatty())  # quiet off a terminal
-    for s in it:
-        parts.append(run_trials(prepared=p, trials=min(chunk, trials - s), seed=seed, first_trial=s))
-    res = {k: np.concatenate([q[k] for q in parts], axis=0) for k in parts[0]}
-    summary = summarise(prepared=p, results=res)
-    summary.update(_drift_figures(p, res, seed))
-    payload = {"scenario": scenario.model_dump(mode="json"), "scenario_hash": model_hash(scenario),
-               "seed": seed, "trials": trials, "dense_step_deg": step,
-               "version": simcam.__version__, "summary": summary}
-    if report_dir is not None:
-        payload["report"] = write_report(prepared=p, results=res, summary=summary, payload=payload,
-                                         report_dir=report_dir, seed=seed,
-                                         posterior_steps=posterior_steps)
-    return payload
-
-
-#: report rows: summary key -> what it is, in words
-REPORT_LABELS = {
-    "long_sigma3_before_arcsec": "24-face table before compensation (paper Table 1, before)",
-    "long_sigma3_after_arcsec": "24-face re-measurement after the eq 7 compensation (Table 1, after)",
-    "short_sigma3_before_arcsec": "23-face table, long period compensated, before eq 8 (Table 2, before)",
-    "short_sigma3_after_arcsec": "23-face re-measurement after eq 7 + eq 8 (Table 2, after)",
-    "joint_short_sigma3_after_arcsec": "23-face re-measurement after the joint fit (improved)",
-    "dense_sigma3_after_arcsec": "true error over the whole turn after eq 9 (in sequence)",
-    "joint_dense_sigma3_after_arcsec": "true error over the whole turn after the joint fit",
-    "dense_maxabs_after_arcsec": "max |true error - mean| over the turn after eq 9 (in sequence)",
-    "joint_dense_maxabs_after_arcsec": "max |true error - mean| over the turn after the joint fit",
-}
-
-
-def write_report(*, prepared: Prepared, results: dict, summary: dict, payload: dict,
-                 report_dir: str, seed: int, posterior_steps: int = 1500) -> dict:
-    """Markdown report with PNG plots (error curves, residual distribution, posterior band)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    os.makedirs(report_dir, exist_ok=True)
-    p = prepared
-    t = p.dense_true_deg
-    c_seq = np.concatenate([results["c_long"][0], results["c_short"][0]])
-    r_seq = p.dense_before_arcsec - p.b_seq @ c_seq
-    r_joint = p.dense_before_arcsec - p.b_joint @ results["c_joint"][0]
-    files = {}
-
-    # residuals about their mean: the zero offset (mounting offset) is not observable
-    rs = r_seq - r_seq.mean()
-    rj = r_joint - r_joint.mean()
-    fig, ax = plt.subplots(3, 1, figsize=(9, 9))
-    ax[0].plot(t, p.dense_before_arcsec, lw=0.3, color="C0", label="before (truth)")
-    ax[0].set_xlabel("shaft angle (deg)")
-    ax[0].set_ylabel("error (arcsec)")
-    ax[0].legend(loc="upper right", fontsize=8)
-    ax[1].plot(t, rs, lw=0.3, color="C1", label="after, in sequence (trial 0)")
-    ax[1].plot(t, rj, lw=0.3, color="C2", label="after, joint fit (trial 0)")
-    ax[1].set_xlabel("shaft angle (deg)")
-    ax[1].set_ylabel("residual - mean (arcsec)")
-    ax[1].legend(loc="upper right", fontsize=8)
-    sel = (t >= 100) & (t <= 103)
-    ax[2].plot(t[sel], rs[sel], lw=0.8, color="C1", label="after, in sequence")
-    ax[2].plot(t[sel], rj[sel], lw=0.8, color="C2", label="after, joint")
-    ax[2].set_xlabel("shaft angle (deg), three electrical periods")
-    ax[2].set_ylabel("residual - mean (arcsec)")
-    ax[2].legend(fontsize=8)
-    fig.tight_layout()
-    files["error_curves"] = "error_curves.png"
-    fig.savefig(os.path.join(report_dir, files["error_curves"]), dpi=110)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-    ax[0].hist(r_seq - r_seq.mean(), bins=80, histtype="step", density=True, label="in sequence")
-    ax[0].hist(r_joint - r_joint.mean(), bins=80, histtype="step", density=True, label="joint")
-    ax[0].set_xlabel("dense residual about its mean, trial 0 (arcsec)")
-    ax[0].legend(fontsize=8)
-    ax[1].hist(results["dense_sigma3_after_arcsec"], bins=40, histtype="step", label="in sequence")
-    ax[1].hist(results["joint_dense_sigma3_after_arcsec"], bins=40, histtype="step", label="joint")
-    ax[1].hist(results["short_sigma3_after_arcsec"], bins=40, histtype="step", label="23-face verify (paper)")
-    ax[1].set_xlabel("3 sigma after compensation, per trial (arcsec)")
-    ax[1].legend(fontsize=8)
-    fig.tight_layout()
-    files["residual_distribution"] = "residual_distribution.png"
-    fig.savefig(os.path.join(report_dir, files["residual_distribution"]), dpi=110)
-    plt.close(fig)
-
-    # posterior band for trial 0's joint fit
-    al, as_ = p.angles_long_deg, p.angles_short_deg
-    jf = fit_joint(tables=[(al, results["y_long"][0]), (as_, results["y_short"][0])],
-                   pole_pairs=p.scenario.encoder.pole_pairs, elec_orders=JOINT_ELEC)
-    cal = p.scenario.calibration
-    band_t = np.linspace(100, 103, 601)
-    # continuous readings: the band is for the fitted model; quantisation (uniform,
-    # +-q/2) is a separate, known term of the residual
-    band_r = p.encoder.continuous_reading_deg(angle_deg=band_t)
-    post = posterior_band(fit=jf, angle_deg=band_r, seed=seed, level=0.9, n_steps=posterior_steps,
-                          burn=min(500, posterior_steps // 3),
-                          face_error_arcsec=max(cal.long_polygon.face_error_arcsec,
-                                                cal.short_polygon.face_error_arcsec))
-    true_r = (band_r - band_t) * ARCSEC_PER_DEG - jf.evaluate_arcsec(angle_deg=band_r)
-    true_r = true_r - np.mean(r_joint)  # zero offset is unobservable: compare about the mean
-    fig, ax = plt.subplots(figsize=(9, 4))
-    ax.fill_between(band_t, post["lower_arcsec"], post["upper_arcsec"], alpha=0.3,
-                    label="90% credible band (emcee)")
-    ax.plot(band_t, true_r, lw=0.8, color="k",
-            label="true residual, continuous reading (about its mean)")
-    ax.set_xlabel("shaft angle (deg)")
-    ax.set_ylabel("residual after joint compensation (arcsec)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    files["posterior_band"] = "posterior_band.png"
-    fig.savefig(os.path.join(report_dir, files["posterior_band"]), dpi=110)
-    plt.close(fig)
-    covered = float(np.mean((true_r >= post["lower_arcsec"]) & (true_r <= post["upper_arcsec"])))
-
-    s = summary
-    lines = [
-        "# Inductosyn calibration: Monte Carlo validation (seed 001 method)",
-        "",
-        f"* scenario hash `{payload['scenario_hash']}`, seed {payload['seed']}, "
-        f"{payload['trials']} trials, simcam {payload['version']}",
-        f"* truth on {s['dense_points']} true shaft angles (step {payload['dense_step_deg']} deg)",
-        "",
-        "## 3 sigma (3 x sample std, as the paper computes it), arcsec: mean [5%, 95%] over trials",
-        "",
-        "| figure | value |",
-        "|---|---|",
-        f"| dense truth before | {s['dense_sigma3_before_arcsec']:.2f} |",
-    ]
-    for k, label in REPORT_LABELS.items():
-        v = s[k]
-        lines.append(f"| {label} | {v['mean']:.3f} [{v['p05']:.3f}, {v['p95']:.3f}] |")
-    d = s["dense_sigma3_after_drift_arcsec"]
-    lines += [
-        f"| dense 3 sigma after drift (in sequence) | {d['mean']:.3f} [{d['p05']:.3f}, {d['p95']:.3f}] |",
-        "",
-        f"Acceptance (23-face verification within requirement/3 = "
-        f"{s['acceptance_rate']['requirement_arcsec'] / 3:.2f} arcsec): in sequence "
-        f"{s['acceptance_rate']['in_sequence']:.3f}, joint {s['acceptance_rate']['joint']:.3f}.",
-        "",
-        "## Recovered coefficients (arcsec): bias and spread against the projection of the truth",
-        "",
-        "| coefficient | reference | in-seq bias | in-seq spread | joint bias | joint spread |",
-        "|---|---|---|---|---|---|",
-    ]
-    for nm, e in s["coefficients"].items():
-        cells = []
-        for lab in ("in_sequence", "joint"):
-            v = e[lab]
-            cells += (["-", "-"] if v is None else
-                      [f"{v['bias_arcsec']:.3f}", f"{v['spread_arcsec']:.3f}"])
-        lines.append(f"| {nm} | {e['reference_arcsec']:.3f} | " + " | ".join(cells) + " |")
-    lines += [
-        "",
-        "e0 is a zero offset (polygon mounting offset; short-period error at integer degrees); it is "
-        "not observable with a polygon and not part of the 3 sigma. Eq 8 is fitted with a nuisance "
-        "offset of the 23-face table (relative to its first face), which is not compensated.",
-        "",
-        "## Plots",
-        "",
-        "![error curves](error_curves.png)",
-        "",
-        "![residual distribution](residual_distribution.png)",
-        "",
-        f"![posterior band](posterior_band.png)\n\nTrial 0, joint fit: fraction of the plotted "
-        f"true residual (continuous reading, without the quantisation's uniform +-q/2) inside "
-        f"the 90% band: {covered:.2f}. One trial; the band holds the fitted harmonics' "
-        f"uncertainty, not the unmodelled higher harmonics; its coverage rate over many "
-        f"trials, for an error inside the model, is tested in tests/test_harmonics.py. "
-        f"emcee acceptance {post['acceptance']:.2f}.",
-    ]
-    with open(os.path.join(report_dir, "report.md"), "w") as fh:
-        fh.write("\n".join(lines) + "\n")
-    files["markdown"] = "report.md"
-    return {"dir": str(report_dir), "files": files, "posterior_band_fraction_inside": covered}

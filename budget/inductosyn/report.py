@@ -1,0 +1,327 @@
+"""Seed 001's own figures in the runner's result: the ``details`` of its JSON and the
+sections and plots of its report (:meth:`budget.runner.study.Study.report_sections`).
+
+Everything here is computed from what the runner kept of the trials of
+:class:`budget.inductosyn.study.InductosynStudy`: the estimates and per-trial truths of
+its classes, the per-trial figures in ``aux`` and trial 0's tables in ``extra``. Nothing
+is simulated again, except the truth on the dense grid of the drifted encoder (seed 001
+section 4.3), which is a property of the scenario and the seed, and the emcee posterior
+of trial 0's joint fit for the band plot.
+
+3 sigma is 3 x the sample standard deviation (ddof = 1), as seed 001 computes it
+(:func:`budget.inductosyn.harmonics.sigma3_arcsec`); a figure over trials is given as
+mean [5 %, 95 %].
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from budget.runner.study import ReportSection
+
+__all__ = ["FIGURES", "details", "drift_figures", "figure_arrays", "report_sections",
+           "sequence_coefficients", "summary_lines"]
+
+#: per-trial figures: name -> what it is, in words (report rows, JSON keys of ``details``)
+FIGURES = {
+    "long_sigma3_before_arcsec": "24-face table before compensation (paper Table 1, before)",
+    "long_sigma3_after_arcsec": "24-face re-measurement after the eq 7 compensation (Table 1, after)",
+    "short_sigma3_before_arcsec": "23-face table, long period compensated, before eq 8 (Table 2, before)",
+    "short_sigma3_after_arcsec": "23-face re-measurement after eq 7 + eq 8 (Table 2, after)",
+    "joint_short_sigma3_after_arcsec": "23-face re-measurement after the joint fit (improved)",
+    "dense_sigma3_after_arcsec": "true error over the whole turn after eq 9 (in sequence)",
+    "joint_dense_sigma3_after_arcsec": "true error over the whole turn after the joint fit",
+    "dense_maxabs_after_arcsec": "max |true error - mean| over the turn after eq 9 (in sequence)",
+    "joint_dense_maxabs_after_arcsec": "max |true error - mean| over the turn after the joint fit",
+}
+
+E0_NOTE = ("zero offset: includes the polygon mounting offset and the short-period error at integer "
+           "degrees; not observable with a polygon (eq 8's own table offset is a nuisance term, not listed)")
+
+
+def _stat(x) -> dict:
+    """mean, sample std (ddof 1), 5 %, 50 % and 95 % quantiles of a per-trial figure."""
+    x = np.asarray(x, dtype=float)
+    return {"mean": float(np.mean(x)), "std": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
+            "p05": float(np.quantile(x, 0.05)), "p50": float(np.median(x)),
+            "p95": float(np.quantile(x, 0.95))}
+
+
+def figure_arrays(result) -> dict[str, np.ndarray]:
+    """Each figure of :data:`FIGURES` per trial, from the run's classes and ``aux``."""
+    s, t, a = result.samples, result.trial_truths, result.aux
+    return {
+        "long_sigma3_before_arcsec": a["long_sigma3_before_arcsec"],
+        "long_sigma3_after_arcsec": a["long_sigma3_after_arcsec"],
+        "short_sigma3_before_arcsec": s[("before", "published", "angle")],
+        "short_sigma3_after_arcsec": s[("residual", "published", "angle")],
+        "joint_short_sigma3_after_arcsec": s[("residual", "improved", "angle")],
+        "dense_sigma3_after_arcsec": t[("residual", "published", "angle")],
+        "joint_dense_sigma3_after_arcsec": t[("residual", "improved", "angle")],
+        "dense_maxabs_after_arcsec": a["dense_maxabs_after_arcsec"],
+        "joint_dense_maxabs_after_arcsec": a["joint_dense_maxabs_after_arcsec"],
+    }
+
+
+def sequence_coefficients(result) -> np.ndarray:
+    """The in-sequence coefficient vector of every trial (e0, A_L1c..A_L2s, A_S1c..A_S2s),
+    the same numbers as ``run_trials``' ``c_long`` and ``c_short`` side by side."""
+    from budget.inductosyn.study import PUBLISHED_COEFFICIENTS
+
+    cols = [result.aux["e0_in_sequence_arcsec"]]
+    cols += [result.samples[("coefficient", "published", nm)] for nm in PUBLISHED_COEFFICIENTS]
+    return np.stack(cols, axis=1)
+
+
+def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
+    """3 sigma and max |error - mean| over the turn of the encoder after drift (seed 001
+    section 4.3), compensated by each trial's in-sequence coefficients.
+
+    The drift is one realisation, :func:`simcam.encoder.inductosyn.apply_drift` seeded by the
+    run seed (``drift_seed``); the truth is the drifted encoder's error on the same dense grid
+    of true angles.
+    """
+    from budget.inductosyn.harmonics import HarmonicSpec, design_matrix
+    from budget.inductosyn.validate import LONG, dense_stats
+    from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, apply_drift
+
+    p = prepared
+    sc = p.scenario
+    enc = Inductosyn(params=apply_drift(params=sc.encoder, drift=sc.drift, seed=seed))
+    reading = enc.quantise_deg(reading_deg=enc.continuous_reading_deg(angle_deg=p.dense_true_deg))
+    before = (reading - p.dense_true_deg) * ARCSEC_PER_DEG
+    short = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=sc.encoder.pole_pairs, n_constants=0)
+    b = np.concatenate([design_matrix(angle_deg=reading, spec=LONG),
+                        design_matrix(angle_deg=reading, spec=short)], axis=1)
+    s3, _, mx = dense_stats(before, b, c_seq)
+    return {"drift_seed": seed, "dense_sigma3_after_drift_arcsec": _stat(s3),
+            "dense_maxabs_after_drift_arcsec": _stat(mx)}
+
+
+def details(result, prepared) -> dict:
+    """The seed-001 figures of a run (JSON-ready; the result JSON's ``details``).
+
+    Keys: ``dense_step_deg``, ``dense_points``, ``dense_sigma3_before_arcsec``,
+    ``dense_maxabs_before_arcsec``; each key of :data:`FIGURES` with its mean, std and
+    5/50/95 % quantiles over trials; ``e0`` (the constant, per variant, against its
+    reference); ``acceptance_rate`` (seed 001 section 3.1: the 23-face verification within
+    requirement/3); the drift figures (:func:`drift_figures`). The per-coefficient bias and
+    spread are the runner's statistics of class ``coefficient``.
+    """
+    from budget.inductosyn.harmonics import sigma3_arcsec
+    from budget.inductosyn.validate import reference_coefficients
+
+    p = prepared
+    sc = p.scenario
+    figs = figure_arrays(result)
+    before = p.dense_before_arcsec
+    out = {"dense_step_deg": float(sc.validation.dense_step_deg), "dense_points": int(p.dense_true_deg.size),
+           "dense_sigma3_before_arcsec": float(sigma3_arcsec(error_arcsec=before)),
+           "dense_maxabs_before_arcsec": float(np.max(np.abs(before - before.mean())))}
+    out.update({k: _stat(v) for k, v in figs.items()})
+    ref_e0 = float(reference_coefficients(p)[0])
+    out["e0"] = {"reference_arcsec": ref_e0, "note": E0_NOTE}
+    for lab, key in (("in_sequence", "e0_in_sequence_arcsec"), ("joint", "e0_joint_arcsec")):
+        x = result.aux[key]
+        out["e0"][lab] = {"bias_arcsec": float(x.mean() - ref_e0),
+                          "spread_arcsec": float(x.std(ddof=1)) if x.size > 1 else 0.0}
+    req = sc.calibration.requirement_arcsec
+    out["acceptance_rate"] = {
+        "in_sequence": float(np.mean(figs["short_sigma3_after_arcsec"] <= req / 3)),
+        "joint": float(np.mean(figs["joint_short_sigma3_after_arcsec"] <= req / 3)),
+        "requirement_arcsec": req}
+    out.update(drift_figures(p, sequence_coefficients(result), result.seed))
+    return out
+
+
+def _fmt(v: dict) -> str:
+    return f"{v['mean']:.3f} [{v['p05']:.3f}, {v['p95']:.3f}]"
+
+
+def summary_lines(result) -> list[str]:
+    """What ``budget harmonics validate`` prints after the runner's table."""
+    d = result.details()
+    return [
+        f"truth points {d['dense_points']} (step {d['dense_step_deg']:g} deg); 3 sigma, arcsec: mean [5%, 95%]",
+        f"3 sigma before (dense truth): {d['dense_sigma3_before_arcsec']:.3f} arcsec",
+        f"long  period 24 faces: before {_fmt(d['long_sigma3_before_arcsec'])}  "
+        f"after {_fmt(d['long_sigma3_after_arcsec'])}",
+        f"short period 23 faces: before {_fmt(d['short_sigma3_before_arcsec'])}  "
+        f"after {_fmt(d['short_sigma3_after_arcsec'])}",
+        f"dense residual 3 sigma: in sequence {_fmt(d['dense_sigma3_after_arcsec'])}  "
+        f"joint {_fmt(d['joint_dense_sigma3_after_arcsec'])}",
+        f"dense max |residual - mean|: in sequence {_fmt(d['dense_maxabs_after_arcsec'])}  "
+        f"joint {_fmt(d['joint_dense_maxabs_after_arcsec'])}",
+        f"after drift (in sequence): {d['dense_sigma3_after_drift_arcsec']['mean']:.3f} arcsec 3 sigma",
+    ]
+
+
+def _figures_markdown(result, d: dict) -> str:
+    lines = [f"Truth on {d['dense_points']} true shaft angles (step {d['dense_step_deg']:g} deg). "
+             "3 sigma (3 x sample std, as the paper computes it), arcsec: mean [5%, 95%] over trials.", "",
+             "| figure | value |", "|---|---|",
+             f"| dense truth before | {d['dense_sigma3_before_arcsec']:.2f} |"]
+    lines += [f"| {label} | {_fmt(d[k])} |" for k, label in FIGURES.items()]
+    a = d["acceptance_rate"]
+    lines += [f"| dense 3 sigma after drift (in sequence, drift seed {d['drift_seed']}) | "
+              f"{_fmt(d['dense_sigma3_after_drift_arcsec'])} |", "",
+              f"Acceptance (23-face verification within requirement/3 = {a['requirement_arcsec'] / 3:.2f} "
+              f"arcsec): in sequence {a['in_sequence']:.3f}, joint {a['joint']:.3f}."]
+    return "\n".join(lines)
+
+
+def _coefficients_markdown(result, d: dict) -> str:
+    from budget.inductosyn.study import COEFFICIENTS
+
+    lines = ["Bias (mean - truth, +- its standard error) and spread (sample std) over trials, arcsec; the "
+             "truth is the projection of the continuous true error, as a function of the reading, on "
+             "the same harmonics. A `*` marks a bias beyond 3 standard errors.", "",
+             "| coefficient | truth | in-seq bias | in-seq spread | joint bias | joint spread |",
+             "|---|---|---|---|---|---|"]
+    e0 = d["e0"]
+    lines.append(f"| e0 | {e0['reference_arcsec']:.3f} | {e0['in_sequence']['bias_arcsec']:.3f} | "
+                 f"{e0['in_sequence']['spread_arcsec']:.3f} | {e0['joint']['bias_arcsec']:.3f} | "
+                 f"{e0['joint']['spread_arcsec']:.3f} |")
+    for nm in COEFFICIENTS:
+        cells = []
+        truth = None
+        for var in ("published", "improved"):
+            key = ("coefficient", var, nm)
+            if key not in result.samples:
+                cells += ["-", "-"]
+                continue
+            st = result.statistics(key)
+            truth = st["truth"]
+            cells += [f"{st['bias']:.3f} +- {st['se_bias']:.3f}" + (" *" if st["bias_significant"] else ""),
+                      f"{st['std']:.3f}"]
+        lines.append(f"| {nm} | {truth:.3f} | " + " | ".join(cells) + " |")
+    lines += ["", "e0 is a zero offset (polygon mounting offset; short-period error at integer degrees); it is "
+              "not observable with a polygon and not part of the 3 sigma, so it is not validated (no standard "
+              "error given). Eq 8 is fitted with a nuisance offset of the 23-face table (relative to its first "
+              "face), which is not compensated. The published procedure does not fit electrical 3 and 4 (-)."]
+    return "\n".join(lines)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
+    plt = _plt()
+    fig, ax = plt.subplots(3, 1, figsize=(9, 9))
+    ax[0].plot(t, p.dense_before_arcsec, lw=0.3, color="C0", label="before (truth)")
+    ax[0].set_xlabel("shaft angle (deg)")
+    ax[0].set_ylabel("error (arcsec)")
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[1].plot(t, rs, lw=0.3, color="C1", label="after, in sequence (trial 0)")
+    ax[1].plot(t, rj, lw=0.3, color="C2", label="after, joint fit (trial 0)")
+    ax[1].set_xlabel("shaft angle (deg)")
+    ax[1].set_ylabel("residual - mean (arcsec)")
+    ax[1].legend(loc="upper right", fontsize=8)
+    sel = (t >= 100) & (t <= 103)
+    ax[2].plot(t[sel], rs[sel], lw=0.8, color="C1", label="after, in sequence")
+    ax[2].plot(t[sel], rj[sel], lw=0.8, color="C2", label="after, joint")
+    ax[2].set_xlabel("shaft angle (deg), three electrical periods")
+    ax[2].set_ylabel("residual - mean (arcsec)")
+    ax[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _plot_residual_distribution(rs, rj, figs: dict, path: Path) -> Path:
+    plt = _plt()
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    ax[0].hist(rs, bins=80, histtype="step", density=True, label="in sequence")
+    ax[0].hist(rj, bins=80, histtype="step", density=True, label="joint")
+    ax[0].set_xlabel("dense residual about its mean, trial 0 (arcsec)")
+    ax[0].set_ylabel("probability density (1/arcsec)")
+    ax[0].legend(fontsize=8)
+    ax[1].hist(figs["dense_sigma3_after_arcsec"], bins=40, histtype="step", label="in sequence")
+    ax[1].hist(figs["joint_dense_sigma3_after_arcsec"], bins=40, histtype="step", label="joint")
+    ax[1].hist(figs["short_sigma3_after_arcsec"], bins=40, histtype="step", label="23-face verify (paper)")
+    ax[1].set_xlabel("3 sigma after compensation, per trial (arcsec)")
+    ax[1].set_ylabel("trials")
+    ax[1].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, path: Path) -> tuple[Path, str]:
+    """emcee 90 % band of trial 0's joint-fit residual over three electrical periods, with
+    the true residual (continuous reading) overlaid; the text says how much of it is inside."""
+    from budget.inductosyn.harmonics import fit_joint, posterior_band
+    from budget.inductosyn.validate import JOINT_ELEC
+    from simcam.encoder.inductosyn import ARCSEC_PER_DEG
+
+    plt = _plt()
+    jf = fit_joint(tables=[(p.angles_long_deg, ex["y_long"]), (p.angles_short_deg, ex["y_short"])],
+                   pole_pairs=p.scenario.encoder.pole_pairs, elec_orders=JOINT_ELEC)
+    cal = p.scenario.calibration
+    band_t = np.linspace(100, 103, 601)
+    # continuous readings: the band is for the fitted model; quantisation (uniform,
+    # +-q/2) is a separate, known term of the residual
+    band_r = p.encoder.continuous_reading_deg(angle_deg=band_t)
+    post = posterior_band(fit=jf, angle_deg=band_r, seed=seed, level=0.9, n_steps=steps,
+                          burn=min(500, steps // 3),
+                          face_error_arcsec=max(cal.long_polygon.face_error_arcsec,
+                                                cal.short_polygon.face_error_arcsec))
+    true_r = (band_r - band_t) * ARCSEC_PER_DEG - jf.evaluate_arcsec(angle_deg=band_r)
+    true_r = true_r - r_joint_mean  # zero offset is unobservable: compare about the mean
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ax.fill_between(band_t, post["lower_arcsec"], post["upper_arcsec"], alpha=0.3,
+                    label="90% credible band (emcee)")
+    ax.plot(band_t, true_r, lw=0.8, color="k", label="true residual, continuous reading (about its mean)")
+    ax.set_xlabel("shaft angle (deg)")
+    ax.set_ylabel("residual after joint compensation (arcsec)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    covered = float(np.mean((true_r >= post["lower_arcsec"]) & (true_r <= post["upper_arcsec"])))
+    text = (f"Trial 0, joint fit: fraction of the plotted true residual (continuous reading, without the "
+            f"quantisation's uniform +-q/2) inside the 90% band: {covered:.2f}. One trial; the band holds the "
+            f"fitted harmonics' uncertainty, not the unmodelled higher harmonics; its coverage rate over many "
+            f"trials, for an error inside the model, is tested in tests/test_harmonics.py. emcee "
+            f"{steps} steps, acceptance {post['acceptance']:.2f}.")
+    return path, text
+
+
+def report_sections(result, prepared, out_dir, *, posterior_steps: int = 1500) -> list[ReportSection]:
+    """The seed-001 sections: the 3 sigma figures of the paper's tables and of the truth,
+    the recovered coefficients, and the plots of trial 0 (error curves before and after,
+    residual distribution, emcee posterior band)."""
+    out_dir = Path(out_dir)
+    p = prepared
+    d = result.details()
+    secs = [ReportSection("Seed 001: 3 sigma of the calibration stages", _figures_markdown(result, d)),
+            ReportSection("Seed 001: recovered coefficients", _coefficients_markdown(result, d))]
+    ex = result.example.extra if result.example is not None else {}
+    if not ex:
+        return secs
+    t = p.dense_true_deg
+    r_seq = p.dense_before_arcsec - p.b_seq @ np.concatenate([ex["c_long"], ex["c_short"]])
+    r_joint = p.dense_before_arcsec - p.b_joint @ ex["c_joint"]
+    # residuals about their mean: the zero offset (mounting offset) is not observable
+    rs, rj = r_seq - r_seq.mean(), r_joint - r_joint.mean()
+    curves = _plot_error_curves(p, t, rs, rj, out_dir / "error_curves.png")
+    dist = _plot_residual_distribution(rs, rj, figure_arrays(result), out_dir / "residual_distribution.png")
+    band, text = _posterior_band(p, ex, float(np.mean(r_joint)), result.seed, posterior_steps,
+                                 out_dir / "posterior_band.png")
+    secs.append(ReportSection(
+        "Seed 001: error curves, residual distribution, posterior band",
+        "Error before compensation (the truth on the dense grid) and trial 0's residual after each "
+        "compensation, over the whole turn and over three electrical periods; the dense residual of "
+        "trial 0 and the 3 sigma after compensation of every trial; the emcee band of trial 0's joint "
+        "fit.\n\n" + text, [curves, dist, band]))
+    return secs
