@@ -194,7 +194,7 @@ def _coefficients_markdown(result, d: dict) -> str:
                 continue
             st = result.statistics(key)
             truth = st["truth"]
-            cells += [f"{st['bias']:.3f} +- {st['se_bias']:.3f}" + (" *" if st["bias_significant"] else ""),
+            cells += [f"{st['bias']:.4f} +- {st['se_bias']:.4f}" + (" *" if st["bias_significant"] else ""),
                       f"{st['std']:.3f}"]
         lines.append(f"| {nm} | {truth:.3f} | " + " | ".join(cells) + " |")
     lines += ["", "e0 is a zero offset (polygon mounting offset; short-period error at integer degrees); it is "
