@@ -116,7 +116,10 @@ scenes, stamps and every class's truth) on 1 and 2 local worker processes, end t
 in steady state (points finished after every worker finished its first), best over the
 repeats into a fresh store; and the cost of one validation point as its trial count grows
 (a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
-LocalCluster of 2 workers. Target (issue 6): at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
+LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
+sub-pixel phase instead of the scenario's 2000, which make a point 15-18 s): the figures
+measure the machinery; one point with the full truth is timed once for scale. Target
+(issue 6): at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
     "lens": ("Lens tracing", """\
 A bundle of 100,000 rays of one field point and wavelength through the embedded 9-surface
 star-camera lens (Mitsuba `llvm_ad_rgb` intersections, double-precision refinement and
