@@ -37,6 +37,7 @@ __all__ = [
     "evaluate_point",
     "labels",
     "schema",
+    "class_units",
     "study_for_kind",
 ]
 
@@ -68,6 +69,11 @@ def labels(kind: str) -> dict[str, tuple[str, ...]]:
     """Coordinate labels of the class, axis and variant dimensions of ``kind``."""
     study, classes, axes = _layout(kind)
     return {"class": tuple(c.name for c in classes), "axis": axes, "variant": tuple(study.variants)}
+
+
+def class_units(kind: str) -> dict[str, str]:
+    """The unit of each class of ``kind`` (the store's ``class_units`` attribute)."""
+    return {c.name: c.unit for c in _layout(kind)[1]}
 
 
 def truth_has_variant(kind: str) -> bool:

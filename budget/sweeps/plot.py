@@ -45,10 +45,20 @@ def _panels(n: int):
 
     ncol = min(4, n)
     nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.0 * nrow), squeeze=False)
+    # at least 6 inches wide: the suptitle (title, axis, notes) must fit over one panel
+    fig, axes = plt.subplots(nrow, ncol, figsize=(max(3.6 * ncol, 6.0), 3.0 * nrow), squeeze=False)
     for k in range(n, nrow * ncol):
         axes.flat[k].set_visible(False)
     return fig, list(axes.flat)
+
+
+def _suptitle(fig, text: str, fontsize: float = 9) -> None:
+    """A figure title wrapped to the figure's width (a long sweep title is cut otherwise)."""
+    import textwrap
+
+    width_chars = max(40, int(fig.get_figwidth() * 72 / (0.55 * fontsize)))
+    lines = [textwrap.fill(line, width_chars) for line in text.split("\n")]
+    fig.suptitle("\n".join(lines), fontsize=fontsize)
 
 
 def _legend_first(axes, **kw) -> None:
@@ -87,6 +97,22 @@ def _truth_band(ax, x, t, se, color, label):
         ax.fill_between(x, t - 2 * se, t + 2 * se, color=color, alpha=0.15, lw=0)
 
 
+def _classes_on(d) -> list:
+    """The classes with a value on the selected axis (a study's classes may have different
+    axes: the store holds their union, NaN where a class has no such axis)."""
+    out = []
+    for cls in d["class"].values:
+        c = d.sel({"class": cls})
+        if any(q in c and np.any(np.isfinite(c[q].values)) for q in ("truth", "mean")):
+            out.append(cls)
+    return out
+
+
+def _unit(ds, cls) -> str:
+    """The unit of class ``cls`` (stores before ``class_units`` had one ``units`` for all)."""
+    return str(ds.attrs.get("class_units", {}).get(str(cls), ds.attrs.get("units", "")))
+
+
 def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     import matplotlib.pyplot as plt
 
@@ -94,7 +120,7 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     series = others[0] if others and xdim != "point" else None
     sel, note = _fixed_note(ds, [xdim] + ([series] if series else []))
     d = ds.isel(sel).sel(axis=axis)
-    classes = list(d["class"].values)
+    classes = _classes_on(d)
     fig, axes = _panels(len(classes))
     x = d[xname].values
     has_mean = "mean" in d
@@ -136,7 +162,7 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
                                     color=col, capsize=2, lw=0.8)
         ax.set_title(str(cls))
         ax.set_xlabel(_label(ds, xname), fontsize=7)
-        ax.set_ylabel(f"{axis}, arcsec 3 sigma", fontsize=7)
+        ax.set_ylabel(f"{axis}, {_unit(ds, cls)}", fontsize=7)
         ax.tick_params(labelsize=7)
     _legend_first(axes, fontsize=6, title=(series if series else None), title_fontsize=6)
     head = f"{ds.attrs.get('title', '')}: axis {axis}"
@@ -146,7 +172,7 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
         head += "; markers: mean (+-2 MC s.e.), band: +-1 spread; truth band +-2 s.e."
     if note:
         head += f"\n({note})"
-    fig.suptitle(head + _zip_note(ds), fontsize=9)
+    _suptitle(fig, head + _zip_note(ds))
     fig.tight_layout()
     path = Path(out_dir) / f"classes_vs_{_safe(xname)}__{axis}.png"
     fig.savefig(path, dpi=110)
@@ -168,7 +194,7 @@ def _heatmaps(ds, axis, variant, out_dir):
     if "bias" in d:
         quantities.append(("bias", f"bias of the {variant} estimate"))
     for q, title in quantities:
-        classes = list(d["class"].values)
+        classes = _classes_on(d)
         fig, axes = _panels(len(classes))
         for ax, cls in zip(axes, classes):
             a = d[q].sel({"class": cls})
@@ -193,11 +219,10 @@ def _heatmaps(ds, axis, variant, out_dir):
                         light = q == "truth" and hi > lo and (val - lo) / (hi - lo) > 0.6
                         ax.text(ix, iy, f"{val:.2g}", ha="center", va="center", fontsize=5,
                                 color="k" if (light or q == "bias") else "w")
-            ax.set_title(str(cls), fontsize=9)
+            ax.set_title(f"{cls} ({_unit(ds, cls)})", fontsize=9)
             ax.set_xlabel(d0, fontsize=7)
             ax.set_ylabel(d1, fontsize=7)
-        fig.suptitle(f"{ds.attrs.get('title', '')}: {title}, axis {axis}, arcsec 3 sigma"
-                     + (f"\n({note})" if note else ""), fontsize=9)
+        _suptitle(fig, f"{ds.attrs.get('title', '')}: {title}, axis {axis}" + (f"\n({note})" if note else ""))
         fig.tight_layout()
         path = Path(out_dir) / f"heatmap_{q}{'_' + variant if q == 'bias' else ''}__{axis}.png"
         fig.savefig(path, dpi=110)
@@ -218,7 +243,7 @@ def precision_table(ds, *, axis: str, precision: float) -> list[dict]:
     d = ds.sel(axis=axis).sortby(xname) if xdim == xname else ds.sel(axis=axis)
     x = d[xname].values
     rows = []
-    for cls in d["class"].values:
+    for cls in _classes_on(d):
         for v in d["variant"].values:
             m = d["mean"].sel({"class": cls, "variant": v}).values
             s = d["spread"].sel({"class": cls, "variant": v}).values
@@ -252,7 +277,7 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
     xname = xs[0][1]
     d = ds.sel(axis=axis)
     x = d[xname].values
-    classes = list(d["class"].values)
+    classes = _classes_on(d)
     fig, axes = _panels(len(classes))
     for ax, cls in zip(axes, classes):
         for v in d["variant"].values:
@@ -280,9 +305,9 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
         ax.set_ylabel("spread / |mean| (%)", fontsize=7)
         ax.tick_params(labelsize=7)
     _legend_first(axes, fontsize=6)
-    fig.suptitle(f"{ds.attrs.get('title', '')}: precision of one measurement, axis {axis} "
-                 "(error bars +-2 MC s.e.)" + (f"; dashed: {100 * precision:g} %" if precision else "")
-                 + _zip_note(ds), fontsize=9)
+    _suptitle(fig, f"{ds.attrs.get('title', '')}: precision of one measurement, axis {axis} "
+              "(error bars +-2 MC s.e.)" + (f"; dashed: {100 * precision:g} %" if precision else "")
+              + _zip_note(ds))
     fig.tight_layout()
     path = Path(out_dir) / f"relative_spread_vs_{_safe(xname)}__{axis}.png"
     fig.savefig(path, dpi=110)
@@ -327,9 +352,9 @@ def _sobol_figure(sob, title, axis, out_dir):
         ax.set_xticks(xi, params, fontsize=6, rotation=20, ha="right")
         ax.set_title(name, fontsize=9)
         ax.tick_params(labelsize=7)
-    fig.suptitle(f"{title}: Sobol indices of the {sob.attrs.get('output', 'truth')} (axis {axis}), "
-                 f"{int(100 * sob.attrs.get('conf_level', 0.95))} % intervals, "
-                 f"{sob.attrs.get('evaluations', '?')} evaluations", fontsize=9)
+    _suptitle(fig, f"{title}: Sobol indices of the {sob.attrs.get('output', 'truth')} (axis {axis}), "
+              f"{int(100 * sob.attrs.get('conf_level', 0.95))} % intervals, "
+              f"{sob.attrs.get('evaluations', '?')} evaluations")
     fig.tight_layout()
     path = Path(out_dir) / f"sobol__{axis}.png"
     fig.savefig(path, dpi=110)

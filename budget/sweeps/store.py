@@ -60,6 +60,7 @@ def _fill(dtype: str):
 def store_attrs(sweep) -> dict:
     """Root attributes of a sweep's store."""
     import simcam
+    from budget.sweeps.evaluate import class_units
     from budget.sweeps.spec import scenario_hash, scenario_text
 
     s = sweep.spec
@@ -72,7 +73,7 @@ def store_attrs(sweep) -> dict:
         "parameters": [k for k, _ in sweep.params], "point_dims": list(sweep.dims),
         "points": len(sweep.points), "base_scenario": scenario_text(s.kind, sweep.base),
         "base_scenario_hash": scenario_hash(s.kind, sweep.base), "seed_rule": SEED_RULE,
-        "units": "arcsec, 3 sigma",
+        "class_units": class_units(s.kind),
     }
 
 
