@@ -267,8 +267,10 @@ def test_fused_fast_path_equals_windows_then_centroids(small, dark_frames):
         pd.testing.assert_frame_equal(fast.truth, slow.truth, check_exact=True)
 
 
-def test_fused_fast_path_threads_do_not_change_results(small):
-    plan = make_plan("hsfe", small, seed=2)
+@pytest.mark.parametrize("dark_frames", [0, 2])
+def test_fused_fast_path_threads_do_not_change_results(small, dark_frames):
+    # the threaded kernel runs the serial one on each window's own copies
+    plan = make_plan("hsfe", small, seed=2, dark_frames=dark_frames)
     serial = simulate(plan, StarCamera(small, parallel=False), seed=2).centroids
     threaded = simulate(plan, StarCamera(small, parallel=True), seed=2).centroids
     pd.testing.assert_frame_equal(serial, threaded, check_exact=True)

@@ -47,7 +47,7 @@ def border_stats(windows, out_median, out_sigma):
     nb = 2 * w + 2 * max(h - 2, 0)
     buf = np.empty(nb)
     for k in range(n):
-        med, sig = border_one(windows[k], buf, True)
+        med, sig = border_one(windows[k], buf, np.bool_(True))
         out_median[k] = med
         out_sigma[k] = sig
 
@@ -61,9 +61,12 @@ def border_one(win, buf, with_sigma):
     only the median. Both are NaN when the border holds no finite pixel. The median is
     the exact order statistic (the mean of the two middle values for an even count), by
     selection instead of sorting (:func:`_median_select`).
+
+    Callers inside numba pass ``np.bool_(...)``, not a bare ``True``/``False``: numba types
+    a constant argument as a literal and would compile one specialisation per value.
     """
     h, w = win.shape
-    m = 0
+    m = np.int64(0)  # not the literal 0: numba would compile _median_select for Literal[int](0) too
     for j in range(w):
         v = win[0, j]
         if math.isfinite(v):

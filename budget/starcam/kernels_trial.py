@@ -26,39 +26,6 @@ from simcam.starcam.kernels.detector import noise_adc_frames
 
 
 @njit(cache=True)
-def _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
-            frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
-            background, threshold, subtract_threshold, saturation, wins, buf,
-            out_x, out_y, out_flux, out_flag):
-    """Window ``k`` in every frame: pixels into ``wins`` (F, h, w), then each frame centroided."""
-    nf, h, w = wins.shape
-    noise_adc_frames(mean_e[k], wins, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset,
-                     read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize, max_dn)
-    for f in range(nf):
-        win = wins[f]
-        if dark_mean.shape[0]:
-            for i in range(h):
-                for j in range(w):
-                    win[i, j] = win[i, j] - dark_mean[k, i, j]
-        if border_background:
-            b, _ = border_one(win, buf, False)
-        else:
-            b = background[k]
-        thr = threshold[k]
-        pre = 0
-        if not (math.isfinite(b) and math.isfinite(thr)):
-            pre = FLAG_LOST
-            if not math.isfinite(thr):
-                thr = np.inf
-        x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr,
-                                 subtract_threshold, saturation)
-        out_x[f, k] = x
-        out_y[f, k] = y
-        out_flux[f, k] = fl
-        out_flag[f, k] = flag | pre
-
-
-@njit(cache=True)
 def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset,
                                   read_noise, full_well, frame_keys, shot_noise, read_noise_on,
                                   quantize, max_dn, dark_mean, border_background, background,
@@ -90,11 +57,32 @@ def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, ga
     n, h, w = mean_e.shape
     wins = np.empty((frame_keys.shape[0], h, w))
     buf = np.empty(2 * w + 2 * max(h - 2, 0))
+    nf = frame_keys.shape[0]
     for k in range(n):
-        _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
-                frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
-                background, threshold, subtract_threshold, saturation, wins, buf,
-                out_x, out_y, out_flux, out_flag)
+        noise_adc_frames(mean_e[k], wins, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset,
+                         read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize, max_dn)
+        for f in range(nf):
+            win = wins[f]
+            if dark_mean.shape[0]:
+                for i in range(h):
+                    for j in range(w):
+                        win[i, j] = win[i, j] - dark_mean[k, i, j]
+            if border_background:
+                b, _ = border_one(win, buf, np.bool_(False))
+            else:
+                b = background[k]
+            thr = threshold[k]
+            pre = 0
+            if not (math.isfinite(b) and math.isfinite(thr)):
+                pre = FLAG_LOST
+                if not math.isfinite(thr):
+                    thr = np.inf
+            x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr,
+                                     subtract_threshold, saturation)
+            out_x[f, k] = x
+            out_y[f, k] = y
+            out_flux[f, k] = fl
+            out_flag[f, k] = flag | pre
 
 
 @njit(parallel=True, cache=True)
@@ -103,14 +91,27 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
                            quantize, max_dn, dark_mean, border_background, background,
                            threshold, subtract_threshold, saturation,
                            out_x, out_y, out_flux, out_flag):
-    """Threaded twin of :func:`expose_centroid_frames_serial` (windows in parallel; each
-    (frame, window) result is the same whatever the thread count)."""
+    """Threaded twin of :func:`expose_centroid_frames_serial`: windows in parallel, each
+    window by the serial kernel on its own one-window arrays (contiguous copies, so the
+    serial kernel is called with the types it was compiled for and not compiled again).
+    Each (frame, window) result is the same whatever the thread count."""
     n, h, w = mean_e.shape
+    nf = frame_keys.shape[0]
     for kk in prange(n):
-        k = np.int64(kk)  # prange counts in uint64: the serial twin's _window, not a second compile
-        wins = np.empty((frame_keys.shape[0], h, w))
-        buf = np.empty(2 * w + 2 * max(h - 2, 0))
-        _window(k, mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
-                frame_keys, shot_noise, read_noise_on, quantize, max_dn, dark_mean, border_background,
-                background, threshold, subtract_threshold, saturation, wins, buf,
-                out_x, out_y, out_flux, out_flag)
+        k = np.int64(kk)
+        dm = dark_mean if dark_mean.shape[0] == 0 else np.ascontiguousarray(dark_mean[k:k + 1])
+        ox = np.empty((nf, 1))
+        oy = np.empty((nf, 1))
+        of = np.empty((nf, 1))
+        ofl = np.zeros((nf, 1), dtype=np.int64)
+        expose_centroid_frames_serial(np.ascontiguousarray(mean_e[k:k + 1]), np.ascontiguousarray(row0[k:k + 1]),
+                                      np.ascontiguousarray(col0[k:k + 1]), mosaic_cols, chip_cols, gain, offset,
+                                      read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize,
+                                      max_dn, dm, border_background, np.ascontiguousarray(background[k:k + 1]),
+                                      np.ascontiguousarray(threshold[k:k + 1]), subtract_threshold, saturation,
+                                      ox, oy, of, ofl)
+        for f in range(nf):
+            out_x[f, k] = ox[f, 0]
+            out_y[f, k] = oy[f, 0]
+            out_flux[f, k] = of[f, 0]
+            out_flag[f, k] = ofl[f, 0]

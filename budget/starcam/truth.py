@@ -90,8 +90,20 @@ def te_truth(camera, *, frames: int, seed: int) -> ClassTruth:
     plan = make_plan("te", scn)
     c = plan.conditions[0]
     scene = camera.scene(Placement(layout=star_grid(scn, center_px=c.field_center_px), condition=999_001))
-    win = camera.render_windows(scene, frames=frames, seed=seed)
-    x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
+    if scn.validation.centroid_method == "cog":
+        # the fused expose-and-centroid kernel: the same pixels and centroids as rendering
+        # the windows and centroid_cog with the same options (tests/test_protocols.py), and
+        # the kernel a trial already compiled
+        from budget.starcam.protocols import _expose_centroid
+
+        chain = camera.window_chain(scene)
+        noise = centroid_options(camera, chain.col0, scn.validation.threshold_sigma,
+                                 dark_frames=scn.validation.dark_frames)["noise_dn"]
+        x, y, _, flag = _expose_centroid(camera, chain, scene, frames=frames, seed=seed, dark_mean=None,
+                                         threshold_dn=float(scn.validation.threshold_sigma) * noise)
+    else:
+        win = camera.render_windows(scene, frames=frames, seed=seed)
+        x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
     good = (flag == 0).all(axis=0)
     sx = x[:, good].std(axis=0, ddof=1)
     sy = y[:, good].std(axis=0, ddof=1)

@@ -205,7 +205,9 @@ def _signal(signal_e, ndim: int) -> np.ndarray:
             _fail("signal_e", "must be real numbers", a.dtype)
         a = a.astype(np.float64)
     a = np.ascontiguousarray(a)
-    if a.size and _k.count_invalid(a, MAX_SIGNAL_E):
+    # min and max propagate NaN, and NaN fails both comparisons (numpy's reductions: no
+    # kernel for numba to compile on a first run, 2 ms more on an 8-Mpx frame)
+    if a.size and not (a.min() >= 0.0 and a.max() <= MAX_SIGNAL_E):
         _fail("signal_e", f"must be in [0, {MAX_SIGNAL_E:g}] e- everywhere",
               "negative/NaN/inf/huge values")
     return a
@@ -380,10 +382,9 @@ def prnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
     if not isinstance(params, DetectorParams):
         _fail("params", "must be a DetectorParams", type(params).__name__)
     _, dk = _keys(0, detector_key)
-    out = np.empty((h, w), dtype=np.float64)
-    if out.size:
-        _k.prnu_block(r0, c0, mc, dk, params.prnu_rms, out)
-    return out
+    # S g + d with S = 1 and no dark signal is g itself (1.0 * g + 0.0, exact): the window
+    # kernel of the signal chain, one fewer kernel for numba to compile on a first run
+    return _fixed_pattern_block(np.ones((1, h, w)), r0, c0, mc, dk, params.prnu_rms, 0.0, 0.0, 0.0, 0.0)
 
 
 def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
@@ -415,11 +416,20 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
     if not isinstance(params, DetectorParams):
         _fail("params", "must be a DetectorParams", type(params).__name__)
     _, dk = _keys(0, detector_key)
-    out = np.empty((h, w), dtype=np.float64)
+    # S g + d with S = 0 is d itself (exact: 0.0 * g + d)
+    return _fixed_pattern_block(np.zeros((1, h, w)), r0, c0, mc, dk, 0.0, params.dark_e, params.dsnu_rms_e,
+                                params.hot_pixel_fraction, params.hot_pixel_dark_e)
+
+
+def _fixed_pattern_block(signal_e, r0, c0, mc, dk, prnu_rms, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e):
+    """``S g + d`` (e-) of one block ``signal_e`` (1, h, w) at ``(r0, c0)``: the
+    fixed-pattern kernel :func:`simcam.starcam.kernels.detector.mean_charge_windows`."""
+    out = np.empty_like(signal_e)
     if out.size:
-        _k.dark_block(r0, c0, mc, dk, params.dark_e, params.dsnu_rms_e,
-                      params.hot_pixel_fraction, params.hot_pixel_dark_e, out)
-    return out
+        _k.mean_charge_windows(signal_e, np.array([r0], dtype=np.int64), np.array([c0], dtype=np.int64), mc,
+                               float(prnu_rms), float(dark_e), float(dsnu_rms_e), float(hot_fraction),
+                               float(hot_dark_e), dk, out)
+    return out[0]
 
 
 @dataclass(frozen=True)
@@ -465,8 +475,9 @@ def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: Detect
     _, dk = _keys(0, detector_key)
     mean = np.empty_like(sig, dtype=np.float64)
     if sig.size:
-        _k.mean_charge_windows(sig, r0, c0, mc, params.prnu_rms, params.dark_e, params.dsnu_rms_e,
-                               params.hot_pixel_fraction, params.hot_pixel_dark_e, dk, mean)
+        _k.mean_charge_windows(sig, r0, c0, mc, float(params.prnu_rms), float(params.dark_e),
+                               float(params.dsnu_rms_e), float(params.hot_pixel_fraction),
+                               float(params.hot_pixel_dark_e), dk, mean)
     g, off, rn, fw = params._chip_arrays()
     return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
 

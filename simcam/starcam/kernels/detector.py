@@ -175,40 +175,6 @@ def expose_windows(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, 
                    shot_noise, read_noise, quantize, max_dn)
 
 
-@njit(parallel=True, cache=True)
-def prnu_block(row0, col0, mosaic_cols, detector_key, prnu_rms, out):
-    """PRNU factors of the block ``out[h, w]`` at ``(row0, col0)`` (dimensionless)."""
-    h, w = out.shape
-    for i in prange(h):
-        base = (row0 + i) * mosaic_cols + col0
-        for j in range(w):
-            out[i, j] = prnu_value(detector_key, base + j, prnu_rms)
-
-
-@njit(parallel=True, cache=True)
-def dark_block(row0, col0, mosaic_cols, detector_key, dark_e, dsnu_rms_e, hot_fraction,
-               hot_dark_e, out):
-    """Mean dark signal (e-) of the block ``out[h, w]`` at ``(row0, col0)``."""
-    h, w = out.shape
-    for i in prange(h):
-        base = (row0 + i) * mosaic_cols + col0
-        for j in range(w):
-            out[i, j] = dark_value(detector_key, base + j, dark_e, dsnu_rms_e, hot_fraction,
-                                   hot_dark_e)
-
-
-@njit(cache=True)
-def count_invalid(a, upper):
-    """Number of elements of ``a`` outside ``[0, upper]`` (NaN counts as outside)."""
-    n = 0
-    flat = a.ravel()
-    for i in range(flat.size):
-        x = flat[i]
-        if not (x >= 0.0 and x <= upper):
-            n += 1
-    return n
-
-
 @njit(cache=True)
 def mean_charge_windows(signal_e, row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e,
                         hot_fraction, hot_dark_e, detector_key, out):
@@ -314,6 +280,18 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
         j = j_end
 
 
+@njit(cache=True)
+def _store_window(src, out, k):
+    """``out[:, k] = src`` for a window's frames ``src`` (F, h, w) float64; ``out`` is
+    (F, n, h, w) of the output dtype (the quantised values are whole numbers in
+    ``[0, max_dn]``, so the conversion is exact)."""
+    nf, h, w = src.shape
+    for f in range(nf):
+        for i in range(h):
+            for j in range(w):
+                out[f, k, i, j] = src[f, i, j]
+
+
 @njit(parallel=True, cache=True)
 def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                           offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
@@ -322,11 +300,18 @@ def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per
 
     ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
     ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
+    Each window goes through a float64 scratch (F, h, w), so :func:`noise_adc_frames` has
+    one signature whatever the output dtype (the fused Monte Carlo kernel calls it with
+    the same one): numba compiles it once.
     """
-    for k in prange(mean_e.shape[0]):
-        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+    n, h, w = mean_e.shape
+    for kk in prange(n):
+        k = np.int64(kk)
+        scratch = np.empty((frame_keys.shape[0], h, w))
+        noise_adc_frames(mean_e[k], scratch, row0[k], col0[k], mosaic_cols, chip_cols,
                          gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
                          shot_noise, read_noise, quantize, max_dn)
+        _store_window(scratch, out, k)
 
 
 @njit(cache=True)
@@ -334,7 +319,10 @@ def expose_windows_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gai
                                  offset_dn, read_noise_e, full_well_e, frame_keys, shot_noise,
                                  read_noise, quantize, max_dn, out):
     """Single-threaded twin of :func:`expose_windows_frames` (small batches, worker processes)."""
-    for k in range(mean_e.shape[0]):
-        noise_adc_frames(mean_e[k], out[:, k], row0[k], col0[k], mosaic_cols, chip_cols,
+    n, h, w = mean_e.shape
+    scratch = np.empty((frame_keys.shape[0], h, w))
+    for k in range(n):
+        noise_adc_frames(mean_e[k], scratch, row0[k], col0[k], mosaic_cols, chip_cols,
                          gain_e_per_dn, offset_dn, read_noise_e, full_well_e, frame_keys,
                          shot_noise, read_noise, quantize, max_dn)
+        _store_window(scratch, out, k)
