@@ -29,6 +29,7 @@ from typing import ClassVar
 import numba
 import numpy as np
 
+from simcam.starcam import psf_transfer as _pt
 from simcam.starcam.kernels import psf as _psf
 
 __all__ = [
@@ -189,7 +190,8 @@ def render_stamps(
     ``1e-12 / (2 pi sigma^2)``). Within that, the result is exact: no sampling of the
     PSF at pixel centres, no sub-pixel grid, no interpolation. The kernel
     (:func:`simcam.starcam.kernels.psf.folded_stamp_spectra`) uses Hermitian symmetry,
-    tabulates the radial factors on integer ``qx^2 + qy^2``, and for large batches runs
+    reads the radial factors tabulated on integer ``qx^2 + qy^2``
+    (:func:`simcam.starcam.psf_transfer.radial_tables`), and for large batches runs
     in parallel over stars (each star independent, so results do not depend on the
     thread count). The final ``L x L`` inverse DFT is ``numpy.fft.ifft2`` (pocketfft, as
     ``scipy.fft``, without its 0.13 s import).
@@ -240,7 +242,7 @@ def render_stamps(
     parallel : bool or None
         Spread the stars over numba threads. ``None`` (default): only when the batch
         holds more than :data:`PARALLEL_MIN_TERMS` spectral terms (see
-        :func:`simcam.starcam.kernels.psf.stamp_work`) and more than one thread is available;
+        :func:`simcam.starcam.psf_transfer.stamp_work`) and more than one thread is available;
         small batches run serially, which is faster than waking threads and immune to
         stalls on a busy machine. The result is bit-identical either way.
 
@@ -313,15 +315,17 @@ def render_stamps(
     if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
         raise OpticsError(f"parallel: expected True, False or None, got {parallel!r}")
     spectra = np.zeros((n, L, L), dtype=np.complex128)
-    neg_log_eps = -math.log(SPECTRUM_EPS)
-    cutoff = np.ascontiguousarray(cutoff)
+    cutoff = np.array(cutoff, dtype=np.float64)
     if n:
+        qmax = _pt.freq_extent_cyc_per_px(sig, w, cutoff, is_airy, -math.log(SPECTRUM_EPS)) * L
+        chat, disc = _pt.radial_tables(qmax, rad, cutoff, is_airy, L)
         if parallel is None:
-            parallel = numba.get_num_threads() > 1 and (
-                _psf.stamp_work(w, sig, cutoff, is_airy, neg_log_eps, L) > PARALLEL_MIN_TERMS
-            )
+            parallel = numba.get_num_threads() > 1 and _pt.stamp_work(qmax, n_l) > PARALLEL_MIN_TERMS
         kernel = _psf.folded_stamp_spectra_parallel if parallel else _psf.folded_stamp_spectra
-        kernel(pos_x, pos_y, sx, sy, w, sig, rad, cutoff, is_airy, neg_log_eps, spectra)
+        # writable contiguous copies (a few numbers per star): the kernel sees one type
+        # whatever the caller passed (a broadcast view is read-only), so numba compiles it once
+        a = [np.array(v, dtype=np.float64) for v in (pos_x, pos_y, sx, sy, w, sig, qmax)]
+        kernel(*a, cutoff, bool(is_airy), chat, disc, spectra)
     stamps = np.fft.ifft2(spectra, axes=(-2, -1)).real
     return stamps, origin_x, origin_y
 

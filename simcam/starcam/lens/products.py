@@ -55,6 +55,7 @@ from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.paraxial import paraxial
 from simcam.starcam.lens.prescription import PRODUCTS_VERSION, load_prescription
 from simcam.starcam.lens.tracer import LOSS_REASONS, LensTracer, field_bundle
+from simcam.starcam.psf_transfer import airy_otf
 
 __all__ = [
     "SPOT_SAMPLES",
@@ -94,18 +95,12 @@ def cache_path(prescription) -> Path:
 # PSF from a spot
 
 
-def _airy_otf(v: np.ndarray) -> np.ndarray:
-    """Incoherent OTF of a circular pupil at normalised frequency ``v = rho / rho_c`` (Goodman eq. 6-31)."""
-    v = np.minimum(np.abs(v), 1.0)
-    return (2.0 / math.pi) * (np.arccos(v) - v * np.sqrt(1.0 - v * v))
-
-
 @lru_cache(maxsize=64)
 def _transfer(L: int, q: int, cutoff: float) -> np.ndarray:
     """``OTF_Airy(rho / rho_c) sinc(f_x) sinc(f_y)`` on the DFT frequencies of an ``L q`` grid of step ``1/q`` px."""
     f = np.fft.fftfreq(L * q, d=1.0 / q)  # cycles/px
     fy, fx = np.meshgrid(f, f, indexing="ij")
-    out = _airy_otf(np.hypot(fx, fy) / cutoff) * np.sinc(fx) * np.sinc(fy)
+    out = airy_otf(np.hypot(fx, fy), cutoff) * np.sinc(fx) * np.sinc(fy)
     out.setflags(write=False)
     return out
 
