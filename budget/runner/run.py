@@ -163,7 +163,7 @@ def _check_trials(trials: int | None, tolerance: float | None) -> None:
 
 def run_study(study: Study, scenario: Any, *, trials: int | None = None, tolerance: float | None = None,
               seed: int = 0, workers: int | None = 1, scheduler: str | None = None,
-              dask_local: int | None = None, progress: bool = False) -> StudyResult:
+              dask_local: int | None = None, progress: bool = False, prewarm: bool = True) -> StudyResult:
     """Run ``study`` on ``scenario`` (see the module docstring).
 
     Parameters
@@ -179,6 +179,10 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         depend on it.
     progress : bool
         A progress bar on stderr.
+    prewarm : bool
+        Let the study compile its kernels on this machine's cores first on a cold numba
+        cache (:meth:`Study.prewarm`; never with ``scheduler``). A caller that runs many
+        studies (a sweep) does it once itself and passes False.
     """
     import time
 
@@ -202,6 +206,11 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     n_max = trials if trials is not None else cap
     check_memory(float(n_max) * (300 + 3 * 100 * n_values),
                  what=f"--trials {n_max}" if trials is not None else f"up to {n_max} trials of {study.name}")
+    if prewarm and scheduler is None:
+        # a first run compiles its kernels on this machine's cores before the workers start,
+        # so that they load them from numba's cache instead of each compiling them again
+        # (a remote cluster's workers have their own caches)
+        study.prewarm(scenario)
     executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
                              initializer=_worker_init, initargs=(study,))
     results: dict[int, TrialResult] = {}

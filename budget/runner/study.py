@@ -242,6 +242,14 @@ class Study(ABC):
     def worker_init(self) -> None:
         """Called once in each worker process (e.g. one numba thread per process)."""
 
+    def prewarm(self, scenario: Any) -> None:
+        """Called once in the run's own process before any trial or truth: a study whose
+        first run on a fresh install compiles many numba kernels may compile them here in
+        parallel processes (:func:`simcam.numba_warm.compiling_in_parallel`), so that this
+        process and every worker load them from numba's cache. Nothing by default; it must
+        not change any result.
+        """
+
     # ------------------------------------------------------------ report
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
         """Sections and plots this study adds to the common report (none by default)."""

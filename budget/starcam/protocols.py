@@ -327,16 +327,24 @@ def _star_grid(scn: Scenario, center_px):
 def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean, threshold_dn):
     """Frames of a scene's windows exposed and centroided in one pass (thresholded centre of
     gravity, border background; :mod:`budget.starcam.kernels_trial`): x, y, flux, flag as (frames, W)."""
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
+    W, h, _ = chain.mean_e.shape
+    parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
+    return expose_centroid_chain(chain, keys, dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=parallel)
+
+
+def expose_centroid_chain(chain, keys, *, dark_mean, threshold_dn, parallel: bool):
+    """The kernel call of :func:`_expose_centroid`: a :class:`simcam.starcam.detector.WindowChain`
+    exposed with the frame ``keys`` (uint64) and centroided; x, y, flux, flag as (frames, W)."""
     from budget.starcam import kernels_trial as _kt
 
-    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
+    frames = keys.shape[0]
     W, h, w = chain.mean_e.shape
     out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
     out_flag = np.zeros((frames, W), dtype=np.int64)
     # arguments of one type whatever the caller (a copy is writable and contiguous): numba
     # compiles the kernel once, not once per array flag (a first run compiles every variant)
     dm = np.zeros((0, h, w)) if dark_mean is None else np.array(dark_mean, dtype=np.float64)
-    parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
     kern = _kt.expose_centroid_frames if parallel else _kt.expose_centroid_frames_serial
     kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
          chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),

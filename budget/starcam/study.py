@@ -85,6 +85,11 @@ class StarCameraStudy(Study):
 
         worker_init()
 
+    def prewarm(self, scenario) -> None:
+        from budget.starcam.warm import prewarm
+
+        prewarm(scenario)
+
     @staticmethod
     def _factor(scenario) -> float:
         return 3.0 * scenario.camera.scale_arcsec_per_px

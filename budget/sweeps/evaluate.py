@@ -162,7 +162,7 @@ def _evaluate(task: PointTask) -> dict:
                 put_truth(c, a, v, t.value, t.se)
         return {"truth": truth, "truth_se": truth_se}
     res = run_study(study, task.scenario, trials=task.trials, tolerance=task.tolerance_3sigma_arcsec,
-                    seed=task.seed, workers=1, progress=False)
+                    seed=task.seed, workers=1, progress=False, prewarm=False)
     out = {k: np.full(shape, np.nan) for k in ("mean", "bias", "spread", "se_bias", "se_spread",
                                               "ci95_low", "ci95_high")}
     for (c, a), t in res.truths.items():

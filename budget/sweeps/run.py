@@ -140,6 +140,12 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
                if state == "resume" else "") + f"; on {runner.description}")
         import simcam
 
+        if scheduler is None and (todo_grid or todo_sens):
+            # a first run's kernels compiled once on this machine's cores, before the workers
+            # need them (each point then loads them from numba's cache)
+            from budget.sweeps.evaluate import study_for_kind
+
+            study_for_kind(sw.spec.kind).prewarm((todo_grid or todo_sens)[0].scenario)
         for label, tasks in (("points", todo_grid), ("Sobol samples", todo_sens)):
             if not tasks:
                 continue

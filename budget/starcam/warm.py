@@ -1,0 +1,87 @@
+"""A star-camera validation's first-run compilation, in two processes.
+
+A trial needs three groups of numba kernels: the PSF stamps
+(:mod:`simcam.starcam.kernels.psf`), the detector's fixed pattern
+(:func:`simcam.starcam.kernels.detector.mean_charge_windows`) and the fused
+expose-and-centroid kernel (:mod:`budget.starcam.kernels_trial`, with the noise, random
+number and centroid kernels it calls). On a fresh install numba compiles them one after
+the other, about 8 s. :func:`prewarm` splits them over two processes
+(:func:`simcam.numba_warm.compiling_in_parallel`) so that they take about as long:
+
+* a child (:func:`compile_stamps`) compiles the per-window centroid kernels first (this
+  process finds them in the cache by the time the fused kernel calls them), then the
+  stamps;
+* this process (:func:`compile_exposure`) compiles the fused kernel with its noise and
+  random-number kernels, then the fixed pattern (which shares the random numbers).
+
+With a warm cache nothing happens. Each target calls the kernels through the functions
+a trial calls them through (which hand numba arguments of one type whatever their caller
+passes), or directly with the types the fused kernel passes, on tiny inputs: what they
+compile is what a trial then loads. ``tests/test_warm.py`` checks that after
+:func:`prewarm` a trial and the truths compile nothing.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+
+def prewarm(scenario) -> None:
+    """Compile what a validation of ``scenario`` calls, on two cores, if numba's cache is cold."""
+    from budget.starcam import kernels_trial as kt
+    from simcam.numba_warm import compiling_in_parallel
+    from simcam.starcam.kernels import detector as kd
+    from simcam.starcam.kernels import psf as kp
+
+    opts = json.dumps({"dark_frames": int(scenario.validation.dark_frames) > 0})
+    check = [kp.folded_stamp_spectra, kt.expose_centroid_frames_serial]
+    if scenario.validation.dark_frames:
+        check.append(kd.expose_windows_frames_serial)
+    with compiling_in_parallel([("budget.starcam.warm:compile_stamps", opts)], check=check) as cold:
+        if cold:
+            compile_exposure(opts)
+
+
+def compile_stamps(arg: str) -> None:
+    """Child target: the per-window centroid kernels with the types the fused kernel
+    passes them, then the serial stamp kernel through
+    :func:`simcam.starcam.optics.render_stamps` (a trial's camera renders serially).
+    ``arg``: JSON options (unused)."""
+    from budget.centroid.kernels import border_one, cog_one
+    from simcam.starcam.optics import render_stamps
+
+    win = np.zeros((5, 5))
+    border_one(win, np.empty(16), np.bool_(False))
+    cog_one(win, 0.0, 0.0, 0.0, 1.0, False, np.inf)
+    n, n_l = 2, 3
+    render_stamps(x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), stamp_px=8, psf_kind="gaussian",
+                  sigma_px=np.full(n, 0.8), pinhole_radius_px=0.3, wavelength_nm=np.array([500.0, 600.0, 700.0]),
+                  weights=np.full((n, n_l), 1.0 / n_l), shift_x_px=np.zeros((n, n_l)),
+                  shift_y_px=np.zeros((n, n_l)), parallel=False)
+
+
+def compile_exposure(arg: str) -> None:
+    """The fused expose-and-centroid kernel (and, with dark frames, the window exposure)
+    on one tiny window, through :func:`budget.starcam.protocols.expose_centroid_chain` and
+    :func:`simcam.starcam.detector.expose_windows_frames`, then the fixed pattern through
+    :func:`simcam.starcam.detector.window_chain`. ``arg``: JSON options."""
+    from budget.starcam.protocols import expose_centroid_chain
+    from simcam.rng import child_keys
+    from simcam.starcam.detector import DetectorParams, WindowChain, expose_windows_frames, window_chain
+
+    opts = json.loads(arg)
+    h = w = 5
+    chain = WindowChain(mean_e=np.full((1, h, w), 100.0), row0=np.zeros(1, dtype=np.int64),
+                        col0=np.zeros(1, dtype=np.int64), mosaic_cols=w, chip_cols=w,
+                        gain=np.ones(1), offset=np.zeros(1), read_noise=np.ones(1),
+                        full_well=np.full(1, 1e4), max_dn=4095.0, output_dtype=np.dtype(np.uint16))
+    keys = child_keys(np.uint64(1), 2)
+    expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
+    if opts.get("dark_frames"):
+        expose_windows_frames(frame_keys=keys, chain=chain, parallel=False)
+    params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
+                            adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
+                 detector_key=np.uint64(1))
