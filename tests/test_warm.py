@@ -34,8 +34,8 @@ st = get_study("starcam")
 scn = st.load_scenario(sys.argv[1])
 before = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
 opts = json.dumps({"dark_frames": scn.validation.dark_frames > 0})
-warm.compile_stamps(opts)
-warm.compile_exposure(opts)
+warm.compile_support(opts)
+warm.compile_stamps_and_exposure(opts)
 after = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
 compiled = []
 

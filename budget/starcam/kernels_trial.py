@@ -11,7 +11,9 @@ lives in a scratch buffer of ``frames * h * w`` doubles instead of passing throu
 (frames, windows, h, w) array, its float64 copy and the concatenation of all
 conditions. ``tests/test_protocols.py`` checks the equality.
 
-Arrays and scalars only; the orchestration is in :func:`budget.starcam.protocols.simulate`.
+The kernels take arrays and scalars only; :func:`expose_centroid_chain` calls them with
+arguments of one type whatever its caller passes (numba compiles each once). The
+orchestration is in :func:`budget.starcam.protocols.simulate`.
 """
 
 from __future__ import annotations
@@ -115,3 +117,21 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
             out_y[f, k] = oy[f, 0]
             out_flux[f, k] = of[f, 0]
             out_flag[f, k] = ofl[f, 0]
+
+
+def expose_centroid_chain(chain, keys, *, dark_mean, threshold_dn, parallel: bool):
+    """The kernels' call for :func:`budget.starcam.protocols._expose_centroid`: a
+    :class:`simcam.starcam.detector.WindowChain` exposed with the frame ``keys`` (uint64)
+    and centroided; x, y, flux, flag as (frames, W)."""
+    frames = keys.shape[0]
+    W, h, w = chain.mean_e.shape
+    out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
+    out_flag = np.zeros((frames, W), dtype=np.int64)
+    # arguments of one type whatever the caller (a copy is writable and contiguous): numba
+    # compiles the kernel once, not once per array flag (a first run compiles every variant)
+    dm = np.zeros((0, h, w)) if dark_mean is None else np.array(dark_mean, dtype=np.float64)
+    kern = expose_centroid_frames if parallel else expose_centroid_frames_serial
+    kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
+         chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
+         np.array(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
+    return out_x, out_y, out_f, out_flag

@@ -330,26 +330,9 @@ def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean,
     keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
     W, h, _ = chain.mean_e.shape
     parallel = camera.parallel if camera.parallel is not None else frames * W * h > 20_000
+    from budget.starcam.kernels_trial import expose_centroid_chain
+
     return expose_centroid_chain(chain, keys, dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=parallel)
-
-
-def expose_centroid_chain(chain, keys, *, dark_mean, threshold_dn, parallel: bool):
-    """The kernel call of :func:`_expose_centroid`: a :class:`simcam.starcam.detector.WindowChain`
-    exposed with the frame ``keys`` (uint64) and centroided; x, y, flux, flag as (frames, W)."""
-    from budget.starcam import kernels_trial as _kt
-
-    frames = keys.shape[0]
-    W, h, w = chain.mean_e.shape
-    out_x, out_y, out_f = np.empty((frames, W)), np.empty((frames, W)), np.empty((frames, W))
-    out_flag = np.zeros((frames, W), dtype=np.int64)
-    # arguments of one type whatever the caller (a copy is writable and contiguous): numba
-    # compiles the kernel once, not once per array flag (a first run compiles every variant)
-    dm = np.zeros((0, h, w)) if dark_mean is None else np.array(dark_mean, dtype=np.float64)
-    kern = _kt.expose_centroid_frames if parallel else _kt.expose_centroid_frames_serial
-    kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
-         chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
-         np.array(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
-    return out_x, out_y, out_f, out_flag
 
 
 def estimate(

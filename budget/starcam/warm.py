@@ -5,20 +5,19 @@ A trial needs three groups of numba kernels: the PSF stamps
 (:func:`simcam.starcam.kernels.detector.mean_charge_windows`) and the fused
 expose-and-centroid kernel (:mod:`budget.starcam.kernels_trial`, with the noise, random
 number and centroid kernels it calls). On a fresh install numba compiles them one after
-the other, about 8 s. :func:`prewarm` splits them over two processes
-(:func:`simcam.numba_warm.compiling_in_parallel`) so that they take about as long:
+the other, about 10 s on one core. :func:`prewarm` splits them over two processes
+(:func:`simcam.numba_warm.compiling_in_parallel`):
 
-* a child (:func:`compile_stamps`) compiles the per-window centroid kernels first (this
-  process finds them in the cache by the time the fused kernel calls them), then the
-  stamps;
-* this process (:func:`compile_exposure`) compiles the fused kernel with its noise and
-  random-number kernels, then the fixed pattern (which shares the random numbers).
+* a child (:func:`compile_support`) compiles the random-number kernels first, then the
+  fixed pattern and the per-window centroid kernels;
+* this process (:func:`compile_stamps_and_exposure`) compiles the stamps meanwhile, then
+  the fused kernel, whose callees it by then finds in numba's cache.
 
 With a warm cache nothing happens. Each target calls the kernels through the functions
 a trial calls them through (which hand numba arguments of one type whatever their caller
 passes), or directly with the types the fused kernel passes, on tiny inputs: what they
-compile is what a trial then loads. ``tests/test_warm.py`` checks that after
-:func:`prewarm` a trial and the truths compile nothing.
+compile is what a trial then loads. ``tests/test_warm.py`` checks that after both
+targets a trial and the truths compile nothing.
 """
 
 from __future__ import annotations
@@ -39,39 +38,49 @@ def prewarm(scenario) -> None:
     check = [kp.folded_stamp_spectra, kt.expose_centroid_frames_serial]
     if scenario.validation.dark_frames:
         check.append(kd.expose_windows_frames_serial)
-    with compiling_in_parallel([("budget.starcam.warm:compile_stamps", opts)], check=check) as cold:
+    with compiling_in_parallel([("budget.starcam.warm:compile_support", opts)], check=check) as cold:
         if cold:
-            compile_exposure(opts)
+            compile_stamps_and_exposure(opts)
 
 
-def compile_stamps(arg: str) -> None:
-    """Child target: the per-window centroid kernels with the types the fused kernel
-    passes them, then the serial stamp kernel through
-    :func:`simcam.starcam.optics.render_stamps` (a trial's camera renders serially).
-    ``arg``: JSON options (unused)."""
+def compile_support(arg: str) -> None:
+    """Child target: the random-number kernels the noise kernel calls (first: this
+    process needs them once its stamps are compiled), the fixed pattern through
+    :func:`simcam.starcam.detector.window_chain`, and the per-window centroid kernels,
+    with the types the fused kernel passes. ``arg``: JSON options (unused)."""
     from budget.centroid.kernels import border_one, cog_one
-    from simcam.starcam.optics import render_stamps
+    from simcam.rng import poisson_prepared, std_normal
+    from simcam.starcam.detector import DetectorParams, window_chain
 
-    win = np.zeros((5, 5))
+    poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
+    std_normal(np.uint64(1), np.uint64(2))
+    h = w = 5
+    params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
+                            adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
+                 detector_key=np.uint64(1))
+    win = np.zeros((h, w))
     border_one(win, np.empty(16), np.bool_(False))
     cog_one(win, 0.0, 0.0, 0.0, 1.0, False, np.inf)
+
+
+def compile_stamps_and_exposure(arg: str) -> None:
+    """The serial stamp kernel through :func:`simcam.starcam.optics.render_stamps` (a
+    trial's camera renders serially), then the fused expose-and-centroid kernel (and, with
+    dark frames, the window exposure) on one tiny window, through
+    :func:`budget.starcam.kernels_trial.expose_centroid_chain` and
+    :func:`simcam.starcam.detector.expose_windows_frames`. ``arg``: JSON options."""
+    from budget.starcam.kernels_trial import expose_centroid_chain
+    from simcam.rng import child_keys
+    from simcam.starcam.detector import WindowChain, expose_windows_frames
+    from simcam.starcam.optics import render_stamps
+
+    opts = json.loads(arg)
     n, n_l = 2, 3
     render_stamps(x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), stamp_px=8, psf_kind="gaussian",
                   sigma_px=np.full(n, 0.8), pinhole_radius_px=0.3, wavelength_nm=np.array([500.0, 600.0, 700.0]),
                   weights=np.full((n, n_l), 1.0 / n_l), shift_x_px=np.zeros((n, n_l)),
                   shift_y_px=np.zeros((n, n_l)), parallel=False)
-
-
-def compile_exposure(arg: str) -> None:
-    """The fused expose-and-centroid kernel (and, with dark frames, the window exposure)
-    on one tiny window, through :func:`budget.starcam.protocols.expose_centroid_chain` and
-    :func:`simcam.starcam.detector.expose_windows_frames`, then the fixed pattern through
-    :func:`simcam.starcam.detector.window_chain`. ``arg``: JSON options."""
-    from budget.starcam.protocols import expose_centroid_chain
-    from simcam.rng import child_keys
-    from simcam.starcam.detector import DetectorParams, WindowChain, expose_windows_frames, window_chain
-
-    opts = json.loads(arg)
     h = w = 5
     chain = WindowChain(mean_e=np.full((1, h, w), 100.0), row0=np.zeros(1, dtype=np.int64),
                         col0=np.zeros(1, dtype=np.int64), mosaic_cols=w, chip_cols=w,
@@ -81,7 +90,3 @@ def compile_exposure(arg: str) -> None:
     expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
     if opts.get("dark_frames"):
         expose_windows_frames(frame_keys=keys, chain=chain, parallel=False)
-    params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
-                            adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
-    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
-                 detector_key=np.uint64(1))
