@@ -107,9 +107,9 @@ empty one (a fresh install). The fixed-cost runs use the default scenario with
 subtracting that much, measured in another process, would drown a fixed cost of a second
 or two in its noise. Targets (issue 13): two workers give at least 1.7x the throughput of
 one; fixed cost at most 2 s warm and at most 8 s with an empty cache. With an empty cache
-numba compiles every kernel a trial and the truths call (about 40 functions, 15-20 s on
-this machine; with LLVM's optimisation off, `NUMBA_OPT=0`, it took as long: numba's own
-typing and lowering dominate)."""),
+numba compiles the kernels a trial and the truths call (about 30 functions, 8-10 s of one
+core on this machine); the study's warm-up (`budget/starcam/warm.py`) splits them over two
+processes before the trials start, so the run waits about 4.5 s for them."""),
     "sweep": ("Sweeps", """\
 Truth-mode points of the default camera (PSF width x PRNU; each point a new camera:
 scenes, stamps and every class's truth) on 1 and 2 local worker processes, end to end and
