@@ -124,7 +124,7 @@ def _reap(procs: list[subprocess.Popen]) -> None:
             try:
                 p.wait(timeout=max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                pass
+                break  # past the deadline: the finally stops every child still running
     finally:
         _stop(procs)
 

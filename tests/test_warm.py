@@ -46,7 +46,7 @@ class Listener(ev.Listener):
             compiled.append(f"{f.__module__}.{f.__qualname__}{e.data['args']}")
 
     def on_end(self, e):
-        pass
+        "nothing to record when a compile ends"
 
 ev.register("numba:compile", Listener())
 st.worker_init()
