@@ -14,13 +14,14 @@ import os
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from tiny_camera import TINY
 
 import simcam.numba_warm as nw
-from tiny_camera import TINY
 
 _SCRIPT = r"""
 import json, sys, warnings
@@ -33,7 +34,7 @@ from budget.runner.registry import get_study
 st = get_study("starcam")
 scn = st.load_scenario(sys.argv[1])
 before = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
-opts = json.dumps({"dark_frames": scn.validation.dark_frames > 0})
+opts = json.dumps({"fused": True, "windows": True})
 warm.compile_support(opts)
 warm.compile_stamps_and_exposure(opts)
 after = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
@@ -65,7 +66,7 @@ def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path):
     scn.write_text(TINY.replace("[validation]\n", "[validation]\ndark_frames = 2\n"))
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
     run = subprocess.run([sys.executable, "-c", _SCRIPT, str(scn)], env=env, capture_output=True, text=True,
-                         timeout=600)
+                         timeout=600, check=False)
     assert run.returncode == 0, run.stderr[-3000:]
     out = json.loads(run.stdout.strip().splitlines()[-1])
     assert out["before"] == [False, False]  # an empty cache reads as cold
@@ -122,13 +123,56 @@ def test_an_interruption_stops_the_children_and_goes_on(tmp_path, monkeypatch):
     monkeypatch.setenv("WARM_TEST_SLEEP_S", "60")
     marker = tmp_path / "pid"
     t0 = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_cold()]):
-            while not marker.exists() or not marker.read_text():
-                assert time.monotonic() - t0 < 60, "the child never started"
-                time.sleep(0.05)
-            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt), nw.compiling_in_parallel([("test_warm:touch", str(marker))],
+                                                                      check=[_cold()]):
+        while not marker.exists() or not marker.read_text():
+            assert time.monotonic() - t0 < 60, "the child never started"
+            time.sleep(0.05)
+        raise KeyboardInterrupt
     pid = int(marker.read_text())
     with pytest.raises(ProcessLookupError):  # killed and reaped
         os.kill(pid, 0)
     assert time.monotonic() - t0 < 30
+
+
+def test_targets_run_for_every_option():
+    # (in this process, usually with a warm cache: checks that each branch calls its
+    # kernels without error; what they compile is checked above)
+    from budget.starcam import warm
+
+    for fused in (True, False):
+        for windows in (True, False):
+            warm.compile_stamps_and_exposure(json.dumps({"fused": fused, "windows": windows}))
+    warm.compile_support("{}")
+
+
+def test_prewarm_options_follow_the_scenario(monkeypatch):
+    # the fused kernel only for the centre of gravity; the window exposure for dark frames
+    # or another method
+    from budget.runner.registry import get_study
+    from budget.starcam import warm
+
+    seen = []
+
+    class Recorder:
+        def __init__(self, children, *, check):
+            seen.append(([json.loads(a) for _, a in children], [d.py_func.__name__ for d in check]))
+
+        def __enter__(self):
+            return False
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(nw, "compiling_in_parallel", Recorder)
+    st = get_study("starcam")
+    base = st.default_text()
+    assert 'centroid_method = "cog"' in base and "dark_frames = 0" in base
+    for method, dark in (("cog", 0), ("cog", 2), ("iwcog", 0)):
+        text = base.replace('centroid_method = "cog"', f'centroid_method = "{method}"').replace(
+            "dark_frames = 0", f"dark_frames = {dark}")
+        warm.prewarm(st.from_dict(tomllib.loads(text), source="test"))
+    assert seen[0] == ([{"fused": True, "windows": False}], ["folded_stamp_spectra", "expose_centroid_frames_serial"])
+    assert seen[1] == ([{"fused": True, "windows": True}],
+                       ["folded_stamp_spectra", "expose_centroid_frames_serial", "expose_windows_frames_serial"])
+    assert seen[2] == ([{"fused": False, "windows": True}], ["folded_stamp_spectra", "expose_windows_frames_serial"])

@@ -97,7 +97,7 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
     window by the serial kernel on its own one-window arrays (contiguous copies, so the
     serial kernel is called with the types it was compiled for and not compiled again).
     Each (frame, window) result is the same whatever the thread count."""
-    n, h, w = mean_e.shape
+    n = mean_e.shape[0]
     nf = frame_keys.shape[0]
     for kk in prange(n):
         k = np.int64(kk)

@@ -34,10 +34,15 @@ def prewarm(scenario) -> None:
     from simcam.starcam.kernels import detector as kd
     from simcam.starcam.kernels import psf as kp
 
-    opts = json.dumps({"dark_frames": int(scenario.validation.dark_frames) > 0})
-    check = [kp.folded_stamp_spectra, kt.expose_centroid_frames_serial]
-    if scenario.validation.dark_frames:
-        check.append(kd.expose_windows_frames_serial)
+    val = scenario.validation
+    # the fused kernel serves the centre of gravity; other methods centroid rendered
+    # windows (their own kernels compile where they are first called), as do dark frames
+    fused = val.centroid_method == "cog"
+    windows = int(val.dark_frames) > 0 or not fused
+    opts = json.dumps({"fused": fused, "windows": windows})
+    check = [kp.folded_stamp_spectra]
+    check += [kt.expose_centroid_frames_serial] if fused else []
+    check += [kd.expose_windows_frames_serial] if windows else []
     with compiling_in_parallel([("budget.starcam.warm:compile_support", opts)], check=check) as cold:
         if cold:
             compile_stamps_and_exposure(opts)
@@ -66,8 +71,9 @@ def compile_support(arg: str) -> None:
 
 def compile_stamps_and_exposure(arg: str) -> None:
     """The serial stamp kernel through :func:`simcam.starcam.optics.render_stamps` (a
-    trial's camera renders serially), then the fused expose-and-centroid kernel (and, with
-    dark frames, the window exposure) on one tiny window, through
+    trial's camera renders serially), then on one tiny window the fused
+    expose-and-centroid kernel (option ``fused``) and the window exposure (option
+    ``windows``: dark frames, or a method other than the centre of gravity), through
     :func:`budget.starcam.kernels_trial.expose_centroid_chain` and
     :func:`simcam.starcam.detector.expose_windows_frames`. ``arg``: JSON options."""
     from budget.starcam.kernels_trial import expose_centroid_chain
@@ -87,6 +93,7 @@ def compile_stamps_and_exposure(arg: str) -> None:
                         gain=np.ones(1), offset=np.zeros(1), read_noise=np.ones(1),
                         full_well=np.full(1, 1e4), max_dn=4095.0, output_dtype=np.dtype(np.uint16))
     keys = child_keys(np.uint64(1), 2)
-    expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
-    if opts.get("dark_frames"):
+    if opts.get("fused", True):
+        expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
+    if opts.get("windows", True):
         expose_windows_frames(frame_keys=keys, chain=chain, parallel=False)
