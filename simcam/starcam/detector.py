@@ -378,13 +378,8 @@ def prnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
     -------
     numpy.ndarray of float64, shape ``shape``
     """
-    h, w, r0, c0, mc = _block_args(shape, row0, col0, mosaic_cols)
-    if not isinstance(params, DetectorParams):
-        _fail("params", "must be a DetectorParams", type(params).__name__)
-    _, dk = _keys(0, detector_key)
-    # S g + d with S = 1 and no dark signal is g itself (1.0 * g + 0.0, exact): the window
-    # kernel of the signal chain, one fewer kernel for numba to compile on a first run
-    return _fixed_pattern_block(np.ones((1, h, w)), r0, c0, mc, dk, params.prnu_rms, 0.0, 0.0, 0.0, 0.0)
+    # S g + d with S = 1 and no dark signal is g itself (1.0 * g + 0.0, exact)
+    return _fixed_pattern_block(1.0, shape, row0, col0, mosaic_cols, params, detector_key, dark=False)
 
 
 def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
@@ -412,23 +407,27 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
     -------
     numpy.ndarray of float64, shape ``shape``
     """
+    # S g + d with S = 0 is d itself (exact: 0.0 * g + d)
+    return _fixed_pattern_block(0.0, shape, row0, col0, mosaic_cols, params, detector_key, dark=True)
+
+
+def _fixed_pattern_block(signal_e: float, shape, row0, col0, mosaic_cols, params, detector_key, *,
+                         dark: bool) -> np.ndarray:
+    """``S g + d`` (e-) of a block with uniform signal ``signal_e``, by the window
+    fixed-pattern kernel :func:`simcam.starcam.kernels.detector.mean_charge_windows` (one
+    kernel for numba to compile, not one per map); ``dark=False`` leaves the dark signal
+    out (``d = 0``), ``True`` the PRNU (``g = 1``)."""
     h, w, r0, c0, mc = _block_args(shape, row0, col0, mosaic_cols)
     if not isinstance(params, DetectorParams):
         _fail("params", "must be a DetectorParams", type(params).__name__)
     _, dk = _keys(0, detector_key)
-    # S g + d with S = 0 is d itself (exact: 0.0 * g + d)
-    return _fixed_pattern_block(np.zeros((1, h, w)), r0, c0, mc, dk, 0.0, params.dark_e, params.dsnu_rms_e,
-                                params.hot_pixel_fraction, params.hot_pixel_dark_e)
-
-
-def _fixed_pattern_block(signal_e, r0, c0, mc, dk, prnu_rms, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e):
-    """``S g + d`` (e-) of one block ``signal_e`` (1, h, w) at ``(r0, c0)``: the
-    fixed-pattern kernel :func:`simcam.starcam.kernels.detector.mean_charge_windows`."""
-    out = np.empty_like(signal_e)
+    out = np.empty((1, h, w))
     if out.size:
-        _k.mean_charge_windows(signal_e, np.array([r0], dtype=np.int64), np.array([c0], dtype=np.int64), mc,
-                               float(prnu_rms), float(dark_e), float(dsnu_rms_e), float(hot_fraction),
-                               float(hot_dark_e), dk, out)
+        prnu = 0.0 if dark else params.prnu_rms
+        d = (params.dark_e, params.dsnu_rms_e, params.hot_pixel_fraction, params.hot_pixel_dark_e) if dark \
+            else (0.0, 0.0, 0.0, 0.0)
+        _k.mean_charge_windows(np.full((1, h, w), signal_e), np.array([r0], dtype=np.int64),
+                               np.array([c0], dtype=np.int64), mc, float(prnu), *(float(v) for v in d), dk, out)
     return out[0]
 
 
