@@ -147,6 +147,22 @@ class World:
         return replace(self, **changes)
 
     @classmethod
+    def from_values(cls, values, *, flattening: float = WGS84_F, mu_km3_s2: float = 398600.4418) -> "World":
+        """A world from a mapping of named values (e.g. one row of the synthesis's
+        parameter arrays zipped with their column names): the field names of this class,
+        with ``gamma_rad`` for ``gamma0_rad`` and ``earth_radius_km`` for
+        ``equatorial_radius_km``; unknown names raise ``KeyError``."""
+        alias = {"gamma_rad": "gamma0_rad", "earth_radius_km": "equatorial_radius_km"}
+        names = set(cls.__dataclass_fields__)
+        kw = {"flattening": flattening, "mu_km3_s2": mu_km3_s2}
+        for k, v in dict(values).items():
+            k = alias.get(k, k)
+            if k not in names:
+                raise KeyError(f"unknown world value {k!r}")
+            kw[k] = float(v)
+        return cls(**kw)
+
+    @classmethod
     def from_scenario(cls, sc, gamma_rad: float | None = None, *, ellipsoid: bool = True,
                       flattening: float = WGS84_F) -> "World":
         """The nominal world of a whiskbroom scenario (zero attitude) at ``gamma_rad``

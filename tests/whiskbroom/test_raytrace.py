@@ -215,3 +215,26 @@ def test_ellipsoid_minus_sphere_over_the_orbit(sc):
     centre = np.argmin(np.hypot(x1, x3))
     # the Earth's rotation adds ~k^2 of that; the mirror's scan term does not depend on range
     assert np.hypot(*at[90.0][centre]) == pytest.approx(abs(d_along), rel=0.02)
+
+
+def test_ground_points_lie_on_the_ellipsoid_along_the_line_of_sight():
+    w_ = rt.World(altitude_km=H, inclination_rad=math.radians(100.42), focal_length_mm=F_MM,
+                  gamma0_rad=1.1, mirror_rate_rad_s=math.radians(0.6), roll_rad=0.2)
+    x1, x3 = np.linspace(-50, 50, 7), np.linspace(30, -30, 7)
+    t = np.array([0.0, 3.0, -7.5])
+    g = rt.ground_points(w_, x1, x3, t)
+    b = A_WGS * (1 - F_WGS)
+    q = (g[..., 0] ** 2 + g[..., 2] ** 2) / A_WGS**2 + g[..., 1] ** 2 / b**2
+    np.testing.assert_allclose(q, 1.0, rtol=0, atol=8 * EPS)
+    # a point on the line of sight is imaged back at its own pixel at the same instant
+    back = np.stack([rt.project(w_, g[k], t[k])[0] for k in range(t.size)])
+    np.testing.assert_allclose(back[..., 0], np.broadcast_to(x1, back.shape[:2]), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(back[..., 1], np.broadcast_to(x3, back.shape[:2]), rtol=0, atol=1e-9)
+
+
+def test_world_from_values_names():
+    w_ = rt.World.from_values({"altitude_km": H, "inclination_rad": 1.0, "focal_length_mm": F_MM,
+                               "gamma_rad": 0.5, "earth_radius_km": 6371.0}, flattening=0.0)
+    assert (w_.gamma0_rad, w_.equatorial_radius_km, w_.flattening) == (0.5, 6371.0, 0.0)
+    with pytest.raises(KeyError):
+        rt.World.from_values({"altitude_km": H, "bogus": 1.0})
