@@ -50,13 +50,13 @@ satellite -> S (body axes) -> mirror reflection -> pinhole.
 Image motion (:func:`image_motion`): ``V = (x(t + dt) - x(t - dt)) / (2 dt)``; error
 ``|x'''| dt^2 / 6`` (truncation) plus ``delta / dt`` (rounding, ``delta`` the rounding
 error of one projected point). The step study (:func:`step_study`,
-``docs/whiskbroom.md``, "Independent image motion") on the default scenario (384 pixels
-of the three arrays) measures ``delta`` of about 1.5e-12 mm (``eps f |r_s| / rho``: the
+``docs/whiskbroom.md``, "Independent image motion") on the default scenario (the 199
+synthesis field points of the three arrays) measures ``delta`` of about 1.5e-12 mm (``eps f |r_s| / rho``: the
 unit roundoff of positions of size ``|r_s|`` seen over the range ``rho``) and a truncation
 error of 0.0143 dt^2 mm/s, i.e. ``|x'''|`` = 0.086 mm/s^3 (the scan, ``x = f tan(2 omega_x
 t)``, gives ``16 f omega_x^3`` = 0.081). The total is smallest near
 ``dt = (3 delta / |x'''|)^(1/3)`` = 4e-4 s: :data:`DT_S`, where the measured error is at
-most 5e-9 mm/s (5e-11 of V = 97 mm/s). :func:`error_bound` evaluates a bound for a given
+most 5.6e-9 mm/s (6e-11 of V = 97 mm/s). :func:`error_bound` evaluates a bound for a given
 state.
 
 Units: km, s, rad; focal length and image coordinates mm; image velocities mm/s.
@@ -338,7 +338,7 @@ def error_bound(world: World, x1_mm, x3_mm, t=0.0, dt: float = DT_S, *, h3_s: fl
     ``h3_s``, counted twice for margin) plus ``delta / dt`` with the rounding error of a
     projected point ``delta = 4 eps f |r_s| / rho`` (``rho`` the range to the ground: the
     relative rounding of positions of size ``|r_s|`` turned into an angle over ``rho`` and
-    an image offset through f; the step study measures at most a quarter of that).
+    an image offset through f; the step study measures about a sixteenth of that).
     Returns (T, N, 2).
     """
     t = _times(t)
@@ -353,8 +353,8 @@ def error_bound(world: World, x1_mm, x3_mm, t=0.0, dt: float = DT_S, *, h3_s: fl
 def step_study(world: World, x1_mm, x3_mm, steps_s, t=0.0, *, reference_dt_s: float = 0.05):
     """Error of :func:`image_motion` against its Richardson extrapolation, per step.
 
-    The reference is ``(4 V(h/2) - V(h))/3`` at ``h = reference_dt_s`` (error O(h^4),
-    ~1e-13 mm/s here); returns ``(steps, max_abs_error)`` over points and components, so the
+    The reference is ``(4 V(h/2) - V(h))/3`` at ``h = reference_dt_s`` (truncation O(h^4),
+    rounding ~3e-11 mm/s here); returns ``(steps, max_abs_error)`` over points and components, so the
     O(dt^2) truncation branch and the O(1/dt) rounding branch can be read off.
     """
     h = reference_dt_s

@@ -5,7 +5,7 @@ paper's complex-step V_P (simcam.whiskbroom.geometry) by this independent route.
 Tolerances follow from the central difference V = (x(t+dt) - x(t-dt))/(2 dt): truncation
 |x'''| dt^2/6 and rounding delta/dt, with delta <= 4 eps f |r_s|/rho the rounding of one
 projected point (positions of size |r_s| ~ 7578 km seen over the range rho ~ 1200 km; the
-module's step study measures at most a quarter of that)."""
+module's step study measures about a sixteenth of that)."""
 
 import ast
 import math
