@@ -32,17 +32,21 @@ Usage: ``python benchmarks/bench_sweep.py [--points 16] [--repeat 2] [--dask]
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import sys
 import tempfile
 import time
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
 
 
 def _grid_file(d: str, points: int, hsfe_truth_frames: int) -> str:
@@ -138,7 +142,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--points", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--dask", action="store_true", help="also a Dask LocalCluster of 2 workers")
@@ -147,12 +151,11 @@ def main() -> None:
                     help="validation.hsfe_truth_frames of the timed points (even, >= 4; the scenario's: 2000)")
     ap.add_argument("--skip-throughput", action="store_true")
     ap.add_argument("--skip-trials", action="store_true")
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.points, args.repeat, args.trials_list = min(args.points, 4), 1, "2,4"
     figs = []
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()), flush=True)
+    print_machine()
     d = tempfile.mkdtemp(prefix="bench_sweep_")
     try:
         if not args.skip_throughput:

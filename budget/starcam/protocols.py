@@ -63,11 +63,6 @@ class AcquisitionPlan:
         """The plan as a table (one row per condition), as a lab procedure would list it."""
         return pd.DataFrame([c.__dict__ for c in self.conditions])
 
-    @property
-    def n_frames_total(self) -> int:
-        """Frames to acquire, all conditions."""
-        return sum(c.frames for c in self.conditions)
-
 
 def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: int = 0) -> AcquisitionPlan:
     """Build the acquisition plan of ``protocol`` from the scenario's ``[protocols]`` section.

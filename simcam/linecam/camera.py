@@ -72,10 +72,6 @@ class CameraTruth:
     params: np.ndarray
 
     @property
-    def r_norm_mm(self) -> float:
-        return 0.5 * self.n_pixels * self.pitch_mm
-
-    @property
     def f_true_mm(self) -> float:
         return self.focal_length_mm + float(self.params[5])
 

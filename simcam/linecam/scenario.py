@@ -69,11 +69,6 @@ class LineCameraModel(_M):
         return self.pitch_mm / (self.focal_length_mm * self.line_period_s)
 
     @property
-    def half_length_px(self) -> float:
-        """Normaliser of the distortion coefficients: half the line length, px."""
-        return 0.5 * self.n_pixels
-
-    @property
     def exposure_s(self) -> float:
         return self.tdi_stages * self.line_period_s
 
