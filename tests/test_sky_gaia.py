@@ -267,6 +267,18 @@ def test_pm_perturbation_variance(gaia, match, world):
     ok = match.matched
     ra, dec = _lab_route(w, T_GAIA)
     assert _sep_mas(ra[ok], dec[ok], match.gaia_ra_deg[ok], match.gaia_dec_deg[ok]).max() < 1.0
+    # ... and departs from the unperturbed one as the pm error x (t - 2016): at 2025 the
+    # separation over (9 yr x k sigma_pm) is Rayleigh-like; its squared sum, with the two
+    # axes' sigmas, is chi-square with 2N_matched degrees of freedom
+    ra_p, dec_p = _lab_route(w, 2025.0)
+    ra_0, dec_0 = _lab_route(world, 2025.0)
+    d_ra = ((ra_p - ra_0 + 180.0) % 360.0 - 180.0) * np.cos(np.radians(dec_0)) * 3600e3
+    d_dec = (dec_p - dec_0) * 3600e3
+    sel = ok & (match.pm_ra_err_mas_yr > 0) & (match.pm_dec_err_mas_yr > 0) & (np.abs(dec_0) < 89.0)
+    q = np.sum((d_ra[sel] / (9.0 * k * match.pm_ra_err_mas_yr[sel])) ** 2
+               + (d_dec[sel] / (9.0 * k * match.pm_dec_err_mas_yr[sel])) ** 2)
+    lo, hi = chi2.ppf([0.0005, 0.9995], 2 * sel.sum())
+    assert lo < q < hi, (q, 2 * sel.sum())
 
 
 def test_world_is_fast_warm(gaia):
