@@ -51,6 +51,7 @@ motion, anchored at J1991.25); :func:`gaia_match` says which and how many.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import warnings
 from dataclasses import dataclass
@@ -142,7 +143,8 @@ def hipparcos_pm_errors_mas_yr() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _gaia_tree(g_max: float):
-    """KD-tree of the unit vectors of the Gaia DR3 sources with G <= ``g_max`` (gap-fill rows left out) and their rows."""
+    """KD-tree of the unit vectors of the Gaia DR3 sources with G <= ``g_max`` and their rows
+    (gap-fill rows left out)."""
     from scipy.spatial import cKDTree
 
     g = gaia_file()
@@ -282,9 +284,7 @@ def _build_world(m: GaiaMatch, dpm_ra, dpm_dec) -> Catalogue:
     if ok.any():
         # hip2's space motion (with the perturbed proper motion) expressed at J2016.0 by the
         # lab's route, then carried by astropy from Gaia's J2016.0 position back to J1991.25
-        moved = Catalogue(**{k: getattr(cat, k)[ok] for k in cat.__dataclass_fields__})
-        moved = Catalogue(**{**{k: getattr(moved, k) for k in moved.__dataclass_fields__},
-                             "pm_ra_mas_yr": pm_ra[ok], "pm_dec_mas_yr": pm_dec[ok]})
+        moved = dataclasses.replace(cat.select(ok), pm_ra_mas_yr=pm_ra[ok], pm_dec_mas_yr=pm_dec[ok])
         sc16 = _propagate(_skycoord(moved, proper_motion=True, parallax=True), GAIA_EPOCH_JYEAR)
         anchor = SkyCoord(ra=m.gaia_ra_deg[ok] * u.deg, dec=m.gaia_dec_deg[ok] * u.deg, distance=sc16.distance,
                           pm_ra_cosdec=sc16.pm_ra_cosdec, pm_dec=sc16.pm_dec, radial_velocity=sc16.radial_velocity,
