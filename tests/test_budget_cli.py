@@ -60,3 +60,15 @@ def test_every_validate_defaults_the_seed_to_zero(name):
     seed = next(p for p in validate.params if p.name == "seed")
     assert seed.default == 0
     assert "dense_step_deg" not in {p.name for p in validate.params}
+
+
+def test_registry_table_entries_resolve_to_their_study():
+    """One table (name, module:attribute, help): each entry's instance carries its name,
+    names are unique, and an alias or former name is no study's name."""
+    from budget.runner.registry import get_study
+
+    names = [e.name for e in REGISTRY]
+    assert len(set(names)) == len(names)
+    for e in REGISTRY:
+        assert get_study(e.name).name == e.name and e.summary
+        assert not set(e.aliases + e.former_names) & set(names)
