@@ -49,7 +49,6 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     ``more_lines(result)``: a study's own summary lines printed after the table (a study
     whose :meth:`Study.commands` returns its own ``validate`` built here replaces the plain one).
     """
-
     from budget.runner.registry import summary
 
     @click.command(name, help=help_text or f"Monte Carlo validation of the {study_name} study on SCENARIO "
