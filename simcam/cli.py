@@ -43,7 +43,7 @@ def scenario_command(scenario: str | None) -> None:
 @click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
 @click.option("--overwrite", is_flag=True, help="Replace a non-empty output directory.")
 @click.option("--compress", is_flag=True,
-              help="Full frames as Rice tile-compressed FITS (lossless; `budget measure` reads them).")
+              help="Full frames as Rice tile-compressed FITS (lossless; `budget starcam measure` reads them).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, compress, progress) -> None:

@@ -175,6 +175,12 @@ class InductosynStudy(Study):
         return report_sections(result, self._prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
 
+    # ------------------------------------------------------------ commands
+    def commands(self) -> list:
+        from budget.inductosyn.cli import commands
+
+        return commands()
+
 
 #: per-trial figures of run_trials kept in ``aux`` (no truth: the report summarises them)
 _AUX = ("long_sigma3_before_arcsec", "long_sigma3_after_arcsec", "dense_maxabs_after_arcsec",

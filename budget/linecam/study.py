@@ -117,11 +117,6 @@ class LineCamStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
 
-    def worker_init(self) -> None:
-        import numba
-
-        numba.set_num_threads(1)
-
     def chunk_trials(self, scenario) -> int:
         return 20
 

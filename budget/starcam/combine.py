@@ -1,4 +1,4 @@
-"""``budget combine``: combine per-class errors into LSFE, single-star and attitude totals.
+"""``budget starcam combine``: combine per-class errors into LSFE, single-star and attitude totals.
 
 Seed 000: ``LSFE = sqrt(S^2 + (C1 + C2)^2)`` (eq 31), single star = RSS(TE, HSFE, LSFE)
 (section 2.4), attitude = single star / sqrt(N) (eq 32), per axis, in arcsec (3 sigma).

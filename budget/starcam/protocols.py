@@ -5,7 +5,7 @@ the field, which hexapod pose, which filter and how many frames: exactly what a 
 technician writes in a test procedure and what a manifest of real frames records. The
 plans are built from the scenario's ``[protocols]`` section (no protocol is a branch in
 code), and the same centroid tables come out of :func:`simulate` (simulated windows) and
-out of ``budget measure`` (real FITS frames).
+out of ``budget starcam measure`` (real FITS frames).
 
 Plans (seed 000, section 1):
 

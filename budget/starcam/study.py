@@ -58,9 +58,9 @@ class StarCameraStudy(Study):
         return scenario_to_toml(scenario)
 
     def check(self, scenario, *, where: str) -> None:
-        from budget.sweeps.spec import check_camera_geometry
+        from budget.starcam.checks import check_geometry
 
-        check_camera_geometry(scenario, where=where)
+        check_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         from budget.starcam.validate import INPUT_CLASSES
@@ -174,6 +174,14 @@ class StarCameraStudy(Study):
                     "differences per corner field (fig. 7), distortion residuals before and after the cubic "
                     "fit (fig. 8).")
         return [ReportSection("Seed-000 details", "\n\n".join(text), figs)]
+
+    def commands(self) -> list:
+        """``budget starcam simulate|measure|combine`` beside ``validate``: the lab's data."""
+        from budget.starcam.combine import combine_command
+        from budget.starcam.measure import measure_command
+        from budget.starcam.simulate import simulate_command
+
+        return [simulate_command, measure_command, combine_command]
 
 
 STUDY = StarCameraStudy()

@@ -70,11 +70,6 @@ class WhiskbroomStudy(Study):
                       per_trial_truth=True),
         )
 
-    def worker_init(self) -> None:
-        import numba
-
-        numba.set_num_threads(1)
-
     def chunk_trials(self, scenario) -> int:
         return 20
 
