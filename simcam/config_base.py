@@ -2,7 +2,9 @@
 
 All scenario models are frozen, keyword-only pydantic models that refuse unknown keys
 and coerce nothing silently: a wrong type, an unknown key or an out-of-range value is
-a :class:`ScenarioError` naming the dotted field path.
+a :class:`ScenarioError` naming the dotted field path. Scenario files of every kind are
+read by :func:`read_toml` (strict: a missing, unreadable, non-UTF-8, empty or invalid
+file is one error naming it).
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import tomllib
+from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -64,3 +68,31 @@ def model_hash(model: BaseModel) -> str:
     """SHA-256 (first 16 hex digits) of the model's canonical JSON: the scenario hash."""
     payload = json.dumps(model.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def read_toml(*, path: str | Path | None = None, text: str | None = None, source: str | None = None) -> dict:
+    """Parse TOML from ``path`` or ``text``; a missing, unreadable, non-UTF-8 or invalid
+    file raises :class:`ScenarioError` naming it."""
+    if (path is None) == (text is None):
+        raise TypeError("read_toml: give path or text")
+    if path is not None:
+        source = source or str(path)
+        p = Path(path)
+        if p.is_dir():
+            raise ScenarioError(f"{source}: is a folder, not a scenario file")
+        try:
+            raw = p.read_bytes()
+        except FileNotFoundError:
+            raise ScenarioError(f"{source}: file not found") from None
+        except OSError as exc:
+            raise ScenarioError(f"{source}: cannot read ({exc.strerror})") from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ScenarioError(f"{source}: not UTF-8 text (byte {exc.start}): is this a scenario file?") from None
+        if not text.strip():
+            raise ScenarioError(f"{source}: the file is empty (omit the argument to use the embedded default)")
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None

@@ -1,4 +1,4 @@
-"""The camera's own distortion correction (simcam.correction) and the LSFE-C1 truth of a
+"""The camera's own distortion correction (simcam.starcam.correction) and the LSFE-C1 truth of a
 calibrated camera (issue 12).
 
 Independent references: the least-squares algebra of a polynomial fit to exact
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from budget.starcam.truth import lsfe_c1_truth
-from simcam.correction import poly_design
+from simcam.starcam.correction import poly_design
 from simcam.starcam.render import StarCamera
 from simcam.starcam.scenario import ScenarioError, scenario_from_dict
 

@@ -1,7 +1,7 @@
 """The world of seed 004 (simcam.linecam): camera models, apparent places, TDI imaging.
 
 Independent references: the forward model against its own inverse written differently
-(Newton inverse of simcam.starcam.optics vs the explicit Brown correction), astropy/ERFA for the
+(Newton inverse of simcam.distortion vs the explicit Brown correction), astropy/ERFA for the
 apparent places, the analytic mid-exposure position of a moving star and photutils'
 centroid for the TDI rendering, Pecaut & Mamajek (2013) temperatures for the colour
 relation, Pogson's ratio for the signal chain.

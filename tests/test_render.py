@@ -123,7 +123,7 @@ def test_pixel_mean_and_variance_match_the_noise_model():
     win = cam.render_windows(sc, frames=n, seed=11)
     pix = win.pixels[:, 0].astype(float)  # star 0's window, (n, 11, 11)
     # expected electrons per pixel with this detector's own PRNU/DSNU maps
-    from simcam.starcam.detector import dsnu_map, prnu_map
+    from simcam.detector import dsnu_map, prnu_map
 
     sig, col0, row0 = cam.expected_windows_e(sc)
     shape = sig.shape[1:]

@@ -167,7 +167,7 @@ class Study(ABC):
 
     def load_scenario(self, path: str | Path | None = None) -> Any:
         """The scenario at ``path`` (strict TOML) or the embedded default."""
-        from budget.runner.scenario_io import read_toml
+        from simcam.config_base import read_toml
 
         if path is None:
             return self.from_dict(read_toml(text=self.default_text(), source=f"embedded {self.name} default"),

@@ -280,7 +280,7 @@ def load_scenario(path: str | None = None) -> InductosynScenario:
     if path is None:
         source, text = "inductosyn_default.toml", default_scenario_toml()
     else:
-        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+        from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 
         source = str(path)
         text = None

@@ -649,7 +649,7 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:
-        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+        from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 
         source = str(path)
         return scenario_from_dict(read_toml(path=path, source=source), source=source)
