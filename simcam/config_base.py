@@ -14,9 +14,9 @@ import json
 import math
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
 
 
 class ScenarioError(ValueError):
@@ -31,6 +31,75 @@ class StrictModel(BaseModel):
     """Frozen model that forbids unknown keys and validates on assignment/creation."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=False, validate_default=True)
+
+
+#: a number of Monte Carlo trials: at least 2 (a spread needs two; the CLI's ``--trials`` too)
+Trials = Annotated[int, Field(ge=2)]
+#: trials between two convergence checks of adaptive stopping
+BatchTrials = Annotated[int, Field(ge=1)]
+#: adaptive-stopping tolerance in the classes' own unit (> 0), or None for a fixed count
+Tolerance = Annotated[float, Field(gt=0.0, allow_inf_nan=False)] | None
+
+
+class ValidationSettings(StrictModel):
+    """Monte Carlo validation settings of a scenario (its ``[validation]`` table), the same
+    for every instrument; a study's own model subclasses this and adds only what its truth
+    computation needs (e.g. the star camera's truth frames, the inductosyn's truth grid).
+
+    * ``trials``: the number of trials when neither ``--trials`` nor ``--tolerance`` is given
+      (>= 2, as ``--trials``);
+    * ``tolerance``: when set, the run goes on in batches of ``batch_trials`` until the Monte
+      Carlo standard error of every bias and spread is below it (JCGM 101 section 7.9), in
+      each class's own unit (arcsec, px, ...); None (the default): ``trials`` trials;
+    * ``max_trials``: the cap on trials under adaptive stopping (>= 2);
+    * ``batch_trials``: trials between two convergence checks (>= 1).
+
+    The runner reads them through the study's run-settings hooks
+    (:mod:`budget.runner.study`); subclasses may change the defaults, not the limits (use
+    :data:`Trials`, :data:`BatchTrials`, :data:`Tolerance`).
+    """
+
+    trials: Trials = 200
+    tolerance: Tolerance = None
+    max_trials: Trials = 5000
+    batch_trials: BatchTrials = 50
+
+
+class ScenarioBase(StrictModel):
+    """What every instrument's scenario has, whatever its physics:
+
+    * ``name``: one line naming the scenario (printed in the validate header and carried by
+      the JSON result; each embedded default has one);
+    * ``validation``: the Monte Carlo settings (:class:`ValidationSettings` or a subclass);
+    * :attr:`hash`: SHA-256 prefix of the canonical content (:func:`model_hash`; a model may
+      override the rule, as the star camera does for an unset lens);
+    * :attr:`source`: where the scenario was loaded from (a file name, ``embedded ...
+      default``), named in errors found later, e.g. in a worker process; not part of the
+      content or the hash. Set by the instrument module's ``from_dict``.
+
+    Each instrument's scenario module provides the same four functions: ``default_text()``,
+    ``from_dict(data, *, source)``, ``load(path=None)`` and ``default()``.
+    """
+
+    name: str = ""
+    validation: ValidationSettings = ValidationSettings()
+
+    _source: str = PrivateAttr(default="scenario")
+
+    @property
+    def hash(self) -> str:
+        """SHA-256 prefix (16 hex digits) of the canonical JSON of the scenario."""
+        return model_hash(self)
+
+    @property
+    def source(self) -> str:
+        """Where the scenario came from (not part of its content)."""
+        return self._source
+
+    def with_source(self, source: str):
+        """Record ``source`` on this (otherwise frozen) model and return it."""
+        self._source = source
+        return self
 
 
 #: pydantic's bound checks: a NaN or infinity fails them with a misleading message

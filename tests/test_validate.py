@@ -20,7 +20,7 @@ from budget.runner.run import run_study
 from budget.starcam.study import STUDY
 from budget.starcam.validate import run_trial
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import default_scenario, scenario_from_dict
+from simcam.starcam.scenario import default, from_dict
 
 BASE = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -51,7 +51,7 @@ def _scn(**sections):
     data = json.loads(json.dumps(BASE))
     for sec, val in sections.items():
         data.setdefault(sec, {}).update(val)
-    return scenario_from_dict(data)
+    return from_dict(data)
 
 
 @pytest.fixture(scope="module")
@@ -234,7 +234,7 @@ def test_default_scenario_long_run():
     the truth combined); eq 29 on the calibrated camera reports the marker floor, above
     the camera's remaining displacement (bias significant and positive), while the
     improved C1's 95 % interval holds the truth; LSFE-C2 is an input."""
-    res = validate(default_scenario(), trials=200, seed=1, workers=2)
+    res = validate(default(), trials=200, seed=1, workers=2)
     s = res.summary()
     for ax in ("x", "y"):
         te = s["te"][ax]["improved"]

@@ -41,9 +41,9 @@ def scenario_command() -> None:
     """Print the resolved default inductosyn scenario (TOML, all fields)."""
     import tomli_w
 
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    click.echo(tomli_w.dumps(default_scenario().model_dump(mode="json")), nl=False)
+    click.echo(tomli_w.dumps(default().model_dump(mode="json")), nl=False)
 
 
 @harmonics_group.command("design")
@@ -214,7 +214,7 @@ def _plot_fit(fits, path, pole_pairs) -> None:
 @harmonics_group.command("validate")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 @click.option("--trials", type=int, default=None, help="Number of calibrations (default: scenario's).")
-@click.option("--seed", type=int, default=None, help="Seed (default: scenario's validation.seed).")
+@click.option("--seed", type=int, default=None, help="Seed (default: 0, as every study's validate).")
 @click.option("--dense-step-deg", type=float, default=None,
               help="Step of the truth grid (default: scenario's validation.dense_step_deg, 0.001 deg).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None,
@@ -227,7 +227,7 @@ def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_di
     """Monte Carlo validation of the calibration on SCENARIO (default: embedded).
 
     The same run as `budget inductosyn validate` (the one runner, the inductosyn study), in
-    one process, with the scenario's seed by default, the truth grid's step as an option and
+    one process, with seed 0 by default, the truth grid's step as an option and
     the seed-001 figures printed after the runner's table.
     """
     import sys
@@ -237,7 +237,7 @@ def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_di
     from budget.runner.cli import run_and_write
 
     sc = STUDY.load_scenario(scenario)
-    s = sc.validation.seed if seed is None else seed
+    s = 0 if seed is None else seed
     if trials is not None and trials < 2:
         raise UserInputError("--trials: need at least 2 trials for a spread")
     if s < 0:

@@ -56,17 +56,9 @@ class LineCamStudy(Study):
     title = "Line camera star-observation calibration (seed 004)"
     seed_document = "004"
     variants = ("published", "improved", "lookangle")
+    scenario_module = "simcam.linecam.scenario"
 
     # ------------------------------------------------------------ scenario
-    def default_text(self) -> str:
-        from simcam.linecam.scenario import default_text
-
-        return default_text()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.linecam.scenario import from_dict
-
-        return from_dict(data, source=source)
 
     def check(self, scenario, *, where: str) -> None:
         from simcam.config_base import ScenarioError
@@ -74,25 +66,21 @@ class LineCamStudy(Study):
         if scenario.lab.grid_step_px >= scenario.camera.n_pixels:
             raise ScenarioError(f"{where}: lab.grid_step_px must be below camera.n_pixels")
 
-    def default_tolerance(self, scenario) -> float | None:
-        # the classes mix units (arcsec, px, mm): a fixed number of trials by default,
-        # --tolerance on request
-        return None
-
     # ------------------------------------------------------------ method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         axes_los = tuple(f"{d}_{int(round(100 * p))}" for d in ("along", "across") for p in LOS_POINTS)
         out = [
             ClassSpec("los_rms", "rms LOS error over the line: stated (estimate) vs actual (truth)", "arcsec",
                       ("along", "across"), "estimate: rms of the stated 1-sigma over the line; truth: rms of "
-                      "the calibrated minus the injected look angles", per_trial_truth=True),
+                      "the calibrated minus the injected look angles", per_trial_truth=True, role="stated"),
             ClassSpec("los_ms", "mean-square LOS error over the line: stated (estimate) vs actual (truth)",
                       "arcsec^2", ("along", "across"), "estimate: mean of the stated variance over the line; "
                       "truth: mean square of the calibrated minus the injected look angles (equal in "
-                      "expectation when the stated covariance is right)", per_trial_truth=True),
+                      "expectation when the stated covariance is right)", per_trial_truth=True,
+                      role="stated"),
             ClassSpec("los_max", "largest LOS error over the line: stated 3 sigma (estimate) vs actual (truth)",
                       "arcsec", ("along", "across"), "estimate: largest stated 3-sigma; truth: largest "
-                      "absolute error of the calibrated look angles", per_trial_truth=True),
+                      "absolute error of the calibrated look angles", per_trial_truth=True, role="stated"),
             ClassSpec("los", "calibrated look angle minus nominal at 0-100 % of the line", "arcsec", axes_los,
                       "estimate: calibrated look angle minus nominal; truth: the injected camera's",
                       per_trial_truth=True),
