@@ -96,6 +96,16 @@ class ScenarioBase(StrictModel):
         """Where the scenario came from (not part of its content)."""
         return self._source
 
+    def __eq__(self, other: object) -> bool:
+        # the content decides, not where it was read from (``source`` is a private attribute,
+        # which pydantic would compare too)
+        if not isinstance(other, BaseModel):
+            return NotImplemented
+        fields = type(self).model_fields
+        return type(self) is type(other) and all(self.__dict__.get(k) == other.__dict__.get(k) for k in fields)
+
+    __hash__ = StrictModel.__hash__
+
     def with_source(self, source: str):
         """Record ``source`` on this (otherwise frozen) model and return it."""
         self._source = source

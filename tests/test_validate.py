@@ -42,9 +42,9 @@ NO_OPTICS = {
 }
 
 
-def validate(scn, *, trials=None, tolerance_3sigma_arcsec=None, seed=0, workers=1):
+def validate(scn, *, trials=None, tolerance=None, seed=0, workers=1):
     """The seed-000 study through the one runner (values in arcsec, 3 sigma)."""
-    return run_study(STUDY, scn, trials=trials, tolerance=tolerance_3sigma_arcsec, seed=seed, workers=workers)
+    return run_study(STUDY, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers)
 
 
 def _scn(**sections):
@@ -194,14 +194,14 @@ def test_predictive_interval_coverage_within_binomial_limits():
 
 
 def test_adaptive_stopping_reaches_the_tolerance(small):
-    res = validate(small, tolerance_3sigma_arcsec=0.05, seed=2)
+    res = validate(small, tolerance=0.05, seed=2)
     assert res.stopped_by == "tolerance"
     for cls in res.summary().values():
         for ax in cls.values():
             for var in ax.values():
                 assert var["se_bias"] <= 0.05 and var["se_std"] <= 0.05
     with pytest.raises(ValueError, match="give one of them"):
-        validate(small, trials=4, tolerance_3sigma_arcsec=0.1)
+        validate(small, trials=4, tolerance=0.1)
 
 
 def test_validate_cli_writes_json_and_report(tmp_path, small):
@@ -249,7 +249,7 @@ def test_default_trial_count_comes_from_the_scenario():
     scn = _scn(validation=BASE["validation"] | {"trials": 3})
     res = validate(scn, seed=1)
     assert res.trials == 3 and res.stopped_by == "trials"
-    scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance_3sigma_arcsec": 0.2, "batch_trials": 10})
+    scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance": 0.2, "batch_trials": 10})
     res = validate(scn, seed=1)
     assert res.stopped_by == "tolerance" and res.trials < 100
 

@@ -43,7 +43,7 @@ def scenario_command() -> None:
 
     from simcam.encoder.inductosyn import default
 
-    click.echo(tomli_w.dumps(default().model_dump(mode="json")), nl=False)
+    click.echo(tomli_w.dumps(default().model_dump(mode="json", exclude_none=True)), nl=False)
 
 
 @harmonics_group.command("design")
