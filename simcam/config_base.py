@@ -16,7 +16,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_serializer
 
 
 class ScenarioError(ValueError):
@@ -95,6 +95,15 @@ class ScenarioBase(StrictModel):
     def source(self) -> str:
         """Where the scenario came from (not part of its content)."""
         return self._source
+
+    @model_serializer(mode="wrap")
+    def _validation_last(self, handler):
+        # the base's fields come first in pydantic's order; a dump (a scenario's TOML) reads
+        # better with the physics first and the Monte Carlo settings last
+        data = handler(self)
+        if isinstance(data, dict) and "validation" in data:
+            data["validation"] = data.pop("validation")
+        return data
 
     def __eq__(self, other: object) -> bool:
         # the content decides, not where it was read from (``source`` is a private attribute,
