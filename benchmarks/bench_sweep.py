@@ -107,10 +107,10 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     from budget.sweeps.evaluate import PointTask, evaluate_point
     from budget.runner.executors import worker_setup
     from budget.starcam.study import STUDY
-    from simcam.starcam.scenario import default_scenario, with_updates
+    from simcam.starcam.scenario import default, with_updates
 
     worker_setup(STUDY.worker_init)  # one numba thread, as in a worker process
-    full = default_scenario()
+    full = default()
     base = with_updates(full, {"validation": {"hsfe_truth_frames": hsfe_truth_frames}})
     evaluate_point(PointTask("grid", 0, "starcam", "validate", base, 1, trials=2))  # warm-up (JIT)
     rows = []

@@ -23,9 +23,9 @@ def cli() -> None:
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 def scenario_command(scenario: str | None) -> None:
     """Print the resolved SCENARIO (default: the embedded seed-000 one) as TOML."""
-    from simcam.starcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.scenario import load, scenario_to_toml
 
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     click.echo(f"# scenario hash {scn.hash}, simcam {__version__}")
     click.echo(scenario_to_toml(scn), nl=False)
 
@@ -50,14 +50,14 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, co
     """Render the star target of SCENARIO (default: embedded seed-000) to FITS + truth.csv."""
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
-    from simcam.starcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.scenario import load, scenario_to_toml
     from simcam.lifecycle import progress as progress_bar
     from simcam.starcam.targets import star_grid
 
     t0 = time.perf_counter()
     if compress and mode != "full":
         raise UserInputError("--compress: only full frames are compressed (--mode full)")
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     if filter_nm is not None and filter_nm not in [f.center_nm for f in scn.lab.filters]:
         raise UserInputError(
             f"--filter {filter_nm:g}: no lab filter centred there (lab.filters: "

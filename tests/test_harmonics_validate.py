@@ -24,7 +24,7 @@ from budget.inductosyn.validate import (
 )
 from budget.runner.run import run_study
 from simcam.cli_common import run_cli
-from simcam.encoder.inductosyn import AutocollimatorParams, default_scenario
+from simcam.encoder.inductosyn import AutocollimatorParams, default
 
 
 def budget_main(argv):
@@ -47,7 +47,7 @@ def _scenario_file(tmp_path, step_deg, capsys) -> str:
 
 
 def _scenario(**cal_updates):
-    sc = default_scenario()
+    sc = default()
     cal = sc.calibration.model_copy(update=cal_updates)
     return sc.model_copy(update={"calibration": cal})
 
@@ -77,7 +77,7 @@ def test_fast_path_equals_exact_path_trial_by_trial():
 def test_trial_k_independent_of_batching():
     """Trial k's tables are bit-identical however the trials are batched; the fits agree
     to floating-point rounding (BLAS sums in a different order for another batch size)."""
-    p = prepare(scenario=default_scenario(), dense_step_deg=1.0)
+    p = prepare(scenario=default(), dense_step_deg=1.0)
     whole = run_trials(prepared=p, trials=8, seed=9)
     part = run_trials(prepared=p, trials=3, seed=9, first_trial=4)
     for key in ("y_long", "y_long_verify", "y_short", "y_short_verify"):
@@ -91,7 +91,7 @@ def test_trial_k_independent_of_batching():
 
 def test_dense_statistics_against_direct_evaluation():
     """Gram-identity 3 sigma and chunked max equal a direct evaluation of the residual."""
-    p = prepare(scenario=default_scenario(), dense_step_deg=0.05)
+    p = prepare(scenario=default(), dense_step_deg=0.05)
     r = run_trials(prepared=p, trials=4, seed=1)
     for i in range(4):
         c = np.r_[r["c_long"][i], r["c_short"][i]]
@@ -105,7 +105,7 @@ def test_quantisation_only_coefficient_spread_matches_uniform_prediction():
     written error is e(theta_i) - s1_i d with d uniform on [-q/2, q/2), so the eq-7
     coefficients have covariance P diag(s1^2 q^2/12) P^T (P the pseudo-inverse).
     K=3000 trials: relative sd of a sample std 1/sqrt(2K) = 1.3%; bound 5 sd."""
-    sc = default_scenario()
+    sc = default()
     enc = sc.encoder.model_copy(update={"reading_noise_arcsec": 0.0})
     lp = sc.calibration.long_polygon.model_copy(update={"face_error_arcsec": 0.0})
     sp = sc.calibration.short_polygon.model_copy(update={"face_error_arcsec": 0.0})
@@ -126,7 +126,7 @@ def test_monte_carlo_default_scenario_short():
     recovery of the coefficients the in-sequence method can see (|bias| < 4 spread /
     sqrt(K): the bias is a mean of K trials), the ~145 arcsec short-period error reduced
     below requirement/3, the joint fit better."""
-    sc = _with_step(default_scenario(), 0.05)
+    sc = _with_step(default(), 0.05)
     k = 400
     res = run_study(STUDY, sc, trials=k, seed=123, workers=1)
     for name in PUBLISHED_COEFFICIENTS:
@@ -143,7 +143,7 @@ def test_monte_carlo_default_scenario_short():
 @pytest.mark.slow
 def test_monte_carlo_default_scenario_long():
     """K=20000: unbiasedness of every in-sequence coefficient at 4 standard errors."""
-    sc = _with_step(default_scenario(), 0.1)
+    sc = _with_step(default(), 0.1)
     k = 20000
     res = run_study(STUDY, sc, trials=k, seed=321, workers=1)
     for name in PUBLISHED_COEFFICIENTS:
@@ -308,7 +308,7 @@ def test_cli_design_and_sequence(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "electrical 1 (360/turn): appears as mechanical order 8" in out
     assert "electrical 2 (720/turn): appears as mechanical order 7" in out
-    ex = simulate_trial_exact(scenario=default_scenario(), seed=4, trial=0)
+    ex = simulate_trial_exact(scenario=default(), seed=4, trial=0)
     long_csv, short_csv = tmp_path / "l.csv", tmp_path / "s.csv"
     ex["tables"][0].to_csv(long_csv, index=False)
     ex["tables"][2].to_csv(short_csv, index=False)

@@ -15,7 +15,7 @@ from budget.starcam.measure import measure_frames
 from budget.starcam.protocols import estimate, make_plan, simulate
 from budget.starcam.simulate import write_protocol_frames
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import default_scenario, scenario_from_dict
+from simcam.starcam.scenario import default, from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -42,11 +42,11 @@ def _mean_and_pooled_sd(cen):
 
 @pytest.fixture(scope="module")
 def small():
-    return scenario_from_dict(SMALL)
+    return from_dict(SMALL)
 
 
 def test_plans_follow_seed000():
-    scn = default_scenario()
+    scn = default()
     te = make_plan("te", scn)
     assert len(te.conditions) == 1 and te.conditions[0].frames >= 30
     h = make_plan("hsfe", scn).to_frame()
@@ -283,9 +283,9 @@ def test_measure_finds_only_the_target_stars_at_the_validate_threshold(tmp_path)
     found, each matched to one true star within 0.5 px."""
     from budget.starcam.measure import DEFAULT_THRESHOLD_SIGMA
 
-    assert DEFAULT_THRESHOLD_SIGMA == default_scenario().validation.threshold_sigma
+    assert DEFAULT_THRESHOLD_SIGMA == default().validation.threshold_sigma
     # the seed's V = 7.5 source (SMALL's brighter one saturates the TE pinholes)
-    scn = scenario_from_dict(dict(SMALL, protocols=dict(SMALL["protocols"], te={"frames": 2}),
+    scn = from_dict(dict(SMALL, protocols=dict(SMALL["protocols"], te={"frames": 2}),
                                   lab=dict(SMALL["lab"], source={"match_v_mag": 7.5})))
     for seed in range(3):
         d = tmp_path / f"te{seed}"

@@ -99,15 +99,15 @@ def _load_sweep(path):
 
 
 def _load_scn(path):
-    from simcam.starcam.scenario import load_scenario
+    from simcam.starcam.scenario import load
 
-    return load_scenario(path)
+    return load(path)
 
 
 def _load_ind(path):
-    from simcam.encoder.inductosyn import load_scenario
+    from simcam.encoder.inductosyn import load
 
-    return load_scenario(str(path))
+    return load(str(path))
 
 
 def _load_budget(path):

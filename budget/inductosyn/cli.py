@@ -37,9 +37,9 @@ def scenario_command() -> None:
     """Print the resolved default inductosyn scenario (TOML, all fields)."""
     import tomli_w
 
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    click.echo(tomli_w.dumps(default_scenario().model_dump(mode="json")), nl=False)
+    click.echo(tomli_w.dumps(default().model_dump(mode="json", exclude_none=True)), nl=False)
 
 
 @click.command("design")

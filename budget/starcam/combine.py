@@ -123,7 +123,7 @@ def load_budget_toml(path: str | Path) -> tuple[dict[str, dict[str, float]], int
     """
     path = Path(path)
     source = str(path)
-    from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+    from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 
     data = read_toml(path=path, source=source)
     allowed = set(COMPONENTS) | set(TOTALS) | {"stars"}

@@ -276,7 +276,7 @@ def simulate(
         )
     if camera.onboard_correction is not None:
         # the camera reports its centroids through its own distortion correction
-        # (optics.distortion_correction, simcam.correction), as a flight camera does
+        # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
         table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
     return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)

@@ -94,9 +94,9 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out, compress,
                      progress) -> None:
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget starcam measure`."""
-    from simcam.starcam.scenario import load_scenario
+    from simcam.starcam.scenario import load
 
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite, compress=compress, progress=progress,
                               source=str(scenario or "<embedded scenario>"))

@@ -172,7 +172,7 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
         mismatched zip lengths, a point or Sobol sample the scenario rejects (naming the
         point, the key and what is wrong) or that the simulator could not run.
     """
-    from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+    from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 
     p = Path(path)
     if not p.is_file():
