@@ -16,7 +16,6 @@ import sys
 import time
 import tomllib
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 from tiny_camera import TINY
@@ -176,7 +175,7 @@ def test_an_interruption_stops_the_children_and_goes_on(tmp_path, monkeypatch):
 
 
 _OPTIONS_SCRIPT = r"""
-import json, warnings
+import json
 from budget.starcam import kernels_trial as kt, warm
 from simcam.starcam.kernels import detector as kd, psf as kp
 from simcam import rng
