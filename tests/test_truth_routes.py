@@ -98,8 +98,13 @@ def _audit(module: str, name: str | None, seen: set) -> list[str]:
                 if isinstance(n, ast.ImportFrom) and any((a.asname or a.name) == name for a in n.names):
                     orig = next(a.name for a in n.names if (a.asname or a.name) == name)
                     follow.append((_absolute(n.module, n.level, module), orig))
-            if not follow and importlib.util.find_spec(f"{module}.{name}") is not None:
-                follow.append((f"{module}.{name}", None))
+            if not follow:
+                try:
+                    sub = importlib.util.find_spec(f"{module}.{name}")
+                except ModuleNotFoundError:  # ``module`` is not a package: a constant or class
+                    sub = None
+                if sub is not None:
+                    follow.append((f"{module}.{name}", None))
     for mod, nm in follow:
         bad += _audit(mod, nm, seen)
     return bad
