@@ -2,7 +2,7 @@
 
 The paper predicts image quality from the continuous smear formula
 ``MTF = sinc(pi N eps / 2)`` at Nyquist. Here the detector is simulated instead
-(methods/002.md d, "pixel-level TDI truth"): an image moving at ``(1 + eps, eta)``
+(docs/whiskbroom.md, "pixel-level TDI truth"): an image moving at ``(1 + eps, eta)``
 pixels per line period (along the TDI direction, across it) relative to the clocked
 charge, charge packets that stay put during each of the ``n_phase`` clock phases of a
 line period and then jump ``1/n_phase`` pixel, ``N`` stages summed, the exposure sampled
@@ -10,7 +10,7 @@ at ``n_time`` midpoints per clock phase, and the pixel aperture integrated (midp
 quadrature of the sinusoid over the pixel; exact area for the edge). Nothing here uses
 the sinc formula; the tests check that it comes out where its assumptions hold
 (continuous clocking: ``N eps = 0.3514 -> 0.95``, ``N eps = 1 -> 2/pi``) and that the
-4-phase clocking adds ``sinc(pi/(2 n_phase))`` (methods/002.md c.7).
+4-phase clocking adds ``sinc(pi/(2 n_phase))`` (Kopeika 1998, sec. 14.3).
 
 Coordinates: ``u`` along the TDI (charge-transfer) direction and ``w`` across it, in
 pixels; time in line periods (the line period is ``p / |V_know|``).

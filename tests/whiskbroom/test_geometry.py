@@ -54,7 +54,7 @@ def test_pushbroom_limit_equals_classical_drift_angle(sc):
     # both are exact expressions of the same nadir geometry: agreement to rounding
     np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 1]), speed_ref, rtol=1e-12)
     np.testing.assert_allclose(geo.drift_angle(v), beta_ref, rtol=1e-11)
-    # the classical numbers (methods/002.md a): 4.23, 3.66, 2.12 deg
+    # the classical numbers (docs/whiskbroom.md): 4.23, 3.66, 2.12 deg
     assert np.all(np.abs(np.degrees(beta_ref) - [4.2276, 3.66, 2.12]) <= [5e-5, 5e-3, 5e-3])
 
 
@@ -74,7 +74,7 @@ def test_pure_scan_moves_the_image_at_twice_the_mirror_rate(sc):
 
 def test_nadir_whiskbroom_drift_angle_is_76_not_83(sc):
     # At gamma = 90 deg the Earth's cross-track term vanishes and at nadir
-    # tan beta = 2 omega_x H / (R_e omega_s (1 - k cos i)) exactly (methods/002.md a).
+    # tan beta = 2 omega_x H / (R_e omega_s (1 - k cos i)) exactly (docs/whiskbroom.md).
     v = geo.image_motion(sy.nominal_params(sc, math.pi / 2), [0.0], [0.0])[0, 0]
     a = RE + sc.orbit.altitude_km
     ws = math.sqrt(MU / a**3)
