@@ -153,7 +153,7 @@ def measure_frames(
     ``budget validate``'s, ``validation.threshold_sigma``). Stars are found on the mean of
     a condition's frames (dark subtracted) with :func:`budget.centroid.core.detect_stars`'s own
     detection threshold, so a noise excursion of one frame cannot become a "star" that
-    then enters an estimate (issue 12: at 3 sigma on single frames two spurious stars
+    then enters an estimate (at 3 sigma on single frames two spurious stars
     turned TE y into 0.77" instead of 0.20").
     """
     from budget.centroid.core import centroid_frames, detect_stars, subtract_dark
