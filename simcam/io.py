@@ -75,15 +75,18 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     line on stderr (:func:`simcam.lifecycle.remove_stale_partials`).
     """
     from simcam.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.outputs import apply_umask, check_output_dir
 
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"--out {out}: exists and is not a directory")
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise UserInputError(f"--out {out}: directory is not empty (use --overwrite to replace it)")
+    check_output_dir(out, option="--out", replaceable=lambda _p: overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(out)
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
+    apply_umask(tmp, is_dir=True)  # mkdtemp makes it 0700; the output gets the user's umask
     try:
         yield tmp
     except BaseException:
