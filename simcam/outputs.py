@@ -76,7 +76,7 @@ def check_input_file(path: str | os.PathLike, *, what: str = "file") -> Path:
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise UserInputError(f"{p}: {what} not found") from None
+        raise UserInputError(f"{p}: file not found (the {what})") from None
     except OSError as exc:
         raise UserInputError(f"{p}: cannot read the {what} ({os_error_message(exc)})") from None
     if stat.S_ISDIR(st.st_mode):
