@@ -289,12 +289,19 @@ def is_earlier_report(path: Path) -> bool:
     return not any(path.iterdir()) or (path / "report.md").is_file()
 
 
-def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = ()) -> None:
-    """The checks of ``budget <study> validate --json --report`` before its trials run:
-    a file location for the JSON, a new folder or an earlier report for the report, and
-    not the same path for both."""
-    if json_out:
-        check_output_file(json_out, option="--json", inputs=inputs)
+def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), files: dict | None = None) -> None:
+    """The checks of a command's outputs before its work: a file location for the JSON
+    (and each of ``files``, option -> path, e.g. ``{"--csv": csv_out}``), a new folder or
+    an earlier report for the report, none of them an input, no two the same path."""
+    inputs = [i for i in inputs if i is not None]
+    outs = [("--json", json_out)] + list((files or {}).items())
+    given = [(o, p) for o, p in outs if p]
+    for opt, p in given:
+        check_output_file(p, option=opt, inputs=inputs)
+    for i, (o1, p1) in enumerate(given):
+        for o2, p2 in given[i + 1:]:
+            if os.path.abspath(p1) == os.path.abspath(p2):
+                raise UserInputError(f"{o1} {p1} and {o2} {p2}: the same path; give two")
     if report_dir:
         check_output_dir(report_dir, option="--report", inputs=inputs, replaceable=is_earlier_report)
     if json_out and report_dir and os.path.abspath(json_out) == os.path.abspath(report_dir):
