@@ -12,7 +12,7 @@ from functools import cached_property
 from importlib import resources
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from simcam.config_base import StrictModel, model_hash, validate_model
 
@@ -91,6 +91,14 @@ class DetectorModel(_M):
 
 class OrbitModel(_M):
     epoch_utc: str = "2025-06-01T00:00:00"
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _epoch(cls, v: str) -> str:
+        """Parsed when the scenario loads (was: a 79-line astropy traceback at the first use)."""
+        from simcam.limits import check_epoch_utc
+
+        return check_epoch_utc(v)
     altitude_km: Annotated[float, Field(gt=100.0, lt=100000.0)] = 600.0
     inclination_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 97.8
     raan_deg: Finite = 0.0

@@ -14,9 +14,10 @@ from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_
 __all__ = ["ScanMirrorScenario", "default_text", "scenario_from_dict", "OrbitConfig", "AttitudeConfig",
            "MirrorConfig", "StarSensingConfig", "ScanPlan"]
 
-Vec3 = tuple[float, float, float]
-Pos = Annotated[float, Field(gt=0)]
-NonNeg = Annotated[float, Field(ge=0)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
 class OrbitConfig(StrictModel):
@@ -43,13 +44,9 @@ class OrbitConfig(StrictModel):
     @field_validator("epoch_utc")
     @classmethod
     def _epoch(cls, v: str) -> str:
-        from astropy.time import Time
+        from simcam.limits import check_epoch_utc  # one line (astropy's message listed every format: 11 lines)
 
-        try:
-            Time(v, scale="utc")
-        except ValueError as exc:
-            raise ValueError(f"not an ISO time: {exc}") from None
-        return v
+        return check_epoch_utc(v)
 
 
 class AttitudeConfig(StrictModel):
