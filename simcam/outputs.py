@@ -69,6 +69,21 @@ def file_kind(mode: int) -> str:
     return "not a regular file"
 
 
+def input_file_problem(path: str | os.PathLike) -> str | None:
+    """Why ``path`` cannot be read as an input file (``"is a FIFO (named pipe), not a
+    regular file"``), or None when it is a regular file or does not exist (the reader
+    says "file not found" itself). Never opens it: opening a FIFO blocks."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if stat.S_ISDIR(st.st_mode):
+        return "is a folder, not a file"
+    if not stat.S_ISREG(st.st_mode):
+        return f"is {file_kind(st.st_mode)}, not a regular file"
+    return None
+
+
 def check_input_file(path: str | os.PathLike, *, what: str = "file") -> Path:
     """An input must be an existing regular file (a FIFO would block the reader forever,
     ``/dev/null`` reads as empty). Returns the path; raises :class:`UserInputError`."""
