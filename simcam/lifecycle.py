@@ -385,9 +385,7 @@ def check_disk(path: str | os.PathLike, need_bytes: float, *, what: str) -> None
                                  f"{format_bytes(free)} free at {_existing_ancestor(Path(path))}")
 
 
-def available_memory_bytes() -> int | None:
-    """Memory available to a new allocation, bytes (Linux ``MemAvailable``; else psutil;
-    ``None`` when unknown)."""
+def _system_available_bytes() -> int | None:
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
@@ -401,6 +399,37 @@ def available_memory_bytes() -> int | None:
         return int(psutil.virtual_memory().available)
     except Exception:  # noqa: BLE001 - optional
         return None
+
+
+def _address_space_left() -> int | None:
+    """What ``RLIMIT_AS`` (``ulimit -v``, a batch system's memory limit) leaves to this
+    process: the soft limit less the current virtual size; None when unlimited."""
+    try:
+        import resource
+
+        soft, _hard = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, AttributeError, OSError, ValueError):
+        return None
+    if soft == resource.RLIM_INFINITY or soft < 0:
+        return None
+    used = 0
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmSize:"):
+                    used = int(line.split()[1]) * 1024
+                    break
+    except OSError:
+        pass
+    return max(0, int(soft) - used)
+
+
+def available_memory_bytes() -> int | None:
+    """Memory available to a new allocation, bytes: the system's ``MemAvailable`` (else
+    psutil), or less where the process's address-space limit (``RLIMIT_AS``) leaves less;
+    ``None`` when unknown."""
+    known = [v for v in (_system_available_bytes(), _address_space_left()) if v is not None]
+    return min(known) if known else None
 
 
 def check_memory(need_bytes: float, *, what: str) -> None:
