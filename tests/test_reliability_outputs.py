@@ -489,3 +489,25 @@ def test_sweep_cleans_its_dead_partial_store_and_refuses_before_creating(store, 
     with pytest.raises(UserInputError, match="is a regular file, not a folder"):
         check_store(afile / "st", sw)
     assert not (afile.parent / "st").exists()
+
+
+def test_whiskbroom_synthesis_outside_the_models_domain_is_an_error(tmp_path):
+    # was: an all-NaN table with "N pub 100000" at exit status 0
+    import tomllib
+
+    import tomli_w
+
+    from simcam.whiskbroom import scenario as wsc
+
+    d = tomllib.loads(wsc.default_text())
+    d["mirror"]["rest_angle_deg"] = 90.0  # the line of sight grazes: the image motion divides by zero
+    f = tmp_path / "w.toml"
+    f.write_text(tomli_w.dumps(d))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        code, _, err = _budget(["whiskbroom", "synthesize", str(f), "--trials", "20", "--json",
+                                str(tmp_path / "o.json")])
+    _one_error(code, err, f"{f}: the image motion is not finite in 20 of 20 trials")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["w.toml"]

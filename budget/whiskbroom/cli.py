@@ -33,7 +33,8 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
 
         check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report)
     sc = wsc.load(scenario_path)
-    res = sy.synthesize(sc, seed, trials=trials)
+    res = sy.synthesize(sc, seed, trials=trials,
+                        source=str(scenario_path) if scenario_path else "embedded whiskbroom default")
     sob = sy.sobol_indices(sc, seed=seed)
     echo(f"whiskbroom synthesis: scenario hash {sc.hash}, seed {seed}, {res.trials.size} trials, "
          f"{sy.field_points(sc)[0].size} field points over {sc.camera.n_chips} x "

@@ -37,8 +37,9 @@ class Distribution(StrictModel):
     """Distribution of one variable: ``uniform`` on +-half_width or ``normal`` (0, sigma)."""
 
     dist: Literal["uniform", "normal"]
-    half_width: float | None = Field(default=None, ge=0)
-    sigma: float | None = Field(default=None, ge=0)
+    # at most 1000 of the variable's unit: beyond, the draws overflow the geometry
+    half_width: float | None = Field(default=None, ge=0, le=1e3)
+    sigma: float | None = Field(default=None, ge=0, le=1e3)
 
     @model_validator(mode="after")
     def _check(self):
@@ -73,13 +74,14 @@ class Orbit(StrictModel):
     altitude_km: float = Field(gt=0, le=1e6)
     sun_synchronous: bool = True
     inclination_deg: float | None = Field(default=None, ge=0, le=180)
-    gamma0_deg: float = 0.0
-    gamma_step_deg: float = 0.36
-    earth_radius_km: float = Field(default=6378.137, gt=0)
-    mu_km3_s2: float = Field(default=398600.4418, gt=0)
-    earth_rate_rad_s: float = 7.2921159e-5
-    j2: float = Field(default=1.08262668e-3, gt=0)
-    nodal_rate_deg_day: float = 0.98564736
+    # physical ranges (issue 24): the Earth's constants within a factor of ~10 of theirs
+    gamma0_deg: float = Field(default=0.0, ge=-3600, le=3600)
+    gamma_step_deg: float = Field(default=0.36, ge=-3600, le=3600)
+    earth_radius_km: float = Field(default=6378.137, ge=1000, le=70000)
+    mu_km3_s2: float = Field(default=398600.4418, gt=0, le=4e6)
+    earth_rate_rad_s: float = Field(default=7.2921159e-5, ge=-1e-3, le=1e-3)
+    j2: float = Field(default=1.08262668e-3, gt=0, le=0.1)
+    nodal_rate_deg_day: float = Field(default=0.98564736, ge=-10, le=10)
 
 
 class Camera(StrictModel):

@@ -177,6 +177,23 @@ def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int
                  what=f"{source}: tdi.edge_lines x tdi.edge_columns = {t.edge_lines} x {t.edge_columns}")
 
 
+class SynthesisError(ValueError):
+    """The synthesis of a scenario gave no meaningful number (one ``error:`` line)."""
+
+
+def check_finite_residuals(sc: WhiskbroomScenario, r, level: float, source: str = "scenario") -> None:
+    """Refuse a synthesis whose residuals are NaN or infinite (was: an all-NaN table and
+    "N pub 100000" at exit status 0): the scenario's values leave the model's domain
+    (the line of sight misses the Earth, a rate or an error overflows)."""
+    bad = ~(np.isfinite(r.dv_mm_s) & np.isfinite(r.eps) & np.isfinite(r.eta))
+    if bad.any():
+        trials_bad = int(np.any(bad.reshape(bad.shape[0], -1), axis=1).sum())
+        raise SynthesisError(
+            f"{source}: the image motion is not finite in {trials_bad} of {bad.shape[0]} "
+            f"trials (mirror-rate error {level:g} deg/s): the line of sight misses the Earth or a value "
+            "overflows; check orbit, mirror.rest_angle_deg and the errors' half_width/sigma")
+
+
 def _line_positions(sc, cols_per_chip):
     cam = sc.camera
     j = np.linspace(0.0, cam.chip_cols - 1.0, cols_per_chip) if cols_per_chip > 1 else np.array([0.5 * (cam.chip_cols - 1)])
@@ -375,7 +392,8 @@ class SynthesisResult:
 
 
 def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = None,
-               backend: str = "numba", mirror_rate_errors=None, points=None) -> SynthesisResult:
+               backend: str = "numba", mirror_rate_errors=None, points=None,
+               source: str = "scenario") -> SynthesisResult:
     """The Monte Carlo synthesis of steps 1-5 for each mirror-rate error of the scenario.
 
     For each mirror-rate error (the scale of ``errors.mirror_rate_deg_s`` replaced, same
@@ -405,6 +423,7 @@ def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = No
         draws = standard_draws(scl, u)
         know, true = trial_params(scl, draws, ks)
         r = evaluate(know, true, x1, x3, backend=backend)
+        check_finite_residuals(sc, r, level, source)
         res.residuals[level] = r
         eq = float(np.quantile(np.abs(r.eps), q))
         hq = float(np.quantile(np.abs(r.eta), q))
