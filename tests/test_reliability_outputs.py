@@ -511,3 +511,35 @@ def test_whiskbroom_synthesis_outside_the_models_domain_is_an_error(tmp_path):
                                 str(tmp_path / "o.json")])
     _one_error(code, err, f"{f}: the image motion is not finite in 20 of 20 trials")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["w.toml"]
+
+
+def test_disk_full_while_writing_is_one_error_line(tmp_path, monkeypatch, capsys):
+    import errno
+    import json
+
+    import click
+
+    from simcam.cli_common import run_cli
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(json, "dump", full)
+    with pytest.raises(UserInputError, match="--json .*o.json: no space left on the device"):
+        write_json_atomic(tmp_path / "o.json", {"a": 1})
+    assert list(tmp_path.iterdir()) == []  # the temporary file is removed
+
+    @click.group()
+    def g():
+        pass
+
+    @g.command()
+    def report():
+        # a figure saved into a full disk (matplotlib raises the OSError itself)
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "rep" / "fig.png"))
+
+    with pytest.raises(SystemExit) as ei:
+        run_cli(g, ["report"])
+    assert ei.value.code == 2
+    err = capsys.readouterr().err
+    _one_error(2, err, "fig.png: no space left on the device")
