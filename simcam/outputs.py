@@ -299,9 +299,15 @@ class StagedOutputs:
         return False
 
 
+#: the page of each kind of report folder a command writes (validate, synthesize and
+#: scanmirror simulate: report.md; linecam simulate / calibrate: their own page)
+REPORT_PAGES = ("report.md", "simulate.md", "calibrate.md")
+
+
 def is_earlier_report(path: Path) -> bool:
-    """A folder that ``--report`` may replace: empty, or an earlier report (has report.md)."""
-    return not any(path.iterdir()) or (path / "report.md").is_file()
+    """A folder that ``--report`` may replace: empty, or an earlier report (holds one of
+    :data:`REPORT_PAGES`)."""
+    return not any(path.iterdir()) or any((path / n).is_file() for n in REPORT_PAGES)
 
 
 def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), files: dict | None = None) -> None:

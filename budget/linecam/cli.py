@@ -106,19 +106,26 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
     click.echo(f"before calibration: rms {np.sqrt(np.mean(eb[0] ** 2)):.2f}\" along, "
                f"{np.sqrt(np.mean(eb[1] ** 2)):.2f}\" across")
     out["truth"] = dict(zip(PARAMETERS, truth.tolist()))
+    from simcam.outputs import StagedOutputs, apply_umask
+
+    with StagedOutputs() as staged:  # the table, the JSON and the report appear together or not at all
+        if csv_out:
+            tmp = staged.file(csv_out)
+            write_observation_csv(scn, sim, tmp)
+            apply_umask(tmp, is_dir=False)
+        if json_out:
+            write_json_atomic(staged.file(json_out), out)
+        if report_dir:
+            d = staged.folder(report_dir)
+            d.mkdir(parents=True, exist_ok=True)
+            figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
+                    plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
+            (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
+                                           + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
     if csv_out:
-        write_observation_csv(scn, sim, csv_out)
         click.echo(f"observations: {csv_out}")
-    if json_out:
-        write_json_atomic(json_out, out)
     if report_dir:
-        d = Path(report_dir)
-        d.mkdir(parents=True, exist_ok=True)
-        figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
-                plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
-        (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
-                                       + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
-        click.echo(f"report: {d / 'simulate.md'}")
+        click.echo(f"report: {Path(report_dir) / 'simulate.md'}")
 
 
 def write_observation_csv(scn, sim, path) -> None:
@@ -420,22 +427,27 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
             "los_field": field}
-    if json_out:
-        write_json_atomic(json_out, payload)
-    if report_dir:
-        from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
+    from simcam.outputs import StagedOutputs
 
-        d = Path(report_dir)
-        d.mkdir(parents=True, exist_ok=True)
-        ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
-              "coverage_bins": scn.lab.coverage_bins,
-              "residual_before_px": residuals(cam, np.zeros(len(PARAMETERS)), obs),
-              "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items() if m != "lookangle"}}
-        figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
-                plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
-        (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"
-                                        + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
-        click.echo(f"report: {d / 'calibrate.md'}")
+    with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
+        if json_out:
+            write_json_atomic(staged.file(json_out), payload)
+        if report_dir:
+            from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
+
+            d = staged.folder(report_dir)
+            d.mkdir(parents=True, exist_ok=True)
+            ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
+                  "coverage_bins": scn.lab.coverage_bins,
+                  "residual_before_px": residuals(cam, np.zeros(len(PARAMETERS)), obs),
+                  "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items()
+                                        if m != "lookangle"}}
+            figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
+                    plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
+            (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"
+                                            + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+    if report_dir:
+        click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 
 
 def commands() -> list:
