@@ -141,7 +141,11 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
     """
     import warnings
 
+    from simcam.outputs import input_file_problem
+
     path = Path(path)
+    if (why := input_file_problem(path)) is not None:  # a FIFO would block the reader forever
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: frame file not found")
     try:
@@ -173,7 +177,11 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
 
 def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, fits.Header]:
     """Read a windows file: pixels (frames, stars, h, w) float64, col0, row0, header."""
+    from simcam.outputs import input_file_problem
+
     path = Path(path)
+    if (why := input_file_problem(path)) is not None:
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: windows file not found")
     try:

@@ -491,6 +491,18 @@ def test_sweep_cleans_its_dead_partial_store_and_refuses_before_creating(store, 
     assert not (afile.parent / "st").exists()
 
 
+
+def test_sweep_store_too_large_for_the_disk_is_refused_before_creating(store, tmp_path, monkeypatch):
+    import budget.sweeps.store as st_mod
+    from budget.sweeps.spec import load_sweep
+
+    sw = load_sweep(store / "s.toml")
+    monkeypatch.setattr(st_mod, "_BLOCK_BYTES", 1e18)  # every chunk file an exabyte: no disk holds it
+    with pytest.raises(ResourceLimitError, match="parameters: a store of 2 point.*of disk"):
+        st_mod.create_store(tmp_path / "big", sw)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_whiskbroom_synthesis_outside_the_models_domain_is_an_error(tmp_path):
     # was: an all-NaN table with "N pub 100000" at exit status 0
     import tomllib
@@ -543,3 +555,17 @@ def test_disk_full_while_writing_is_one_error_line(tmp_path, monkeypatch, capsys
     assert ei.value.code == 2
     err = capsys.readouterr().err
     _one_error(2, err, "fig.png: no space left on the device")
+
+
+def test_fifo_as_a_frame_or_manifest_is_named_not_read(tmp_path):
+    from budget.starcam.measure import read_manifest
+    from simcam.io import read_frame
+
+    fifo = tmp_path / "f0.fits"
+    os.mkfifo(fifo)
+    with pytest.raises(UserInputError, match="f0.fits: is a FIFO"):
+        read_frame(fifo)
+    man = tmp_path / "manifest.csv"
+    os.mkfifo(man)
+    with pytest.raises(UserInputError, match="manifest.csv: is a FIFO"):
+        read_manifest(man, protocol="te")

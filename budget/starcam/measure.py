@@ -48,6 +48,10 @@ DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     """Read and validate a manifest CSV (see module docstring)."""
     path = Path(path)
+    from simcam.outputs import input_file_problem
+
+    if (why := input_file_problem(path)) is not None:  # a FIFO would block, /dev/null read as empty
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: manifest not found (write manifest.csv in the frame directory "
                              "or pass --manifest; see `budget measure --help`)")
@@ -221,6 +225,10 @@ def measure_frames(
         if reference is None:
             raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
         rp = Path(reference)
+        from simcam.outputs import input_file_problem
+
+        if (why := input_file_problem(rp)) is not None:
+            raise UserInputError(f"--reference {rp}: {why}")
         if not rp.is_file():
             raise UserInputError(f"{rp}: reference file not found")
         try:
@@ -234,7 +242,9 @@ def measure_frames(
             v = pd.to_numeric(ref_table[c], errors="coerce")
             if not np.isfinite(v.to_numpy(float)).all():
                 row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
-                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {ref_table[c].iloc[row]!r}")
+                raw = ref_table[c].iloc[row]
+                got = "an empty cell" if pd.isna(raw) else repr(str(raw))
+                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
             ref_table[c] = v
     from simcam.lifecycle import progress as progress_bar
 

@@ -109,12 +109,49 @@ def _template(point_dims, point_shape, point_coords, kind, evaluate, attrs):
     return xr.Dataset(data_vars, coords=coords, attrs=attrs), enc
 
 
+#: the disk a chunk file takes at least (one file system block)
+_BLOCK_BYTES = 4096
+
+
+def store_bytes(sweep) -> float:
+    """Disk the finished store takes, at least: one chunk file per point (and Sobol sample)
+    per variable, each at least one file-system block."""
+    import numpy as np
+
+    from budget.sweeps.evaluate import labels, schema
+
+    def per_point(kind, evaluate):
+        lab = labels(kind)
+        total = _BLOCK_BYTES  # the done flag
+        for dims, dtype, _ in schema(kind, evaluate).values():
+            n = float(np.prod([len(lab[d]) for d in dims])) if dims else 1.0
+            total += max(_BLOCK_BYTES, n * np.dtype(dtype).itemsize)
+        return total
+
+    s = sweep.spec
+    need = float(len(sweep.points)) * per_point(s.kind, s.evaluate) if sweep.params else 0.0
+    if s.sensitivity is not None:
+        need += float(len(sweep.sample_points)) * per_point(s.kind, s.sensitivity.evaluate)
+    return need
+
+
+def check_store_size(path, sweep) -> None:
+    """Refuse a store that cannot fit on the disk at ``path`` (before it is created)."""
+    from simcam.lifecycle import announce_size, check_disk
+
+    need = store_bytes(sweep)
+    check_disk(path, need, what=f"{getattr(sweep, 'path', 'sweep')}: parameters: a store of "
+                                 f"{len(sweep.points)} point(s)")
+    announce_size(need, where=path)
+
+
 def create_store(path: str | os.PathLike, sweep) -> None:
     """Create the (empty) store of ``sweep`` at ``path``, atomically (temp dir + rename)."""
     import xarray as xr
 
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
+    check_store_size(path, sweep)  # refused before anything is created (issue 24)
     parent.mkdir(parents=True, exist_ok=True)
     from simcam.lifecycle import partial_prefix, remove_stale_partials
     from simcam.outputs import apply_umask
