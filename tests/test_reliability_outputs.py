@@ -187,7 +187,7 @@ def test_inputs_that_are_not_regular_files_are_named(tmp_path, device):
     with pytest.raises(UserInputError, match="is a folder"):
         check_input_file(tmp_path, what="table")
     # a FIFO as a scenario blocked forever; /dev/null read as "file not found"
-    from budget.runner.scenario_io import read_toml
+    from simcam.config_base import read_toml
 
     with pytest.raises(ScenarioError, match=f"is {kind}"):
         read_toml(path=dev)
@@ -434,6 +434,7 @@ def test_fits_plate_scale_and_non_finite_pixels():
 GRID = """
     name = "tiny grid"
     base = "tiny.toml"
+    kind = "starcam"
     seed = 11
     evaluate = "truth"
     [parameters]
