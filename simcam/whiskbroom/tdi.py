@@ -39,6 +39,11 @@ def smear_per_stage(v_true, v_know):
     return along / sk - 1.0, cross / sk
 
 
+class TdiError(ValueError):
+    """A TDI computation asked for something outside its physics (non-finite rates,
+    impossible charge): one ``error:`` line at the command line."""
+
+
 def aperture_factor(k_along: float, k_cross: float, samples: int) -> complex:
     """Mean of ``exp(i 2 pi k.x)`` over a unit square pixel, by ``samples x samples``
     midpoint quadrature (the pixel aperture integral of a unit-amplitude phasor)."""
@@ -116,6 +121,12 @@ def edge_image(eps: float, eta: float, *, n_stages: int, n_phase: int, n_time: i
     level) is returned; with it, shot noise (Poisson on the collected electrons,
     ``signal_e_per_stage`` per stage when bright) and Gaussian read noise.
     """
+    if not (math.isfinite(eps) and math.isfinite(eta)):
+        raise TdiError(f"edge_image: the rate mismatch is not finite (eps {eps}, eta {eta}); check the scenario's "
+                       "mirror.rate_deg_s and camera.focal_length_mm")
+    if rng is not None and not (math.isfinite(signal_e_per_stage) and 0.0 <= signal_e_per_stage * n_stages < 1e15):
+        raise TdiError(f"edge_image: tdi.signal_e_per_stage x stages = {signal_e_per_stage * n_stages:.3g} e-: "
+                       "beyond any pixel's charge (< 1e15 e-)")
     a = math.radians(angle_deg)
     offset = math.sin(a) * 0.5 * columns - math.cos(a) * 0.5 * lines
     # scene rows seen by output line L are near -L: the edge n.s <= offset lies at
