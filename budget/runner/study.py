@@ -218,6 +218,18 @@ class Study(ABC):
         """:meth:`truths` from its pieces' results, in :meth:`truth_parts` order; must equal it."""
         return results[0]
 
+    def truth_depends_on_effects(self, scenario: Any) -> set[str] | None:
+        """Names of the world effects (``world.effects``) whose change changes :meth:`truths`;
+        None (the default): all of them. A robustness run reuses the ideal world's truths for
+        every case whose active effects are outside this set (:mod:`budget.runner.robustness`)."""
+        return None
+
+    def claim(self, scenario: Any, class_name: str, variant: str) -> float | None:
+        """The accuracy the method claims for ``class_name`` with ``variant``, in the class's
+        unit (a bound on the bias); None (the default): it claims to be unbiased within its
+        Monte Carlo uncertainty (:func:`budget.runner.robustness.claim_holds`)."""
+        return None
+
     # ------------------------------------------------------------ run settings
     def default_trials(self, scenario: Any) -> int:
         """Trials when the user gives neither a count nor a tolerance."""
