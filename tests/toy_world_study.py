@@ -112,6 +112,12 @@ class ToyWorldStudy(Study):
     def default_trials(self, scenario):
         return scenario.trials
 
+    def max_trials(self, scenario):
+        return 20000
+
+    def batch_trials(self, scenario):
+        return 100
+
     def truth_depends_on_effects(self, scenario):
         return None if self.depends is None else set(self.depends)
 
