@@ -9,7 +9,8 @@ world study of the tests (``tests/toy_world_study.py``: six effects, truths that
 one of them) with a per-trial cost that mimics a real study: ``--trial-ms`` of busy work per
 trial (a small matrix iteration, no sleep) and ten times that for the truths. It times, with
 ``--workers W`` processes (default all cores), each the wall time a user waits (worker
-start-up and truths included):
+start-up and truths included) and the CPU time of all its processes (the steadier measure
+on a shared machine):
 
 * ``validate``: :func:`budget.runner.run.run_study`, 200 trials of the scenario;
 * ``robustness``: :func:`budget.runner.robustness.run_robustness`, 8 cases x 200 trials;
@@ -58,6 +59,22 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and its ended children (the pool's workers, once joined)."""
+    import resource
+
+    me, ch = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + ch.ru_utime + ch.ru_stime
+
+
+def _timed_cpu(fn) -> tuple[float, float]:
+    """Wall and CPU seconds (all processes) of ``fn``: on a shared machine the CPU time is the
+    steadier measure of the work, the wall time what a user waits."""
+    c0, t0 = _cpu(), time.perf_counter()
+    fn()
+    return time.perf_counter() - t0, _cpu() - c0
+
+
 def main() -> None:
     ap = bench_parser(__doc__)
     ap.add_argument("--trials", type=int, default=200)
@@ -74,33 +91,37 @@ def main() -> None:
     scn = study.from_dict(data, source="benchmark")
     cases = build_cases(study, scn)
     n_effects = len(scn.world.effects.active())
-    t_validate = _timed(lambda: run_study(study, scn, trials=args.trials, seed=1, workers=args.workers))
+    t_validate, c_validate = _timed_cpu(lambda: run_study(study, scn, trials=args.trials, seed=1,
+                                                          workers=args.workers))
     res = None
 
     def robust():
         nonlocal res
         res = run_robustness(study, scn, trials=args.trials, seed=1, workers=args.workers)
 
-    t_robust = _timed(robust)
-    t_separate = None
+    t_robust, c_robust = _timed_cpu(robust)
+    t_separate = c_separate = None
     if not args.no_separate:
-        t_separate = _timed(lambda: [run_study(study, c.scenario, trials=args.trials, seed=1, workers=args.workers)
-                                     for c in cases])
-    ratio = t_robust / t_validate
+        t_separate, c_separate = _timed_cpu(lambda: [run_study(study, c.scenario, trials=args.trials, seed=1,
+                                                               workers=args.workers) for c in cases])
+    ratio, cpu_ratio = t_robust / t_validate, c_robust / c_validate
     print_machine(workers=args.workers, busy_iterations_per_trial=iters)
     print(f"toy world study (no registered study had six effects yet): {n_effects} effects, {len(cases)} cases, "
           f"{args.trials} trials each, ~{args.trial_ms:g} ms of busy work per trial, 10x that for the truths "
           f"(own truths in {sum(not c.shares_truths for c in cases)} of {len(cases)} cases)")
-    rows = [(f"validate, {args.trials} trials", f"{t_validate:.2f} s", "1.00"),
-            (f"robustness, {len(cases)} cases x {args.trials} trials, one pool", f"{t_robust:.2f} s", f"{ratio:.2f}")]
+    rows = [(f"validate, {args.trials} trials", f"{t_validate:.2f} s", "1.00", f"{c_validate:.2f} s", "1.00"),
+            (f"robustness, {len(cases)} cases x {args.trials} trials, one pool", f"{t_robust:.2f} s", f"{ratio:.2f}",
+             f"{c_robust:.2f} s", f"{cpu_ratio:.2f}")]
     if t_separate is not None:
         rows.append((f"{len(cases)} separate validate runs (reference)", f"{t_separate:.2f} s",
-                     f"{t_separate / t_validate:.2f}"))
-    print(format_table(["what", "wall", "x validate"], rows))
+                     f"{t_separate / t_validate:.2f}", f"{c_separate:.2f} s", f"{c_separate / c_validate:.2f}"))
+    print(format_table(["what", "wall", "x validate", "cpu (all processes)", "x validate"], rows))
     emit_result("robustness", [
         figure("robustness_over_validate", f"robustness ({len(cases)} cases) / validate wall time, toy world, "
                f"{n_effects} effects, {args.trials} trials, {args.trial_ms:g} ms/trial", ratio, "x",
                target=8.0, target_source="issue 22"),
+        figure("robustness_over_validate_cpu", f"robustness / validate CPU time of all processes, same runs",
+               cpu_ratio, "x", target=8.0, target_source="issue 22"),
         figure("robustness_s", f"robustness wall time, {len(cases)} cases x {args.trials} trials (s)", t_robust, "s",
                peer="8 separate validate runs" if t_separate is not None else None, peer_value=t_separate),
         figure("validate_s", f"validate wall time, {args.trials} trials (s)", t_validate, "s"),
