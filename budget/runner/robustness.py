@@ -410,8 +410,11 @@ class RobustnessResult:
                     "sentence": f"{head}: a residual, no claim to test; {big[0]} changes it most: {said(*big)}."}
         w0 = worst([IDEAL])
         if w0 is not None:
-            return {"effect": IDEAL, "axis": w0[2][2], "severity": w0[0],
-                    "sentence": f"{head}: its claim fails already in the ideal world: {said(IDEAL, w0[2])}."}
+            s = f"{head}: its claim fails already in the ideal world: {said(IDEAL, w0[2])}"
+            w = worst(singles, failing_only=False)
+            if w is not None and w[0] > w0[0]:
+                s += f"; {w[1]} takes it farthest: {said(w[1], w[2])}"
+            return {"effect": IDEAL, "axis": w0[2][2], "severity": w0[0], "sentence": s + "."}
         w = worst(singles)
         if w is not None:
             return {"effect": w[1], "axis": w[2][2], "severity": w[0],
@@ -474,7 +477,7 @@ class RobustnessResult:
         """Header and one row per case: each cell the verdict and the bias in the class's unit."""
         cols = self.columns()
         units = {c.name: c.unit for c in self.classes()}
-        head = ["case"] + [f"{v} {c}/{a} ({units[c]})" if markdown else f"{v[:4]} {c}/{a}" for c, v, a in cols]
+        head = ["case"] + [f"{v} {c}/{a} ({units[c]})" if markdown else f"{v} {c}/{a}" for c, v, a in cols]
         rows = [head]
         cells = self.cells()
         for case in self.cases:
