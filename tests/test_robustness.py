@@ -254,3 +254,37 @@ def test_command_line(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert f"error: {bad}: world.effects.bogus_units: unknown key" in err
     assert not (tmp_path / "r2.json").exists()
+
+
+def test_every_study_group_has_the_verb(capsys):
+    from budget.runner.cli import study_group
+    from budget.runner.registry import study_names
+    from simcam.cli_common import run_cli
+
+    for name in study_names():
+        run_cli(study_group(name), ["robustness", "--help"])
+        assert "--trials" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam"])
+def test_cases_of_every_study_with_a_world(name):
+    """Cases are built generically (dump, set world.effects, from_dict): every case is the
+    scenario but for its effects (skipped for a study whose scenario has no world effects yet)."""
+    from budget.runner.registry import get_study, study_names
+    from simcam.effects import scenario_effects
+
+    if name not in study_names():
+        pytest.skip(f"{name} is not installed")
+    study = get_study(name)
+    scn = study.load_scenario()
+    if scenario_effects(scn) is None:
+        pytest.skip(f"the {name} scenario has no world effects")
+    cases = build_cases(study, scn)
+    base = scn.model_dump(mode="json")
+    base["world"]["effects"] = None
+    for c in cases:
+        d = c.scenario.model_dump(mode="json")
+        assert d["world"]["effects"] == c.magnitudes
+        d["world"]["effects"] = None
+        assert d == base
+        assert c.scenario.world.effects.active() == c.active
