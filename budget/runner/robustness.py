@@ -57,7 +57,7 @@ from typing import Any
 import click
 import numpy as np
 
-from budget.runner.study import ClassSpec, Study, TrialResult, Truth
+from budget.runner.study import ClassSpec, Study, TrialResult
 from simcam.effects import scenario_effects
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
