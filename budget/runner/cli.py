@@ -93,8 +93,8 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
 
 
 def study_group(study_name: str) -> click.Group:
-    """The click group of a registered study: ``validate`` plus :meth:`Study.commands` (a
-    command of the study named ``validate`` replaces the plain one).
+    """The click group of a registered study: ``validate``, ``robustness`` plus
+    :meth:`Study.commands` (a command of the study named ``validate`` replaces the plain one).
 
     The study module is imported only when the group is invoked (or asked for help).
     """
@@ -108,6 +108,9 @@ def study_group(study_name: str) -> click.Group:
             from budget.runner.registry import get_study
 
             self.add_command(validate_command_for(study_name))
+            from budget.runner.robustness import robustness_command_for
+
+            self.add_command(robustness_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
 
