@@ -52,7 +52,8 @@ Run settings (how many trials, where they run):
 * :meth:`Study.chunk_trials`: most trials in one task sent to a worker (10);
 * :meth:`Study.prewarm`: once in the run's own process before any work (compile numba
   kernels in parallel; nothing by default);
-* :meth:`Study.worker_init`: once in each worker process (e.g. one numba thread).
+* :meth:`Study.worker_init`: once in each worker process, after the runner has set one numba
+  thread there (a study sets no threads itself).
 
 Truth distribution (a heavy truth spread over the workers): :meth:`Study.truth_parts`,
 :meth:`Study.truth_part`, :meth:`Study.truths_from_parts` (default: one part, the whole of
