@@ -108,6 +108,12 @@ class ScanMirrorStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {(c, ax): Truth(0.0, 0.0) for c in ("ground_max", "ground_rms") for ax in ("lat", "lon")}
 
+    def truth_depends_on_effects(self, scenario) -> set[str]:
+        """No effect changes the study-level truths: the ground classes' truth is 0 whatever
+        the world, and ``dtau``'s truth is per trial (the world's deviation at the dwell,
+        effects included, returned by each trial)."""
+        return set()
+
     # ------------------------------------------------------------ report and commands
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors

@@ -10,9 +10,10 @@ import numpy as np
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
 
 __all__ = ["ScanMirrorScenario", "default_text", "scenario_from_dict", "OrbitConfig", "AttitudeConfig",
-           "MirrorConfig", "StarSensingConfig", "ScanPlan"]
+           "MirrorConfig", "StarSensingConfig", "ScanPlan", "ScanMirrorEffects", "ScanMirrorWorld"]
 
 Vec3 = tuple[float, float, float]
 Pos = Annotated[float, Field(gt=0)]
@@ -156,6 +157,9 @@ class ScanMirrorScenario(StrictModel):
     compensation: CompensationConfig = CompensationConfig()
     validation: ValidationConfig = ValidationConfig()
     scan_plan: ScanPlan
+    #: the world's unmodelled effects (issue 22; simcam.scanmirror.effects): read by the
+    #: simulator only, never by the lab
+    world: ScanMirrorWorld = ScanMirrorWorld()
     #: where the scenario came from (named in errors found later, e.g. in a worker process)
     _source: str = PrivateAttr(default="scenario")
 
