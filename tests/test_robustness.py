@@ -237,7 +237,8 @@ def test_command_line(tmp_path, monkeypatch, capsys):
     from budget.runner.cli import study_group
     from simcam.cli_common import run_cli
 
-    monkeypatch.setitem(registry.STUDIES, "toyworld", "toy_world_study:STUDY")
+    monkeypatch.setitem(registry._BY_NAME, "toyworld", registry.StudyEntry("toyworld", "toy_world_study:STUDY",
+                                                                           "toy world study"))
     out = tmp_path / "r.json"
     run_cli(study_group("toyworld"), ["robustness", "--trials", "12", "--seed", "3", "--workers", "1",
                                       "--json", str(out), "--report", str(tmp_path / "rep"), "--no-progress"])

@@ -35,6 +35,8 @@ def test_default_is_realistic_and_ideal_file_is_default_with_effects_off():
     assert ideal.world.effects.active() == ()
     a, b = default.model_dump(), ideal.model_dump()
     a["world"]["effects"] = {k: 0.0 for k in a["world"]["effects"]}
+    assert b.pop("name").endswith("ideal world")          # named as such; everything else equal
+    a.pop("name")
     assert a == b
     eff = default.world.effects
     assert eff.only("tracker_bias_arcsec").active() == ("tracker_bias_arcsec",)
@@ -45,7 +47,7 @@ def test_default_is_realistic_and_ideal_file_is_default_with_effects_off():
 
 def test_ideal_world_equals_the_results_before_the_effects(tmp_path):
     """With every effect off the study's statistics equal, bit for bit, values recorded from
-    the code before issue 22 (``tests/data/scanmirror_before_effects_trials4.json``:
+    the code before the world effects (``tests/data/scanmirror_before_effects_trials4.json``:
     ``budget scanmirror validate --trials 4 --workers 1 --seed 0 --json`` at commit aa8a787)."""
     from budget.cli import cli
     from simcam.cli_common import run_cli
@@ -58,7 +60,13 @@ def test_ideal_world_equals_the_results_before_the_effects(tmp_path):
         assert exc.code in (0, None)
     got = json.loads(out.read_text())
     want = json.loads((ROOT / "tests" / "data" / "scanmirror_before_effects_trials4.json").read_text())
-    assert got["classes"] == want["classes"]  # exact on purpose: bit-identity is the requirement
+    # exact on purpose: bit-identity of every number is the requirement; a class's role label
+    # ("residual" for the ground errors) was added after the recording and is not a number
+    def numbers(classes):
+        return {c: {ax: {v: {k: x for k, x in st.items() if k != "role"} for v, st in d.items()}
+                    for ax, d in axes.items()} for c, axes in classes.items()}
+
+    assert numbers(got["classes"]) == numbers(want["classes"])
     assert got["truths"] == want["truths"]
 
 

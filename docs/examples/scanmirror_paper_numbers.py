@@ -23,7 +23,10 @@ NAMES = ("uncompensated", "without_estimate", "published", "improved")
 
 
 def scenario(changes: dict):
+    """The default scenario in the ideal world (every ``[world.effects]`` magnitude 0: the
+    paper's numbers are those of its own model) with ``changes`` (dotted keys) applied."""
     data = tomllib.loads(default_text())
+    data["world"]["effects"] = {k: 0.0 for k in data["world"]["effects"]}
     for dotted, value in changes.items():
         node = data
         *head, last = dotted.split(".")
