@@ -21,6 +21,8 @@ A polygon's face errors are one ``rng.standard_normal(N)`` draw scaled by its un
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
