@@ -26,7 +26,7 @@ from simcam.encoder.polygon import (
 from simcam.noise_processes import allan_deviation
 
 ROOT = Path(__file__).resolve().parents[1]
-IDEAL = ROOT / "docs" / "examples" / "scenarios" / "inductosyn_ideal.toml"
+IDEAL = ROOT / "docs" / "examples" / "inductosyn_ideal.toml"
 
 #: `budget inductosyn validate --trials 4 --workers 1 --json` (seed 0, the embedded default)
 #: recorded from the code BEFORE the world effects existed (commit ebe5c03): per
