@@ -184,30 +184,34 @@ def certified_face_errors_arcsec(*, z, u_arcsec: float) -> np.ndarray:
     return u_arcsec * (z - z.mean(axis=-1, keepdims=True))
 
 
-def autocollimator_reading_rad(*, face_normal_rad: float, face_radius_mm: float, offset_xy_mm=(0.0, 0.0)) -> float:
+def autocollimator_reading_rad(*, face_normal_rad: float, face_radius_mm: float, offset_xy_mm=(0.0, 0.0)):
     """Autocollimator reading of one face, traced in the plane (exact geometry).
 
     The beam runs along ``-x`` on the line ``y = 0``; the face, centred at ``offset_xy_mm``
-    (the polygon's translation) with its normal at ``face_normal_rad`` from ``+x``, is a
-    plane (``face_radius_mm = inf``) or a circle of that radius (a curved face). The beam
-    is reflected at the hit point about the local normal there; the reading is half the
-    angle of the returned beam from ``+x`` (the law of reflection). A plane's normal is
-    the same at every point, so a pure translation leaves the reading unchanged, exactly;
-    a curved face's reading moves by ``asin(sin psi - y/R) - psi`` (beam walk).
+    (the polygon's translation; each of x, y a number or an array) with its normal at
+    ``face_normal_rad`` from ``+x``, is a plane (``face_radius_mm = inf``) or a circle of that
+    radius (a curved face). The beam is reflected at the hit point about the local normal
+    there; the reading is half the angle of the returned beam from ``+x`` (the law of
+    reflection). A plane's normal is the same at every point, so a pure translation leaves
+    the reading unchanged, exactly; a curved face's reading moves by ``asin(sin psi - y/R) - psi``
+    (beam walk).
     """
     nx, ny = math.cos(face_normal_rad), math.sin(face_normal_rad)
-    px, py = float(offset_xy_mm[0]), float(offset_xy_mm[1])
+    px = np.asarray(offset_xy_mm[0], dtype=float)
+    py = np.asarray(offset_xy_mm[1], dtype=float)
+    shape = np.broadcast(px, py).shape
     if math.isinf(face_radius_mm):
-        lx, ly = nx, ny  # a plane: the local normal everywhere
+        lx, ly = np.full(shape, nx), np.full(shape, ny)  # a plane: the local normal everywhere
     else:
         cx, cy = px - face_radius_mm * nx, py - face_radius_mm * ny  # centre of curvature
         hy = 0.0
-        hx = cx + math.sqrt(face_radius_mm**2 - (hy - cy) ** 2)  # the hit point on y = 0 facing +x
+        hx = cx + np.sqrt(face_radius_mm**2 - (hy - cy) ** 2)  # the hit point on y = 0 facing +x
         lx, ly = (hx - cx) / face_radius_mm, (hy - cy) / face_radius_mm
     dx, dy = -1.0, 0.0
     dot = dx * lx + dy * ly
     rx, ry = dx - 2.0 * dot * lx, dy - 2.0 * dot * ly
-    return 0.5 * math.atan2(ry, rx)
+    out = 0.5 * np.arctan2(ry, rx)
+    return float(out) if out.ndim == 0 else out
 
 
 def tilted_face_reading_rad(*, theta_rad, gamma_rad, tilt_rad: float, tilt_azimuth_rad: float):
@@ -335,8 +339,8 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
             if e_mm > 0 and not math.isinf(radius_mm):
                 base = autocollimator_reading_rad(face_normal_rad=0.0, face_radius_mm=radius_mm)
                 lat = e_mm * np.sin(th_rad - az[pk])
-                alpha = alpha + ARCSEC_PER_RAD * (np.array([autocollimator_reading_rad(
-                    face_normal_rad=0.0, face_radius_mm=radius_mm, offset_xy_mm=(0.0, y)) for y in lat]) - base)
+                alpha = alpha + ARCSEC_PER_RAD * (autocollimator_reading_rad(
+                    face_normal_rad=0.0, face_radius_mm=radius_mm, offset_xy_mm=(0.0, lat)) - base)
             if tau > 0:
                 alpha = alpha + ARCSEC_PER_RAD * tilted_face_reading_rad(
                     theta_rad=th_rad, gamma_rad=fixed[keys[p]][1], tilt_rad=tau, tilt_azimuth_rad=az[2 + pk])
