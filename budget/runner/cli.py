@@ -33,6 +33,8 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
     click.echo(format_table(res))
+    from budget.runner.findings import findings_lines  # the findings in words (issue 23)
+    click.echo("\n".join(findings_lines(res)))
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
     if json_out:

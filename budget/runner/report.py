@@ -1,5 +1,6 @@
-"""The report every study gets: the table, one sentence per finding, the estimates plot,
-then the study's own sections (:meth:`Study.report_sections`).
+"""The report every study gets: the findings in words (:mod:`budget.runner.findings`), the
+table, the estimates plot, then the study's own sections (:meth:`Study.report_sections`);
+``report.md`` and its self-contained twin ``report.html`` (:mod:`budget.runner.html`).
 
 Written into a temporary folder beside the target and renamed into place when complete, so
 an interrupted run never leaves a half-written report that looks finished.
@@ -26,6 +27,19 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+def _sig(st: dict) -> str:
+    """The table's verdict column: input, ref(erence), n/d (not determined), exact, yes/no."""
+    if st.get("role") in ("input", "residual"):
+        return st["role"]
+    if st.get("reference"):
+        return "ref"
+    if st.get("determined") is False:
+        return "n/d"
+    if st.get("exact_to_numerical_precision"):
+        return "exact"
+    return "yes" if st["bias_significant"] else "no"
+
+
 def format_table(result) -> str:
     """A fixed-width text table of every key: truth (+- se), mean, bias (%), spread, coverage."""
     rows = [("class", "axis", "variant", "truth", "+-se", "mean", "bias", "bias %", "sig", "spread", "cov 1s")]
@@ -35,7 +49,7 @@ def format_table(result) -> str:
         cov = st.get("coverage")
         rows.append((cls, ax, var, _fmt(st["truth"]), _fmt(st["truth_se"]), _fmt(st["mean"]), _fmt(st["bias"]),
                      "n/a" if not math.isfinite(st["bias_percent"]) else f"{st['bias_percent']:+.1f}",
-                     "input" if st.get("role") == "input" else ("yes" if st["bias_significant"] else "no"),
+                     _sig(st),
                      _fmt(st["std"]),
                      f"{cov['within_1sigma']:.2f}" if cov else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -43,28 +57,12 @@ def format_table(result) -> str:
 
 
 def finding(result, key) -> str:
-    """One sentence: what the estimator recovers of its truth, with the uncertainty."""
-    cls, var, ax = key
-    spec = result.class_spec(cls)
+    """One sentence about ``key``, chosen by the shared rules (:mod:`budget.runner.findings`)."""
+    from budget.runner.findings import _sentence, _verdict
+
     st = result.statistics(key)
-    unit = spec.unit
-    if st.get("role") == "input":
-        return (f"{spec.label}, {ax}, {var}: an input of the method ({_fmt(st['mean'])} {unit}), "
-                f"taken as given, not measured: nothing to validate.")
-    truth = (f"the truth {_fmt(st['truth'])} {unit}" + (f" (+- {_fmt(st['truth_se'])})" if st["truth_se"] > 0 else "")
-             if not st["per_trial_truth"] else "the truth of each trial")
-    if st["bias_significant"]:
-        pct = f" ({st['bias_percent']:+.1f} %)" if math.isfinite(st["bias_percent"]) and not st["per_trial_truth"] else ""
-        verdict = f"is biased by {_fmt(st['bias'])} {unit}{pct} +- {_fmt(st['se_bias'])}"
-    else:
-        verdict = f"recovers it without a significant bias ({_fmt(st['bias'])} +- {_fmt(st['se_bias'])} {unit})"
-    s = (f"{spec.label}, {ax}, {var}: against {truth}, the estimator {verdict}; "
-         f"its spread over {st['n']} trials is {_fmt(st['std'])} {unit}.")
-    cov = st.get("coverage")
-    if cov:
-        s += (f" Its stated 1-sigma interval holds the truth in {100 * cov['within_1sigma']:.1f} % of trials "
-              f"(+- {100 * cov['se_1sigma']:.1f}; 68.3 % expected).")
-    return s
+    cls, var, ax = key
+    return f"{result.class_spec(cls).label}, {ax}, {var}: {_sentence(result, key, st, _verdict(result, key, st))}."
 
 
 def _plt():
@@ -128,10 +126,15 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
     try:
         study = result.study
+        from budget.runner.findings import findings_json, findings_markdown
+
+        fdata = findings_json(result)
         lines = [f"# {study.title}: Monte Carlo validation", "",
                  f"Study `{study.name}` (seed document {study.seed_document}); scenario "
                  f"`{getattr(result.scenario, 'name', '')}` (hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
+                 "## Findings", "", *findings_markdown(result, fdata),
+                 "## Method", "",
                  "Each trial simulates one measurement with known injected errors and runs the lab's "
                  "estimators on it: `published` is the method as its source document writes it, the other "
                  "variants are improved estimators that use only what a lab would know. The truth of each "
@@ -139,11 +142,12 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                  "without the estimator.", "", "## Classes", ""]
         for c in result.classes:
             lines.append(f"* **{c.label}** (`{c.name}`, {c.unit}): {c.description}")
-        lines += ["", "## Findings", ""]
-        lines += [f"* {finding(result, k)}" for k in result.keys()]
         lines += ["", "## Table", "", "```", format_table(result), "```", "",
-                  "`+-se` is the truth's own Monte Carlo standard error; a bias is significant when it exceeds "
-                  "3 standard errors of the trials' mean combined with the truth's.", "",
+                  "`+-se` is the truth's own Monte Carlo standard error; a bias is significant (`sig`) when it "
+                  "exceeds 3 standard errors of the trials' mean combined with the truth's and the class's "
+                  "numerical floor (`exact` below it); `ref` marks a reference variant that does not estimate, "
+                  "`n/d` a quantity the data cannot determine; `bias %` only where the truth is far from zero "
+                  "against its spread.", "",
                   "![estimates](estimates.png)", ""]
         plot_estimates(result, tmp / "estimates.png")
         for sec in study.report_sections(result, tmp):
@@ -155,6 +159,9 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         (tmp / "scenario.toml").write_text(scenario_toml)
         write_json_atomic(tmp / "summary.json", result.to_json())
         (tmp / "report.md").write_text("\n".join(lines))
+        from budget.runner.html import write_html
+
+        write_html(tmp / "report.md", tmp / "report.html", title=f"{study.title}: Monte Carlo validation")
         if out.exists():
             if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
                 shutil.rmtree(out)  # an earlier report (or an empty folder): replaced whole

@@ -114,7 +114,9 @@ class StudyResult:
         if role == "input":
             # given to the method, not measured by it: nothing to validate
             st.update(bias_percent=float("nan"), bias_significant=False)
-        return st
+        from budget.runner.findings import annotate
+
+        return annotate(self, key, st)  # numerical floor, reference variant, undetermined axis
 
     def summary(self) -> dict:
         """``{class: {axis: {variant: statistics}}}``."""
@@ -146,8 +148,17 @@ class StudyResult:
             "class_info": info,
             "classes": s,
             "details": self.details(),
+            **_findings_json(self),
             "elapsed_s": self.elapsed_s, "executor": self.executor,
         }
+
+
+def _findings_json(result) -> dict:
+    from budget.runner.findings import findings_json
+
+    f = findings_json(result)
+    return {"findings": f["findings"], "findings_summary": {"variants": f["variants"],
+                                                           "recommendation": f["recommendation"]}}
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:

@@ -33,6 +33,8 @@ class ScanMirrorStudy(Study):
     title = "GEO two-axis scan mirror: normal deviation from stars and compensated ground error (seed 003)"
     seed_document = "003"
     variants = ("published", "improved", "without_estimate")
+    #: compensation with dtau = 0 (as the paper does for scan 1): a reference, it does not estimate
+    reference_variants = ("without_estimate",)
 
     # ------------------------------------------------------------ scenario
     def default_text(self) -> str:
