@@ -242,7 +242,9 @@ def _variant_summary(result, items: list[dict]) -> dict:
             if rules & {"input", "residual", "reference"} or rules == {"undetermined"}:
                 other.append(cls)
             elif all(f["recovered"] or f["rule"] == "undetermined" for f in fs):
-                rec.append(cls)
+                und = [f["axis"] for f in fs if f["rule"] == "undetermined"]
+                rec.append(cls if not und else
+                           f"{cls} ({', '.join(f['axis'] for f in fs if f['rule'] != 'undetermined')} only)")
             else:
                 notrec.append(cls)
         out[var] = {"recovered": rec, "not_recovered": notrec, "other": other,
@@ -256,7 +258,7 @@ def _recommendation(result, items: list[dict], summary: dict) -> str | None:
     recovers it, said so."""
     per_class: dict = {}
     for f in items:
-        if f["rule"] in ("input", "residual", "reference"):
+        if f["rule"] in ("input", "residual", "reference", "undetermined"):
             continue
         per_class.setdefault(f["class"], {}).setdefault(f["variant"], []).append(f)
     if not per_class:
@@ -271,12 +273,16 @@ def _recommendation(result, items: list[dict], summary: dict) -> str | None:
             none.append(_label(result, cls))
             continue
         best = min(ok, key=ok.get)
-        use.setdefault(best, []).append(_label(result, cls) + ("" if len(ok) == 1 else
-                                                              f" (smallest rms error of {len(ok)} that recover it)"))
+        use.setdefault(best, []).append(_label(result, cls))
     parts = [f"`{v}` for {', '.join(c)}" for v, c in sorted(use.items(), key=lambda kv: -len(kv[1]))]
-    s = ("Use " + "; ".join(parts) + "." if parts else "")
+    s = ("Use " + "; ".join(parts) + " (of the variants that recover a class, the one with the smallest rms "
+         "error)." if parts else "")
     if none:
         s += (" " if s else "") + f"No variant recovers {', '.join(none)} within its claim."
+    undet = sorted({(f["class"], f["axis"]) for f in items if f["rule"] == "undetermined"})
+    if undet:
+        s += (" Not determined by the data (a gauge freedom, no sigma): "
+              + ", ".join(f"{ax} ({_label(result, c)})" for c, ax in undet) + ".")
     return s
 
 
@@ -289,8 +295,9 @@ def findings_json(result) -> dict:
 
 
 def _label(result, cls) -> str:
-    spec = _spec(result, cls)
-    return spec.label if spec else cls
+    name, _, rest = cls.partition(" (")
+    spec = _spec(result, name)
+    return (spec.label if spec else name) + (f" ({rest}" if rest else "")
 
 
 def findings_markdown(result, data: dict | None = None) -> list[str]:

@@ -37,19 +37,19 @@ section#findings{background:#f7fbff;border:1px solid #c9ddf0;border-radius:6px;p
 
 
 def _inline(text: str, base: Path | None) -> str:
-    """Escape, then bold, inline code, images and links."""
-    parts = re.split(r"(`[^`]+`)", text)
-    out = []
-    for p in parts:
-        if len(p) >= 2 and p.startswith("`") and p.endswith("`"):
-            out.append(f"<code>{html.escape(p[1:-1])}</code>")
-            continue
-        p = html.escape(p, quote=False)
-        p = re.sub(r"!\[([^\]]*)\]\(([^)\s]+)\)", lambda m: _img(m.group(1), m.group(2), base), p)
-        p = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', p)
-        p = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", p)
-        out.append(p)
-    return "".join(out)
+    """Escape, then inline code (kept verbatim), images, links and bold (which may hold code)."""
+    codes: list[str] = []
+
+    def keep(m):
+        codes.append(f"<code>{html.escape(m.group(1))}</code>")
+        return f"\x00{len(codes) - 1}\x00"
+
+    p = re.sub(r"`([^`]+)`", keep, text)
+    p = html.escape(p, quote=False)
+    p = re.sub(r"!\[([^\]]*)\]\(([^)\s]+)\)", lambda m: _img(m.group(1), m.group(2), base), p)
+    p = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', p)
+    p = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", p)
+    return re.sub("\x00(\\d+)\x00", lambda m: codes[int(m.group(1))], p)
 
 
 def _img(alt: str, src: str, base: Path | None) -> str:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 import os
+
+import numpy as np
 import shutil
 import tempfile
 from pathlib import Path
@@ -91,7 +93,9 @@ def plot_estimates(result, path: Path) -> Path:
             x = result.samples[k]
             if k in result.trial_truths:
                 x = x - result.trial_truths[k]
-            ax_.hist(x, bins=30, histtype="step", label=k[1])
+            # a constant (or numerically constant) sample has no 30 finite bins
+            flat = not np.ptp(x) > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
+            ax_.hist(x, bins=1 if flat else 30, histtype="step", label=k[1])
         if all(k in result.trial_truths for k in ks):
             ax_.axvline(0.0, color="k", lw=1, label="truth (error 0)")
             ax_.set_xlabel(f"estimate - truth ({spec.unit})")
