@@ -217,3 +217,43 @@ window.addEventListener('load', () => {
     assert shot.stat().st_size > 10_000
     assert write_html(rep / "report.md").read_text() == (rep / "report.html").read_text().replace(
         "<title>rules study: Monte Carlo validation</title>", "<title>rules study: Monte Carlo validation</title>")
+
+
+def test_linecam_gauge_combinations_are_orthogonal_to_the_plans_null_space():
+    """The combinations the line camera reports in place of roll, pitch, dx0, dy0 are
+    determined: orthogonal (in model units) to every null direction that
+    budget.linecam.calibrate.separability finds for stars seen on a line at x' = 0 (an
+    independent eigen-decomposition of the Jacobian); and the derivation from that null
+    space gives the same combinations."""
+    from budget.linecam.calibrate import separability
+    from budget.linecam.model import NominalCamera, Observations, parameter_scale
+    from budget.linecam.study import (GAUGE_COMBINATIONS, STUDY, determined_combinations,
+                                      gauge_combination_vector)
+    from simcam.linecam.camera import camera_truth, sample_y_mm
+    from simcam.linecam.scenario import load_default
+
+    sc = load_default()
+    cam = NominalCamera.from_model(sc.camera)
+    truth = camera_truth(sc, np.zeros(10))
+    rng = np.random.default_rng(0)
+    s = rng.uniform(0, sc.camera.n_pixels - 1, 300)
+    b = truth.body_direction(np.full(s.size, truth.x_line_mm),
+                             sample_y_mm(s, n_pixels=truth.n_pixels, pitch_mm=truth.pitch_mm))
+    obs = Observations(b=b, sample=s, pass_index=np.zeros(s.size, int), hip=np.arange(s.size))
+    sep = separability(cam, obs)
+    assert set(sep.inseparable) == {"roll", "pitch", "dx0", "dy0"}
+    scale = parameter_scale(cam)  # null_space is in px at the line's end per parameter
+    from simcam.linecam.scenario import PARAMETERS
+
+    for _, ang, px, sign in GAUGE_COMBINATIONS:
+        g = gauge_combination_vector(cam.f_px, ang, px, sign)
+        for comb in sep.null_space:
+            n = np.array([comb.get(p, 0.0) for p in PARAMETERS]) / scale  # model units
+            # |g.n| against |g||n|: zero to the 0.05 cut of the reported coefficients
+            assert abs(g @ n) <= 0.06 * np.linalg.norm(g) * np.linalg.norm(n)
+    derived = {(a, p): sg for _, a, p, sg in determined_combinations(sep.null_space, cam.f_px)}
+    for _, ang, px, sign in GAUGE_COMBINATIONS:
+        assert derived[(ang, px)] == pytest.approx(sign, rel=0.06)
+    spec = {c.name: c for c in STUDY.classes(sc)}
+    assert spec["exterior"].undetermined == ("roll", "pitch")
+    assert spec["principal_point"].undetermined == ("dx0", "dy0")

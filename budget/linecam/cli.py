@@ -128,6 +128,9 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
                 plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
         (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
                                        + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+        from budget.runner.html import write_html  # its self-contained twin, simulate.html
+
+        write_html(d / "simulate.md")
         click.echo(f"report: {d / 'simulate.md'}")
 
 
@@ -364,8 +367,22 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
               "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items() if m != "lookangle"}}
         figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                 plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
-        (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"
+        rows = ["| method | parameter | value | 1-sigma | unit |", "|---|---|---|---|---|"]
+        for m, pm in payload["methods"].items():
+            for p in pm.get("solved", []):
+                rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
+                            else f"| {m} | {p} | {pm['theta'][p]:.5g} | {pm['sigma'][p]:.3g} | {pm['units'][p]} |")
+            for name, cmb in pm.get("determined_combinations", {}).items():
+                rows.append(f"| {m} | {name} | {cmb['value']:.5g} | {cmb['sigma']:.3g} | arcsec |")
+        note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
+                "stars do determine are listed in their place." if any(
+                    pm.get("not_determined") for pm in payload["methods"].values()) else "")
+        (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
+                                        + (note + "\n\n" if note else "")
                                         + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+        from budget.runner.html import write_html  # its self-contained twin, calibrate.html
+
+        write_html(d / "calibrate.md")
         click.echo(f"report: {d / 'calibrate.md'}")
 
 

@@ -80,6 +80,9 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
         md += [f"| {n} | {a:.4f} | {b:.4f} |" for n, a, b in zip(sob["names"], sob["S1"], sob["ST"])]
         md += [""] + [f"![{f.stem}]({f.name})" for f in figs]
         (out / "report.md").write_text("\n".join(md) + "\n")
+        from budget.runner.html import write_html  # its self-contained twin, report.html
+
+        write_html(out / "report.md")
         echo(f"report: {out / 'report.md'}")
     return res
 
