@@ -82,6 +82,22 @@ class StudyResult:
     aux: dict[str, np.ndarray] = field(default_factory=dict)
     _details: dict | None = field(default=None, repr=False)
 
+    def __repr__(self) -> str:
+        from budget.api import result_repr  # short: the samples are in .samples
+
+        return result_repr(self)
+
+    def _repr_html_(self) -> str:
+        from budget.api import result_html
+
+        return result_html(self)
+
+    def to_dataframe(self):
+        """Tidy statistics (pandas): class, axis, variant, statistic, value, unit."""
+        from budget.api import result_dataframe
+
+        return result_dataframe(self)
+
     def details(self) -> dict:
         """:meth:`Study.details` of this result (computed once: the JSON and the report share it)."""
         if self._details is None:
