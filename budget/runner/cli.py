@@ -88,6 +88,8 @@ def study_group(study_name: str) -> click.Group:
             from budget.runner.registry import get_study
 
             self.add_command(validate_command_for(study_name))
+            from budget.runner.scenario_cmd import scenario_command_for  # issue 23 item 7
+            self.add_command(scenario_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
 
