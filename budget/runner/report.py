@@ -77,7 +77,15 @@ def _plt():
 
 
 def plot_estimates(result, path: Path) -> Path:
-    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked."""
+    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked.
+
+    Variants are drawn as outlines with their own line style and width (the widest first), so
+    that identical histograms stay visible; a reference variant is marked in the legend;
+    titles are wrapped, never clipped; a dimensionless class has no unit on its axis."""
+    import textwrap
+
+    from budget.runner.findings import _unit
+
     plt = _plt()
     keys = result.keys()
     groups: dict = {}
@@ -86,25 +94,31 @@ def plot_estimates(result, path: Path) -> Path:
     n = len(groups)
     ncol = min(3, n)
     nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.4 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.8 * ncol, 3.7 * nrow), squeeze=False)
+    styles = [("-", 2.6), ("--", 1.8), (":", 1.4), ("-.", 1.2)]
+    refs = set(getattr(result.study, "reference_variants", ()))
     for ax_, ((cls, ax), ks) in zip(axes.flat, groups.items()):
         spec = result.class_spec(cls)
-        for k in ks:
+        unit = _unit(spec.unit)
+        unit_s = "" if unit in ("", "1") else f" ({unit})"
+        for i, k in enumerate(ks):
             x = result.samples[k]
             if k in result.trial_truths:
                 x = x - result.trial_truths[k]
             # a constant (or numerically constant) sample has no 30 finite bins
             flat = not np.ptp(x) > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
-            ax_.hist(x, bins=1 if flat else 30, histtype="step", label=k[1])
+            ls, lw = styles[i % len(styles)]
+            ax_.hist(x, bins=1 if flat else 30, histtype="step", linestyle=ls, linewidth=lw,
+                     label=k[1] + (" (reference)" if k[1] in refs else ""))
         if all(k in result.trial_truths for k in ks):
             ax_.axvline(0.0, color="k", lw=1, label="truth (error 0)")
-            ax_.set_xlabel(f"estimate - truth ({spec.unit})")
+            ax_.set_xlabel(f"estimate - truth{unit_s}")
         else:
             t = result.truths[(cls, ax)].value
             ax_.axvline(t, color="k", lw=1, label="truth")
-            ax_.set_xlabel(f"estimate ({spec.unit})")
+            ax_.set_xlabel(f"estimate{unit_s}")
         ax_.set_ylabel("trials")
-        ax_.set_title(f"{spec.label} ({ax})", fontsize=9)
+        ax_.set_title("\n".join(textwrap.wrap(f"{spec.label} ({ax})", 48)), fontsize=9)
         ax_.legend(fontsize=7)
     for ax_ in list(axes.flat)[n:]:
         ax_.set_visible(False)
@@ -112,6 +126,19 @@ def plot_estimates(result, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def estimates_caption(result, fdata: dict) -> str:
+    """The estimates figure's caption: what it shows, and its finding (from the findings)."""
+    biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
+                     if f["rule"] == "biased"})
+    s = ("Each panel: the estimates of one class and axis over the trials (for per-trial truths, estimate "
+         "minus the trial's truth), one outline per variant; the black line is the truth.")
+    if biased:
+        s += " Off the line (significantly biased): " + ", ".join(biased) + "."
+    else:
+        s += " Every variant's histogram is centred on the truth within its standard error."
+    return s
 
 
 def write_report(result, out_dir: str | os.PathLike) -> Path:
@@ -152,7 +179,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                   "numerical floor (`exact` below it); `ref` marks a reference variant that does not estimate, "
                   "`n/d` a quantity the data cannot determine; `bias %` only where the truth is far from zero "
                   "against its spread.", "",
-                  "![estimates](estimates.png)", ""]
+                  "![estimates](estimates.png)", "", estimates_caption(result, fdata), ""]
         plot_estimates(result, tmp / "estimates.png")
         for sec in study.report_sections(result, tmp):
             lines += [f"## {sec.title}", "", sec.markdown, ""]

@@ -12,9 +12,9 @@ For each key ``(class, variant, axis)`` with estimates ``x_k`` (k = 1..n):
   truths), with the standard error ``s / sqrt(2 (n - 1))`` (normal approximation);
 * a bias is *significant* when ``|b| > 3`` standard errors (the runner also asks it to
   exceed the class's numerical floor, :mod:`budget.runner.findings`);
-* the bias in percent of the truth only where ``|T| > 3`` times the truth's spread (the sd
-  of the per-trial truths, ``truth_sd``, or ``s_T``): a percentage of a truth near zero
-  against its spread says nothing;
+* the bias in percent of the truth only where the truth is far from zero against its
+  spread: a fixed truth beyond 3 ``s_T``; per-trial truths all of one sign, or their mean
+  beyond 2 sd of them (``truth_sd``); a percentage of a truth near zero says nothing;
 * coverage, where the estimator states a 1-sigma uncertainty ``u_k``: the fraction of trials
   with ``|e_k| <= u_k`` (expected 0.6827) and ``<= 2 u_k`` (expected 0.9545), each with its
   binomial standard error, and the sd of ``e_k / u_k`` (1 when the stated uncertainty is
@@ -46,8 +46,13 @@ def key_statistics(estimates, *, truth: float | None = None, truth_se: float = 0
         spread = float(e.std(ddof=1)) if n > 1 else 0.0
         se_bias = spread / math.sqrt(n)
         truth_spread = float(t.std(ddof=1)) if n > 1 else 0.0
+        # truths of one sign (an rms, a stage count) are far from zero whatever their spread
+        if np.all(t > 0) or np.all(t < 0):
+            truth_spread = 0.0
+        else:
+            truth_spread *= 2.0 / 3.0  # else the mean beyond 2 sd of the trials' truths
         extra = {"rms_error": float(math.sqrt(np.mean(e * e))), "truth_se": 0.0,
-                 "truth_sd": truth_spread, "per_trial_truth": True}
+                 "truth_sd": float(t.std(ddof=1)) if n > 1 else 0.0, "per_trial_truth": True}
     else:
         e = x - truth
         truth_value = float(truth)
