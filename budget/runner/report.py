@@ -162,7 +162,8 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         fdata = findings_json(result)
         lines = [f"# {study.title}: Monte Carlo validation", "",
                  f"Study `{study.name}` (seed document {study.seed_document}); scenario "
-                 f"`{getattr(result.scenario, 'name', '')}` (hash `{study.scenario_hash(result.scenario)}`), "
+                 + (f"`{getattr(result.scenario, 'name', '')}` " if getattr(result.scenario, "name", "") else "")
+                 + f"(hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
                  "## Findings", "", *findings_markdown(result, fdata),
                  "## Method", "",
@@ -172,7 +173,8 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                  "class is the quantity the method claims to measure, computed from the injected physics "
                  "without the estimator.", "", "## Classes", ""]
         for c in result.classes:
-            lines.append(f"* **{c.label}** (`{c.name}`, {c.unit}): {c.description}")
+            unit = "dimensionless" if c.unit.strip() in ("1", "") else c.unit
+            lines.append(f"* **{c.label}** (`{c.name}`, {unit}): {c.description}")
         lines += ["", "## Table", "", "```", format_table(result), "```", "",
                   "`+-se` is the truth's own Monte Carlo standard error; a bias is significant (`sig`) when it "
                   "exceeds 3 standard errors of the trials' mean combined with the truth's and the class's "
