@@ -165,7 +165,7 @@ def _sentence(result, key, st: dict, verdict: str) -> str:
     unit = spec.unit if spec else ""
     b, se = st["bias"], st["se_bias"]
     pct = st.get("bias_percent", float("nan"))
-    pct_s = f" ({pct:+.1f} % of the truth)" if math.isfinite(pct) and pct != 0 else ""
+    pct_s = f", {pct:+.1f} % of the truth," if math.isfinite(pct) and pct != 0 else ""
     if verdict == "input":
         return f"an input of the method ({with_unit(st['mean'], unit)}), taken as given: nothing to validate"
     if verdict == "residual":
@@ -345,9 +345,15 @@ def findings_lines(result, data: dict | None = None) -> list[str]:
             continue
         out.append(f"  {var}: recovers {', '.join(s['recovered']) or 'none'}; "
                    f"not: {', '.join(s['not_recovered']) or 'none'}")
+        shown: dict = {}
         for f in fs:
             if f["rule"] in ("biased", "coverage", "undetermined", "unresolved"):
-                out.append(f"    {f['class']} {f['axis']}: {f['text']}")
+                shown[f["class"]] = shown.get(f["class"], 0) + 1
+                if shown[f["class"]] <= 3:  # a class of many axes: three, then a count
+                    out.append(f"    {f['class']} {f['axis']}: {f['text']}")
+        for cls, k in shown.items():
+            if k > 3:
+                out.append(f"    {cls}: {k - 3} more axes not recovered (see the report or the JSON's findings)")
     if data["recommendation"]:
         out.append(f"  {data['recommendation']}")
     return out
