@@ -257,3 +257,23 @@ def test_linecam_gauge_combinations_are_orthogonal_to_the_plans_null_space():
     spec = {c.name: c for c in STUDY.classes(sc)}
     assert spec["exterior"].undetermined == ("roll", "pitch")
     assert spec["principal_point"].undetermined == ("dx0", "dy0")
+
+
+def test_starcam_cause_of_the_published_hsfe_follows_the_numbers():
+    """Seed 000's likely cause ("measures temporal noise") is given only when the published
+    HSFE's mean sits nearer the temporal-noise floor TE x sqrt(2/frames) than the truth."""
+    from types import SimpleNamespace
+
+    from budget.starcam.study import STUDY as STARCAM
+
+    scn = SimpleNamespace(protocols=SimpleNamespace(hsfe=SimpleNamespace(frames=30, conditions=12, step_px=0.2)))
+    res = SimpleNamespace(scenario=scn, samples={}, truths={("te", "x"): Truth(0.21, 0.0)})
+    floor = 0.21 * (2 / 30) ** 0.5  # 0.0542
+    at_floor = STARCAM.likely_cause(res, ("hsfe", "published", "x"), {"mean": 0.055, "truth": 0.043, "bias": 0.012})
+    assert "measures temporal noise" in at_floor and f"{floor:.3g}" in at_floor
+    # the noisy camera: the static error dominates, the mean (0.51) is far from the floor
+    far = STARCAM.likely_cause(res, ("hsfe", "published", "x"), {"mean": 0.51, "truth": 1.06, "bias": -0.55})
+    assert "measures temporal noise" not in far and "depends on which dominates" in far
+    # the improved estimator's cause only for a low bias
+    assert STARCAM.likely_cause(res, ("hsfe", "improved", "x"), {"mean": 0.03, "truth": 0.043, "bias": -0.013})
+    assert STARCAM.likely_cause(res, ("hsfe", "improved", "x"), {"mean": 0.05, "truth": 0.043, "bias": 0.007}) is None
