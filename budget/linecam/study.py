@@ -174,6 +174,17 @@ class LineCamStudy(Study):
     def chunk_trials(self, scenario) -> int:
         return 20
 
+    def likely_cause(self, result, key, stats):
+        cls, var, ax = key
+        if cls == "los_max":
+            return ("the estimate is the largest stated 3-sigma, the truth the largest actual error of one "
+                    "realisation: different quantities, equal only by chance.")
+        if cls in ("los_rms", "los_ms") and stats["bias"] > 0:
+            return "the stated covariance is larger than the actual scatter of the calibrated field."
+        if cls in ("los_rms", "los_ms") and stats["bias"] < 0:
+            return "the stated covariance is smaller than the actual scatter of the calibrated field."
+        return None
+
     # ------------------------------------------------------------ report and commands
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from .report import report_sections

@@ -156,6 +156,22 @@ class WhiskbroomStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}   # every class's truth is drawn per trial
 
+    def likely_cause(self, result, key, stats):
+        """The published sinc's omissions (module docstring), where the numbers show them."""
+        cls, var, ax = key
+        if var == "published" and cls == "mtf_nyquist" and ax == "along" and stats["bias"] > 0:
+            n = result.scenario.camera.n_phase
+            return (f"the published sinc ignores the charge clocking (a factor sinc(pi/{2 * n}) = "
+                    f"{float(np.sinc(0.5 / n)):.4f} at Nyquist), so it overstates the MTF.")
+        if var == "published" and cls == "mtf_nyquist" and ax == "cross":
+            return "the published model has no cross-track drift: it states an MTF of 1 across track."
+        if var == "published" and cls == "stage_limit" and stats["bias"] > 0:
+            return "it follows from the published MTF, which is too high: more stages pass the threshold."
+        if var == "edge":
+            return ("the slanted-edge measurement's own errors on a noisy simulated edge image "
+                    "(noise, the edge's sampling and the aperture correction).")
+        return None
+
     # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from budget.whiskbroom import plots
