@@ -1,8 +1,15 @@
 """Shared helpers of the benchmark scripts: machine description, best-of-N timer, table.
 
-Run the scripts from the repository root, e.g. ``python benchmarks/bench_detector_noise.py``,
-or all of them through ``python benchmarks/run_all.py``, which writes ``docs/benchmarks.md``
-from the ``RESULT {json}`` line that each script prints last (see :func:`emit_result`).
+Run the scripts from the repository root, e.g. ``python benchmarks/bench_detector_noise.py``
+or ``python -m benchmarks.bench_detector_noise``, or all of them through
+``python benchmarks/run_all.py``, which writes ``docs/benchmarks.md`` from the
+``RESULT {json}`` line that each script prints last (see :func:`emit_result`).
+
+What every script shares comes from here: the argument parser with ``--quick``
+(:func:`bench_parser`), the machine line (:func:`print_machine`), timers, the table, the
+figures and the RESULT line. The only lines a script repeats are the two that put the
+repository root on ``sys.path`` when it runs as a file (``if not __package__: ...``), since
+this module cannot be imported before them.
 """
 
 from __future__ import annotations
@@ -15,10 +22,14 @@ import platform
 import time
 import tracemalloc
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
-__all__ = ["machine_description", "best_of", "best_of_wall_cpu", "peak_traced_mb",
-           "format_table", "add_quick_flag", "figure", "emit_result", "optional_import",
-           "RESULT_PREFIX"]
+__all__ = ["machine_description", "print_machine", "best_of", "best_of_wall_cpu", "peak_traced_mb",
+           "format_table", "add_quick_flag", "bench_parser", "figure", "emit_result",
+           "optional_import", "RESULT_PREFIX", "REPO_ROOT"]
+
+#: The repository root (the folder holding ``benchmarks/``, ``tests/``, ``docs/``).
+REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: Prefix of the one machine-readable line a benchmark prints last (parsed by run_all.py).
 RESULT_PREFIX = "RESULT "
@@ -59,6 +70,13 @@ def machine_description() -> dict[str, str]:
     except OSError:  # pragma: no cover
         pass
     return info
+
+
+def print_machine(**extra: object) -> None:
+    """Print the ``machine: k=v, ...`` line of :func:`machine_description`, then ``extra``
+    (e.g. the versions of the peers a benchmark measured)."""
+    info = machine_description() | {k: str(v) for k, v in extra.items()}
+    print("machine: " + ", ".join(f"{k}={v}" for k, v in info.items()), flush=True)
 
 
 def best_of(fn: Callable[[], object], *, repeat: int = 5,
@@ -129,6 +147,14 @@ def add_quick_flag(ap: argparse.ArgumentParser) -> None:
     """Add ``--quick``: a smoke run with fewer repeats/trials (figures not meaningful)."""
     ap.add_argument("--quick", action="store_true",
                     help="smoke run: fewer repeats and trials (timings not meaningful)")
+
+
+def bench_parser(doc: str) -> argparse.ArgumentParser:
+    """The parser of a benchmark script: described by its docstring's first line, with
+    ``--quick`` (:func:`add_quick_flag`) already added."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    add_quick_flag(ap)
+    return ap
 
 
 def optional_import(name: str):

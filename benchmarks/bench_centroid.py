@@ -39,24 +39,22 @@ Run: ``python benchmarks/bench_centroid.py [--n 10000] [--repeat 5] [--seed 1] [
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
 import numpy as np
 from scipy.special import erf
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import (  # noqa: E402
-    add_quick_flag,
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
     best_of,
     emit_result,
     figure,
     format_table,
-    machine_description,
     optional_import,
+    print_machine,
 )
 
 from budget.centroid.core import (  # noqa: E402
@@ -87,12 +85,11 @@ def make_windows(n: int, *, seed: int, sigma_px: float = 1.0, flux_e: float = 20
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--n", type=int, default=10_000)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--n-2dg", type=int, default=200, help="windows for centroid_2dg")
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.n, args.repeat, args.n_2dg = min(args.n, 1000), min(args.repeat, 2), min(args.n_2dg, 10)
@@ -102,10 +99,8 @@ def main() -> None:
     bg, thr = 100.0, 50.0          # background (e-) and threshold above it (about 4.5 sigma)
     win, xt, yt = make_windows(n, seed=args.seed)
 
-    info = machine_description() | {
-        "photutils": photutils.__version__ if photutils else "not installed",
-        "sep": sep.__version__ if sep else "not installed"}
-    print("machine: " + ", ".join(f"{k}={v}" for k, v in info.items()))
+    print_machine(photutils=photutils.__version__ if photutils else "not installed",
+                  sep=sep.__version__ if sep else "not installed")
     print(f"{n} windows {SIZE}x{SIZE}, Gaussian PSF sigma 1 px, 2e4 e-, background {bg} e-, "
           f"read noise 5 e-; threshold {thr} e- above background; best of {args.repeat}\n")
 

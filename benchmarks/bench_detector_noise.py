@@ -28,7 +28,6 @@ Usage: ``python benchmarks/bench_detector_noise.py [--repeat 5] [--pyxel-repeat 
 
 from __future__ import annotations
 
-import argparse
 import os
 import resource
 import sys
@@ -38,21 +37,20 @@ import time
 import numba
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))  # the repository root, if not installed
-from _common import (  # noqa: E402
-    add_quick_flag,
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
     best_of_wall_cpu,
     emit_result,
     figure,
     format_table,
-    machine_description,
     optional_import,
     peak_traced_mb,
+    print_machine,
 )
 
-from simcam.starcam.detector import DetectorParams, expose  # noqa: E402
+from simcam.detector import DetectorParams, expose  # noqa: E402
 from simcam.rng import key_from_seed  # noqa: E402
 
 ROWS, COLS, CHIP_COLS = 2048, 4096, 2048
@@ -234,20 +232,17 @@ def time_pyxel(pyxel, sig: np.ndarray, repeat: int) -> tuple[float, float, np.nd
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeat", type=int, default=5, help="timed repeats (best is reported)")
     ap.add_argument("--pyxel-repeat", type=int, default=2, help="timed pyxel exposures")
-    add_quick_flag(ap)
     args = ap.parse_args(argv)
     if args.quick:
         args.repeat, args.pyxel_repeat = min(args.repeat, 2), 1
     galsim = optional_import("galsim")
     pyxel = optional_import("pyxel")
 
-    info = machine_description() | {
-        "galsim": galsim.__version__ if galsim else "not installed",
-        "pyxel": pyxel.__version__ if pyxel else "not installed"}
-    print("machine: " + "; ".join(f"{k}={v}" for k, v in info.items()))
+    print_machine(galsim=galsim.__version__ if galsim else "not installed",
+                  pyxel=pyxel.__version__ if pyxel else "not installed")
     sig = make_signal()
     npix = sig.size
     t0 = time.perf_counter()
@@ -324,7 +319,7 @@ def main(argv=None) -> int:
         figure("chain_peak_mb", "detector chain, peak memory of one frame (MB, tracemalloc)",
                ours_mb, "MB", peer="plain numpy Generator", peer_value=numpy_mb),
     ], quick=args.quick, galsim=galsim.__version__ if galsim else None,
-        pyxel=pyxel.__version__ if pyxel else None)
+                  pyxel=pyxel.__version__ if pyxel else None)
     return 0
 
 

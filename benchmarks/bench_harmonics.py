@@ -13,33 +13,30 @@ Run: ``python benchmarks/bench_harmonics.py [--trials 10000] [--repeats 5] [--qu
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import sys
 import time
 
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import add_quick_flag, emit_result, figure, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import bench_parser, emit_result, figure, print_machine  # noqa: E402
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--trials", type=int, default=10000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--seed", type=int, default=1)
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeats = min(args.repeats, 2)
 
     from budget.inductosyn.validate import prepare, run_trials
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    sc = default_scenario()
+    sc = default()
     t0 = time.perf_counter()
     p = prepare(scenario=sc, dense_step_deg=0.1)
     t_prep = time.perf_counter() - t0
@@ -49,7 +46,7 @@ def main() -> None:
         t0 = time.perf_counter()
         run_trials(prepared=p, trials=args.trials, seed=args.seed)
         times.append(time.perf_counter() - t0)
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     print(f"scenario preparation (truth on {p.dense_true_deg.size} points, face expansions, "
           f"pseudo-inverses): {t_prep:.3f} s")
     print(f"{args.trials} full calibration trials (24+24+23+23 points, in-sequence and joint "

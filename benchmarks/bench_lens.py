@@ -20,7 +20,6 @@ Usage: ``python benchmarks/bench_lens.py [--repeat 5] [--table-repeat 3] [--quic
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -28,11 +27,18 @@ import time
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-sys.path.insert(2, os.path.join(os.path.dirname(_HERE), "tests"))
-from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    REPO_ROOT,
+    bench_parser,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
+
+sys.path.insert(1, str(REPO_ROOT / "tests"))  # the tests' plain-numpy reference tracer
 
 from simcam.starcam.lens.prescription import load_prescription  # noqa: E402
 from simcam.starcam.lens.products import LensProducts, compute_products  # noqa: E402
@@ -56,10 +62,9 @@ def span(ts, unit=1e3, fmt="{:.1f}"):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--table-repeat", type=int, default=3)
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeat, args.table_repeat = 1, 1
@@ -114,7 +119,7 @@ def main() -> None:
         load_t = timings(lambda: LensProducts.load(path), args.repeat)
 
     n_rays = 100_000
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     print(f"tracer: Mitsuba {tr.variant}, LLVM {'.'.join(map(str, tr.backend.llvm_version))}; "
           f"lens {presc.name}, {len(presc.surfaces)} surfaces")
     print(format_table(

@@ -22,7 +22,6 @@ Run: ``python benchmarks/bench_linecam.py [--repeat 7] [--trials 1000] [--skip-v
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -30,17 +29,24 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import add_quick_flag, best_of, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
+    best_of,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--skip-validation", action="store_true")
     ap.add_argument("--only-validation", action="store_true")
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeat, args.trials = min(args.repeat, 2), min(args.trials, 20)
@@ -68,7 +74,7 @@ def main() -> None:
 
     if args.only_validation:
         figs.append(_validation(args, rows, STUDY, scn))
-        print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+        print_machine()
         print(format_table(["what", "size", "ms"], rows))
         emit_result("linecam", figs, quick=args.quick, trials=args.trials)
         return
@@ -153,7 +159,7 @@ def main() -> None:
     if not args.skip_validation:
         figs.append(_validation(args, rows, STUDY, scn))
 
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     print(format_table(["what", "size", "ms"], rows))
     emit_result("linecam", figs, quick=args.quick, trials=args.trials)
 

@@ -23,7 +23,6 @@ Usage: ``python benchmarks/bench_render.py [--repeat 5] [--quick]``
 
 from __future__ import annotations
 
-import argparse
 import os
 import resource
 import sys
@@ -31,22 +30,21 @@ import time
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import (  # noqa: E402
-    add_quick_flag,
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
     best_of_wall_cpu,
     emit_result,
     figure,
     format_table,
-    machine_description,
     optional_import,
     peak_traced_mb,
+    print_machine,
 )
 
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
-from simcam.starcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402
 
 
@@ -88,15 +86,14 @@ def galsim_frame(galsim, scn, shape: tuple[int, int], background_e: float, seed:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--frames", type=int, default=2000, help="frames of the windows benchmark")
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeat, args.frames = min(args.repeat, 2), min(args.frames, 200)
     galsim = optional_import("galsim")
-    scn = default_scenario()
+    scn = default()
     cam = StarCamera(scn)
     placement = Placement(layout=star_grid(scn))
     t0 = time.perf_counter()
@@ -148,7 +145,7 @@ def main() -> None:
     else:
         peer_rows = [("peer: GalSim not installed", "", "")]
 
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     print(format_table(
         ["what", "wall", "CPU (all threads)"],
         [

@@ -19,7 +19,6 @@ Usage: ``python benchmarks/bench_runner.py [--trials 200] [--repeat 2] [--quick]
 
 from __future__ import annotations
 
-import argparse
 import os
 import subprocess
 import sys
@@ -27,10 +26,15 @@ import tempfile
 import time
 import warnings
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
 
 
 #: the fixed-cost runs' scenario: the default with a light HSFE truth (see the docstring)
@@ -94,14 +98,13 @@ def _work_times(scenario_path: str | None = None, repeat: int = 5) -> tuple[floa
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--repeat", type=int, default=2)
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.trials, args.repeat = min(args.trials, 10), 1
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     with tempfile.TemporaryDirectory() as tmp:
         light = _light_scenario(tmp)
         small = ["validate", light, "--trials", "2", "--workers", "1", "--no-progress"]

@@ -15,33 +15,30 @@ Usage: ``python benchmarks/bench_scanmirror.py [--trials 1000] [--workers 2] [--
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
 import warnings
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import (  # noqa: E402
-    add_quick_flag,
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
     best_of_wall_cpu,
     emit_result,
     figure,
     format_table,
-    machine_description,
+    print_machine,
 )
 
 import numpy as np  # noqa: E402
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=5)
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.trials, args.repeat = min(args.trials, 20), min(args.repeat, 2)
@@ -53,7 +50,7 @@ def main() -> None:
     from simcam.scanmirror.world import World
 
     scn = STUDY.load_scenario()
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     rows = []
     wall, cpu = best_of_wall_cpu(lambda: World(scn).timeline(0.1), repeat=args.repeat)
     tl = World(scn).timeline(0.1)

@@ -32,17 +32,21 @@ Usage: ``python benchmarks/bench_sweep.py [--points 16] [--repeat 2] [--dask]
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import sys
 import tempfile
 import time
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
 
 
 def _grid_file(d: str, points: int, hsfe_truth_frames: int) -> str:
@@ -50,6 +54,7 @@ def _grid_file(d: str, points: int, hsfe_truth_frames: int) -> str:
     path = os.path.join(d, "bench.toml")
     with open(path, "w") as fh:
         fh.write(f"""name = "bench: HSFE vs PSF width and PRNU"
+kind = "starcam"
 seed = 1
 evaluate = "truth"
 [fixed]
@@ -100,13 +105,14 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     import numpy as np
 
     from budget.sweeps.evaluate import PointTask, evaluate_point
-    from budget.starcam.validate import worker_init
-    from simcam.starcam.scenario import default_scenario, with_updates
+    from budget.runner.executors import worker_setup
+    from budget.starcam.study import STUDY
+    from simcam.starcam.scenario import default, with_updates
 
-    worker_init()  # one numba thread, as in a worker process
-    full = default_scenario()
+    worker_setup(STUDY.worker_init)  # one numba thread, as in a worker process
+    full = default()
     base = with_updates(full, {"validation": {"hsfe_truth_frames": hsfe_truth_frames}})
-    evaluate_point(PointTask("grid", 0, "camera", "validate", base, 1, trials=2))  # warm-up (JIT)
+    evaluate_point(PointTask("grid", 0, "starcam", "validate", base, 1, trials=2))  # warm-up (JIT)
     rows = []
     n = 0
     for k in trials_list:
@@ -117,7 +123,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
             n += 1
             scn = with_updates(base, {"seed": base.seed + n})
             t0 = time.perf_counter()
-            evaluate_point(PointTask("grid", 0, "camera", "validate", scn, 100 + n, trials=k))
+            evaluate_point(PointTask("grid", 0, "starcam", "validate", scn, 100 + n, trials=k))
             ts.append(time.perf_counter() - t0)
         rows.append((k, min(ts), max(ts)))
         print(f"  {k} trials: best {min(ts):.2f} s", flush=True)
@@ -130,7 +136,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     k_full = trials_list[0]
     scn = with_updates(full, {"seed": full.seed + n + 1})
     t0 = time.perf_counter()
-    evaluate_point(PointTask("grid", 0, "camera", "validate", scn, 100 + n + 1, trials=k_full))
+    evaluate_point(PointTask("grid", 0, "starcam", "validate", scn, 100 + n + 1, trials=k_full))
     t_full = time.perf_counter() - t0
     print(f"  {k_full} trials, HSFE truth of {full.validation.hsfe_truth_frames} frames per phase "
           f"(the scenario's own), once: {t_full:.2f} s", flush=True)
@@ -138,7 +144,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--points", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--dask", action="store_true", help="also a Dask LocalCluster of 2 workers")
@@ -147,12 +153,11 @@ def main() -> None:
                     help="validation.hsfe_truth_frames of the timed points (even, >= 4; the scenario's: 2000)")
     ap.add_argument("--skip-throughput", action="store_true")
     ap.add_argument("--skip-trials", action="store_true")
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.points, args.repeat, args.trials_list = min(args.points, 4), 1, "2,4"
     figs = []
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()), flush=True)
+    print_machine()
     d = tempfile.mkdtemp(prefix="bench_sweep_")
     try:
         if not args.skip_throughput:

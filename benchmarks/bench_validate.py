@@ -14,38 +14,41 @@ Usage: ``python benchmarks/bench_validate.py [--repeat 10] [--trials 1000] [--wo
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import sys
 import time
 import warnings
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import add_quick_flag, emit_result, figure, format_table, machine_description  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
+    emit_result,
+    figure,
+    format_table,
+    print_machine,
+)
 
 from budget.starcam import validate as V  # noqa: E402
 from budget.runner.executors import default_workers  # noqa: E402
 from budget.runner.run import run_study  # noqa: E402
 from budget.starcam.study import STUDY  # noqa: E402
-from simcam.starcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.scenario import default  # noqa: E402
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeat", type=int, default=10)
     ap.add_argument("--trials", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=default_workers())
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeat, args.trials = min(args.repeat, 3), min(args.trials, 20)
     import numba
 
     numba.set_num_threads(1)
-    scn = default_scenario()
+    scn = default()
     warnings.simplefilter("ignore")
     V.run_trial(scn, 0, 0)
     times = []
@@ -64,7 +67,7 @@ def main() -> None:
     t0 = time.perf_counter()
     res = run_study(STUDY, scn, trials=args.trials, seed=1, workers=args.workers)
     total = time.perf_counter() - t0
-    print("machine:", ", ".join(f"{k}={v}" for k, v in machine_description().items()))
+    print_machine()
     print(format_table(
         ["what", "time"],
         [

@@ -17,28 +17,25 @@ warmed up first; record the machine load printed with the figures. The last line
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, _HERE)
-sys.path.insert(1, os.path.dirname(_HERE))
-from _common import (  # noqa: E402
-    add_quick_flag,
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import (  # noqa: E402
+    bench_parser,
     best_of_wall_cpu,
     emit_result,
     figure,
     format_table,
-    machine_description,
+    print_machine,
 )
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--trials", type=int, default=1000)
-    add_quick_flag(ap)
     args = ap.parse_args()
     if args.quick:
         args.repeats = min(args.repeats, 2)
@@ -87,7 +84,7 @@ def main() -> None:
     rows.append((f"slanted-edge TDI image {t.edge_lines} x {t.edge_columns}, numba", f"{wall * 1e3:.1f}",
                  f"{cpu * 1e3:.1f}", "-"))
 
-    print("machine:", ", ".join(f"{k} {v}" for k, v in machine_description().items()))
+    print_machine()
     print(format_table(("what", "best wall ms", "best CPU ms", "target ms"), rows))
     full = args.trials == 1000
     emit_result("whiskbroom", [

@@ -45,8 +45,9 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(HERE))
-from _common import RESULT_PREFIX, format_table  # noqa: E402
+if not __package__:  # run as a file (python benchmarks/run_all.py): the repository root on the path
+    sys.path.insert(0, str(ROOT))
+from benchmarks._common import RESULT_PREFIX, format_table  # noqa: E402
 
 #: Distributions whose versions the page records (absent ones are listed as such).
 VERSIONED = ("simcam-budget", "numpy", "scipy", "numba", "astropy", "pandas", "photutils",
@@ -162,7 +163,11 @@ runs every `benchmarks/bench_*.py` in turn and writes it from what they printed;
 template text in `benchmarks/run_all.py`, not this page. Each benchmark's last line,
 `RESULT {json}`, carries its key figures, from which the summary table below is built.
 The peers install with `pip install -e '.[bench]'` (photutils, GalSim, pyxel-sim, SEP); one
-that is missing is reported as "not installed". Timings are never asserted in the test suite. On a shared virtual machine repeated runs
+that is missing is reported as "not installed". `benchmarks/` is a package: the scripts share
+their parser, machine line, timers and `RESULT` line through `benchmarks/_common.py`, and each
+runs as a file (`python benchmarks/bench_render.py`) or as a module
+(`python -m benchmarks.bench_render`). The harness's own tests (`benchmarks/test_run_all.py`)
+run with the project's test command; timings are never asserted in the test suite. On a shared virtual machine repeated runs
 vary by 10-40 % (more when other jobs run): the load before and after each benchmark is
 recorded below; compare figures only within one run."""
 
@@ -193,9 +198,10 @@ def discover(bench_dir: Path = HERE) -> dict[str, Path]:
 
 
 def supports_quick(script: Path) -> bool:
-    """Whether the script accepts ``--quick`` (it calls ``add_quick_flag`` or names it)."""
+    """Whether the script accepts ``--quick`` (it calls ``bench_parser`` or ``add_quick_flag``,
+    or names it)."""
     text = script.read_text(encoding="utf-8")
-    return "add_quick_flag(" in text or '"--quick"' in text
+    return "bench_parser(" in text or "add_quick_flag(" in text or '"--quick"' in text
 
 
 def parse_result(stdout: str) -> dict | None:

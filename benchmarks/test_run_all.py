@@ -1,7 +1,8 @@
 """Tests of run_all.py's bookkeeping (not of any timing): ``python -m pytest -q benchmarks/test_run_all.py``.
 
 They live beside the scripts (not in ``tests/``) because they test the benchmark harness;
-no timing is asserted. Fake benchmark scripts written to a temporary folder exercise the
+``python -m pytest -q`` collects them too (``testpaths``). No timing is asserted, no
+benchmark runs and no optional peer (galsim, pyxel, photutils, sep) is needed. Fake benchmark scripts written to a temporary folder exercise the
 statuses a real run can meet: a RESULT line, none, a failure, a timeout, no ``--quick``.
 """
 
@@ -9,14 +10,14 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
 import sys
 import textwrap
 
 import pytest
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import run_all  # noqa: E402
-from _common import RESULT_PREFIX, emit_result, figure  # noqa: E402
+from benchmarks import run_all
+from benchmarks._common import RESULT_PREFIX, emit_result, figure
 
 
 def _payload(figs):
@@ -122,3 +123,19 @@ def test_page_has_every_benchmark_block_and_no_result_lines(tmp_path):
     assert "## Simulator: rendering" in page
     assert "Smoke run" in page and "<= 3 ms (issue 13)" in page
     assert page.count("```text") == 3                        # two outputs, one stderr tail
+
+
+@pytest.mark.parametrize("name", ["bench_harmonics", "bench_sweep", "run_all"])
+def test_scripts_run_as_a_file_and_as_a_module(tmp_path, name):
+    # the two ways the README and run_all start a script; --help/--list touch only the
+    # shared header and _common (these scripts import the project inside main()). As a
+    # file from another folder and without PYTHONPATH: the header alone finds the package.
+    flag = "--list" if name == "run_all" else "--help"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    as_file = subprocess.run([sys.executable, str(run_all.HERE / f"{name}.py"), flag], cwd=tmp_path,
+                             env=env, capture_output=True, text=True, timeout=60)
+    assert as_file.returncode == 0, as_file.stderr
+    as_module = subprocess.run([sys.executable, "-m", f"benchmarks.{name}", flag], cwd=run_all.ROOT,
+                               env=env, capture_output=True, text=True, timeout=60)
+    assert as_module.returncode == 0, as_module.stderr
+    assert as_file.stdout == as_module.stdout

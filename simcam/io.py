@@ -23,7 +23,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from astropy.io import fits
 
 from simcam import __version__
@@ -224,8 +223,3 @@ def check_render_request(scenario, *, frames: int, out, source: str, mode: str =
     check_disk(out, need, what=f"--frames {frames} ({mode}{', compressed at most' if compress else ''})")
     announce_size(need, where=out, echo=echo)
     return int(need)
-
-
-def read_truth(path: str | os.PathLike) -> pd.DataFrame:
-    """Read a truth.csv written by ``simcam render``."""
-    return pd.read_csv(path)

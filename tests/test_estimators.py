@@ -508,7 +508,7 @@ def test_target_marker_error_round_trips_and_scales():
 def test_per_star_statistics_match_pandas_groupby():
     # the array implementation against pandas' groupby (independent code): sorted groups,
     # counts, means and ddof variances, singletons giving NaN variance
-    from budget.starcam.estimators import _per_star_stats
+    from budget.starcam.estimators.common import _per_star_stats
 
     rng = np.random.default_rng(8)
     n = 500
@@ -529,7 +529,7 @@ def test_per_star_statistics_match_pandas_groupby():
 def test_duplicate_key_check_matches_pandas():
     # the factorised-code check against pandas' duplicated() on random small tables with
     # repeated keys, string and float key columns
-    from budget.starcam.estimators import _has_duplicate_keys
+    from budget.starcam.estimators.common import _has_duplicate_keys
 
     rng = np.random.default_rng(0)
     for _ in range(200):

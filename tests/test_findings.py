@@ -230,7 +230,7 @@ def test_linecam_gauge_combinations_are_orthogonal_to_the_plans_null_space():
     from budget.linecam.study import (GAUGE_COMBINATIONS, STUDY, determined_combinations,
                                       gauge_combination_vector)
     from simcam.linecam.camera import camera_truth, sample_y_mm
-    from simcam.linecam.scenario import load_default
+    from simcam.linecam.scenario import default as load_default
 
     sc = load_default()
     cam = NominalCamera.from_model(sc.camera)

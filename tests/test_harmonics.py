@@ -130,9 +130,9 @@ def test_noise_free_joint_and_in_sequence_recover_coefficients():
     assert abs(seq["short"].coefficients_arcsec[0]) < 1e-9   # nothing left for the offset
     model = seq["model"]
     assert isinstance(model, CompensationModel)
-    r = np.array([3.25, 100.5, 271.125])
+    r = np.array([3.25, 100.5, 271.125])          # the combined model between the samples
     expect = (design_matrix(angle_deg=r, spec=lspec) @ cl + design_matrix(angle_deg=r, spec=sspec) @ cs)
-    assert np.max(np.abs(model.compensate_deg(reading_deg=r) - (r - expect / 3600))) < 1e-12
+    assert np.max(np.abs(model.error_arcsec(angle_deg=r) - expect)) < 1e-9
 
 
 # -------------------------------------------------------------- design and aliasing

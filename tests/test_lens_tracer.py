@@ -293,9 +293,10 @@ def test_without_a_usable_libllvm_tracing_falls_back_to_scalar_with_a_warning(tm
             get_backend("llvm_ad_rgb")
         except LensError as exc:
             print("refused:", exc)
-        from simcam.starcam.lens.tracer import LensTracer
+        from simcam.starcam.lens.tracer import LensTracer, field_bundle
         t = LensTracer("embedded:star_camera", variant="scalar_rgb")
-        r = t.trace_field(field_deg=1.0, wavelength_nm=600.0, n_rays=5)
+        x, y, z, dx, dy, dz = field_bundle(t.prescription, field_deg=1.0, n_rays=5)
+        r = t.trace(x_mm=x, y_mm=y, z_mm=z, dx=dx, dy=dy, dz=dz, wavelength_nm=600.0)
         assert r.alive.all()
         print("ok")
     """), {"DRJIT_LIBLLVM_PATH": str(tmp_path / "no-such-libLLVM.so")})

@@ -102,10 +102,6 @@ class HarmonicSpec:
             out += [f"A_S{n}c", f"A_S{n}s"]
         return out
 
-    def frequencies(self) -> list[int]:
-        """Cycles per turn of each non-constant column (pairs)."""
-        return [m for m in self.mech_orders] + [n * self.pole_pairs for n in self.elec_orders]
-
 
 def _harmonic_columns(angle_deg, spec: HarmonicSpec):
     """Columns cos/sin of the mechanical and electrical harmonics at ``angle_deg``."""
@@ -431,11 +427,6 @@ class CompensationModel:
         """Modelled error (arcsec) at readings ``angle_deg``."""
         a = np.asarray(angle_deg, dtype=float)
         return sum((p.evaluate_arcsec(angle_deg=a) for p in self.parts), np.zeros_like(a))
-
-    def compensate_deg(self, *, reading_deg):
-        """Compensated reading ``theta_hat = theta - e(theta)`` (deg), eq 9."""
-        r = np.asarray(reading_deg, dtype=float)
-        return r - self.error_arcsec(angle_deg=r) / 3600.0
 
 
 def accept(*, sigma3_after_arcsec: float, requirement_arcsec: float) -> bool:

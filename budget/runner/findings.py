@@ -13,8 +13,11 @@ Rules, in the order they are tried for one ``(class, variant, axis)``:
     the class is an input of the method (:attr:`ClassSpec.role` ``"input"``): reported,
     never validated.
 ``residual``
+    the class is what a calibration or compensation leaves (role ``"residual"``): "leaves X
+    against Y", never called an estimator's bias.
+``stated``
     the class compares a stated uncertainty (estimate) with the actual error (truth), role
-    ``"residual"``: "states X against an actual Y", consistent or over/understated.
+    ``"stated"``: "states X against an actual Y", consistent, optimistic or pessimistic.
 ``reference``
     the variant does not estimate (:attr:`Study.reference_variants`, e.g. the scan mirror's
     ``without_estimate``, which returns 0 by design): labelled a reference, never "recovers".
@@ -34,6 +37,9 @@ Rules, in the order they are tried for one ``(class, variant, axis)``:
 ``unresolved``
     no significant bias, but 3 standard errors of it exceed ``RESOLUTION`` (10 %) of a truth
     far from zero: too few trials (or too large a spread) to call it recovered.
+A ``residual`` or ``stated`` class counts as held within its claim when its difference is
+not significant.
+
 ``coverage``
     no significant bias, but the stated 1-sigma interval holds the truth in a fraction
     inconsistent with 68.3 %: not within its claim; the ratio of the actual to the stated
@@ -47,7 +53,7 @@ import math
 __all__ = ["RULES", "annotate", "findings", "findings_json", "findings_lines", "findings_markdown",
            "fmt", "with_unit"]
 
-RULES = ("input", "residual", "reference", "undetermined", "exact", "recovers", "biased", "coverage",
+RULES = ("input", "residual", "stated", "reference", "undetermined", "exact", "recovers", "biased", "coverage",
          "unresolved")
 #: a class is called recovered only when the run resolves its bias to this fraction of the
 #: truth (3 standard errors), where the truth is far from zero against its spread
@@ -133,8 +139,8 @@ def _verdict(result, key, st: dict) -> str:
     role = st.get("role", "result")
     if role == "input":
         return "input"
-    if role == "residual":
-        return "residual"
+    if role in ("residual", "stated"):
+        return role
     if st.get("reference"):
         return "reference"
     if st.get("determined") is False:
@@ -168,12 +174,15 @@ def _sentence(result, key, st: dict, verdict: str) -> str:
     pct_s = f", {pct:+.1f} % of the truth," if math.isfinite(pct) and pct != 0 else ""
     if verdict == "input":
         return f"an input of the method ({with_unit(st['mean'], unit)}), taken as given: nothing to validate"
-    if verdict == "residual":
+    if verdict == "stated":
         ratio = st["mean"] / st["truth"] if st["truth"] else float("nan")
         word = ("consistent with it" if not st["bias_significant"]
-                else ("overstated" if b > 0 else "understated"))
+                else ("pessimistic (states more)" if b > 0 else "optimistic (states less)"))
         return (f"states {with_unit(st['mean'], unit)} against an actual {with_unit(st['truth'], unit)} "
-                f"(ratio {fmt(ratio)}): {word}")
+                f"(ratio {fmt(ratio)}, difference {with_pm(b, se, unit)}): {word}")
+    if verdict == "residual":
+        return (f"a residual, what the compensation leaves: mean {with_unit(st['mean'], unit)} against "
+                f"{_truth_words(st, unit)} (difference {with_pm(b, se, unit)}), spread {with_unit(st['std'], unit)}")
     if verdict == "reference":
         return (f"a reference, not an estimate: its error against {_truth_words(st, unit)} is "
                 f"{with_pm(b, se, unit)}, spread {with_unit(st['std'], unit)}")
@@ -213,14 +222,15 @@ def findings(result) -> list[dict]:
         verdict = _verdict(result, key, st)
         cls, var, ax = key
         cause = None
-        if verdict in ("biased", "coverage", "unresolved"):
+        held = verdict in _OK or (verdict in ("residual", "stated") and not st["bias_significant"])
+        if not held and verdict in ("biased", "coverage", "unresolved", "residual", "stated"):
             try:
                 cause = result.study.likely_cause(result, key, st)
             except Exception:  # a study's hook must never break a report
                 cause = None
         rms = st.get("rms_error", math.hypot(st["bias"], st["std"]))
         f = {"class": cls, "variant": var, "axis": ax, "rule": verdict, "rms_error": rms,
-             "recovered": verdict in _OK, "text": _sentence(result, key, st, verdict),
+             "recovered": held, "text": _sentence(result, key, st, verdict),
              "bias": st["bias"], "se_bias": st["se_bias"],
              "bias_percent": st.get("bias_percent") if math.isfinite(st.get("bias_percent", float("nan"))) else None}
         if cause:
@@ -239,7 +249,7 @@ def _variant_summary(result, items: list[dict]) -> dict:
         rec, notrec, other = [], [], []
         for cls, fs in classes.items():
             rules = {f["rule"] for f in fs}
-            if rules & {"input", "residual", "reference"} or rules == {"undetermined"}:
+            if rules & {"input", "reference"} or rules == {"undetermined"}:
                 other.append(cls)
             elif all(f["recovered"] or f["rule"] == "undetermined" for f in fs):
                 und = [f["axis"] for f in fs if f["rule"] == "undetermined"]
@@ -258,7 +268,7 @@ def _recommendation(result, items: list[dict], summary: dict) -> str | None:
     recovers it, said so."""
     per_class: dict = {}
     for f in items:
-        if f["rule"] in ("input", "residual", "reference", "undetermined"):
+        if f["rule"] in ("input", "reference", "undetermined"):
             continue
         per_class.setdefault(f["class"], {}).setdefault(f["variant"], []).append(f)
     if not per_class:
@@ -319,11 +329,11 @@ def findings_markdown(result, data: dict | None = None) -> list[str]:
             head = f"`{var}` recovers within its claim: {rec}. Not recovered: {nrec}."
         lines += [f"### {var}", "", head, ""]
         for f in fs:
-            if f["rule"] == "recovers" or f["rule"] == "exact" or f["rule"] == "input":
+            if f["recovered"] or f["rule"] == "input":
                 continue
             lines.append(f"* {_label(result, f['class'])} ({f['axis']}): {f['text']}."
                          + (f" Likely cause: {f['likely_cause']}" if f.get("likely_cause") else ""))
-        shown = [f for f in fs if f["rule"] in ("recovers", "exact", "input")]
+        shown = [f for f in fs if f["recovered"] or f["rule"] == "input"]
         for f in shown:
             lines.append(f"* {_label(result, f['class'])} ({f['axis']}): {f['text']}.")
         lines.append("")
@@ -347,7 +357,7 @@ def findings_lines(result, data: dict | None = None) -> list[str]:
                    f"not: {', '.join(s['not_recovered']) or 'none'}")
         shown: dict = {}
         for f in fs:
-            if f["rule"] in ("biased", "coverage", "undetermined", "unresolved"):
+            if not f["recovered"] and f["rule"] not in ("input", "reference"):
                 shown[f["class"]] = shown.get(f["class"], 0) + 1
                 if shown[f["class"]] <= 3:  # a class of many axes: three, then a count
                     out.append(f"    {f['class']} {f['axis']}: {f['text']}")

@@ -404,13 +404,6 @@ class LensTracer:
                            lost_code=lost, wavelength_nm=wl_attr, n_surfaces=len(self._shapes),
                            path_mm=None if path is None else np.array(path))
 
-    def trace_field(self, *, field_deg: float, wavelength_nm: float, n_rays: int,
-                    para: ParaxialData | None = None) -> TraceResult:
-        """Trace the bundle of a star at ``field_deg`` (see :func:`field_bundle`)."""
-        rays = field_bundle(self.prescription, field_deg=field_deg, n_rays=n_rays, para=para)
-        return self.trace(x_mm=rays[0], y_mm=rays[1], z_mm=rays[2], dx=rays[3], dy=rays[4], dz=rays[5],
-                          wavelength_nm=wavelength_nm)
-
     # ------------------------------------------------------------------ llvm
     def _trace_llvm(self, arrs, mus, inv, path):
         import drjit as dr
