@@ -35,11 +35,8 @@ def scenario_command_for(study_name: str) -> click.Command:
                 text = study.default_text()
             elif Path(scenario).is_file():
                 text = Path(scenario).read_text(encoding="utf-8")
-            else:  # a named embedded scenario ("embedded:NAME"): its text where the study has it
-                from simcam.starcam.scenario import scenario_source_text
-
-                text = (scenario_source_text(scenario) if study_name == "starcam" else None) \
-                    or study.scenario_text(scn)
+            else:  # a named embedded scenario ("embedded:NAME"): resolved
+                text = study.scenario_text(scn)
             click.echo(text if text.endswith("\n") else text + "\n", nl=False)
 
     return scenario
