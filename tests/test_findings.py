@@ -277,3 +277,39 @@ def test_starcam_cause_of_the_published_hsfe_follows_the_numbers():
     # the improved estimator's cause only for a low bias
     assert STARCAM.likely_cause(res, ("hsfe", "improved", "x"), {"mean": 0.03, "truth": 0.043, "bias": -0.013})
     assert STARCAM.likely_cause(res, ("hsfe", "improved", "x"), {"mean": 0.05, "truth": 0.043, "bias": 0.007}) is None
+
+
+class StatedStudy(RulesStudy):
+    """``spread``: a stated sigma (estimate) against the actual error (truth): ``published``
+    states twice the actual |e|, ``improved`` states exactly it; role "stated". ``left``: what
+    a compensation leaves (truth 0), role "residual"."""
+
+    variants = ("published", "improved")
+    reference_variants = ()
+
+    def classes(self, scenario):
+        return (ClassSpec("spread", "stated spread", "arcsec", ("a",), "", per_trial_truth=True, role="stated"),
+                ClassSpec("left", "residual", "arcsec", ("a",), "", role="residual"))
+
+    def trial(self, scenario, seed, k):
+        rng = np.random.default_rng(trial_seed_sequence(seed, k))
+        e = abs(rng.normal(1.0, 0.1))
+        return TrialResult(estimates={("spread", "published", "a"): 2 * e, ("spread", "improved", "a"): e,
+                                      ("left", "published", "a"): 0.5 + rng.normal(0, 0.1),
+                                      ("left", "improved", "a"): rng.normal(0, 0.1)},
+                           truths={("spread", "published", "a"): e, ("spread", "improved", "a"): e})
+
+    def truths(self, scenario, seed):
+        return {("left", "a"): Truth(0.0, 0.0)}
+
+
+def test_stated_and_residual_roles_are_never_called_an_estimators_bias():
+    res = _run(StatedStudy(), trials=200)
+    f = _by_key(res)
+    pub, imp = f[("spread", "published", "a")], f[("spread", "improved", "a")]
+    assert pub["rule"] == imp["rule"] == "stated"
+    assert "pessimistic" in pub["text"] and not pub["recovered"]
+    assert "consistent" in imp["text"] and imp["recovered"]
+    left = f[("left", "published", "a")]
+    assert left["rule"] == "residual" and "biased" not in left["text"] and not left["recovered"]
+    assert f[("left", "improved", "a")]["recovered"]
