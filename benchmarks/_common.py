@@ -197,7 +197,7 @@ def figure(key: str, what: str, ours: float | None, unit: str, *, better: str = 
     peer_status : str, optional
         Why there is no peer value (e.g. ``"not installed"``).
     target, target_source : float, str, optional
-        The issue's target in ``unit`` and where it is stated (``"issue 13"``).
+        The issue's target in ``unit`` and where it is stated (``"project target"``).
     """
     if better not in ("lower", "higher"):
         raise ValueError(f"better: must be 'lower' or 'higher' (got {better!r})")

@@ -54,7 +54,7 @@ def main() -> None:
           f"median {statistics.median(times):.3f} s over {args.repeats} runs")
     emit_result("harmonics", [
         figure("trials_s", f"{args.trials} full inductosyn calibration trials (s, best)", min(times), "s",
-               target=2.0 * args.trials / 10000, target_source="issue 5"),
+               target=2.0 * args.trials / 10000, target_source="project target"),
     ], quick=args.quick, trials=args.trials)
 
 

@@ -140,12 +140,12 @@ def main() -> None:
     emit_result("lens", [
         figure("bundle_ms", "bundle of 100,000 rays, 9 surfaces, llvm variant, warm (ms)",
                min(bundle_t) * 1e3, "ms", peer="plain-numpy reference tracer",
-               peer_value=min(numpy_t) * 1e3, target=50.0, target_source="issue 7"),
+               peer_value=min(numpy_t) * 1e3, target=50.0, target_source="project target"),
         figure("bundle_vs_scalar_ms", "bundle of 100,000 rays, 9 surfaces, llvm variant, warm (ms)",
                min(bundle_t) * 1e3, "ms", peer="Mitsuba scalar_rgb (500 rays, x 200)",
                peer_value=min(scalar_t) * 200 * 1e3),
         figure("table_s", "table 10 fields x 15 wavelengths x 100,000 rays (s)", min(table_t), "s",
-               target=10.0, target_source="issue 7"),
+               target=10.0, target_source="project target"),
     ], quick=args.quick, variant=tr.variant)
 
 

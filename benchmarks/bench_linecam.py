@@ -1,4 +1,4 @@
-"""Speed of the line-camera calibration (seed 004, issue 16), the three figures it names.
+"""Speed of the line-camera calibration (seed 004), the three figures it names.
 
 1. **Star selection and identification for a 10 deg strip** (target <= 50 ms): the lab's
    catalogue stars of one pass of the default strip (Hipparcos cone, V <= 8), their
@@ -122,7 +122,7 @@ def main() -> None:
     rows.append(["-> selection and identification (target <= 50 ms)", "", f"{(t_sel + t_kd) * 1e3:.1f}"])
     figs += [
         figure("select_identify_ms", "star selection and identification, 10 deg strip (ms)",
-               (t_sel + t_kd) * 1e3, "ms", target=50.0, target_source="issue 16"),
+               (t_sel + t_kd) * 1e3, "ms", target=50.0, target_source="project target"),
         figure("identify_ms", "identification of one pass's centroids, KD-tree (ms)", t_kd * 1e3, "ms",
                peer="numpy brute force", peer_value=t_bf * 1e3),
     ]
@@ -150,9 +150,9 @@ def main() -> None:
     figs += [
         figure("calibration_joint_ms", f"one calibration, improved (joint), {n} stars (ms)", t_joint * 1e3,
                "ms", peer="scipy least_squares, 8 parameters", peer_value=t_ls * 1e3, target=20.0,
-               target_source="issue 16"),
+               target_source="project target"),
         figure("calibration_published_ms", f"one calibration, published, {n} stars (ms)", t_pub * 1e3,
-               "ms", target=20.0, target_source="issue 16"),
+               "ms", target=20.0, target_source="project target"),
     ]
 
     # ------------------------------------------------------------ 3. validation
@@ -186,7 +186,7 @@ def _validation(args, rows, STUDY, scn) -> dict:
     full = res.trials == 1000
     return figure("validation_s", f"validation, {res.trials} trials, 2 worker processes (s)", wall, "s",
                   target=60.0 if full else None,
-                  target_source="issue 16, 1000 trials on 2 cores" if full else None)
+                  target_source="project target, 1000 trials on 2 cores" if full else None)
 
 
 if __name__ == "__main__":

@@ -164,19 +164,19 @@ def main() -> None:
     what = "full 2048x4096 frame, 25 stars, every detector effect (wall ms)"
     emit_result("render", [
         figure("full_frame_ms", what, full[0] * 1e3, "ms", peer="plain numpy Generator (same noise)",
-               peer_value=nump[0] * 1e3, target=150.0, target_source="issue 2"),
+               peer_value=nump[0] * 1e3, target=150.0, target_source="project target"),
         figure("full_frame_vs_galsim_ms", what, full[0] * 1e3, "ms",
                peer="GalSim 25 Airy stars + CCDNoise", peer_value=None if gal is None else gal[0] * 1e3,
-               peer_status=gstat, target=150.0, target_source="issue 2"),
+               peer_status=gstat, target=150.0, target_source="project target"),
         figure("scene_ms", "scene: 25 stars' spectra, distortion, colour, PSF stamps (ms)",
                scene_s[0] * 1e3, "ms", peer="GalSim 25 Airy stars drawn (monochromatic)",
                peer_value=None if gal_stars is None else gal_stars[0] * 1e3, peer_status=gstat),
         figure("windows_per_s_serial", "noisy 11x11 windows per second, one core", rate_serial,
-               "windows/s", better="higher", target=100_000, target_source="issue 2"),
+               "windows/s", better="higher", target=100_000, target_source="project target"),
         figure("windows_per_s_threads", "noisy 11x11 windows per second, numba threads",
-               rate_threads, "windows/s", better="higher", target=100_000, target_source="issue 2"),
+               rate_threads, "windows/s", better="higher", target=100_000, target_source="project target"),
         figure("peak_mb", "peak memory, one full frame (MB, tracemalloc)", peak_mb, "MB",
-               target=300.0, target_source="issue 2"),
+               target=300.0, target_source="project target"),
     ], quick=args.quick, galsim=galsim.__version__ if galsim else None)
 
 

@@ -1,4 +1,4 @@
-"""Speed of the scan-mirror study (seed 003, issue 15).
+"""Speed of the scan-mirror study (seed 003).
 
 * the full default timeline (two area scans of 120 lines, the star dwell, 590 s) with ground
   points every 0.1 s: world construction (J2-J4 propagation with DOP853), plan, PD attitude,
@@ -87,11 +87,11 @@ def main() -> None:
     full = args.trials == 1000 and args.workers == 2
     emit_result("scanmirror", [
         figure("timeline_s", "full default timeline every 0.1 s (s)", wall, "s", target=0.5,
-               target_source="issue 15"),
+               target_source="project target"),
         figure("nominal_mapping_ms", "nominal mapping of the timeline's points (ms)", wall_n * 1e3, "ms",
                peer="pyproj geos inverse", peer_value=wall_p * 1e3),
         figure("trials_s", f"{args.trials} validation trials, {args.workers} processes (s)", total, "s",
-               target=20.0 if full else None, target_source="issue 15, 1000 trials on 2 cores" if full else None),
+               target=20.0 if full else None, target_source="project target, 1000 trials on 2 cores" if full else None),
     ], quick=args.quick, trials=args.trials, workers=args.workers)
 
 

@@ -1,7 +1,7 @@
 """Throughput of design-trade sweeps, and the cost of a point as its trial count grows.
 
 What it measures is the sweep machinery (processes, Dask, the store), on points that do
-every class's work at a light HSFE truth. Since issue 12 the HSFE truth of the default
+every class's work at a light HSFE truth. Since the HSFE truth became the expected centroid's static error, the HSFE truth of the default
 scenario exposes ``validation.hsfe_truth_frames`` = 2000 noisy frames at each of 64
 sub-pixel phases: 15-18 s of a point's work on one core, so 24 points on 1 and 2 processes,
 twice, took far longer than a benchmark should (the run was killed). The points here set
@@ -184,7 +184,7 @@ def main() -> None:
             figs += [
                 figure("sweep_speedup_steady", f"sweep, {args.points} truth-mode points{light}: steady points/s, "
                        "2 processes / 1", two_s / base_st, "x", better="higher", target=1.7,
-                       target_source="issue 6"),
+                       target_source="project target"),
                 figure("sweep_speedup_e2e", f"sweep, {args.points} truth-mode points{light}: end-to-end points/s, "
                        "2 processes / 1", two_e / base_e2e, "x", better="higher"),
                 figure("sweep_points_per_s", f"sweep, 2 processes{light}, end-to-end points/s", two_e,
@@ -193,7 +193,7 @@ def main() -> None:
             if "Dask LocalCluster 2" in by:
                 figs.append(figure("sweep_speedup_dask", "sweep: steady points/s, Dask LocalCluster 2 / "
                                    "1 process", by["Dask LocalCluster 2"][1] / base_st, "x",
-                                   better="higher", target=1.7, target_source="issue 6"))
+                                   better="higher", target=1.7, target_source="project target"))
         if not args.skip_trials:
             print(f"cost of one validation point (default scenario, HSFE truth of {args.hsfe_truth_frames} "
                   "frames per phase, one numba thread):", flush=True)

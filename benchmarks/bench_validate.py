@@ -78,12 +78,12 @@ def main() -> None:
     ))
     emit_result("validate", [
         figure("trial_s", "one full seed-000 protocol trial, one core, best (s)", min(times), "s",
-               target=0.1, target_source="issue 4"),
+               target=0.1, target_source="project target"),
         figure("trial_median_s", "one full seed-000 protocol trial, one core, median (s)",
-               statistics.median(times), "s", target=0.1, target_source="issue 4"),
+               statistics.median(times), "s", target=0.1, target_source="project target"),
         figure("trials_total_s", f"{res.trials} trials, {args.workers} workers, truth included (s)",
                total, "s", target=120.0 if res.trials == 1000 else None,
-               target_source="issue 4, 1000 trials" if res.trials == 1000 else None),
+               target_source="project target, 1000 trials" if res.trials == 1000 else None),
     ], quick=args.quick, trials=res.trials, workers=args.workers)
 
 

@@ -1,4 +1,4 @@
-"""Benchmark: the two speed figures of issue 14 (seed 002), numba beside plain numpy.
+"""Benchmark: the two speed figures of seed 002's study, numba beside plain numpy.
 
 1. The 1000-trial Monte Carlo synthesis over the arrays (one mirror-rate error): draws,
    knowledge and true states, complex-step image motion at the sampled field (the centre
@@ -91,10 +91,10 @@ def main() -> None:
         figure("synthesis_ms", f"Monte Carlo synthesis, {args.trials} trials (ms)",
                best["synthesis, numba"] * 1e3, "ms", peer="plain numpy",
                peer_value=best["synthesis, numpy"] * 1e3, target=1000.0 if full else None,
-               target_source="issue 14, 1000 trials" if full else None),
+               target_source="project target, 1000 trials" if full else None),
         figure("pixel_mtf_ms", "pixel-level TDI MTF of one trial (ms)", best["pixel MTF, numba"] * 1e3,
                "ms", peer="plain numpy", peer_value=best["pixel MTF, numpy"] * 1e3, target=5.0,
-               target_source="issue 14"),
+               target_source="project target"),
     ], quick=args.quick, trials=args.trials)
 
 

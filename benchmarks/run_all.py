@@ -67,7 +67,7 @@ doing the same noise with one `Generator`, and beside GalSim drawing 25 Airy sta
 adding its CCD noise on a frame of the same size. The scene (spectra, distortion, colour
 and 25 exact pixel-integrated PSF stamps), noisy 11x11 windows per second
 (`render_windows`, serial and threaded), and the peak memory of one full frame.
-Targets (issue 2): a full frame in at most 0.15 s, at least 100,000 windows per second,
+Targets: a full frame in at most 0.15 s, at least 100,000 windows per second,
 peak memory under 300 MB. GalSim's CCD noise and pyxel do fewer or other effects than our
 chain; they are the peers the issues name, not the same computation."""),
     "detector_noise": ("Simulator: detector chain alone", """\
@@ -87,13 +87,13 @@ difference to photutils `centroid_com` is zero up to rounding for the identical
 definitions. Then one 4096 x 2048 frame with 25 stars: our full-frame path with a
 reference list (`budget.centroid.core.centroid_frames([frame], reference_xy=ref)`) and without
 one, beside photutils (sigma-clipped level and noise, threshold, `centroid_sources` at the
-references) and SEP (background + extraction). Targets: at most 2 us per window for CoG
-(issue 3); at most 10 ms for the full frame with a reference list (issue 13)."""),
+references) and SEP (background + extraction). Targets: at most 2 us per window for CoG;
+at most 10 ms for the full frame with a reference list."""),
     "validate": ("Monte Carlo validation", """\
 One full seed-000 protocol trial (TE + HSFE + chromatic + distortion, about 20,000
 star-windows, centroided, published and improved estimators) on one core, best and
 median; then K trials with the worker processes, wall time including the truths and the
-workers' start-up. Targets (issue 4): one trial in at most 0.1 s on one core, 1000 trials
+workers' start-up. Targets: one trial in at most 0.1 s on one core, 1000 trials
 in at most 2 minutes using both cores. Where a trial's time goes: the exact shot and read
 noise of the window pixels with their ADC, the border medians and the centres of gravity
 in one fused numba pass (`budget.starcam.kernels_trial`), most of it the Poisson draw; then the
@@ -106,7 +106,7 @@ and the truths' work, both measured in the same run) with a warm numba cache and
 empty one (a fresh install). The fixed-cost runs use the default scenario with
 `hsfe_truth_frames = 16`: the default's HSFE truth is 10-20 s of real work, and
 subtracting that much, measured in another process, would drown a fixed cost of a second
-or two in its noise. Targets (issue 13): two workers give at least 1.7x the throughput of
+or two in its noise. Targets: two workers give at least 1.7x the throughput of
 one; fixed cost at most 2 s warm and at most 8 s with an empty cache. With an empty cache
 numba compiles the kernels a trial and the truths call (about 30 functions, 8-10 s of one
 core on this machine); the study's warm-up (`budget/starcam/warm.py`) splits them over two
@@ -119,22 +119,22 @@ repeats into a fresh store; and the cost of one validation point as its trial co
 (a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
 LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
 sub-pixel phase instead of the scenario's 2000, which make a point 15-18 s): the figures
-measure the machinery; one point with the full truth is timed once for scale. Target
-(issue 6): at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
+measure the machinery; one point with the full truth is timed once for scale. Target:
+at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
     "lens": ("Lens tracing", """\
 A bundle of 100,000 rays of one field point and wavelength through the embedded 9-surface
 star-camera lens (Mitsuba `llvm_ad_rgb` intersections, double-precision refinement and
 refraction), beside the plain-numpy reference tracer of the tests on the same rays and
 Mitsuba's `scalar_rgb` fallback; and the full table of 10 fields x 15 wavelengths x
-100,000 rays with the focus pass and PSFs. Targets (issue 7): a bundle in at most 50 ms
+100,000 rays with the focus pass and PSFs. Targets: a bundle in at most 50 ms
 after warm-up, the table in at most 10 s. More in [lens.md](lens.md)."""),
     "harmonics": ("Inductosyn calibration", """\
 Full seed-001 calibration trials: polygon face errors and four passes of noise, the lab
 tables, the in-sequence and joint harmonic fits and the verification of both
-compensations over 3600 points of the circle. Target (issue 5): 10,000 trials in at most
+compensations over 3600 points of the circle. Target: 10,000 trials in at most
 2 s. Details in [inductosyn.md](inductosyn.md)."""),
     "whiskbroom": ("Whiskbroom TDI camera", """\
-The two speed figures of issue 14 (seed 002), numba beside plain numpy: the 1000-trial
+The two speed figures of seed 002's study, numba beside plain numpy: the 1000-trial
 Monte Carlo synthesis over the arrays (draws, knowledge and true states, complex-step
 image motion at the sampled field, residuals, worst column; target at most 1 s) and the
 pixel-level MTF of one trial (96 stages, 4 clock phases, 1000 columns, along and across;
@@ -143,11 +143,11 @@ slanted-edge image of one trial. More in [whiskbroom.md](whiskbroom.md)."""),
     "scanmirror": ("GEO scan mirror", """\
 The full default timeline of seed 003 (two area scans and the star dwell) with ground
 points every 0.1 s: world construction, plan, attitude, deviation, nominal and true ground
-points (target at most 0.5 s, issue 15), with PROJ's `geos` inverse (pyproj) beside our
+points (target at most 0.5 s), with PROJ's `geos` inverse (pyproj) beside our
 nominal mapping; one validation trial, and 1000 trials on 2 processes through the shared
 runner, worker start-up included (target at most 20 s). More in [scanmirror.md](scanmirror.md)."""),
     "linecam": ("Line-camera star calibration", """\
-The three figures of issue 16 (seed 004): star selection (Hipparcos cone, apparent places
+The three figures of the line-camera study (seed 004): star selection (Hipparcos cone, apparent places
 through astropy/ERFA) and identification of one pass of a 10 deg strip (target at most
 50 ms), beside a numpy brute-force identification; one calibration of a few hundred star
 observations, published and improved (target at most 20 ms), beside scipy

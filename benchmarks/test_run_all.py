@@ -26,7 +26,7 @@ def _payload(figs):
 
 def test_emit_result_round_trips_through_parse(capsys):
     emit_result("demo", [figure("t", "a time", 2.0, "ms", peer="p", peer_value=6.0, target=3.0,
-                                target_source="issue 13")], quick=True, extra_value=1)
+                                target_source="project target")], quick=True, extra_value=1)
     out = "some table\n" + capsys.readouterr().out
     res = run_all.parse_result(out)
     assert res["bench"] == "demo" and res["quick"] is True and res["extra_value"] == 1
@@ -108,7 +108,7 @@ def test_page_has_every_benchmark_block_and_no_result_lines(tmp_path):
     import datetime as dt
 
     good = _run([figure("t", "time", 2.0, "ms", peer="peer", peer_value=6.0, target=3.0,
-                        target_source="issue 13")])
+                        target_source="project target")])
     good.name = "render"                                      # a benchmark with template text
     good.stdout = "machine: x\n| a table |\n" + RESULT_PREFIX + json.dumps(good.result) + "\n"
     bad = run_all.BenchRun(name="extra", script=tmp_path / "bench_extra.py", args=[],
@@ -121,7 +121,7 @@ def test_page_has_every_benchmark_block_and_no_result_lines(tmp_path):
     assert "| a table |" in page and "ValueError: boom" in page
     assert "An extra benchmark." in page                      # docstring as its explanation
     assert "## Simulator: rendering" in page
-    assert "Smoke run" in page and "<= 3 ms (issue 13)" in page
+    assert "Smoke run" in page and "<= 3 ms (project target)" in page
     assert page.count("```text") == 3                        # two outputs, one stderr tail
 
 

@@ -7,6 +7,7 @@ and exits with status 2, without a traceback.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import sys
@@ -58,11 +59,26 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     except FileNotFoundError as exc:
         click.echo(f"error: file not found: {exc.filename or exc}", err=True)
         sys.exit(2)
+    except OSError as exc:
+        # a write the location checks could not foresee (the disk filled up meanwhile, a
+        # file system remounted read-only): one line naming the file, no traceback
+        if exc.errno not in _USER_ERRNOS:
+            raise
+        from simcam.outputs import os_error_message
+
+        where = exc.filename or ""
+        click.echo(f"error: {where}{': ' if where else ''}{os_error_message(exc)}", err=True)
+        sys.exit(2)
     except MemoryError as exc:
         # the size checks refuse what they can foresee; this is the last resort
         msg = str(exc).strip() or "an allocation failed"
         click.echo(f"error: not enough memory for this request ({msg}); reduce its size", err=True)
         sys.exit(2)
+
+
+#: errors of a write that are the machine's state, not a bug: reported as one line
+_USER_ERRNOS = frozenset(getattr(errno, n) for n in ("ENOSPC", "EROFS", "ENAMETOOLONG", "ENOTDIR", "EACCES",
+                                                     "EPERM", "EDQUOT", "EISDIR", "EFBIG") if hasattr(errno, n))
 
 
 def _error_lines(text: str) -> None:
@@ -71,12 +87,18 @@ def _error_lines(text: str) -> None:
         click.echo(f"error: {line}", err=True)
 
 
-def write_json_atomic(path: str | os.PathLike, payload: Any) -> None:
+def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "--json") -> None:
     """Write JSON to ``path`` atomically (temp file + rename): never a half-written file.
 
-    NaN and infinities are written as null (strict JSON).
+    NaN and infinities are written as null (strict JSON). The file gets the user's umask
+    (not ``mkstemp``'s 0600). ``path`` must be a regular file or new
+    (:func:`simcam.outputs.check_output_file`: a rename over ``/dev/null`` would replace
+    the device); a link to a regular file is written through, so it stays a link. A
+    failed write (disk full) is a :class:`UserInputError` naming the file.
     """
-    path = Path(path)
+    from simcam.outputs import apply_umask, check_output_file, os_error_message
+
+    path = check_output_file(path, option=option)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
@@ -84,10 +106,13 @@ def write_json_atomic(path: str | os.PathLike, payload: Any) -> None:
             json.dump(_finite_or_null(payload), fh, indent=2, sort_keys=False, default=_json_default,
                       allow_nan=False)
             fh.write("\n")
+        apply_umask(tmp, is_dir=False)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.errno in _USER_ERRNOS:
+            raise UserInputError(f"{option} {path}: {os_error_message(exc)}") from None
         raise
 
 

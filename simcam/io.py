@@ -74,15 +74,18 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     line on stderr (:func:`simcam.lifecycle.remove_stale_partials`).
     """
     from simcam.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.outputs import apply_umask, check_output_dir
 
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"--out {out}: exists and is not a directory")
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise UserInputError(f"--out {out}: directory is not empty (use --overwrite to replace it)")
+    check_output_dir(out, option="--out", replaceable=lambda _p: overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(out)
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
+    apply_umask(tmp, is_dir=True)  # mkdtemp makes it 0700; the output gets the user's umask
     try:
         yield tmp
     except BaseException:
@@ -137,7 +140,11 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
     """
     import warnings
 
+    from simcam.outputs import input_file_problem
+
     path = Path(path)
+    if (why := input_file_problem(path)) is not None:  # a FIFO would block the reader forever
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: frame file not found")
     try:
@@ -169,7 +176,11 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
 
 def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, fits.Header]:
     """Read a windows file: pixels (frames, stars, h, w) float64, col0, row0, header."""
+    from simcam.outputs import input_file_problem
+
     path = Path(path)
+    if (why := input_file_problem(path)) is not None:
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: windows file not found")
     try:

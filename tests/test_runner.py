@@ -62,6 +62,40 @@ def test_adaptive_stopping_meets_the_tolerance():
         assert st["se_bias"] <= 0.1 and st["se_std"] <= 0.1
 
 
+def test_adaptive_stopping_counts_the_truths_standard_error():
+    """A truth with a Monte Carlo standard error s_T: the report's se_bias is
+    sqrt(s^2/n + s_T^2), and a run stopped "by tolerance" must meet the tolerance with that
+    figure (issue 23). Toy numbers: the ddof=1 variance of m = 8 draws of sigma = 2 has
+    sd sigma^2 sqrt(2/(m-1)) = 2.14, so s/sqrt(n) <= 0.1 needs n >= 458; with s_T = 0.05 a
+    stop on s/sqrt(n) alone would report se_bias = sqrt(0.1^2 + 0.05^2) = 0.112 > 0.1, the
+    runner must go on to s/sqrt(n) <= sqrt(0.1^2 - 0.05^2) = 0.087 (n >= about 610)."""
+    tol, truth_se = 0.1, 0.05
+    res = run_study(STUDY, Toy(truth_se=truth_se), tolerance=tol, seed=2)
+    assert res.stopped_by == "tolerance"
+    variance_keys = [k for k in res.samples if k[0] == "variance"]
+    assert variance_keys
+    for key in res.samples:
+        st = res.statistics(key)
+        assert st["se_bias"] <= tol and st["se_std"] <= tol
+    for key in variance_keys:
+        assert res.statistics(key)["truth_se"] == truth_se
+    # it took the trials the truth's error asks for (batches of 100: at least 600)
+    assert res.trials >= 600
+
+
+def test_truth_error_above_the_tolerance_runs_to_the_cap():
+    """s_T above the tolerance: no number of trials brings se_bias = sqrt(s^2/n + s_T^2)
+    below it, so the run ends at the study's cap, says so, and the reported se_bias shows
+    why (it exceeds the tolerance)."""
+    tol = 0.1
+    res = run_study(STUDY, Toy(truth_se=0.15, max_trials=1000), tolerance=tol, seed=2)
+    assert res.stopped_by == "max_trials"
+    assert res.trials == 1000  # without s_T it would stop near 460
+    for key in res.samples:
+        if key[0] == "variance":
+            assert res.statistics(key)["se_bias"] > tol
+
+
 def test_bad_requests_are_refused_before_work():
     with pytest.raises(UserInputError, match="give one of them"):
         run_study(STUDY, Toy(), trials=5, tolerance=0.1)

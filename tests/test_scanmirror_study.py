@@ -1,4 +1,6 @@
-"""Seed 003 study on the shared runner (issue 15): reproducibility, classes, CLI."""
+"""Seed 003 study on the shared runner (issue 15): equivalence (same seed, same numbers; any
+worker count), classes, CLI. The equivalence tests check the code against itself, not
+physics; the documented figures are pinned in tests/test_scanmirror_headline.py."""
 
 from __future__ import annotations
 
@@ -31,7 +33,8 @@ def test_trial_keys_truths_and_sigmas(scenario):
     assert all(t.value == 0.0 for t in truths.values())  # a stated constant, not a computation
 
 
-def test_run_study_two_workers_equal_one(scenario):
+def test_run_study_workers_equivalence(scenario):
+    """Equivalence: two workers give one worker's numbers (not a physics check)."""
     from budget.runner.run import run_study
 
     # bit-identity across worker counts is the requirement (exact comparison on purpose)

@@ -16,7 +16,6 @@ import sys
 import time
 import tomllib
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 from tiny_camera import TINY
@@ -77,74 +76,144 @@ def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path):
 
 # ------------------------------------------------------------------ the mechanism
 
+_KERNEL = """
+import numba
 
-def _cold():
-    """A stand-in dispatcher whose numba cache index is empty (not cached)."""
-    return SimpleNamespace(_cache=SimpleNamespace(_enabled=True, _cache_file=SimpleNamespace(_load_index=dict)))
+@numba.njit(cache=True)
+def f(x):
+    return x + {k}
+"""
+
+_PROBE = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import probe_kernel
+from simcam.numba_warm import is_cached
+before = is_cached(probe_kernel.f)
+if sys.argv[2] == "call":
+    probe_kernel.f(1.0)
+print(json.dumps([before, is_cached(probe_kernel.f)]))
+"""
 
 
-def _warm():
-    return SimpleNamespace(_cache=SimpleNamespace(_enabled=True, _cache_file=SimpleNamespace(
-        _load_index=lambda: {"sig": "data"})))
+def _probe(tmp_path, action):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    run = subprocess.run([sys.executable, "-c", _PROBE, str(tmp_path), action], env=env, capture_output=True,
+                         text=True, timeout=300, check=False)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def test_is_cached_follows_numba_s_cache_of_a_real_kernel(tmp_path):
+    """On a real ``njit(cache=True)`` kernel in an empty cache folder (numba's own
+    behaviour, not a stand-in of its internals): cold before the first call, cached after
+    it and in a fresh process, cold again once the kernel's source changed (a stale entry).
+    Anything that is not a numba dispatcher reads as cached (nothing to warm)."""
+    kernel = tmp_path / "probe_kernel.py"
+    kernel.write_text(_KERNEL.format(k=1.0))
+    assert _probe(tmp_path, "call") == [False, True]
+    assert _probe(tmp_path, "look") == [True, True]
+    kernel.write_text(_KERNEL.format(k=2.0))
+    assert _probe(tmp_path, "look") == [False, False]
+    assert nw.is_cached(object()) is True
+
+
+#: stand-ins for the dispatchers the mechanism checks; which of them read as cached is
+#: decided by a replaced ``is_cached`` (its reading of numba's cache is checked above)
+_COLD, _WARM = object(), object()
+
+
+def _stand_in_cache(monkeypatch):
+    monkeypatch.setattr(nw, "is_cached", lambda d: d is not _COLD)
 
 
 def touch(arg: str) -> None:
-    """Child target: write this process's PID to ``arg``, then idle (stand-in for compiling)."""
+    """Child target: write this process's PID to ``arg``, idle (stand-in for compiling),
+    then append ``done`` (a child stopped early never writes it)."""
     path = Path(arg)
     path.write_text(str(os.getpid()))
     time.sleep(float(os.environ.get("WARM_TEST_SLEEP_S", "0")))
-
-
-def test_is_cached_reads_numba_index_and_treats_the_unknown_as_cached():
-    assert nw.is_cached(_cold()) is False
-    assert nw.is_cached(_warm()) is True
-    assert nw.is_cached(object()) is True  # not a numba dispatcher: nothing to warm
-    off = SimpleNamespace(_cache=SimpleNamespace(_enabled=False))
-    assert nw.is_cached(off) is True
+    with path.open("a") as f:
+        f.write("\ndone")
 
 
 def test_children_start_only_on_a_cold_cache_with_a_spare_core(tmp_path, monkeypatch):
+    _stand_in_cache(monkeypatch)
     monkeypatch.setattr(nw, "usable_cores", lambda: 2)
     marker = tmp_path / "pid"
-    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_warm()]) as started:
+    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_WARM]) as started:
         assert started is False
     assert not marker.exists()
-    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_cold(), _warm()]) as started:
+    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_COLD, _WARM]) as started:
         assert started is True
-    assert marker.exists()  # waited for at the end of the block
+    assert marker.read_text().endswith("done")  # waited for at the end of the block
     marker.unlink()
     monkeypatch.setattr(nw, "usable_cores", lambda: 1)
-    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_cold()]) as started:
+    with nw.compiling_in_parallel([("test_warm:touch", str(marker))], check=[_COLD]) as started:
         assert started is False
     assert not marker.exists()
 
 
 def test_an_interruption_stops_the_children_and_goes_on(tmp_path, monkeypatch):
+    # the child would idle 60 s and then write "done": stopped on the interruption, it never
+    # does (this replaces a wall-clock bound, which a slow machine could break)
+    _stand_in_cache(monkeypatch)
     monkeypatch.setattr(nw, "usable_cores", lambda: 2)
     monkeypatch.setenv("WARM_TEST_SLEEP_S", "60")
     marker = tmp_path / "pid"
     t0 = time.monotonic()
     with pytest.raises(KeyboardInterrupt), nw.compiling_in_parallel([("test_warm:touch", str(marker))],
-                                                                      check=[_cold()]):
+                                                                      check=[_COLD]):
         while not marker.exists() or not marker.read_text():
             assert time.monotonic() - t0 < 60, "the child never started"
             time.sleep(0.05)
         raise KeyboardInterrupt
-    pid = int(marker.read_text())
+    text = marker.read_text()
+    pid = int(text.splitlines()[0])
     with pytest.raises(ProcessLookupError):  # killed and reaped
         os.kill(pid, 0)
-    assert time.monotonic() - t0 < 30
+    assert "done" not in text
+
+
+_OPTIONS_SCRIPT = r"""
+import json
+from budget.starcam import kernels_trial as kt, warm
+from simcam.starcam.kernels import detector as kd, psf as kp
+from simcam import rng
+from budget.centroid import kernels as ck
+
+watched = {"stamps": kp.folded_stamp_spectra, "fused": kt.expose_centroid_frames_serial,
+           "windows": kd.expose_windows_frames_serial}
+support = {"poisson": rng.poisson_prepared, "cog_one": ck.cog_one}
+def loaded():
+    # numba's public Dispatcher.signatures: what this process compiled or loaded
+    return sorted(k for k, d in watched.items() if d.signatures)
+out = [loaded()]
+for fused, windows in ((False, False), (True, False), (False, True), (True, True)):
+    warm.compile_stamps_and_exposure(json.dumps({"fused": fused, "windows": windows}))
+    out.append(loaded())
+warm.compile_support("{}")
+out.append(sorted(k for k, d in support.items() if d.signatures))
+print(json.dumps(out))
+"""
 
 
 def test_targets_run_for_every_option():
-    # (in this process, usually with a warm cache: checks that each branch calls its
-    # kernels without error; what they compile is checked above)
-    from budget.starcam import warm
-
-    for fused in (True, False):
-        for windows in (True, False):
-            warm.compile_stamps_and_exposure(json.dumps({"fused": fused, "windows": windows}))
-    warm.compile_support("{}")
+    """Each option of compile_stamps_and_exposure loads exactly the top-level kernels it
+    names, and compile_support the random-number and centroid kernels (in a fresh process
+    with numba's usual cache, warm or cold: which signatures are loaded, not how long it
+    takes; a cold fused kernel also compiles its callees, so the support kernels are
+    checked only after compile_support)."""
+    run = subprocess.run([sys.executable, "-c", _OPTIONS_SCRIPT], capture_output=True, text=True,
+                         timeout=600, check=False)
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = json.loads(run.stdout.strip().splitlines()[-1])
+    assert out[0] == []
+    assert out[1] == ["stamps"]  # neither option: the stamps only
+    assert out[2] == ["fused", "stamps"]
+    assert out[3] == ["fused", "stamps", "windows"]
+    assert out[4] == out[3]
+    assert out[5] == ["cog_one", "poisson"]
 
 
 def test_prewarm_options_follow_the_scenario(monkeypatch):

@@ -5,8 +5,11 @@ Each trial draws ``m`` values from N(mu_k, sigma^2), with mu_k itself drawn per 
 * class ``mean`` (per-trial truth mu_k): estimate the sample mean; stated 1-sigma
   uncertainty sigma / sqrt(m) (sigma known), so the error is exactly N(0, sigma^2/m) and
   the 1-sigma interval covers the truth in 68.27 % of trials;
-* class ``variance`` (fixed truth sigma^2, exact): ``published`` is the variance with
-  ddof = 0, biased by exactly -sigma^2 / m; ``improved`` is the unbiased ddof = 1.
+* class ``variance`` (fixed truth sigma^2): ``published`` is the variance with
+  ddof = 0, biased by exactly -sigma^2 / m; ``improved`` is the unbiased ddof = 1. The truth
+  is exact; ``truth_se`` gives it a stated Monte Carlo standard error (as a truth computed
+  from finitely many frames has), to test that the runner carries it into ``se_bias`` and
+  into adaptive stopping.
 """
 
 import numpy as np
@@ -18,11 +21,13 @@ class Toy:
     hash = "toy"
     name = "toy"
 
-    def __init__(self, m=8, sigma=2.0, trials=50):
+    def __init__(self, m=8, sigma=2.0, trials=50, truth_se=0.0, max_trials=20000):
         self.m, self.sigma, self.trials = m, sigma, trials
+        self.truth_se, self.max_trials = truth_se, max_trials
 
     def model_dump(self, mode="json", exclude_none=True):
-        return {"m": self.m, "sigma": self.sigma, "trials": self.trials}
+        return {"m": self.m, "sigma": self.sigma, "trials": self.trials,
+                "truth_se": self.truth_se, "max_trials": self.max_trials}
 
 
 class ToyStudy(Study):
@@ -44,7 +49,7 @@ class ToyStudy(Study):
         return scenario.trials
 
     def max_trials(self, scenario):
-        return 20000
+        return scenario.max_trials
 
     def batch_trials(self, scenario):
         return 100
@@ -60,7 +65,7 @@ class ToyStudy(Study):
             truths={key: mu}, sigmas={key: scenario.sigma / np.sqrt(scenario.m)})
 
     def truths(self, scenario, seed):
-        return {("variance", "a"): Truth(scenario.sigma**2, 0.0)}
+        return {("variance", "a"): Truth(scenario.sigma**2, scenario.truth_se)}
 
 
 STUDY = ToyStudy()

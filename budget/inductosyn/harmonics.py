@@ -30,6 +30,7 @@ arcsec, printed there as 2.7 and 145.6).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -546,6 +547,32 @@ def posterior_band(*, fit: HarmonicFit, angle_deg, seed: int, face_error_arcsec:
 
 
 # ----------------------------------------------------------------------- real tables
+#: the largest calibration table read (bytes): a million readings at ~30 bytes a row; a
+#: larger file is refused before it is read (a 200 MB table took 5.2 GB before this)
+MAX_TABLE_BYTES = 64 * 2**20
+
+
+def _row_problem(path, ln, r, cols, ia, ie) -> str | None:
+    """Why row ``r`` (line ``ln``) of a calibration table is not a reading, or None."""
+    if len(r) != len(cols):
+        return f"{path}:{ln}: expected {len(cols)} fields, got {len(r)}"
+    sa, se = r[ia].strip(), r[ie].strip()
+    if not sa or not se:
+        return f"{path}:{ln}: empty cell in {'angle_deg' if not sa else 'error_arcsec'}"
+    try:
+        a, e = float(sa), float(se)
+    except ValueError:
+        return f"{path}:{ln}: not a number: {sa!r}, {se!r}"
+    if not (math.isfinite(a) and math.isfinite(e)):
+        return f"{path}:{ln}: non-finite value"
+    if abs(e) >= FULL_TURN_ARCSEC or abs(a) > MAX_ANGLE_DEG:
+        # an angle error of a full turn or more, or an angle beyond a few turns, is
+        # not a calibration reading (and squares of such values overflow)
+        return (f"{path}:{ln}: out of range: angle_deg {sa} (|angle| <= {MAX_ANGLE_DEG:g}), "
+                f"error_arcsec {se} (|error| < {FULL_TURN_ARCSEC:g}, one turn)")
+    return None
+
+
 def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
     """Read a calibration table: header with ``angle_deg`` and ``error_arcsec`` columns.
 
@@ -564,60 +591,61 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
     """
     import csv
 
+    from simcam.outputs import check_input_file
+
     path = str(path)
+    check_input_file(path, what="calibration table")  # a FIFO or a device is not read (it would block)
+    size = os.path.getsize(path)
+    if size > MAX_TABLE_BYTES:
+        raise UserInputError(f"{path}: {size / 2**20:.0f} MiB; a calibration table is at most "
+                             f"{MAX_TABLE_BYTES / 2**20:.0f} MiB (about a million readings)")
     try:
-        fh = open(path, newline="", encoding="utf-8")
+        # utf-8-sig: a byte-order mark (spreadsheets write one) is not part of the first column's name
+        fh = open(path, newline="", encoding="utf-8-sig")
     except FileNotFoundError:
         raise UserInputError(f"{path}: file not found") from None
     except OSError as exc:
         raise UserInputError(f"{path}: cannot read ({exc.strerror})") from None
+    ang, err, problems, lines = [], [], [], []
+    n_problems = 0
+    hdr_ln = cols = None
     try:
         with fh:
-            rows = [(i + 1, r) for i, r in enumerate(csv.reader(fh))]
+            for i, r in enumerate(csv.reader(fh)):
+                ln = i + 1
+                if not any(c.strip() for c in r):
+                    continue
+                if cols is None:
+                    hdr_ln, cols = ln, [c.strip() for c in r]
+                    missing = [c for c in ("angle_deg", "error_arcsec") if c not in cols]
+                    if missing:
+                        raise UserInputError(f"{path}:{hdr_ln}: header lacks column(s) {', '.join(missing)} "
+                                             f"(found {', '.join(cols) or 'nothing'})")
+                    ia, ie = cols.index("angle_deg"), cols.index("error_arcsec")
+                    continue
+                msg = _row_problem(path, ln, r, cols, ia, ie)
+                if msg is not None:
+                    n_problems += 1
+                    if len(problems) < 20:
+                        problems.append(msg)
+                    continue
+                ang.append(float(r[ia]))
+                err.append(float(r[ie]))
+                lines.append(ln)
     except UnicodeDecodeError as exc:
         raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}): is this a CSV table?") from None
     except csv.Error as exc:
         raise UserInputError(f"{path}: not a readable CSV table ({exc})") from None
-    rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r)]
-    if not rows:
+    if cols is None:
         raise UserInputError(f"{path}: empty file (expected a header angle_deg,error_arcsec)")
-    hdr_ln, hdr = rows[0]
-    cols = [c.strip() for c in hdr]
-    missing = [c for c in ("angle_deg", "error_arcsec") if c not in cols]
-    if missing:
-        raise UserInputError(f"{path}:{hdr_ln}: header lacks column(s) {', '.join(missing)} "
-                             f"(found {', '.join(cols) or 'nothing'})")
-    ia, ie = cols.index("angle_deg"), cols.index("error_arcsec")
-    ang, err, problems = [], [], []
-    for ln, r in rows[1:]:
-        if len(r) != len(cols):
-            problems.append(f"{path}:{ln}: expected {len(cols)} fields, got {len(r)}")
-            continue
-        try:
-            a, e = float(r[ia]), float(r[ie])
-        except ValueError:
-            problems.append(f"{path}:{ln}: not a number: {r[ia].strip()!r}, {r[ie].strip()!r}")
-            continue
-        if not (math.isfinite(a) and math.isfinite(e)):
-            problems.append(f"{path}:{ln}: non-finite value")
-            continue
-        if abs(e) >= FULL_TURN_ARCSEC or abs(a) > MAX_ANGLE_DEG:
-            # an angle error of a full turn or more, or an angle beyond a few turns, is
-            # not a calibration reading (and squares of such values overflow)
-            problems.append(f"{path}:{ln}: out of range: angle_deg {r[ia].strip()} (|angle| <= {MAX_ANGLE_DEG:g}), "
-                            f"error_arcsec {r[ie].strip()} (|error| < {FULL_TURN_ARCSEC:g}, one turn)")
-            continue
-        ang.append(a)
-        err.append(e)
     if problems:
-        raise UserInputError("\n".join(problems[:20]) + (
-            f"\n{path}: ... and {len(problems) - 20} more bad rows" if len(problems) > 20 else ""))
+        raise UserInputError("\n".join(problems) + (
+            f"\n{path}: ... and {n_problems - 20} more bad rows" if n_problems > 20 else ""))
     if not ang:
         raise UserInputError(f"{path}: no data rows")
     a = np.array(ang)
     wrapped = np.round(np.mod(a, 360.0), 9)
     if np.unique(wrapped).size != a.size:
-        lines = [ln for ln, _ in rows[1:]]
         seen: dict = {}
         for i, w in enumerate(wrapped):
             if w in seen:

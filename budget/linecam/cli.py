@@ -66,7 +66,9 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
     from simcam.cli_common import UserInputError
 
     from .calibrate import CalibrationError
+    from simcam.outputs import check_run_outputs
 
+    check_run_outputs(json_out=json_out, report_dir=report_dir, files={"--csv": csv_out}, inputs=(scenario,))
     scn = _scenario(scenario)
     try:
         sim = simulate(scn, trial_seed_sequence(seed, k))
@@ -116,22 +118,29 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
     click.echo(f"before calibration: rms {np.sqrt(np.mean(eb[0] ** 2)):.2f}\" along, "
                f"{np.sqrt(np.mean(eb[1] ** 2)):.2f}\" across")
     out["truth"] = dict(zip(PARAMETERS, truth.tolist()))
-    if csv_out:
-        write_observation_csv(scn, sim, csv_out)
-        click.echo(f"observations: {csv_out}")
-    if json_out:
-        write_json_atomic(json_out, out)
-    if report_dir:
-        d = Path(report_dir)
-        d.mkdir(parents=True, exist_ok=True)
-        figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
-                plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
-        (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
-                                       + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
-        from budget.runner.html import write_html  # its self-contained twin, simulate.html
+    from simcam.outputs import StagedOutputs, apply_umask
 
-        write_html(d / "simulate.md")
-        click.echo(f"report: {d / 'simulate.md'}")
+    with StagedOutputs() as staged:  # the table, the JSON and the report appear together or not at all
+        if csv_out:
+            tmp = staged.file(csv_out)
+            write_observation_csv(scn, sim, tmp)
+            apply_umask(tmp, is_dir=False)
+        if json_out:
+            write_json_atomic(staged.file(json_out), out)
+        if report_dir:
+            d = staged.folder(report_dir)
+            d.mkdir(parents=True, exist_ok=True)
+            figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
+                    plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
+            (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
+                                           + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+            from budget.runner.html import write_html  # its self-contained twin, simulate.html
+
+            write_html(d / "simulate.md")
+    if csv_out:
+        click.echo(f"observations: {csv_out}")
+    if report_dir:
+        click.echo(f"report: {Path(report_dir) / 'simulate.md'}")
 
 
 def write_observation_csv(scn, sim, path) -> None:
@@ -170,12 +179,12 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
 
     from .model import Observations
 
+    from simcam.outputs import check_input_file
+
     src = str(path)
-    p = Path(path)
-    if not p.is_file():
-        raise UserInputError(f"{src}: file not found")
+    p = check_input_file(path, what="observation table")  # a FIFO or a device is not read
     try:
-        df = pd.read_csv(p)
+        df = pd.read_csv(p, encoding="utf-8-sig")
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise UserInputError(f"{src}: not a readable CSV table ({str(exc).splitlines()[0]})") from None
     missing = [c for c in CSV_COLUMNS if c not in df.columns]
@@ -188,9 +197,11 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
         v = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:
-            raise UserInputError(f"{src}: {c}: not a finite number in row {int(bad[0]) + 2} "
-                                 f"(got {df[c].iloc[bad[0]]!r})")
+            raw = df[c].iloc[bad[0]]
+            got = "an empty cell" if pd.isna(raw) else repr(str(raw))
+            raise UserInputError(f"{src}: {c}: not a finite number in row {int(bad[0]) + 2} (got {got})")
         arr[c] = v
+    check_observation_values(src, arr, n_pixels=scn.camera.n_pixels)
     hip = arr["hip"]
     if np.any(hip != np.round(hip)) or np.any(hip < 1):
         r = int(np.flatnonzero((hip != np.round(hip)) | (hip < 1))[0])
@@ -233,6 +244,89 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     return Observations(b=b, sample=s, pass_index=passes, hip=hip.astype(np.int64)), t
 
 
+#: a physical observation table (issue 24): times within a century of the epoch, the
+#: spacecraft between the Earth's surface and ten times the Moon's distance, at less than
+#: the Earth's escape speed from its surface (11.2 km/s) plus margin
+MAX_ABS_TIME_S = 100 * 365.25 * 86400.0
+MIN_RADIUS_KM, MAX_RADIUS_KM = 6356.0, 4.0e6
+MAX_SPEED_KM_S = 20.0
+#: at least this many distinct catalogue stars (each gives two equations; ten parameters)
+MIN_DISTINCT_STARS = 6
+#: the samples must spread over at least this many pixels along the line
+MIN_SAMPLE_SPREAD_PX = 2.0
+
+
+def check_observation_values(src: str, arr: dict, *, n_pixels: int) -> None:
+    """What makes a calibration from this table meaningless, refused with the file and field:
+    duplicated rows (counted twice, they overstate the stated precision by sqrt 2),
+    non-physical times, positions and velocities, too few distinct stars, all samples at
+    one pixel. ``arr``: the table's columns as float arrays (already finite)."""
+    import numpy as np
+
+    from simcam.cli_common import UserInputError
+
+    t = arr["time_s"]
+    bad = np.flatnonzero(np.abs(t) > MAX_ABS_TIME_S)
+    if bad.size:
+        raise UserInputError(f"{src}: time_s: {t[bad[0]]:g} s in row {int(bad[0]) + 2} is more than a century "
+                             f"from the epoch (|time_s| <= {MAX_ABS_TIME_S:.3g})")
+    r = np.sqrt(arr["pos_x_km"] ** 2 + arr["pos_y_km"] ** 2 + arr["pos_z_km"] ** 2)
+    bad = np.flatnonzero((r < MIN_RADIUS_KM) | (r > MAX_RADIUS_KM))
+    if bad.size:
+        raise UserInputError(f"{src}: pos_x_km: the position in row {int(bad[0]) + 2} is {r[bad[0]]:.6g} km from "
+                             f"the Earth's centre (an orbit is between {MIN_RADIUS_KM:g} and {MAX_RADIUS_KM:g} km)")
+    v = np.sqrt(arr["vel_x_km_s"] ** 2 + arr["vel_y_km_s"] ** 2 + arr["vel_z_km_s"] ** 2)
+    bad = np.flatnonzero(v > MAX_SPEED_KM_S)
+    if bad.size:
+        raise UserInputError(f"{src}: vel_x_km_s: the speed in row {int(bad[0]) + 2} is {v[bad[0]]:.6g} km/s "
+                             f"(an orbit is slower than {MAX_SPEED_KM_S:g} km/s)")
+    table = np.column_stack([arr[c] for c in CSV_COLUMNS])
+    _, first, inverse, counts = np.unique(table, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
+    if np.any(counts > 1):
+        dup = int(np.flatnonzero(counts[np.ravel(inverse)] > 1)[1]) if counts.max() > 1 else 0
+        k = int(np.ravel(inverse)[dup])
+        raise UserInputError(f"{src}: rows: row {dup + 2} repeats row {int(first[k]) + 2} "
+                             f"({int((counts - 1).clip(0).sum())} duplicated row(s)); a repeated observation "
+                             "is counted twice and overstates the stated precision: remove the duplicates")
+    stars = np.unique(arr["hip"]).size
+    if stars < MIN_DISTINCT_STARS:
+        raise UserInputError(f"{src}: rows: {stars} distinct star(s) (column hip); a calibration needs at "
+                             f"least {MIN_DISTINCT_STARS}: too few stars")
+    s = arr["sample_px"]
+    if float(np.ptp(s)) < MIN_SAMPLE_SPREAD_PX:
+        raise UserInputError(f"{src}: sample_px: every observation is at pixel {np.median(s):.6g} (spread "
+                             f"{float(np.ptp(s)):.3g} px of the {n_pixels}); the field along the line is not "
+                             "determined")
+
+
+#: a fit whose normal matrix has a condition number above this is singular to double precision
+MAX_CONDITION = 1e12
+
+
+def check_determined(calibrations: dict, *, source: str) -> None:
+    """A singular or near-singular fit is an error, never a result stated "+- 0".
+
+    The published steps and the look-angle polynomials have no gauge: a normal matrix
+    with a condition number above :data:`MAX_CONDITION` (or infinite) means the table does
+    not determine them. The joint fit removes its gauge directions by design (their
+    zero variance is the gauge, stated as such); a non-finite stated uncertainty is refused.
+    """
+    import numpy as np
+
+    from simcam.cli_common import UserInputError
+
+    for m, c in calibrations.items():
+        cond = float(getattr(c, "condition", np.nan))
+        if m != "improved" and (not np.isfinite(cond) or cond > MAX_CONDITION):
+            raise UserInputError(f"{source}: rows: the {m} fit is singular (condition {cond:.3g}); these "
+                                 "observations do not determine the parameters")
+        cov = getattr(c, "cov", None)
+        if cov is not None and not np.all(np.isfinite(np.diag(cov))):
+            raise UserInputError(f"{source}: rows: the {m} fit has no finite uncertainty; these observations "
+                                 "do not determine the parameters")
+
+
 def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", "improved", "lookangle")) -> dict:
     """Both estimators on the observations; errors name ``source`` and the field."""
     from simcam.cli_common import UserInputError
@@ -264,6 +358,10 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
     except CalibrationError as exc:
         field = "solve" if "separate" in str(exc) else "rows"
         raise UserInputError(f"{source}: {field}: {exc}") from None
+    except np.linalg.LinAlgError as exc:
+        raise UserInputError(f"{source}: rows: the fit is singular ({exc}); these observations do not "
+                             "determine the parameters") from None
+    check_determined(out, source=source)
     grid = los_grid(scn)
     los = {m: (c.field(grid) if m == "lookangle" else los_field(cam, c, grid)) for m, c in out.items()}
     return {"calibrations": out, "los": los, "grid": grid,
@@ -291,6 +389,11 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
     from .model import los_angles, residuals
     from .trial import PARAM_UNITS, to_report_units
 
+    from simcam.outputs import check_run_outputs
+
+    # before any work: --json/--report are new files/folders or earlier outputs, not a
+    # device and not the observation table or the scenario (issue 24)
+    check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(observations, scenario))
     scn = _scenario(scenario)
     src = str(observations)
     names = None
@@ -354,36 +457,41 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
             "los_field": field}
-    if json_out:
-        write_json_atomic(json_out, payload)
+    from simcam.outputs import StagedOutputs
+
+    with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
+        if json_out:
+            write_json_atomic(staged.file(json_out), payload)
+        if report_dir:
+            from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
+
+            d = staged.folder(report_dir)
+            d.mkdir(parents=True, exist_ok=True)
+            ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
+                  "coverage_bins": scn.lab.coverage_bins,
+                  "residual_before_px": residuals(cam, np.zeros(len(PARAMETERS)), obs),
+                  "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items()
+                                        if m != "lookangle"}}
+            figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
+                    plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
+            rows = ["| method | parameter | value | 1-sigma | unit |", "|---|---|---|---|---|"]
+            for m, pm in payload["methods"].items():
+                for p in pm.get("solved", []):
+                    rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
+                                else f"| {m} | {p} | {pm['theta'][p]:.5g} | {pm['sigma'][p]:.3g} | {pm['units'][p]} |")
+                for name, cmb in pm.get("determined_combinations", {}).items():
+                    rows.append(f"| {m} | {name} | {cmb['value']:.5g} | {cmb['sigma']:.3g} | arcsec |")
+            note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
+                    "stars do determine are listed in their place." if any(
+                        pm.get("not_determined") for pm in payload["methods"].values()) else "")
+            (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
+                                            + (note + "\n\n" if note else "")
+                                            + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+            from budget.runner.html import write_html  # its self-contained twin, calibrate.html
+
+            write_html(d / "calibrate.md")
     if report_dir:
-        from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
-
-        d = Path(report_dir)
-        d.mkdir(parents=True, exist_ok=True)
-        ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
-              "coverage_bins": scn.lab.coverage_bins,
-              "residual_before_px": residuals(cam, np.zeros(len(PARAMETERS)), obs),
-              "residual_after_px": {m: c.residuals_px for m, c in res["calibrations"].items() if m != "lookangle"}}
-        figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
-                plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
-        rows = ["| method | parameter | value | 1-sigma | unit |", "|---|---|---|---|---|"]
-        for m, pm in payload["methods"].items():
-            for p in pm.get("solved", []):
-                rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
-                            else f"| {m} | {p} | {pm['theta'][p]:.5g} | {pm['sigma'][p]:.3g} | {pm['units'][p]} |")
-            for name, cmb in pm.get("determined_combinations", {}).items():
-                rows.append(f"| {m} | {name} | {cmb['value']:.5g} | {cmb['sigma']:.3g} | arcsec |")
-        note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
-                "stars do determine are listed in their place." if any(
-                    pm.get("not_determined") for pm in payload["methods"].values()) else "")
-        (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
-                                        + (note + "\n\n" if note else "")
-                                        + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
-        from budget.runner.html import write_html  # its self-contained twin, calibrate.html
-
-        write_html(d / "calibrate.md")
-        click.echo(f"report: {d / 'calibrate.md'}")
+        click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 
 
 def commands() -> list:

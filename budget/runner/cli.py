@@ -16,6 +16,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal.
     """
     import sys
+    from pathlib import Path
 
     from budget.runner.report import format_table, write_report
     from budget.runner.run import run_study
@@ -23,6 +24,9 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
 
     if progress is None:
         progress = sys.stderr.isatty()
+    from simcam.outputs import check_run_outputs
+
+    check_run_outputs(json_out=json_out, report_dir=report_dir)  # issue 24: refuse before the work
     if workers is None and scheduler is None and dask_local is None:
         from budget.runner.executors import default_workers
 
@@ -37,10 +41,15 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     click.echo("\n".join(findings_lines(res)))
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
-    if json_out:
-        write_json_atomic(json_out, res.to_json())
+    from simcam.outputs import StagedOutputs
+
+    with StagedOutputs() as staged:  # issue 24: the JSON and the report appear together or not at all
+        if json_out:
+            write_json_atomic(staged.file(json_out), res.to_json())
+        if report_dir:
+            write_report(res, staged.folder(report_dir))
     if report_dir:
-        click.echo(f"report: {write_report(res, report_dir)}")
+        click.echo(f"report: {Path(report_dir) / 'report.md'}")
     return res
 
 

@@ -280,7 +280,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                         bar.update(len(part))
                 if tolerance is not None:
                     samples, tt, _ = _collect(results)
-                    if converged(samples, tt, tolerance):
+                    if converged(samples, tt, tolerance) and _truths_within(samples, tt, truths, tolerance):
                         stopped_by = "tolerance"
                         break
                     if len(results) >= cap:
@@ -296,6 +296,27 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                        classes=classes, truths=truths, samples=samples, trial_truths=trial_truths,
                        sigmas=sigmas, example=results.get(0), elapsed_s=time.perf_counter() - t0,
                        executor=executor.description, aux=aux)
+
+
+def _truths_within(samples: dict, trial_truths: dict, truths: dict | None, tolerance: float) -> bool:
+    """Adaptive stopping with the standard error the report gives: for a fixed truth ``T``
+    with its Monte Carlo standard error ``s_T``, the bias's ``sqrt(s^2 / n + s_T^2)``
+    (:func:`key_statistics`) must be below ``tolerance`` too, not only ``s / sqrt(n)``
+    (:func:`converged`). A truth whose own ``s_T`` exceeds the tolerance never lets a run
+    stop by tolerance: it runs to the cap (``stopped_by = "max_trials"``)."""
+    if truths is None:
+        return False
+    for key, x in samples.items():
+        if key in trial_truths:
+            continue
+        t = truths.get((key[0], key[2]))
+        if t is None:
+            continue
+        n = len(x)
+        s = float(np.std(np.asarray(x, dtype=float), ddof=1)) if n > 1 else float("inf")
+        if math.sqrt(s**2 / n + float(t.se) ** 2) > tolerance:
+            return False
+    return True
 
 
 def _collect(results: dict[int, TrialResult]):

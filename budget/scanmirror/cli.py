@@ -97,6 +97,9 @@ def simulate_command() -> click.Command:
         from budget.scanmirror.study import STUDY
         from simcam.cli_common import write_json_atomic
 
+        from simcam.outputs import StagedOutputs, check_run_outputs
+
+        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,))  # issue 24: before the work
         scn = STUDY.load_scenario(scenario)
         source = scenario or "embedded scanmirror default"
         summary, setup, out = simulate(scn, seed=seed, source=source)
@@ -104,9 +107,12 @@ def simulate_command() -> click.Command:
             for name, r in row.items():
                 click.echo(f"scan {s} {name:17s} max |lat err| {r['lat_max_deg']:.5f} deg  "
                            f"max |lon err| {r['lon_max_deg']:.5f} deg")
-        if json_out:
-            write_json_atomic(json_out, summary)
+        with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
+            if json_out:
+                write_json_atomic(staged.file(json_out), summary)
+            if report_dir:
+                write_simulate_report(summary, setup, out, staged.folder(report_dir))
         if report_dir:
-            click.echo(f"report: {write_simulate_report(summary, setup, out, report_dir)}")
+            click.echo(f"report: {Path(report_dir) / 'report.md'}")
 
     return cmd

@@ -36,8 +36,29 @@ class Setup:
     source: str = "scenario"
     world: World = field(init=False)
 
+    #: bytes per ground sample held while the setup is built (plan angles, ground points,
+    #: orbit geometry, attitude matrices): a lower bound, so nothing feasible is refused
+    BYTES_PER_SAMPLE = 400
+
+    def _check_size(self, duration_s: float) -> None:
+        """Refuse, before allocating, a step that gives more samples than memory holds,
+        naming the scenario field the step came from."""
+        from simcam.lifecycle import check_memory
+
+        sc = self.scenario
+        field_name = "ground_step_s"
+        for sect in ("compensation", "validation"):
+            if getattr(getattr(sc, sect, None), "ground_step_s", None) == self.step_s:
+                field_name = f"{sect}.ground_step_s"
+                break
+        n = float(duration_s) / float(self.step_s)
+        check_memory(n * self.BYTES_PER_SAMPLE,
+                     what=f"{self.source}: {field_name} = {self.step_s:g} s over the plan's {duration_s:.4g} s "
+                          f"(scan_plan): {n:.3g} ground samples")
+
     def __post_init__(self):
         w = self.world = World(self.scenario)
+        self._check_size(w.duration_s)
         t = np.arange(0.0, w.duration_s, self.step_s)
         plan = w.plan(t)
         keep = plan.scan > 0 if self.scans is None else np.isin(plan.scan, self.scans)

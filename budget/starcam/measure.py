@@ -30,6 +30,7 @@ numbered each in their own raster order).
 from __future__ import annotations
 
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -47,6 +48,10 @@ DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     """Read and validate a manifest CSV (see module docstring)."""
     path = Path(path)
+    from simcam.outputs import input_file_problem
+
+    if (why := input_file_problem(path)) is not None:  # a FIFO would block, /dev/null read as empty
+        raise UserInputError(f"{path}: {why}")
     if not path.is_file():
         raise UserInputError(f"{path}: manifest not found (write manifest.csv in the frame directory "
                              "or pass --manifest; see `budget starcam measure --help`)")
@@ -111,6 +116,24 @@ def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool)
                                  "(pass --allow-outside-files to read it anyway)")
 
 
+def _check_pixels(path, data: np.ndarray) -> None:
+    """A NaN pixel is a marked bad pixel: the star it touches is flagged and left out (the
+    documented rule). An infinite pixel, or a whole row or column of NaN, is no camera
+    frame: centroids and noise over them are meaningless, so the frame is refused (issue 24)."""
+    inf = np.isinf(data)
+    if inf.any():
+        r, c = np.argwhere(inf)[0]
+        raise UserInputError(f"{path}: {int(inf.sum())} infinite pixel(s) (first at row {r}, column {c}); "
+                             "a camera frame has none")
+    nan = np.isnan(data)
+    if nan.any():
+        rows, cols = np.flatnonzero(nan.all(axis=1)), np.flatnonzero(nan.all(axis=0))
+        if rows.size or cols.size:
+            what = f"row {rows[0]}" if rows.size else f"column {cols[0]}"
+            raise UserInputError(f"{path}: {rows.size} row(s) and {cols.size} column(s) entirely NaN (first: "
+                                 f"{what}); mark bad pixels one by one, not whole lines")
+
+
 def _load(directory: Path, files) -> list[np.ndarray]:
     from simcam.io import read_frame
 
@@ -118,11 +141,25 @@ def _load(directory: Path, files) -> list[np.ndarray]:
     shape = None
     for f in files:
         data, _ = read_frame(directory / f)
+        _check_pixels(directory / f, data)
         if shape is not None and data.shape != shape:
             raise UserInputError(f"{directory / f}: shape {data.shape} differs from the first frame's {shape}")
         shape = data.shape
         out.append(data)
     return out
+
+
+@contextmanager
+def _frame_context(path, cond):
+    """The centroid core names its own arguments (``noise_dn``, ``threshold_dn``), which
+    are no options of this command: say which frame and condition, and what it means."""
+    try:
+        yield
+    except UserInputError as exc:
+        if str(exc).startswith("noise_dn:"):
+            raise UserInputError(f"{path}: condition {cond}: the frames' noise is zero (constant pixels); no star "
+                                 "can be told from the background") from None
+        raise
 
 
 def _raster_order(xy: np.ndarray, band_px: float = 40.0) -> np.ndarray:
@@ -153,7 +190,7 @@ def measure_frames(
     ``budget validate``'s, ``validation.threshold_sigma``). Stars are found on the mean of
     a condition's frames (dark subtracted) with :func:`budget.centroid.core.detect_stars`'s own
     detection threshold, so a noise excursion of one frame cannot become a "star" that
-    then enters an estimate (issue 12: at 3 sigma on single frames two spurious stars
+    then enters an estimate (at 3 sigma on single frames two spurious stars
     turned TE y into 0.77" instead of 0.20").
     """
     from budget.centroid.core import centroid_frames, detect_stars, subtract_dark
@@ -188,6 +225,10 @@ def measure_frames(
         if reference is None:
             raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
         rp = Path(reference)
+        from simcam.outputs import input_file_problem
+
+        if (why := input_file_problem(rp)) is not None:
+            raise UserInputError(f"--reference {rp}: {why}")
         if not rp.is_file():
             raise UserInputError(f"{rp}: reference file not found")
         try:
@@ -201,7 +242,9 @@ def measure_frames(
             v = pd.to_numeric(ref_table[c], errors="coerce")
             if not np.isfinite(v.to_numpy(float)).all():
                 row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
-                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {ref_table[c].iloc[row]!r}")
+                raw = ref_table[c].iloc[row]
+                got = "an empty cell" if pd.isna(raw) else repr(str(raw))
+                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
             ref_table[c] = v
     from simcam.lifecycle import progress as progress_bar
 
@@ -228,7 +271,8 @@ def measure_frames(
         elif protocol == "hsfe" and prev_xy is not None:
             ref_xy = prev_xy
         else:
-            det = detect_stars(first)
+            with _frame_context(directory / rows["file"].iloc[0], cond):
+                det = detect_stars(first)
             if det.empty:
                 raise UserInputError(f"{directory / rows['file'].iloc[0]}: condition {cond}: no star "
                                      f"detected in the mean of its frames")
@@ -238,12 +282,13 @@ def measure_frames(
         if protocol == "chromatic":
             extra["filter_nm"] = float(rows["filter_nm"].iloc[0])
             extra["field"] = field
-        t = centroid_frames(
-            frames, dark=dark, reference_xy=ref_xy, frame_ids=rows["frame"].astype(int).tolist(),
-            window_size_px=window_px, threshold_sigma=threshold_sigma, match_radius_px=match_radius_px,
-            method=method, saturation_dn=saturation_dn, adc_max_dn=adc_max, extra_columns=extra,
-            **method_options,
-        )
+        with _frame_context(directory / rows["file"].iloc[0], cond):
+            t = centroid_frames(
+                frames, dark=dark, reference_xy=ref_xy, frame_ids=rows["frame"].astype(int).tolist(),
+                window_size_px=window_px, threshold_sigma=threshold_sigma, match_radius_px=match_radius_px,
+                method=method, saturation_dn=saturation_dn, adc_max_dn=adc_max, extra_columns=extra,
+                **method_options,
+            )
         if protocol == "chromatic" and field not in ref_xy_by_field:
             ref_xy_by_field[field] = ref_xy
         if protocol == "hsfe":
@@ -253,7 +298,8 @@ def measure_frames(
         tables.append(t)
         bar.update(len(rows) + len(darks))
     bar.close()
-    info = {"plate_scale_arcsec": header.get("PLTSCALE"), "files": int(len(m))}
+    info = {"plate_scale_arcsec": header.get("PLTSCALE"), "files": int(len(m)),
+            "plate_scale_file": str(directory / lit["file"].iloc[0])}
     return pd.concat(tables, ignore_index=True), ref_table, info
 
 
@@ -307,15 +353,19 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
 
     if window_px % 2 == 0:
         raise UserInputError(f"--window {window_px}: must be odd")
+    from simcam.outputs import StagedOutputs, check_run_outputs
+
+    # before any frame is read: the outputs are files (not a device), not an input, in a
+    # writable folder (issue 24)
+    check_run_outputs(json_out=json_out, files={"--centroids": centroids_out},
+                      inputs=(manifest, reference, Path(directory) / "manifest.csv"))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cen, ref, info = measure_frames(protocol, directory, manifest=manifest, reference=reference, method=method,
                                         window_px=window_px, threshold_sigma=threshold_sigma,
                                         saturation_dn=saturation_dn, weight_sigma_px=weight_sigma_px,
                                         allow_outside=allow_outside, progress=progress)
-        ps = plate_scale if plate_scale is not None else info["plate_scale_arcsec"]
-        if ps is None:
-            raise UserInputError("no plate scale: pass --plate-scale (the frames have no PLTSCALE keyword)")
+        ps = plate_scale if plate_scale is not None else header_plate_scale(info)
         results = estimate(protocol, cen, plate_scale_arcsec=float(ps), reference=ref,
                            marker_3sigma_arcsec=marker_3sigma)
     # centroid warnings (flagged stars) are printed here; estimator warnings are in the table
@@ -327,9 +377,37 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
     click.echo(f"{protocol}: {info['files']} files, {cen['star'].nunique()} stars, "
                f"{cen['condition'].nunique()} condition(s), plate scale {float(ps):g} arcsec/px, centroid {method}")
     click.echo(format_estimates(protocol, results))
+    with StagedOutputs() as staged:  # both outputs or neither
+        _write_measure_outputs(staged, cen, results, protocol, directory, method, ps, centroids_out, json_out)
+
+
+def header_plate_scale(info: dict) -> float:
+    """The plate scale from the first frame's PLTSCALE keyword: a finite positive number of
+    arcsec/px, else one error naming the file (was: a traceback for ``'abc'``, an error
+    without the file for 0)."""
+    import math
+
+    raw, where = info.get("plate_scale_arcsec"), info.get("plate_scale_file", "the first frame")
+    if raw is None:
+        raise UserInputError(f"{where}: no PLTSCALE keyword in the header; pass --plate-scale (arcsec/px)")
+    try:
+        ps = float(raw)
+    except (TypeError, ValueError):
+        ps = float("nan")
+    if isinstance(raw, bool) or not math.isfinite(ps) or ps <= 0 or ps > 3600.0 * 360:
+        raise UserInputError(f"{where}: header PLTSCALE = {raw!r} is not a positive number of arcsec/px "
+                             "(pass --plate-scale to give it)")
+    return ps
+
+
+def _write_measure_outputs(staged, cen, results, protocol, directory, method, ps, centroids_out, json_out):
     if centroids_out:
-        cen.to_csv(centroids_out, index=False)
+        from simcam.outputs import apply_umask
+
+        tmp = staged.file(centroids_out)
+        cen.to_csv(tmp, index=False)
+        apply_umask(tmp, is_dir=False)
     if json_out:
-        write_json_atomic(json_out, {"protocol": protocol, "directory": str(directory), "method": method,
+        write_json_atomic(staged.file(json_out), {"protocol": protocol, "directory": str(directory), "method": method,
                                      "plate_scale_arcsec": float(ps),
                                      "estimates": {k: v.to_dict() for k, v in results.items()}})

@@ -56,7 +56,7 @@ class ClassTruth:
 
     ``se_x_px``, ``se_y_px``: the truth's own Monte Carlo standard error (px; 0 for a truth
     computed without sampling). The validator adds it to the standard error of the mean
-    estimate when it tests a bias (issue 12).
+    estimate when it tests a bias.
     """
 
     name: str

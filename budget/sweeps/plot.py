@@ -371,9 +371,12 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     from budget.sweeps.store import open_sobol, open_sweep
     from simcam.cli_common import UserInputError
 
+    import shutil
+
+    from simcam.outputs import check_output_dir
+
     ds = open_sweep(store)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     files: list[Path] = []
     axes_all = list(ds["axis"].values) if "axis" in ds.coords else []
     sob = open_sobol(store)
@@ -384,6 +387,24 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
         raise UserInputError(f"--axis {axis}: this store has axes {', '.join(map(str, axes_all))}")
     if "variant" in ds.coords and variant not in ds["variant"].values:
         raise UserInputError(f"--variant {variant}: this store has {', '.join(map(str, ds['variant'].values))}")
+    if ds.attrs.get("point_dims") and "done" in ds and not bool(ds["done"].any()) and sob is None:
+        raise UserInputError(f"{store}: no point of the sweep is done yet; run `budget sweep` into it first")
+    # the folder is checked before, and created only when a figure is drawn; a failure
+    # removes a folder this call created (no empty plots folder left behind)
+    check_output_dir(out_dir, option="--out", replaceable=lambda _p: True)
+    created = not out_dir.exists()
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        files = _draw(ds, sob, ax_name, variant, precision, out_dir)
+    except BaseException:
+        if created:
+            shutil.rmtree(out_dir, ignore_errors=True)
+        raise
+    return files
+
+
+def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
+    files: list[Path] = []
     if ds.attrs.get("point_dims"):
         for xdim, xname in _x_axes(ds):
             files.append(_line_figure(ds, xdim, xname, ax_name, variant, out_dir))

@@ -109,14 +109,58 @@ def _template(point_dims, point_shape, point_coords, kind, evaluate, attrs):
     return xr.Dataset(data_vars, coords=coords, attrs=attrs), enc
 
 
+#: the disk a chunk file takes at least (one file system block)
+_BLOCK_BYTES = 4096
+
+
+def store_bytes(sweep) -> float:
+    """Disk the finished store takes, at least: one chunk file per point (and Sobol sample)
+    per variable, each at least one file-system block."""
+    import numpy as np
+
+    from budget.sweeps.evaluate import labels, schema
+
+    def per_point(kind, evaluate):
+        lab = labels(kind)
+        total = _BLOCK_BYTES  # the done flag
+        for dims, dtype, _ in schema(kind, evaluate).values():
+            n = float(np.prod([len(lab[d]) for d in dims])) if dims else 1.0
+            total += max(_BLOCK_BYTES, n * np.dtype(dtype).itemsize)
+        return total
+
+    s = sweep.spec
+    need = float(len(sweep.points)) * per_point(s.kind, s.evaluate) if sweep.params else 0.0
+    if s.sensitivity is not None:
+        need += float(len(sweep.sample_points)) * per_point(s.kind, s.sensitivity.evaluate)
+    return need
+
+
+def check_store_size(path, sweep) -> None:
+    """Refuse a store that cannot fit on the disk at ``path`` (before it is created)."""
+    from simcam.lifecycle import announce_size, check_disk
+
+    need = store_bytes(sweep)
+    check_disk(path, need, what=f"{getattr(sweep, 'path', 'sweep')}: parameters: a store of "
+                                 f"{len(sweep.points)} point(s)")
+    announce_size(need, where=path)
+
+
 def create_store(path: str | os.PathLike, sweep) -> None:
     """Create the (empty) store of ``sweep`` at ``path``, atomically (temp dir + rename)."""
     import xarray as xr
 
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
+    check_store_size(path, sweep)  # refused before anything is created (issue 24)
     parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    from simcam.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.outputs import apply_umask
+
+    # a store a killed run left half-created (.NAME.partial.<pid>.*, its PID gone) is
+    # removed here and said so on stderr; this run's own is removed on any failure below
+    remove_stale_partials(path)
+    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(path), dir=parent))
+    apply_umask(tmp, is_dir=True)  # mkdtemp makes it 0700; the store gets the user's umask
     try:
         attrs = store_attrs(sweep)
         s = sweep.spec
@@ -182,11 +226,16 @@ def check_store(path: str | os.PathLike, sweep) -> str:
     """
     import simcam
 
+    from simcam.outputs import check_output_dir
+
     path = Path(path)
-    if not path.exists():
+    if not path.exists() or (path.is_dir() and not any(path.iterdir())):
+        # a new store (or an empty folder it is renamed onto): its location is checked
+        # before any work (parent a writable folder, name length, not a device or an input)
+        check_output_dir(path, option="--out", inputs=(getattr(sweep, "path", None),))
         return "new"
-    if path.is_dir() and not any(path.iterdir()):
-        return "new"  # an empty directory: the store is renamed onto it
+    if not path.is_dir():
+        check_output_dir(path, option="--out")  # a file or a device: refused, naming it
     attrs = _read_attrs(path) if path.is_dir() else None
     if not attrs or "sweep_hash" not in attrs:
         raise UserInputError(f"--out {path}: exists and is not a sweep store; choose another path")
@@ -266,11 +315,41 @@ def _open(path, group=None):
 
 
 def open_sweep(path: str | os.PathLike):
-    """The grid of a sweep store as an xarray Dataset (loaded; undone points are NaN)."""
-    ds = _open(path).load()
+    """The grid of a sweep store as an xarray Dataset (loaded; undone points are NaN).
+
+    A damaged store is one ``UserInputError`` naming it: a chunk that cannot be decoded,
+    the ``truth`` or ``done`` array missing, or a point marked done whose truth chunk is
+    gone (Zarr would read a missing chunk as its fill value, NaN, silently).
+    """
+    ds = _load_checked(path)
     if "done" in ds:
         ds["done"] = ds["done"].astype(bool)
+        if ds.attrs.get("point_dims"):
+            if "truth" not in ds:
+                raise UserInputError(f"{path}: the store has no truth array (damaged store; run the sweep "
+                                     "again into a new --out)")
+            pdims = list(ds["done"].dims)
+            other = [d for d in ds["truth"].dims if d not in pdims]
+            lost = ds["done"] & ds["truth"].isnull().all(dim=other)
+            if bool(lost.any()):
+                n = int(lost.sum())
+                raise UserInputError(f"{path}: {n} point(s) marked done have no truth values (a chunk of "
+                                     "truth is missing: damaged store; delete those points' done flags or "
+                                     "run the sweep again into a new --out)")
+    elif ds.attrs.get("point_dims"):
+        raise UserInputError(f"{path}: the store has no done array (damaged store)")
     return ds
+
+
+def _load_checked(path, group=None):
+    try:
+        return _open(path, group=group).load()
+    except UserInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged chunk fails in the codec in many ways
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise UserInputError(f"{path}: a chunk of the store cannot be read ({type(exc).__name__}: {msg[:200]}); "
+                             "damaged store") from None
 
 
 def open_sensitivity(path: str | os.PathLike):
@@ -281,7 +360,7 @@ def open_sensitivity(path: str | os.PathLike):
     g = zarr.open_group(str(path), mode="r", use_consolidated=False)
     if "sensitivity" not in g:
         return None
-    ds = _open(path, group="sensitivity").load()
+    ds = _load_checked(path, group="sensitivity")
     ds["done"] = ds["done"].astype(bool)
     return ds
 

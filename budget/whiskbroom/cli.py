@@ -25,8 +25,16 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
     from simcam.whiskbroom import scenario as wsc
     from simcam.whiskbroom import synthesis as sy
 
+    from simcam.outputs import StagedOutputs, check_run_outputs, is_earlier_report
+
+    check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # issue 24: before the work
+    if report_dir:
+        from simcam.outputs import check_output_dir
+
+        check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report)
     sc = wsc.load(scenario_path)
-    res = sy.synthesize(sc, seed, trials=trials)
+    res = sy.synthesize(sc, seed, trials=trials,
+                        source=str(scenario_path) if scenario_path else "embedded whiskbroom default")
     sob = sy.sobol_indices(sc, seed=seed)
     echo(f"whiskbroom synthesis: scenario hash {sc.hash}, seed {seed}, {res.trials.size} trials, "
          f"{sy.field_points(sc)[0].size} field points over {sc.camera.n_chips} x "
@@ -52,12 +60,26 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
                         for n, a, b, c, d in zip(sob["names"], sob["S1"], sob["ST"], sob["S1_conf"], sob["ST_conf"])}
     payload["beta_deg"] = res.residuals[next(iter(res.residuals))].beta_deg
     payload["dv_mm_s"] = {str(k): r.dv_mm_s for k, r in res.residuals.items()}
+    with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
+        _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, report_dir)
+    if report_dir:
+        echo(f"report: {Path(report_dir) / 'report.md'}")
+    return res
+
+
+def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, report_dir) -> None:
+    import numpy as np
+
+    from simcam.cli_common import write_json_atomic
+    from simcam.whiskbroom import geometry as geo
+    from simcam.whiskbroom import synthesis as sy
+
     if json_out:
-        write_json_atomic(json_out, payload)
+        write_json_atomic(staged.file(json_out), payload)
     if report_dir:
         from budget.whiskbroom import plots
 
-        out = Path(report_dir)
+        out = staged.folder(report_dir)
         out.mkdir(parents=True, exist_ok=True)
         figs = [plots.plot_beta_hist(res, out / "beta_hist.png"), plots.plot_dv_hist(res, out / "dv_hist.png"),
                 plots.plot_mtf_vs_stages(res, out / "mtf_vs_stages.png", threshold=sc.synthesis.mtf_threshold,
@@ -83,8 +105,6 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
         from budget.runner.html import write_html  # its self-contained twin, report.html
 
         write_html(out / "report.md")
-        echo(f"report: {out / 'report.md'}")
-    return res
 
 
 @click.command("synthesize", help="Monte Carlo synthesis of the image-motion residual (seed 002 steps 1-5) "

@@ -1,6 +1,6 @@
 """MTF estimators of the whiskbroom TDI camera (lab side: no simulator objects).
 
-* :func:`published_mtf`: the paper's prediction (its fig. 6, [R] methods/002.md a):
+* :func:`published_mtf`: the paper's prediction (its fig. 6, [R], docs/whiskbroom.md):
   ``MTF(N) = sinc(pi N eps / 2)`` at Nyquist with ``eps = Delta V_P / V_P`` (eq. 7),
   nothing across the TDI direction.
 * :func:`improved_mtf`: the same smear model with what the paper leaves out: the charge

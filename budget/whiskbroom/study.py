@@ -88,7 +88,11 @@ class WhiskbroomStudy(Study):
         draws = sy.standard_draws(scenario, u)
         know, true = sy.trial_params(scenario, draws, [k])
         x1, x3 = self._field(scenario)
-        return rng, sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
+        r = sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
+        # a scenario outside the model's domain is one error line, not NaN estimates (issue 24)
+        sy.check_finite_residuals(scenario, r, scenario.errors.mirror_rate_deg_s.scale,
+                                  f"{getattr(scenario, 'source', 'scenario')}: trial {k} of seed {seed}")
+        return rng, r
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         from budget.whiskbroom import estimators as est

@@ -1,7 +1,7 @@
 """The TDI line camera of the world: interior orientation, exterior misalignment, and the
 forward (direction -> focal plane) and inverse (focal plane -> direction) camera models.
 
-Frames and conventions (seed 004, ``shared/methods/004.md`` section a):
+Frames and conventions (seed 004, reconstructed in docs/linecam.md):
 
 * **camera frame**: ``+z`` opposite to the boresight (the camera looks along ``-z``),
   ``x`` along track (the scan direction, across the line), ``y`` along the line. A point of

@@ -13,7 +13,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, model_hash, read_toml,
                                 validate_model)
@@ -41,24 +41,25 @@ class QEModel(_M):
     """Parametric QE (:func:`simcam.spectra.cmos_qe_array`)."""
 
     peak_qe: Unit = 0.6
-    peak_nm: Pos = 650.0
-    blue_cutoff_nm: Pos = 420.0
-    red_cutoff_nm: Pos = 900.0
+    peak_nm: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)] = 650.0
+    blue_cutoff_nm: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)] = 420.0
+    red_cutoff_nm: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)] = 900.0
 
 
 class LineCameraModel(_M):
     """TDI line camera: geometry, timing, photometry."""
 
-    focal_length_mm: Pos = 1000.0
-    pixel_pitch_um: Pos = 10.0
+    # physical ranges (issue 24): beyond them the geometry overflows (tracebacks before)
+    focal_length_mm: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)] = 1000.0
+    pixel_pitch_um: Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)] = 10.0
     n_pixels: Annotated[int, Field(ge=64, le=100000)] = 6144
     tdi_stages: Annotated[int, Field(ge=1, le=256)] = 32
-    line_period_s: Pos = 0.0005
-    x_line_mm: Finite = 0.0
-    aperture_mm: Pos = 125.0
+    line_period_s: Annotated[float, Field(gt=0, le=10.0, allow_inf_nan=False)] = 0.0005
+    x_line_mm: Annotated[float, Field(ge=-1e3, le=1e3, allow_inf_nan=False)] = 0.0
+    aperture_mm: Annotated[float, Field(gt=0, le=10000.0, allow_inf_nan=False)] = 125.0
     transmission: Unit = 0.7
     psf_sigma_px: Annotated[float, Field(gt=0.1, le=5.0)] = 0.8
-    background_e: NonNeg = 5.0
+    background_e: Annotated[float, Field(ge=0, le=1000000000.0, allow_inf_nan=False)] = 5.0
     qe: QEModel = QEModel()
 
     @property
@@ -76,29 +77,37 @@ class LineCameraModel(_M):
 
 
 class DetectorModel(_M):
-    gain_e_per_dn: Pos = 4.0
-    offset_dn: NonNeg = 100.0
-    read_noise_e: NonNeg = 25.0
-    full_well_e: Pos = 120000.0
+    gain_e_per_dn: Annotated[float, Field(gt=0, le=1000000.0, allow_inf_nan=False)] = 4.0
+    offset_dn: Annotated[float, Field(ge=0, le=4294967296.0, allow_inf_nan=False)] = 100.0
+    read_noise_e: Annotated[float, Field(ge=0, le=1000000.0, allow_inf_nan=False)] = 25.0
+    full_well_e: Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)] = 120000.0
     adc_bits: Annotated[int, Field(ge=8, le=32)] = 16
-    prnu_rms: NonNeg = 0.005
-    dark_e: NonNeg = 2.0
-    dsnu_rms_e: NonNeg = 0.5
+    prnu_rms: Annotated[float, Field(ge=0, le=1.0, allow_inf_nan=False)] = 0.005
+    dark_e: Annotated[float, Field(ge=0, le=1000000000.0, allow_inf_nan=False)] = 2.0
+    dsnu_rms_e: Annotated[float, Field(ge=0, le=1000000000.0, allow_inf_nan=False)] = 0.5
 
 
 class OrbitModel(_M):
     epoch_utc: str = "2025-06-01T00:00:00"
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _epoch(cls, v: str) -> str:
+        """Parsed when the scenario loads (was: a 79-line astropy traceback at the first use)."""
+        from simcam.limits import check_epoch_utc
+
+        return check_epoch_utc(v)
     altitude_km: Annotated[float, Field(gt=100.0, lt=100000.0)] = 600.0
     inclination_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 97.8
-    raan_deg: Finite = 0.0
-    arg_latitude_deg: Finite = 0.0
+    raan_deg: Annotated[float, Field(ge=-3600.0, le=3600.0, allow_inf_nan=False)] = 0.0
+    arg_latitude_deg: Annotated[float, Field(ge=-3600.0, le=3600.0, allow_inf_nan=False)] = 0.0
 
 
 class AttitudeModel(_M):
     rate_mismatch: Annotated[float, Field(gt=-0.5, lt=0.5)] = 0.0
-    cross_rate_deg_s: Finite = 0.0
-    yaw_rate_deg_s: Finite = 0.0
-    knowledge_noise_arcsec: NonNeg = 0.5
+    cross_rate_deg_s: Annotated[float, Field(ge=-10.0, le=10.0, allow_inf_nan=False)] = 0.0
+    yaw_rate_deg_s: Annotated[float, Field(ge=-10.0, le=10.0, allow_inf_nan=False)] = 0.0
+    knowledge_noise_arcsec: Annotated[float, Field(ge=0, le=3600.0, allow_inf_nan=False)] = 0.5
 
 
 class StarsModel(_M):
@@ -107,7 +116,7 @@ class StarsModel(_M):
     region: Literal["auto", "manual"] = "auto"
     ra_deg: Annotated[float, Field(ge=0.0, lt=360.0)] = 280.0
     dec_deg: Annotated[float, Field(ge=-90.0, le=90.0)] = -5.0
-    scan_pa_deg: Finite = 0.0
+    scan_pa_deg: Annotated[float, Field(ge=-3600.0, le=3600.0, allow_inf_nan=False)] = 0.0
     strip_length_deg: Annotated[float, Field(gt=0.0, le=90.0)] = 10.0
 
     @model_validator(mode="after")
@@ -119,15 +128,15 @@ class StarsModel(_M):
 
 class ObservationModel(_M):
     passes: Annotated[int, Field(ge=1, le=200)] = 4
-    shift_px: NonNeg = 1280.0
-    pass_interval_s: Pos = 30.0
+    shift_px: Annotated[float, Field(ge=0, le=1000000.0, allow_inf_nan=False)] = 1280.0
+    pass_interval_s: Annotated[float, Field(gt=0, le=1000000.0, allow_inf_nan=False)] = 30.0
 
 
 class ErrorDist(_M):
     """An injected error: ``value + sigma * N(0, 1)`` per trial."""
 
-    value: Finite = 0.0
-    sigma: NonNeg = 0.0
+    value: Annotated[float, Field(ge=-1e6, le=1e6, allow_inf_nan=False)] = 0.0
+    sigma: Annotated[float, Field(ge=0, le=1000000.0, allow_inf_nan=False)] = 0.0
 
 
 class ErrorsModel(_M):
@@ -152,11 +161,11 @@ class LabModel(_M):
     parallax: bool = True
     proper_motion: bool = True
     time_tag: Literal["mid_exposure", "readout"] = "mid_exposure"
-    match_radius_arcsec: Pos = 120.0
+    match_radius_arcsec: Annotated[float, Field(gt=0, le=648000.0, allow_inf_nan=False)] = 120.0
     coverage_bins: Annotated[int, Field(ge=2, le=1000)] = 24
     max_iter: Annotated[int, Field(ge=1, le=1000)] = 30
     rcond: Annotated[float, Field(gt=0.0, lt=1e-2)] = 1e-6
-    gauge_sigma_px: Pos = 10.0
+    gauge_sigma_px: Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)] = 10.0
     lookangle_degree_along: Annotated[int, Field(ge=0, le=9)] = 4
     lookangle_degree_across: Annotated[int, Field(ge=1, le=9)] = 5
     grid_step_px: Annotated[int, Field(ge=1, le=4096)] = 16

@@ -1,6 +1,6 @@
 """Scan-mirror geometry (seed 003, Jia, Xu & Chen 2012): line of sight, attitude, frames, ground point.
 
-Frames (``../shared/methods/003.md`` section a): body ``b`` (with zero attitude equal to the
+Frames (reconstructed from Jia, Xu & Chen 2012 and its precursors, docs/scanmirror.md): body ``b`` (with zero attitude equal to the
 instantaneous orbit frame ``r``: x east along the velocity, y south, z nadir), gimbal
 ``g`` (step angle alpha about x_b, positive south -> north), mirror ``m`` (scan angle beta
 about y_g, positive west -> east), Earth-fixed rotating ``s`` (x Greenwich, z north),

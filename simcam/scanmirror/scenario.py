@@ -16,9 +16,10 @@ from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, Strict
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
            "MirrorConfig", "StarSensingConfig", "ScanPlan"]
 
-Vec3 = tuple[float, float, float]
-Pos = Annotated[float, Field(gt=0)]
-NonNeg = Annotated[float, Field(ge=0)]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+Pos = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
 class OrbitConfig(StrictModel):
@@ -45,50 +46,47 @@ class OrbitConfig(StrictModel):
     @field_validator("epoch_utc")
     @classmethod
     def _epoch(cls, v: str) -> str:
-        from astropy.time import Time
+        from simcam.limits import check_epoch_utc  # one line (astropy's message listed every format: 11 lines)
 
-        try:
-            Time(v, scale="utc")
-        except ValueError as exc:
-            raise ValueError(f"not an ISO time: {exc}") from None
-        return v
+        return check_epoch_utc(v)
 
 
 class AttitudeConfig(StrictModel):
     mode: Literal["pd", "profile"] = "pd"
-    inertia_kg_m2: tuple[Pos, Pos, Pos] = (1800.0, 1500.0, 2200.0)
-    kp_n_m_rad: tuple[Pos, Pos, Pos] = (4.5, 3.75, 5.5)
-    kd_n_m_s_rad: tuple[Pos, Pos, Pos] = (126.0, 105.0, 154.0)
+    # physical ranges (issue 24)
+    inertia_kg_m2: tuple[Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)]] = (1800.0, 1500.0, 2200.0)
+    kp_n_m_rad: tuple[Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)]] = (4.5, 3.75, 5.5)
+    kd_n_m_s_rad: tuple[Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)]] = (126.0, 105.0, 154.0)
     disturbance_torque_n_m: Vec3 = (1e-4, -5e-5, 8e-5)
     initial_deg: Vec3 = (0.02, -0.015, 0.025)
-    initial_sigma_deg: NonNeg = 0.005
+    initial_sigma_deg: Annotated[float, Field(ge=0, le=90, allow_inf_nan=False)] = 0.005
     profile_constant_deg: Vec3 = (0.005, -0.003, 0.004)
     profile_amplitude_deg: Vec3 = (0.001, 0.001, 0.001)
-    profile_period_s: Pos = 300.0
-    knowledge_sigma_arcsec: NonNeg = 1.0
+    profile_period_s: Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)] = 300.0
+    knowledge_sigma_arcsec: Annotated[float, Field(ge=0, le=3600.0, allow_inf_nan=False)] = 1.0
 
 
 class MirrorConfig(StrictModel):
     deviation_constant_deg: Annotated[float, Field(ge=0, le=1)] = 0.0115
     deviation_variable_deg: Annotated[float, Field(ge=0, le=1)] = 0.0057
-    deviation_period_s: Pos = 86164.0
-    deviation_phase_deg: float = 0.0
-    deviation_axis_deg: float = 30.0
+    deviation_period_s: Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)] = 86164.0
+    deviation_phase_deg: Annotated[float, Field(ge=-3600, le=3600, allow_inf_nan=False)] = 0.0
+    deviation_axis_deg: Annotated[float, Field(ge=-3600, le=3600, allow_inf_nan=False)] = 30.0
     random_axis: bool = True
-    constant_sigma_deg: NonNeg = 0.003
+    constant_sigma_deg: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.003
 
 
 class StarSensingConfig(StrictModel):
     field_half_width_deg: Annotated[float, Field(gt=0, le=5)] = 1.0
-    mag_limit: float = 7.5
+    mag_limit: Annotated[float, Field(ge=-2, le=12, allow_inf_nan=False)] = 7.5
     #: star-sensing dwells per star-sensing segment of the plan: each one after the first
     #: follows a move of ``extra_dwell_beta_step_deg`` in scan angle (a sweepable count;
     #: :meth:`ScanMirrorScenario.effective_plan`)
     dwells: Annotated[int, Field(ge=1, le=20)] = 1
     extra_dwell_beta_step_deg: Annotated[float, Field(ge=-10, le=10)] = 1.0
     extra_dwell_move_s: Annotated[float, Field(gt=0, le=60)] = 2.0
-    centroid_sigma_arcsec: Pos = 1.0
-    tracker_sigma_arcsec: Pos = 1.0
+    centroid_sigma_arcsec: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)] = 1.0
+    tracker_sigma_arcsec: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)] = 1.0
     frames_per_dwell: Annotated[int, Field(ge=1, le=100)] = 4
     published_uses_aberration: bool = False
 
@@ -109,7 +107,7 @@ class ValidationConfig(ValidationSettings):
 
 class DwellSegment(StrictModel):
     kind: Literal["dwell"]
-    duration_s: Pos
+    duration_s: Annotated[float, Field(gt=0, le=1000000.0, allow_inf_nan=False)]
     star_sensing: bool = False
 
 
@@ -131,9 +129,9 @@ class MoveSegment(StrictModel):
 class AreaScanSegment(StrictModel):
     kind: Literal["area_scan"]
     lines: Annotated[int, Field(ge=1, le=100000)]
-    line_deg: float
-    line_s: Pos
-    step_deg: float
+    line_deg: Annotated[float, Field(ge=-180, le=180, allow_inf_nan=False)]
+    line_s: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)]
+    step_deg: Annotated[float, Field(ge=-90, le=90, allow_inf_nan=False)]
     turnaround_s: NonNeg
 
     @model_validator(mode="after")

@@ -1,4 +1,4 @@
-"""The distortion correction a star camera applies to its own centroids (issue 12).
+"""The distortion correction a star camera applies to its own centroids.
 
 A flight star camera reports star positions already corrected by the distortion model of
 an earlier calibration; that model carries the errors of its own calibration. The seed-000

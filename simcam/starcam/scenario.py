@@ -174,7 +174,7 @@ class LateralColourModel(_Model):
 
 
 class DistortionCorrectionModel(_Model):
-    """The distortion correction the camera applies to its own centroids (issue 12).
+    """The distortion correction the camera applies to its own centroids.
 
     A camera under the seed-000 LSFE-C1 test already carries a distortion model from an
     earlier calibration, with that calibration's own errors. ``kind = "fitted"`` (default):
@@ -362,7 +362,7 @@ class PlatformModel(_Model):
 
 
 class LabKnowledgeModel(_Model):
-    """What the lab *believes* about the camera's spectral response (issue 12).
+    """What the lab *believes* about the camera's spectral response.
 
     The improved LSFE-S estimator needs effective wavelengths of the lamp through each
     filter, of the calibration spectrum and of the stellar population; a lab computes them

@@ -1,7 +1,7 @@
 """Image-motion geometry of the whiskbroom TDICCD camera (seed 002, Miao et al.).
 
 The nine frames of the paper (its section 2, fig. 2; equations (1)-(6) were lost in
-extraction and are reconstructed in ``shared/methods/002.md`` section a from the
+extraction and are reconstructed (docs/whiskbroom.md, [R]) from the
 CIOMP image-motion-velocity-vector theory: Wang, Yu & Yan, *Acta Optica Sinica* 24(12)
 1585 (2004); Wang et al., *Chinese Optics Letters* 3(7) 07414 (2005)):
 
@@ -105,7 +105,7 @@ def _orbit(params, t):
 
     ``gamma(t) = gamma0 + (v/a) t`` counted from the ascending node ``-I3``; orbit normal
     ``h = sin i I1 + cos i I2``; ``r_s = a(cos g n_asc + sin g (h x n_asc))`` with
-    ``h x n_asc = -cos i I1 + sin i I2`` (methods/002.md a, step 3).
+    ``h x n_asc = -cos i I1 + sin i I2`` (the reconstruction's step 3, docs/whiskbroom.md).
     """
     a = _col(params, "earth_radius_km") + _col(params, "altitude_km")
     inc = _col(params, "inclination_rad")

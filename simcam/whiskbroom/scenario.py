@@ -37,8 +37,9 @@ class Distribution(StrictModel):
     """Distribution of one variable: ``uniform`` on +-half_width or ``normal`` (0, sigma)."""
 
     dist: Literal["uniform", "normal"]
-    half_width: float | None = Field(default=None, ge=0)
-    sigma: float | None = Field(default=None, ge=0)
+    # at most 1000 of the variable's unit: beyond, the draws overflow the geometry
+    half_width: float | None = Field(default=None, ge=0, le=1e3)
+    sigma: float | None = Field(default=None, ge=0, le=1e3)
 
     @model_validator(mode="after")
     def _check(self):
@@ -70,32 +71,35 @@ class Distribution(StrictModel):
 
 
 class Orbit(StrictModel):
-    altitude_km: float = Field(gt=0)
+    altitude_km: float = Field(gt=0, le=1e6)
     sun_synchronous: bool = True
     inclination_deg: float | None = Field(default=None, ge=0, le=180)
-    gamma0_deg: float = 0.0
-    gamma_step_deg: float = 0.36
-    earth_radius_km: float = Field(default=6378.137, gt=0)
-    mu_km3_s2: float = Field(default=398600.4418, gt=0)
-    earth_rate_rad_s: float = 7.2921159e-5
-    j2: float = Field(default=1.08262668e-3, gt=0)
-    nodal_rate_deg_day: float = 0.98564736
+    # physical ranges (issue 24): the Earth's constants within a factor of ~10 of theirs
+    gamma0_deg: float = Field(default=0.0, ge=-3600, le=3600)
+    gamma_step_deg: float = Field(default=0.36, ge=-3600, le=3600)
+    earth_radius_km: float = Field(default=6378.137, ge=1000, le=70000)
+    mu_km3_s2: float = Field(default=398600.4418, gt=0, le=4e6)
+    earth_rate_rad_s: float = Field(default=7.2921159e-5, ge=-1e-3, le=1e-3)
+    j2: float = Field(default=1.08262668e-3, gt=0, le=0.1)
+    nodal_rate_deg_day: float = Field(default=0.98564736, ge=-10, le=10)
 
 
 class Camera(StrictModel):
-    focal_length_mm: float = Field(gt=0)
-    pixel_pitch_um: float = Field(gt=0)
-    tdi_stages: int = Field(ge=1)
-    n_chips: int = Field(default=3, ge=1)
-    chip_cols: int = Field(default=4096, ge=2)
-    chip_gap_px: float = Field(default=0.0, ge=0)
-    n_phase: int = Field(default=4, ge=1)
+    # physical ranges (issue 24): a 100 m focal length, a 1 mm pixel, 10^4 stages, 1000
+    # chips of 10^6 columns are beyond any camera; beyond them the image motion overflows
+    focal_length_mm: float = Field(gt=0, le=1e5)
+    pixel_pitch_um: float = Field(gt=0, le=1e3)
+    tdi_stages: int = Field(ge=1, le=10000)
+    n_chips: int = Field(default=3, ge=1, le=1000)
+    chip_cols: int = Field(default=4096, ge=2, le=1_000_000)
+    chip_gap_px: float = Field(default=0.0, ge=0, le=1e6)
+    n_phase: int = Field(default=4, ge=1, le=64)
 
 
 class Mirror(StrictModel):
-    rate_deg_s: float
-    rest_angle_deg: float = 45.0
-    scan_duration_s: float = Field(default=20.0, gt=0)
+    rate_deg_s: float = Field(ge=-360, le=360)  # a turn per second is beyond any scan mirror
+    rest_angle_deg: float = Field(default=45.0, ge=-360, le=360)
+    scan_duration_s: float = Field(default=20.0, gt=0, le=1e5)
 
 
 class Errors(StrictModel):
@@ -120,8 +124,8 @@ class Errors(StrictModel):
 
 class Synthesis(StrictModel):
     trials: int = Field(default=1000, ge=2)
-    field_cols_per_chip: int = Field(default=33, ge=1)
-    field_rows: int = Field(default=2, ge=1)
+    field_cols_per_chip: int = Field(default=33, ge=1, le=1_000_000)
+    field_rows: int = Field(default=2, ge=1, le=10000)
     mirror_rate_errors_deg_s: list[float] = Field(default=[0.001, 0.0005, 0.0004, 0.0003], min_length=1)
     mtf_threshold: float = Field(default=0.95, gt=0, lt=1)
     quantile: float = Field(default=0.997, gt=0, le=1)
@@ -133,7 +137,7 @@ class Tdi(StrictModel):
     columns: int = Field(default=1000, ge=2)
     time_samples_per_phase: int = Field(default=64, ge=1)
     aperture_samples: int = Field(default=16, ge=1)
-    signal_e_per_stage: float = Field(default=400.0, gt=0)
+    signal_e_per_stage: float = Field(default=400.0, gt=0, le=1e9)
     read_noise_e: float = Field(default=30.0, ge=0)
     noise: bool = True
     edge_angle_deg: float = Field(default=5.0, gt=0, lt=45)
@@ -188,7 +192,9 @@ def default_text() -> str:
 def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
     """Validate a mapping; every problem is a line ``source: field.path: message``."""
     scenario = validate_model(WhiskbroomScenario, data, source=source).with_source(source)
-    problems = []
+    from simcam.limits import nonfinite_fields
+
+    problems = nonfinite_fields(scenario)  # NaN and +-inf in any float field (issue 24)
     orbit = scenario.orbit
     if orbit.sun_synchronous and orbit.inclination_deg is not None:
         problems.append("orbit.inclination_deg: give it only with sun_synchronous = false")
@@ -205,6 +211,9 @@ def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
             problems.append(f"orbit.altitude_km: {exc}")
     if problems:
         raise ScenarioError("\n".join(f"{source}: {p}" for p in problems))
+    from simcam.whiskbroom.synthesis import check_sizes
+
+    check_sizes(scenario, source=source)  # sizes refused before any allocation, naming the field
     return scenario
 
 

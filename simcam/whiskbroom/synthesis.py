@@ -137,6 +137,63 @@ def _layout(sc: WhiskbroomScenario, rows, cols, beta):
     return x[..., 0].ravel(), x[..., 1].ravel()
 
 
+#: float64 work arrays per (trial, field point) of one mirror-rate level in
+#: :func:`synthesize` (parameters, motion, residuals, quantiles), plus the two kept per
+#: level (beta and Delta V_P): a lower bound, so nothing feasible is refused
+_SYNTH_ARRAYS, _SYNTH_KEPT = 12, 4
+#: bytes per Sobol sample row (17 variables drawn, their parameter rows, the motion)
+_SOBOL_ROW_BYTES = 8 * 60
+
+
+def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int | None = None,
+                trials_what: str | None = None) -> None:
+    """Refuse, before any allocation, a scenario whose arrays cannot fit in memory, naming
+    the fields (:class:`simcam.lifecycle.ResourceLimitError`, one line).
+
+    Estimates: the synthesis holds ``trials x field points`` float64 arrays
+    (:data:`_SYNTH_ARRAYS` of them, and :data:`_SYNTH_KEPT` per mirror-rate level); the
+    Sobol analysis ``sobol_base_samples x 19`` rows; one validation trial the TDI
+    accumulators (``tdi_stages x tdi.columns`` complex, twice) and the edge image
+    (``edge_lines x edge_columns x edge_oversampling^2`` float64, three arrays).
+    """
+    from simcam.lifecycle import check_memory
+
+    cam, syn, t = sc.camera, sc.synthesis, sc.tdi
+    k = float(syn.trials if trials is None else trials)
+    points = float(cam.n_chips) * syn.field_cols_per_chip * syn.field_rows + 1.0
+    levels = len(syn.mirror_rate_errors_deg_s)
+    tw = trials_what or f"synthesis.trials = {syn.trials}"
+    check_memory(8.0 * k * points * (_SYNTH_ARRAYS + _SYNTH_KEPT * levels),
+                 what=f"{source}: {tw} x {points:.0f} field points (camera.n_chips x "
+                      "synthesis.field_cols_per_chip x synthesis.field_rows)")
+    # the report's motion field: every 64th column of every chip x about 5 rows, ~10 arrays
+    check_memory(8.0 * 10 * (float(cam.n_chips) * cam.chip_cols / 64.0 + 1) * 5,
+                 what=f"{source}: camera.n_chips x camera.chip_cols = {cam.n_chips} x {cam.chip_cols}")
+    check_memory(float(syn.sobol_base_samples) * (len(VARIABLES) + 2) * _SOBOL_ROW_BYTES,
+                 what=f"{source}: synthesis.sobol_base_samples = {syn.sobol_base_samples}")
+    check_memory(2.0 * 16.0 * cam.tdi_stages * t.columns,
+                 what=f"{source}: camera.tdi_stages x tdi.columns = {cam.tdi_stages} x {t.columns}")
+    check_memory(3.0 * 8.0 * t.edge_lines * t.edge_columns * float(t.edge_oversampling) ** 2,
+                 what=f"{source}: tdi.edge_lines x tdi.edge_columns = {t.edge_lines} x {t.edge_columns}")
+
+
+class SynthesisError(ValueError):
+    """The synthesis of a scenario gave no meaningful number (one ``error:`` line)."""
+
+
+def check_finite_residuals(sc: WhiskbroomScenario, r, level: float, source: str = "scenario") -> None:
+    """Refuse a synthesis whose residuals are NaN or infinite (was: an all-NaN table and
+    "N pub 100000" at exit status 0): the scenario's values leave the model's domain
+    (the line of sight misses the Earth, a rate or an error overflows)."""
+    bad = ~(np.isfinite(r.dv_mm_s) & np.isfinite(r.eps) & np.isfinite(r.eta))
+    if bad.any():
+        trials_bad = int(np.any(bad.reshape(bad.shape[0], -1), axis=1).sum())
+        raise SynthesisError(
+            f"{source}: the image motion is not finite in {trials_bad} of {bad.shape[0]} "
+            f"trials (mirror-rate error {level:g} deg/s): the line of sight misses the Earth or a value "
+            "overflows; check orbit, mirror.rest_angle_deg and the errors' half_width/sigma")
+
+
 def _line_positions(sc, cols_per_chip):
     cam = sc.camera
     j = np.linspace(0.0, cam.chip_cols - 1.0, cols_per_chip) if cols_per_chip > 1 else np.array([0.5 * (cam.chip_cols - 1)])
@@ -335,7 +392,8 @@ class SynthesisResult:
 
 
 def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = None,
-               backend: str = "numba", mirror_rate_errors=None, points=None) -> SynthesisResult:
+               backend: str = "numba", mirror_rate_errors=None, points=None,
+               source: str = "scenario") -> SynthesisResult:
     """The Monte Carlo synthesis of steps 1-5 for each mirror-rate error of the scenario.
 
     For each mirror-rate error (the scale of ``errors.mirror_rate_deg_s`` replaced, same
@@ -345,6 +403,8 @@ def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = No
     ``Delta V_P`` at the array centre.
     """
     K = sc.synthesis.trials if trials is None else int(trials)
+    if trials is not None:
+        check_sizes(sc, source="whiskbroom synthesize", trials=K, trials_what=f"--trials {K}")
     ks = np.arange(K)
     u = trial_uniforms(seed, ks)
     beta0 = array_angle(sc)
@@ -363,6 +423,7 @@ def synthesize(sc: WhiskbroomScenario, seed: int = 0, *, trials: int | None = No
         draws = standard_draws(scl, u)
         know, true = trial_params(scl, draws, ks)
         r = evaluate(know, true, x1, x3, backend=backend)
+        check_finite_residuals(sc, r, level, source)
         res.residuals[level] = r
         eq = float(np.quantile(np.abs(r.eps), q))
         hq = float(np.quantile(np.abs(r.eta), q))

@@ -2,7 +2,7 @@
 
 The paper predicts image quality from the continuous smear formula
 ``MTF = sinc(pi N eps / 2)`` at Nyquist. Here the detector is simulated instead
-(methods/002.md d, "pixel-level TDI truth"): an image moving at ``(1 + eps, eta)``
+(docs/whiskbroom.md, "pixel-level TDI truth"): an image moving at ``(1 + eps, eta)``
 pixels per line period (along the TDI direction, across it) relative to the clocked
 charge, charge packets that stay put during each of the ``n_phase`` clock phases of a
 line period and then jump ``1/n_phase`` pixel, ``N`` stages summed, the exposure sampled
@@ -10,7 +10,7 @@ at ``n_time`` midpoints per clock phase, and the pixel aperture integrated (midp
 quadrature of the sinusoid over the pixel; exact area for the edge). Nothing here uses
 the sinc formula; the tests check that it comes out where its assumptions hold
 (continuous clocking: ``N eps = 0.3514 -> 0.95``, ``N eps = 1 -> 2/pi``) and that the
-4-phase clocking adds ``sinc(pi/(2 n_phase))`` (methods/002.md c.7).
+4-phase clocking adds ``sinc(pi/(2 n_phase))`` (Kopeika 1998, sec. 14.3).
 
 Coordinates: ``u`` along the TDI (charge-transfer) direction and ``w`` across it, in
 pixels; time in line periods (the line period is ``p / |V_know|``).
@@ -37,6 +37,11 @@ def smear_per_stage(v_true, v_know):
     along = (vt[..., 0] * vk[..., 0] + vt[..., 1] * vk[..., 1]) / sk
     cross = (vk[..., 0] * vt[..., 1] - vk[..., 1] * vt[..., 0]) / sk
     return along / sk - 1.0, cross / sk
+
+
+class TdiError(ValueError):
+    """A TDI computation asked for something outside its physics (non-finite rates,
+    impossible charge): one ``error:`` line at the command line."""
 
 
 def aperture_factor(k_along: float, k_cross: float, samples: int) -> complex:
@@ -116,6 +121,12 @@ def edge_image(eps: float, eta: float, *, n_stages: int, n_phase: int, n_time: i
     level) is returned; with it, shot noise (Poisson on the collected electrons,
     ``signal_e_per_stage`` per stage when bright) and Gaussian read noise.
     """
+    if not (math.isfinite(eps) and math.isfinite(eta)):
+        raise TdiError(f"edge_image: the rate mismatch is not finite (eps {eps}, eta {eta}); check the scenario's "
+                       "mirror.rate_deg_s and camera.focal_length_mm")
+    if rng is not None and not (math.isfinite(signal_e_per_stage) and 0.0 <= signal_e_per_stage * n_stages < 1e15):
+        raise TdiError(f"edge_image: tdi.signal_e_per_stage x stages = {signal_e_per_stage * n_stages:.3g} e-: "
+                       "beyond any pixel's charge (< 1e15 e-)")
     a = math.radians(angle_deg)
     offset = math.sin(a) * 0.5 * columns - math.cos(a) * 0.5 * lines
     # scene rows seen by output line L are near -L: the edge n.s <= offset lies at

@@ -29,13 +29,16 @@ def test_trial_keys_and_truths(small):
     assert r.estimates[key] - r.truths[key] == pytest.approx(1 - np.sinc(0.125), abs=0.01)
 
 
-def test_trial_is_reproducible(small):
+def test_trial_equivalence_same_seed_same_numbers(small):
+    """Equivalence of the code with itself (not physics; the physics: test_geometry's first-
+    principles image velocity, test_headline's documented figures, test_tdi)."""
     a = STUDY.trial(small, 4, 3)
     b = STUDY.trial(small, 4, 3)
     assert a.estimates == b.estimates and a.truths == b.truths
 
 
-def test_run_study_does_not_depend_on_workers(small):
+def test_run_study_workers_equivalence(small):
+    """Equivalence: two workers give one worker's numbers (not a physics check)."""
     from budget.runner.run import run_study
 
     r1 = run_study(STUDY, small, trials=4, seed=2, workers=1)

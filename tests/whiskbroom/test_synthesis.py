@@ -58,7 +58,7 @@ def test_monte_carlo_spread_matches_first_order_propagation(sc):
 
 
 def test_gum_mirror_sensitivity_is_the_optical_doubling(sc):
-    # dV/d omega_x = 2 f, projected on the image-motion direction (methods/002.md c.5)
+    # dV/d omega_x = 2 f, projected on the image-motion direction (optical doubling of a fold mirror)
     _, _, jdv, _ = sy.gum_sigma(sc, 0.0)
     from simcam.whiskbroom import geometry as geo
     v = geo.image_motion(sy.nominal_params(sc, 0.0), [0.0], [0.0])[0, 0]

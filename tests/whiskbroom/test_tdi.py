@@ -1,5 +1,5 @@
 """Pixel-level TDI simulation against the sinc smear formula where its assumptions hold
-(Kopeika 1998 eq. 14.3.3; methods/002.md c.6-c.7) and against its plain-numpy twin."""
+(Kopeika 1998 eq. 14.3.3) and against its plain-numpy twin."""
 
 import math
 

@@ -1,0 +1,329 @@
+"""Where a command may write, checked before the work starts; several outputs written all or nothing.
+
+The rules (docs/reliability.md, issue 24):
+
+* an output is a regular file or a folder that the command creates or was told to
+  overwrite, never a device, a FIFO or a socket (an atomic rename over ``/dev/null``
+  would replace the device node), and never the same file as one of the command's inputs;
+* its location is checked before any work: the parent is a folder (not a file), it is
+  writable, the file system is not read-only, the name fits the file system's limit, and
+  there is room for the estimated size;
+* files and folders are created with the user's umask (``mkstemp``/``mkdtemp`` make them
+  ``0600``/``0700``; :func:`apply_umask` gives them the mode an ordinary ``open`` would);
+* :class:`StagedOutputs` writes several outputs (the JSON and the report of a run) into
+  temporary siblings and renames them into place together at the end, with the stop
+  signals held back during the renames: an interruption leaves none of them.
+
+Every refusal is a :class:`~simcam.cli_common.UserInputError` naming the option and the path.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import signal
+import stat
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from simcam.cli_common import UserInputError
+
+__all__ = [
+    "StagedOutputs", "apply_umask", "check_input_file", "check_output_dir", "check_output_file",
+    "file_kind", "os_error_message", "umask",
+]
+
+
+def umask() -> int:
+    """The process umask (read without changing it for longer than one call)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def apply_umask(path: str | os.PathLike, *, is_dir: bool | None = None) -> None:
+    """Give ``path`` the mode an ordinary ``open``/``mkdir`` would: ``0o666``/``0o777`` less the umask."""
+    p = Path(path)
+    if is_dir is None:
+        is_dir = p.is_dir()
+    os.chmod(p, (0o777 if is_dir else 0o666) & ~umask())
+
+
+def file_kind(mode: int) -> str:
+    """``'a character device'``, ``'a FIFO'``, ... for an ``st_mode``."""
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def input_file_problem(path: str | os.PathLike) -> str | None:
+    """Why ``path`` cannot be read as an input file (``"is a FIFO (named pipe), not a
+    regular file"``), or None when it is a regular file or does not exist (the reader
+    says "file not found" itself). Never opens it: opening a FIFO blocks."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if stat.S_ISDIR(st.st_mode):
+        return "is a folder, not a file"
+    if not stat.S_ISREG(st.st_mode):
+        return f"is {file_kind(st.st_mode)}, not a regular file"
+    return None
+
+
+def check_input_file(path: str | os.PathLike, *, what: str = "file") -> Path:
+    """An input must be an existing regular file (a FIFO would block the reader forever,
+    ``/dev/null`` reads as empty). Returns the path; raises :class:`UserInputError`."""
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise UserInputError(f"{p}: file not found (the {what})") from None
+    except OSError as exc:
+        raise UserInputError(f"{p}: cannot read the {what} ({os_error_message(exc)})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserInputError(f"{p}: is a folder; give the {what} itself")
+    if not stat.S_ISREG(st.st_mode):
+        raise UserInputError(f"{p}: is {file_kind(st.st_mode)}, not a regular file; give the {what} as a file")
+    return p
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
+    """Parent is a folder, writable, on a writable file system; name short enough; space."""
+    from simcam.lifecycle import check_disk
+
+    # the nearest existing ancestor must be a folder (a path under a regular file is refused)
+    anc = p.absolute().parent
+    while not os.path.lexists(anc) and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise UserInputError(f"{option} {p}: {anc} is {file_kind(os.stat(anc).st_mode)}, not a folder")
+    try:
+        name_max = os.pathconf(anc, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in p.absolute().parts[len(anc.parts):]:
+        if len(os.fsencode(part)) > name_max:
+            raise UserInputError(f"{option} {p}: the name {part[:40]}... has {len(os.fsencode(part))} bytes; "
+                                 f"this file system allows at most {name_max}")
+    try:
+        vfs = os.statvfs(anc)
+        read_only = bool(vfs.f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        read_only = False
+    if read_only:
+        raise UserInputError(f"{option} {p}: {anc} is on a read-only file system")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise UserInputError(f"{option} {p}: {anc} is not writable")
+    if need_bytes > 0:
+        check_disk(anc, need_bytes, what=f"{option} {p}")
+
+
+def check_output_file(path: str | os.PathLike, *, option: str = "--json", inputs: Iterable = (),
+                      need_bytes: float = 0.0) -> Path:
+    """Check, before the work, that ``path`` can take a file output. Returns the path to
+    write (a symbolic link to a regular file is followed, so the link stays a link).
+
+    Refused: a device, FIFO or socket (also through a link), a folder, a link to a
+    folder, one of ``inputs`` (same file), a parent that is a file, not writable or
+    read-only, a name longer than the file system allows, too little free space.
+    """
+    p = Path(path)
+    target = p
+    if os.path.lexists(p):
+        try:
+            st = os.stat(p)
+        except OSError:  # a dangling link: written as a new file where it points
+            st = None
+        if st is not None:
+            if stat.S_ISDIR(st.st_mode):
+                via = " (through a symbolic link)" if p.is_symlink() else ""
+                raise UserInputError(f"{option} {p}: is a folder{via}; give a file name")
+            if not stat.S_ISREG(st.st_mode):
+                raise UserInputError(f"{option} {p}: is {file_kind(st.st_mode)}; outputs are written only "
+                                     "to regular files")
+        if p.is_symlink():
+            target = Path(os.path.realpath(p))
+    for src in inputs:
+        if src is not None and os.path.lexists(p) and _same_file(p, Path(src)):
+            raise UserInputError(f"{option} {p}: is an input of this command ({src}); give another name")
+    _check_location(target, option=option, need_bytes=need_bytes)
+    return target
+
+
+def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: Iterable = (),
+                     need_bytes: float = 0.0, replaceable=None) -> Path:
+    """Check, before the work, that ``path`` can take a folder output.
+
+    An existing folder must be empty or pass ``replaceable(path)`` (e.g. it holds an
+    earlier report). Refused otherwise: an existing file or device, an input of the
+    command (or a folder holding one), and the location checks of :func:`check_output_file`.
+    """
+    p = Path(path)
+    if os.path.lexists(p):
+        try:
+            st = os.stat(p)
+        except OSError:
+            st = None
+        if st is not None and not stat.S_ISDIR(st.st_mode):
+            raise UserInputError(f"{option} {p}: is {file_kind(st.st_mode)}, not a folder")
+        if p.is_symlink():
+            raise UserInputError(f"{option} {p}: is a symbolic link; give the folder itself")
+        if st is not None and any(p.iterdir()) and not (replaceable is not None and replaceable(p)):
+            raise UserInputError(f"{option} {p}: exists and is not empty; give a new folder")
+        for src in inputs:
+            if src is None:
+                continue
+            s = os.path.realpath(src)
+            if s == os.path.realpath(p) or s.startswith(os.path.realpath(p) + os.sep):
+                raise UserInputError(f"{option} {p}: holds an input of this command ({src}); give another folder")
+    _check_location(p, option=option, need_bytes=need_bytes)
+    return p
+
+
+def os_error_message(exc: OSError) -> str:
+    """A short reason for a failed write: ``no space left on the device`` and the like."""
+    reasons = {errno.ENOSPC: "no space left on the device", errno.EROFS: "read-only file system",
+               errno.ENAMETOOLONG: "file name too long", errno.ENOTDIR: "a part of the path is not a folder",
+               errno.EACCES: "permission denied", errno.EPERM: "operation not permitted",
+               errno.EDQUOT: "disk quota exceeded", errno.EISDIR: "is a folder"}
+    return reasons.get(exc.errno, exc.strerror or type(exc).__name__)
+
+
+_HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextmanager
+def held_signals() -> Iterator[None]:
+    """Hold back SIGINT/SIGTERM/SIGHUP for the block (delivered after it): a few renames
+    that must happen together are not split by an interruption."""
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    except (AttributeError, ValueError, OSError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class StagedOutputs:
+    """Several outputs of one run, written into temporary siblings and put in place together.
+
+    Use::
+
+        with StagedOutputs() as st:
+            write_json_atomic(st.file(json_out), ...)
+            write_report(result, st.folder(report_dir))
+
+    Leaving the block normally renames every staged output into place (an existing
+    folder, already checked replaceable, is replaced), with the stop signals held back;
+    an exception or an interruption removes every staged output, so none of the outputs
+    appears. The staged names are ``.NAME.partial.<pid>.<random>`` so a run killed
+    outright is cleaned up by the next (:func:`simcam.lifecycle.remove_stale_partials`).
+    """
+
+    def __init__(self) -> None:
+        self._items: list[tuple[Path, Path, bool]] = []
+
+    def _stage(self, final: str | os.PathLike, is_dir: bool) -> Path:
+        from simcam.lifecycle import partial_prefix, remove_stale_partials
+
+        final = Path(final)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_partials(final)
+        fd, tmp = tempfile.mkstemp(prefix=partial_prefix(final), dir=final.parent)
+        os.close(fd)
+        os.unlink(tmp)  # the writer creates it (a file, or a folder it renames into place)
+        self._items.append((Path(tmp), final, is_dir))
+        return Path(tmp)
+
+    def file(self, final: str | os.PathLike) -> Path:
+        """A temporary path to write the file ``final`` to."""
+        return self._stage(final, False)
+
+    def folder(self, final: str | os.PathLike) -> Path:
+        """A temporary path (not yet existing) to create the folder ``final`` at."""
+        return self._stage(final, True)
+
+    def __enter__(self) -> "StagedOutputs":
+        return self
+
+    def _discard(self) -> None:
+        for tmp, _final, _is_dir in self._items:
+            if tmp.is_dir() and not tmp.is_symlink():
+                shutil.rmtree(tmp, ignore_errors=True)
+            elif os.path.lexists(tmp):
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is not None:
+            self._discard()
+            return False
+        try:
+            with held_signals():
+                for tmp, final, is_dir in self._items:
+                    if not os.path.lexists(tmp):
+                        continue
+                    apply_umask(tmp)  # mkdtemp/mkstemp made it 0700/0600
+                    if is_dir and final.is_dir() and not final.is_symlink():
+                        shutil.rmtree(final)
+                    os.replace(tmp, final)
+        except BaseException:
+            self._discard()
+            raise
+        return False
+
+
+#: the page of each kind of report folder a command writes (validate, synthesize and
+#: scanmirror simulate: report.md; linecam simulate / calibrate: their own page)
+REPORT_PAGES = ("report.md", "simulate.md", "calibrate.md")
+
+
+def is_earlier_report(path: Path) -> bool:
+    """A folder that ``--report`` may replace: empty, or an earlier report (holds one of
+    :data:`REPORT_PAGES`)."""
+    return not any(path.iterdir()) or any((path / n).is_file() for n in REPORT_PAGES)
+
+
+def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), files: dict | None = None) -> None:
+    """The checks of a command's outputs before its work: a file location for the JSON
+    (and each of ``files``, option -> path, e.g. ``{"--csv": csv_out}``), a new folder or
+    an earlier report for the report, none of them an input, no two the same path."""
+    inputs = [i for i in inputs if i is not None]
+    outs = [("--json", json_out)] + list((files or {}).items())
+    given = [(o, p) for o, p in outs if p]
+    for opt, p in given:
+        check_output_file(p, option=opt, inputs=inputs)
+    for i, (o1, p1) in enumerate(given):
+        for o2, p2 in given[i + 1:]:
+            if os.path.abspath(p1) == os.path.abspath(p2):
+                raise UserInputError(f"{o1} {p1} and {o2} {p2}: the same path; give two")
+    if report_dir:
+        check_output_dir(report_dir, option="--report", inputs=inputs, replaceable=is_earlier_report)
+    if json_out and report_dir and os.path.abspath(json_out) == os.path.abspath(report_dir):
+        raise UserInputError(f"--json {json_out} and --report {report_dir}: the same path; give two")
