@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from simcam import __version__
-from simcam.cli_common import UserInputError, run_cli
+from simcam.cli_common import UserInputError, run_cli, overwrite_option
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -44,7 +44,7 @@ def scenario_command(scenario: str | None, resolved: bool) -> None:
 @click.option("--filter", "filter_nm", type=float, default=None,
               help="Centre wavelength (nm) of a lab filter in front of the target (default: none).")
 @click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
-@click.option("--overwrite", is_flag=True, help="Replace a non-empty output directory.")
+@overwrite_option
 @click.option("--compress", is_flag=True,
               help="Full frames as Rice tile-compressed FITS (lossless; `budget starcam measure` reads them).")
 @click.option("--progress/--no-progress", default=True, show_default=True,

@@ -143,3 +143,12 @@ def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def overwrite_option(f):
+    """``--overwrite``, the same for every command that writes a folder: replace an existing
+    folder that is neither empty nor an earlier output of the command (which are replaced
+    without it); see :func:`simcam.outputs.check_output_dir`."""
+    return click.option("--overwrite", is_flag=True, default=False,
+                        help="Replace an existing output folder that is not empty and not an earlier output "
+                             "of this command (an empty folder or an earlier output is replaced without it).")(f)

@@ -76,12 +76,11 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     from simcam.lifecycle import partial_prefix, remove_stale_partials
     from simcam.outputs import apply_umask, check_output_dir
 
+    from simcam.outputs import is_earlier_output
+
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"--out {out}: exists and is not a directory")
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise UserInputError(f"--out {out}: directory is not empty (use --overwrite to replace it)")
-    check_output_dir(out, option="--out", replaceable=lambda _p: overwrite)
+    # the one rule (simcam.outputs.check_output_dir): empty, an earlier output, or --overwrite
+    check_output_dir(out, option="--out", replaceable=is_earlier_output, overwrite=overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(out)
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))

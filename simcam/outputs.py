@@ -172,12 +172,15 @@ def check_output_file(path: str | os.PathLike, *, option: str = "--json", inputs
 
 
 def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: Iterable = (),
-                     need_bytes: float = 0.0, replaceable=None) -> Path:
+                     need_bytes: float = 0.0, replaceable=None, overwrite: bool = False) -> Path:
     """Check, before the work, that ``path`` can take a folder output.
 
-    An existing folder must be empty or pass ``replaceable(path)`` (e.g. it holds an
-    earlier report). Refused otherwise: an existing file or device, an input of the
-    command (or a folder holding one), and the location checks of :func:`check_output_file`.
+    The one rule of every command that writes a folder: an existing folder is used only
+    when it is empty, is an earlier output of the same kind (``replaceable(path)``, e.g.
+    :func:`is_earlier_report`), or the user gave ``--overwrite`` (``overwrite=True``).
+    Refused otherwise, naming ``--overwrite``; refused always: an existing file or device,
+    an input of the command (or a folder holding one), and the location checks of
+    :func:`check_output_file`.
     """
     p = Path(path)
     if os.path.lexists(p):
@@ -189,8 +192,10 @@ def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: 
             raise UserInputError(f"{option} {p}: is {file_kind(st.st_mode)}, not a folder")
         if p.is_symlink():
             raise UserInputError(f"{option} {p}: is a symbolic link; give the folder itself")
-        if st is not None and any(p.iterdir()) and not (replaceable is not None and replaceable(p)):
-            raise UserInputError(f"{option} {p}: exists and is not empty; give a new folder")
+        if (st is not None and not overwrite and any(p.iterdir())
+                and not (replaceable is not None and replaceable(p))):
+            raise UserInputError(f"{option} {p}: exists, is not empty and is not an earlier output of this "
+                                 "command; give a new folder, or add --overwrite to replace it")
         for src in inputs:
             if src is None:
                 continue
@@ -302,6 +307,10 @@ class StagedOutputs:
 #: the page of each kind of report folder a command writes (validate, synthesize and
 #: scanmirror simulate: report.md; linecam simulate / calibrate: their own page)
 REPORT_PAGES = ("report.md", "simulate.md", "calibrate.md")
+#: what marks a folder as an earlier output of the commands that write frames or tables
+#: (``simcam render``, ``budget starcam simulate``: a manifest and the truth; ``simcam
+#: optics``: the lens table)
+OUTPUT_MARKERS = (("manifest.csv", "truth.csv"), ("table.csv",))
 
 
 def is_earlier_report(path: Path) -> bool:
@@ -310,7 +319,20 @@ def is_earlier_report(path: Path) -> bool:
     return not any(path.iterdir()) or any((path / n).is_file() for n in REPORT_PAGES)
 
 
-def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), files: dict | None = None) -> None:
+def is_earlier_output(path: Path) -> bool:
+    """A folder that ``--out`` may replace: empty, or an earlier output of a command that
+    writes frames or tables (holds every file of one of :data:`OUTPUT_MARKERS`)."""
+    return not any(path.iterdir()) or any(all((path / n).is_file() for n in group) for group in OUTPUT_MARKERS)
+
+
+def is_earlier_plots(path: Path) -> bool:
+    """A folder ``budget plot`` may write into: empty, or holding only its own figures
+    (PNG files) and pages."""
+    return all(f.is_file() and f.suffix in (".png", ".md", ".html") for f in path.iterdir())
+
+
+def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), files: dict | None = None,
+                      overwrite: bool = False) -> None:
     """The checks of a command's outputs before its work: a file location for the JSON
     (and each of ``files``, option -> path, e.g. ``{"--csv": csv_out}``), a new folder or
     an earlier report for the report, none of them an input, no two the same path."""
@@ -324,6 +346,7 @@ def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), 
             if os.path.abspath(p1) == os.path.abspath(p2):
                 raise UserInputError(f"{o1} {p1} and {o2} {p2}: the same path; give two")
     if report_dir:
-        check_output_dir(report_dir, option="--report", inputs=inputs, replaceable=is_earlier_report)
+        check_output_dir(report_dir, option="--report", inputs=inputs, replaceable=is_earlier_report,
+                         overwrite=overwrite)
     if json_out and report_dir and os.path.abspath(json_out) == os.path.abspath(report_dir):
         raise UserInputError(f"--json {json_out} and --report {report_dir}: the same path; give two")

@@ -599,7 +599,7 @@ def test_v75_g2v_electrons_against_independent_quadrature():
                                             wavelength_nm=lam)
     got = sp.electrons_per_exposure(electron_rate_per_nm=rate, wavelength_nm=lam, exposure_s=0.1)
 
-    lines = (Path(sp.__file__).parent / "data" / "bessell_v.csv").read_text().splitlines()
+    lines = (Path(sp.__file__).parents[1] / "data" / "bessell_v.csv").read_text().splitlines()  # simcam/data
     rows = [ln.split(",") for ln in lines if ln and ln[0].isdigit()]
     v_lam = np.array([float(r[0]) for r in rows])
     v_resp = np.array([float(r[1]) for r in rows])

@@ -178,7 +178,8 @@ def test_an_interruption_stops_the_children_and_goes_on(tmp_path, monkeypatch):
 _OPTIONS_SCRIPT = r"""
 import json
 from budget.starcam import kernels_trial as kt, warm
-from simcam.starcam.kernels import detector as kd, psf as kp
+from simcam.kernels import detector as kd
+from simcam.starcam.kernels import psf as kp
 from simcam import rng
 from budget.centroid import kernels as ck
 

@@ -28,6 +28,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+
+from simcam.cli_common import overwrite_option
 import numpy as np
 
 __all__ = ["commands", "read_observations", "calibrate_table", "CSV_COLUMNS"]
@@ -53,7 +55,8 @@ def _scenario(path):
               help="Write the identified observations as a table for 'budget linecam calibrate'.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
-def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
+@overwrite_option
+def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
     from simcam.cli_common import write_json_atomic
     from simcam.linecam.scenario import PARAMETERS
 
@@ -68,7 +71,8 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir):
     from .calibrate import CalibrationError
     from simcam.outputs import check_run_outputs
 
-    check_run_outputs(json_out=json_out, report_dir=report_dir, files={"--csv": csv_out}, inputs=(scenario,))
+    check_run_outputs(json_out=json_out, report_dir=report_dir, files={"--csv": csv_out}, inputs=(scenario,),
+                      overwrite=overwrite)
     scn = _scenario(scenario)
     try:
         sim = simulate(scn, trial_seed_sequence(seed, k))
@@ -382,7 +386,8 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
                    "'yaw,df,k1,k2,p1,p2'; an inseparable set is an error. Default: all ten, gauge removed.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
-def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir):
+@overwrite_option
+def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir, overwrite):
     from simcam.cli_common import UserInputError, write_json_atomic
     from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
 
@@ -393,7 +398,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
 
     # before any work: --json/--report are new files/folders or earlier outputs, not a
     # device and not the observation table or the scenario (issue 24)
-    check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(observations, scenario))
+    check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(observations, scenario), overwrite=overwrite)
     scn = _scenario(scenario)
     src = str(observations)
     names = None

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 import click
 
+from simcam.cli_common import overwrite_option
+
 __all__ = ["run_and_write", "study_group", "validate_command_for"]
 
 
 def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
-                  dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None):
+                  dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
+                  overwrite=False):
     """What ``validate`` does once its options are read: run the study through the runner,
     print the header and the table (then ``more_lines(result)``, if given: a study's own
     summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
 
-    ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal.
+    ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal;
+    ``overwrite`` lets the report replace a folder that is not an earlier report.
     """
     import sys
     from pathlib import Path
@@ -26,7 +30,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
         progress = sys.stderr.isatty()
     from simcam.outputs import check_run_outputs
 
-    check_run_outputs(json_out=json_out, report_dir=report_dir)  # issue 24: refuse before the work
+    check_run_outputs(json_out=json_out, report_dir=report_dir, overwrite=overwrite)  # refused before the work
     if workers is None and scheduler is None and dask_local is None:
         from budget.runner.executors import default_workers
 
@@ -43,7 +47,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
         click.echo(line)
     from simcam.outputs import StagedOutputs
 
-    with StagedOutputs() as staged:  # issue 24: the JSON and the report appear together or not at all
+    with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
         if json_out:
             write_json_atomic(staged.file(json_out), res.to_json())
         if report_dir:
@@ -76,21 +80,23 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.option("--dask-local", type=int, default=None, help="Run on a Dask LocalCluster of N processes.")
     @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
     @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
+    @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
-    def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, progress):
+    def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, overwrite,
+                 progress):
         from budget.runner.registry import get_study
 
         study = get_study(study_name)
         run_and_write(study, study.load_scenario(scenario), trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
-                      report_dir=report_dir, progress=progress, more_lines=more_lines)
+                      report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite)
 
     return validate
 
 
 def study_group(study_name: str) -> click.Group:
-    """The click group of a registered study: ``validate`` plus :meth:`Study.commands` (a
-    command of the study named ``validate`` replaces the plain one).
+    """The click group of a registered study: ``validate``, ``robustness`` plus
+    :meth:`Study.commands` (a command of the study named ``validate`` replaces the plain one).
 
     The study module is imported only when the group is invoked (or asked for help).
     """
@@ -104,6 +110,9 @@ def study_group(study_name: str) -> click.Group:
             from budget.runner.registry import get_study
 
             self.add_command(validate_command_for(study_name))
+            from budget.runner.robustness import robustness_command_for
+
+            self.add_command(robustness_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
             from budget.runner.scenario_cmd import scenario_command_for  # every study's, with comments

@@ -52,11 +52,16 @@ Run settings (how many trials, where they run):
 * :meth:`Study.chunk_trials`: most trials in one task sent to a worker (10);
 * :meth:`Study.prewarm`: once in the run's own process before any work (compile numba
   kernels in parallel; nothing by default);
-* :meth:`Study.worker_init`: once in each worker process (e.g. one numba thread).
+* :meth:`Study.worker_init`: once in each worker process, after the runner has set one numba
+  thread there (a study sets no threads itself).
 
 Truth distribution (a heavy truth spread over the workers): :meth:`Study.truth_parts`,
 :meth:`Study.truth_part`, :meth:`Study.truths_from_parts` (default: one part, the whole of
 :meth:`Study.truths`; the result must equal it).
+
+World effects (``budget <study> robustness``, :mod:`budget.runner.robustness`):
+:meth:`Study.truth_depends_on_effects` (the effects whose change changes the truths; default
+all) and :meth:`Study.claim` (the accuracy a method claims for a class; default: unbiased).
 
 Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
 :meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
@@ -328,6 +333,19 @@ class Study(ABC):
     def truths_from_parts(self, scenario: Any, seed: int, results: list) -> dict[tuple[str, str], Truth]:
         """:meth:`truths` from its pieces' results, in :meth:`truth_parts` order; must equal it."""
         return results[0]
+
+    # ------------------------------------------------------------ world effects (robustness)
+    def truth_depends_on_effects(self, scenario: Any) -> set[str] | None:
+        """Names of the world effects (``world.effects``) whose change changes :meth:`truths`;
+        None (the default): all of them. A robustness run reuses the ideal world's truths for
+        every case whose active effects are outside this set (:mod:`budget.runner.robustness`)."""
+        return None
+
+    def claim(self, scenario: Any, class_name: str, variant: str) -> float | None:
+        """The accuracy the method claims for ``class_name`` with ``variant``, in the class's
+        unit (a bound on the bias); None (the default): it claims to be unbiased within its
+        Monte Carlo uncertainty (:func:`budget.runner.robustness.claim_holds`)."""
+        return None
 
     # ------------------------------------------------------------ presentation
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:

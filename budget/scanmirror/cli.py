@@ -6,6 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+
+from simcam.cli_common import overwrite_option
 import numpy as np
 
 __all__ = ["simulate_command", "simulate", "write_simulate_report"]
@@ -93,13 +95,14 @@ def simulate_command() -> click.Command:
     @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
     @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the timeline as JSON.")
     @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a report with plots.")
-    def cmd(scenario, seed, json_out, report_dir):
+    @overwrite_option
+    def cmd(scenario, seed, json_out, report_dir, overwrite):
         from budget.scanmirror.study import STUDY
         from simcam.cli_common import write_json_atomic
 
         from simcam.outputs import StagedOutputs, check_run_outputs
 
-        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,))  # issue 24: before the work
+        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)  # before the work
         scn = STUDY.load_scenario(scenario)
         source = scenario or "embedded scanmirror default"
         summary, setup, out = simulate(scn, seed=seed, source=source)

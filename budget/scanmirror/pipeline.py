@@ -16,6 +16,7 @@ import numpy as np
 
 from budget.scanmirror.compensation import FirstOrderCompensator, exact_compensation, ground_errors_deg
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
+from simcam.scanmirror.effects import WorldEffects
 from simcam.scanmirror.geometry import rotvec_matrix
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
 from simcam.scanmirror.world import World, deviation_components
@@ -83,6 +84,8 @@ class Setup:
         self.pd = w.pd_attitude(self._att_t) if self.scenario.attitude.mode == "pd" else None
         self.comp = FirstOrderCompensator(w, self.alpha0, self.beta0)
         self.dwell_A0 = [body_to_inertial(d.r_km, d.v_km_s, np.zeros((d.frame_t_s.size, 3))) for d in self.dwells]
+        # the world's unmodelled effects (simulator side; the estimators never see them)
+        self.effects = WorldEffects(self.scenario, w, self.dwells)
 
     def attitude(self, initial_deg):
         att = self.world.attitude(self._att_t, initial_deg, pd=self.pd)
@@ -116,19 +119,26 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
     n_d = len(setup.dwells)
     tracker_err = ss.tracker_sigma_arcsec * ARCSEC * rng.standard_normal((n_d, 3))
     noise = [ss.centroid_sigma_arcsec * ARCSEC * rng.standard_normal(d.visible.shape + (2,)) for d in setup.dwells]
+    # the world's effects draw from a child spawned after the lab's draws: off, nothing changes
+    fx = setup.effects.draw(rng.spawn(1)[0], setup.t_s) if setup.effects.on else None
 
     def dev(t):
-        return deviation_components(t, const, np.deg2rad(m.deviation_variable_deg), m.deviation_period_s, phase, axis)
+        base = deviation_components(t, const, np.deg2rad(m.deviation_variable_deg), m.deviation_period_s, phase, axis)
+        if fx is None:
+            return base
+        return fx.deviation(t, base, variable_rad=np.deg2rad(m.deviation_variable_deg), period_s=m.deviation_period_s,
+                            phase_rad=phase, axis_rad=axis)
 
     att_scan, att_frames = setup.attitude(init)
     # --- star measurements and the estimates (per dwell, for every scan that follows)
     meas_app, meas_cat = [], []
-    for d, af, te, nz in zip(setup.dwells, att_frames, tracker_err, noise):
+    for j, (d, af, te, nz) in enumerate(zip(setup.dwells, att_frames, tracker_err, noise)):
         dtx_f, dty_f = dev(d.frame_t_s)
-        cen = true_centroids(d, dtx_f, dty_f, af) + nz
+        cen = true_centroids(d if fx is None else setup.effects.world_dwell(j), dtx_f, dty_f, af) + nz
         cen = np.where(d.visible[..., None], cen, np.nan)
         A_true = body_to_inertial(d.r_km, d.v_km_s, af)
-        tracker = A_true @ rotvec_matrix(-te)
+        # the tracker's A_Ib = A_true R(error): the lab's white per-dwell error, plus the world's
+        tracker = A_true @ rotvec_matrix(-te if fx is None else fx.tracker_dwell[j] - te)
         meas_app.append(DwellMeasurement(d.apparent_I, tracker, cen, d.alpha_rad, d.beta_rad))
         meas_cat.append(DwellMeasurement(d.apparent_I if ss.published_uses_aberration else d.catalogue_I,
                                          tracker, cen, d.alpha_rad, d.beta_rad))
@@ -136,6 +146,8 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
     A_lab, R_lab, r_lab, v_lab = w.orbit_geometry(setup.t_s, position_offset_rtn_km=orbit_offset)
     orb_lab, dR_lab = w.orbit_parameters(r_lab, v_lab, setup.t_s)
     att_lab = att_scan + att_know
+    if fx is not None:  # the same tracker process continues through the scan (small angles: 3-1-2 = rotation vector)
+        att_lab = att_lab + fx.tracker_scan
     dtx_t, dty_t = dev(setup.t_s)
     out = {"errors": {}, "dtau": {}, "dtau_sigma": np.full(2, np.nan), "dtau_true": np.full(2, np.nan)}
     sc_errors = {}
@@ -180,6 +192,8 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
                 errs[name + "_angles"] = (ac - setup.alpha0[sel], bc - setup.beta0[sel])
         sc_errors[s] = errs
     out["errors"] = sc_errors
+    if fx is not None:
+        out["effects"] = fx
     if keep_series:
         t_all = np.arange(0.0, w.duration_s, setup.step_s)
         dx_all, dy_all = dev(t_all)
@@ -190,5 +204,7 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
 
 
 def _errors_sel(setup, sel, alpha, beta, dtx, dty, att):
+    # commanded angles -> the mirror's true ones (the world's encoders; identity when off)
+    alpha, beta = setup.effects.true_angles(alpha, beta)
     g = setup.world.ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
     return ground_errors_deg(setup.world, g, None, latlon0=(setup.latlon0[0][sel], setup.latlon0[1][sel]))

@@ -10,6 +10,13 @@ no aberration; improved: batch fit with covariance) and compensates the last are
 compensation with the improved estimate; without_estimate: exact compensation with dtau = 0,
 as the paper does for scan 1).
 
+The world's unmodelled effects (``[world.effects]``, issue 22: tracker bias and correlated
+error, Gaia DR3 stars, deviation drift, inductosyn encoders) are drawn afterwards from a
+child of the trial's generator by :mod:`simcam.scanmirror.effects`; the estimators and
+their stated covariance never see them. The default scenario is that realistic world;
+``docs/examples/scenarios/scanmirror_ideal.toml`` is the ideal one (docs/scanmirror.md
+section 11).
+
 Classes: ``dtau`` (arcsec, per-trial truth: the injected deviation at the dwell), and the
 ground errors of the last scan after compensation, ``ground_max`` and ``ground_rms`` (deg,
 latitude and longitude; the truth is 0: compensation claims to put every point back).
@@ -115,6 +122,12 @@ class ScanMirrorStudy(Study):
                     "what the compensation does not model (orbit-determination and attitude-knowledge "
                     "errors of the trial, the deviation estimate's own error).")
         return None
+
+    def truth_depends_on_effects(self, scenario) -> set[str]:
+        """No effect changes the study-level truths: the ground classes' truth is 0 whatever
+        the world, and ``dtau``'s truth is per trial (the world's deviation at the dwell,
+        effects included, returned by each trial)."""
+        return set()
 
     # ------------------------------------------------------------ report and commands
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:

@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+
+from simcam.cli_common import overwrite_option
 import pandas as pd
 
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
@@ -84,7 +86,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 @click.option("--dark-frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Star-free frames per condition for dark subtraction.")
 @click.option("--out", required=True, type=click.Path(file_okay=False))
-@click.option("--overwrite", is_flag=True)
+@overwrite_option
 @click.option("--json", "json_out", type=click.Path(dir_okay=False),
               help="Write a summary (files, conditions, scenario hash, seed) as JSON.")
 @click.option("--compress", is_flag=True,

@@ -21,6 +21,8 @@ import re
 from pathlib import Path
 
 import click
+
+from simcam.cli_common import overwrite_option
 import numpy as np
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
@@ -363,8 +365,11 @@ def _sobol_figure(sob, title, axis, out_dir):
 
 
 def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "improved",
-               precision: float | None = None) -> list[Path]:
-    """Write the figures of a sweep store into ``out_dir``; return their paths."""
+               precision: float | None = None, overwrite: bool = False) -> list[Path]:
+    """Write the figures of a sweep store into ``out_dir``; return their paths.
+
+    ``out_dir`` must be new, empty, hold only earlier figures, or ``overwrite`` be given
+    (:func:`simcam.outputs.check_output_dir`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -373,7 +378,7 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
 
     import shutil
 
-    from simcam.outputs import check_output_dir
+    from simcam.outputs import check_output_dir, is_earlier_plots
 
     ds = open_sweep(store)
     out_dir = Path(out_dir)
@@ -391,7 +396,7 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
         raise UserInputError(f"{store}: no point of the sweep is done yet; run `budget sweep` into it first")
     # the folder is checked before, and created only when a figure is drawn; a failure
     # removes a folder this call created (no empty plots folder left behind)
-    check_output_dir(out_dir, option="--out", replaceable=lambda _p: True)
+    check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite)
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -427,13 +432,14 @@ def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
               help="Variant drawn in 2-D line plots and bias heatmaps.")
 @click.option("--precision", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Relative precision to mark (e.g. 0.1) and report the first value that reaches it.")
-def plot_command(store, out_dir, axis, variant, precision) -> None:
+@overwrite_option
+def plot_command(store, out_dir, axis, variant, precision, overwrite) -> None:
     """Draw the results of the sweep store STORE (budget sweep ... --out STORE)."""
     from budget.sweeps.store import open_sweep
 
     store_p = Path(store)
     out = Path(out_dir) if out_dir else store_p.parent / f"{store_p.name}_plots"
-    files = plot_store(store, out, axis=axis, variant=variant, precision=precision)
+    files = plot_store(store, out, axis=axis, variant=variant, precision=precision, overwrite=overwrite)
     ds = open_sweep(store)
     if "done" in ds and not bool(ds["done"].all()):
         click.echo(f"note: {int((~ds['done']).sum())} of {ds['done'].size} points are not done yet "

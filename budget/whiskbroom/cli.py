@@ -13,10 +13,12 @@ from pathlib import Path
 
 import click
 
+from simcam.cli_common import overwrite_option
+
 __all__ = ["synthesize_command", "run_synthesis", "main"]
 
 
-def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None,
+def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None, overwrite=False,
                   echo=click.echo):
     import numpy as np
 
@@ -27,11 +29,12 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
 
     from simcam.outputs import StagedOutputs, check_run_outputs, is_earlier_report
 
-    check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # issue 24: before the work
+    check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # before the work
     if report_dir:
         from simcam.outputs import check_output_dir
 
-        check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report)
+        check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report,
+                         overwrite=overwrite)
     sc = wsc.load(scenario_path)
     res = sy.synthesize(sc, seed, trials=trials,
                         source=str(scenario_path) if scenario_path else "embedded whiskbroom default")
@@ -114,8 +117,9 @@ def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, rep
 @click.option("--trials", type=click.IntRange(min=2), default=None, help="Trials (default: synthesis.trials).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
-def synthesize_command(scenario, seed, trials, json_out, report_dir):
-    run_synthesis(scenario, seed=seed, trials=trials, json_out=json_out, report_dir=report_dir)
+@overwrite_option
+def synthesize_command(scenario, seed, trials, json_out, report_dir, overwrite):
+    run_synthesis(scenario, seed=seed, trials=trials, json_out=json_out, report_dir=report_dir, overwrite=overwrite)
 
 
 def main(argv=None):

@@ -12,9 +12,10 @@ from pydantic import Field, field_validator, model_validator
 
 from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
                                 read_toml, validate_model)
+from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
 
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
-           "MirrorConfig", "StarSensingConfig", "ScanPlan"]
+           "MirrorConfig", "StarSensingConfig", "ScanPlan", "ScanMirrorEffects", "ScanMirrorWorld"]
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Vec3 = tuple[Finite, Finite, Finite]
@@ -158,6 +159,9 @@ class ScanMirrorScenario(ScenarioBase):
     compensation: CompensationConfig = CompensationConfig()
     validation: ValidationConfig = ValidationConfig()
     scan_plan: ScanPlan
+    #: the world's unmodelled effects (simcam.scanmirror.effects): read by the simulator
+    #: and the truth only, never by the lab
+    world: ScanMirrorWorld = ScanMirrorWorld()
 
     @property
     def effective_plan(self) -> ScanPlan:

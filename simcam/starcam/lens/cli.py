@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import click
+
+from simcam.cli_common import overwrite_option
 import numpy as np
 
 __all__ = ["format_table", "optics_command", "write_plots"]
@@ -166,7 +168,7 @@ def write_plots(products, fit, out: Path) -> list[Path]:
 @click.argument("prescription", required=False, default=DEFAULT_LENS)
 @click.option("--out", "out", type=click.Path(file_okay=False), default=None,
               help="Directory for the plots, products.nc and table.csv (default: print only).")
-@click.option("--overwrite", is_flag=True, help="Replace a non-empty output directory.")
+@overwrite_option
 @click.option("--no-cache", "no_cache", is_flag=True, help="Trace again even if the products are cached.")
 @click.option("--variant", type=click.Choice(["llvm_ad_rgb", "scalar_rgb"]), default=None,
               help="Mitsuba variant (default: llvm_ad_rgb if available).")

@@ -1,0 +1,290 @@
+"""The robustness runner (budget.runner.robustness) on a toy world with analytic answers
+(tests/toy_world_study.py).
+
+Monte Carlo checks use fixed seeds; each tolerance is stated with the sampling distribution
+it follows from.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from toy_world_study import ToyWorldStudy
+
+from budget.runner.robustness import (
+    ALL,
+    IDEAL,
+    SCHEMA,
+    build_cases,
+    claim_holds,
+    coverage_consistent,
+    run_robustness,
+)
+from budget.runner.study import ClassSpec
+from simcam.cli_common import UserInputError
+
+EPS = np.finfo(float).eps
+OFF = {n: 0.0 for n in ("correlation_rho", "extra_noise_units", "drift_units_per_sample",
+                        "nonlinearity_per_unit", "scale_error_ratio", "offset_units")}
+
+
+def _scenario(study, **values):
+    data = study.load_scenario().model_dump(mode="json")
+    data["world"]["effects"].update(values)
+    return study.from_dict(data, source="test")
+
+
+def test_cases_ideal_each_effect_alone_and_all():
+    study = ToyWorldStudy()
+    scn = study.load_scenario()
+    cases = build_cases(study, scn)
+    names = [c.name for c in cases]
+    assert names == [IDEAL, "correlation_rho", "extra_noise_units", "drift_units_per_sample",
+                     "nonlinearity_per_unit", "scale_error_ratio", "offset_units", ALL]
+    assert cases[0].scenario.world.effects.active() == ()
+    for c in cases[1:-1]:
+        assert c.scenario.world.effects.active() == (c.name,)
+        assert getattr(c.scenario.world.effects, c.name) == getattr(scn.world.effects, c.name)
+        # everything but the world is the scenario's
+        assert c.scenario.model_dump(exclude={"world"}) == scn.model_dump(exclude={"world"})
+    assert cases[-1].scenario is scn
+    # truths depend on extra_noise_units only: the other single cases take the ideal's
+    assert [c.shares_truths for c in cases] == [False, True, False, True, True, True, True, False]
+    # fewer than two effects on: no "all" case (it would repeat one)
+    one = build_cases(study, _scenario(study, **(OFF | {"offset_units": 0.2})))
+    assert [c.name for c in one] == [IDEAL, "offset_units"]
+
+
+def test_a_study_without_world_effects_is_refused():
+    from toy_study import STUDY, Toy
+
+    with pytest.raises(UserInputError, match=r"toy scenario toy: .*no \[world.effects\]"):
+        build_cases(STUDY, Toy())
+
+
+def test_common_random_numbers_make_additive_and_scale_effects_exact():
+    study = ToyWorldStudy()
+    scn = study.load_scenario()
+    res = run_robustness(study, scn, trials=60, seed=4)
+    key = ("mean", "published", "a")
+    ideal = res.results[IDEAL].samples[key]
+    e = scn.world.effects
+    # rounding of two means of m = 8 values of magnitude <= max|x|: each sum's error is at
+    # most m eps max|x| (sequential bound), the difference of two means twice that
+    scale = float(np.max(np.abs(res.results[ALL].samples[key]))) + 1.0
+    tol = 2 * scn.m * EPS * scale
+    d_off = res.results["offset_units"].samples[key] - ideal
+    assert np.max(np.abs(d_off - e.offset_units)) <= tol
+    d_drift = res.results["drift_units_per_sample"].samples[key] - ideal
+    assert np.max(np.abs(d_drift - e.drift_units_per_sample * (scn.m - 1) / 2)) <= tol
+    ratio = res.results["scale_error_ratio"].samples[key] - (1 + e.scale_error_ratio) * ideal
+    assert np.max(np.abs(ratio)) <= 2 * tol
+    cell = res.cells()["offset_units"][key]
+    assert cell["shift"] == pytest.approx(e.offset_units, abs=tol)
+    assert cell["se_shift"] <= tol  # the paired differences are constant to rounding
+    # the per-trial truths are the same draws in every case
+    assert np.array_equal(res.results["offset_units"].trial_truths[key], res.results[IDEAL].trial_truths[key])
+
+
+def test_biases_of_the_cases_match_their_closed_forms():
+    """Expected shifts from the ideal world (toy_world_study's docstring), within 4 paired
+    standard errors (fixed seed 7, 3000 trials: a 4-se miss has probability 6e-5 each)."""
+    study = ToyWorldStudy()
+    scn = study.load_scenario()
+    e, m, s2 = scn.world.effects, scn.m, scn.sigma**2
+    res = run_robustness(study, scn, trials=3000, seed=7)
+    cells = res.cells()
+    mean_key, var_key = ("mean", "published", "a"), ("variance", "improved", "a")
+    # nonlinearity: E[mean(beta x^2)] = beta (mu_c^2 + mu_s^2 + sigma^2)
+    c = cells["nonlinearity_per_unit"][mean_key]
+    assert c["shift"] == pytest.approx(e.nonlinearity_per_unit * (scn.mu_center**2 + scn.mu_spread**2 + s2),
+                                       abs=4 * c["se_shift"])
+    # gain: E[k mean(x)] = k mu_c
+    c = cells["scale_error_ratio"][mean_key]
+    assert c["shift"] == pytest.approx(e.scale_error_ratio * scn.mu_center, abs=4 * c["se_shift"])
+    # gain on the ddof-1 variance: ((1 + k)^2 - 1) sigma^2
+    c = cells["scale_error_ratio"][var_key]
+    assert c["shift"] == pytest.approx(((1 + e.scale_error_ratio) ** 2 - 1) * s2, abs=4 * c["se_shift"])
+    # stationary AR(1) noise: E[s^2] = sigma^2 (1 - 2/(m(m-1)) sum_h (m-h) rho^h)
+    rho = e.correlation_rho
+    expected = s2 * (1 - 2 / (m * (m - 1)) * sum((m - h) * rho**h for h in range(1, m))) - s2
+    c = cells["correlation_rho"][var_key]
+    assert c["shift"] == pytest.approx(expected, abs=4 * c["se_shift"])
+    # drift on the ddof-1 variance: E = d^2 m (m + 1) / 12 (the noise is independent of i)
+    c = cells["drift_units_per_sample"][var_key]
+    assert c["shift"] == pytest.approx(e.drift_units_per_sample**2 * m * (m + 1) / 12, abs=4 * c["se_shift"])
+    # extra noise: the truth moves with it, the ddof-1 estimate stays unbiased (4 se)
+    c = cells["extra_noise_units"][var_key]
+    assert c["truth"] == s2 + e.extra_noise_units**2
+    assert abs(c["bias"]) <= 4 * c["se_bias"]
+
+
+def test_verdicts_follow_the_numbers():
+    """An offset of 5 standard errors of the mean's bias fails, one of 0.1 passes. The bias's
+    se is sigma / sqrt(m n) exactly (error N(0, sigma^2/m)); seed 3 is fixed: the ideal bias is
+    one N(0, se^2) draw (here within 2 se, checked), so the offsets land where stated."""
+    study = ToyWorldStudy()
+    n, m, sigma = 400, 8, 2.0
+    se = sigma / math.sqrt(m * n)
+    key = ("mean", "published", "a")
+    for factor, holds in ((5.0, False), (0.1, True)):
+        scn = _scenario(study, **(OFF | {"offset_units": factor * se}))
+        res = run_robustness(study, scn, trials=n, seed=3)
+        cells = res.cells()
+        assert abs(cells[IDEAL][key]["bias"]) < 2 * se
+        assert cells[IDEAL][key]["claim_holds"] is True
+        assert cells["offset_units"][key]["claim_holds"] is holds
+        sentence = res.breaks()[("mean", "published")]["sentence"]
+        assert ("offset_units breaks its claim first" in sentence) is (not holds)
+        if holds:
+            assert "no effect breaks its claim" in sentence
+    # every cell's verdict is the definition applied to its own numbers
+    for row in cells.values():
+        for c in row.values():
+            assert c["claim_holds"] is claim_holds(bias=c["bias"], se_bias=c["se_bias"], claim=c["claim"],
+                                                   coverage_1sigma=c["coverage_1sigma"],
+                                                   coverage_n=c["coverage_n"], scale=c["scale"])
+
+
+def test_claim_holds_definition():
+    # no claim: unbiased within 3 se
+    assert claim_holds(bias=0.29, se_bias=0.1)
+    assert not claim_holds(bias=-0.31, se_bias=0.1)
+    # a deterministic estimator (se 0): rounding within 1e-9 of the values' magnitude
+    assert claim_holds(bias=1e-12, se_bias=0.0, scale=5.0)
+    assert not claim_holds(bias=1e-6, se_bias=0.0, scale=5.0)
+    # a claimed accuracy: |bias| + 3 se within it
+    assert claim_holds(bias=0.1, se_bias=0.01, claim=0.14)
+    assert not claim_holds(bias=0.1, se_bias=0.01, claim=0.12)
+    # coverage over 400 trials: band 3 sqrt(0.6827 * 0.3173 / 400) = 0.0698
+    assert coverage_consistent(0.65, 400) and not coverage_consistent(0.60, 400)
+    assert not claim_holds(bias=0.0, se_bias=0.1, coverage_1sigma=0.60, coverage_n=400)
+    assert claim_holds(bias=0.0, se_bias=0.1, coverage_1sigma=0.70, coverage_n=400)
+    assert not claim_holds(bias=float("nan"), se_bias=0.1)
+
+
+class _ResidualToy(ToyWorldStudy):
+    """The toy with its variance as a residual (no claim) and a claimed accuracy for the mean."""
+
+    def classes(self, scenario):
+        mean, var = super().classes(scenario)
+        return mean, ClassSpec(var.name, var.label, var.unit, var.axes, var.description, role="residual")
+
+
+def test_json_schema_claims_residuals_and_report(tmp_path):
+    study = _ResidualToy(claims={("mean", "published"): 0.5})
+    res = run_robustness(study, study.load_scenario(), trials=40, seed=2)
+    payload = json.loads(json.dumps(res.to_json(), allow_nan=False))
+    assert payload["schema"] == SCHEMA and payload["study"] == "toyworld"
+    assert list(payload["cases"]) == [c.name for c in res.cases]
+    for name, case in payload["cases"].items():
+        assert {"active_effects", "trials", "seed", "scenario_hash", "classes"} <= set(case)
+        assert case["trials"] == 40 and case["seed"] == 2
+        mean = case["classes"]["mean"]["a"]["published"]
+        var = case["classes"]["variance"]["a"]["improved"]
+        for cell in (mean, var):
+            assert {"bias", "se_bias", "std", "coverage_1sigma", "claim_holds"} <= set(cell)
+        assert mean["claim"] == 0.5 and isinstance(mean["claim_holds"], bool)
+        assert 0.0 <= mean["coverage_1sigma"] <= 1.0
+        assert var["coverage_1sigma"] is None  # no sigma stated
+        assert var["claim_holds"] is None and var["claim"] is None  # a residual: no claim
+    assert payload["cases"][IDEAL]["active_effects"] == []
+    assert payload["cases"]["offset_units"]["active_effects"] == ["offset_units"]
+    assert payload["cases"][ALL]["scenario_hash"] == payload["scenario_hash"]
+    assert len({c["scenario_hash"] for c in payload["cases"].values()}) == len(payload["cases"])
+    assert payload["effects"]["offset_units"]["source"] == "a constant offset"
+    assert "a residual, no claim" in payload["breaks"]["variance.improved"]["sentence"]
+    rep = res.write_report(tmp_path / "rob")
+    text = rep.read_text()
+    assert "| case |" in text and "What breaks each claim" in text and "`offset_units` = 0.1" in text
+    assert json.loads((tmp_path / "rob" / "robustness.json").read_text())["schema"] == SCHEMA
+    table = res.format_table().splitlines()
+    assert len(table) == 1 + len(res.cases) and table[0].startswith("case")
+
+
+def test_results_do_not_depend_on_workers():
+    study = ToyWorldStudy()
+    scn = study.load_scenario()
+    one = run_robustness(study, scn, trials=30, seed=5, workers=1).to_json()
+    two = run_robustness(study, scn, trials=30, seed=5, workers=2).to_json()
+    for p in (one, two):
+        del p["elapsed_s"], p["executor"]
+    assert one == two
+
+
+@pytest.mark.parametrize("depends, calls", [({"extra_noise_units"}, 3), (set(), 1), (None, 8)])
+def test_truths_are_shared_where_they_do_not_depend_on_the_effect(depends, calls):
+    study = ToyWorldStudy(depends=depends)
+    scn = study.load_scenario()
+    type(study).truth_calls = 0
+    res = run_robustness(study, scn, trials=10, seed=1, workers=1)
+    assert type(study).truth_calls == calls
+    shared = [c.name for c in res.cases if c.shares_truths]
+    for name in shared:
+        assert res.results[name].truths is res.results[IDEAL].truths
+    # sharing changes no number where the truths really do not depend on the effect (the
+    # toy's truth depends on extra_noise_units only: the right declaration)
+    if depends == {"extra_noise_units"}:
+        full = run_robustness(ToyWorldStudy(depends=None), scn, trials=10, seed=1, workers=1).to_json()
+        part = res.to_json()
+        assert {n: c["classes"] for n, c in full["cases"].items()} == \
+               {n: c["classes"] for n, c in part["cases"].items()}
+
+
+def test_command_line(tmp_path, monkeypatch, capsys):
+    from budget.runner import registry
+    from budget.runner.cli import study_group
+    from simcam.cli_common import run_cli
+
+    monkeypatch.setitem(registry.STUDIES, "toyworld", "toy_world_study:STUDY")
+    out = tmp_path / "r.json"
+    run_cli(study_group("toyworld"), ["robustness", "--trials", "12", "--seed", "3", "--workers", "1",
+                                      "--json", str(out), "--report", str(tmp_path / "rep"), "--no-progress"])
+    text = capsys.readouterr().out
+    assert "robustness of scenario toy-world" in text and "offset_units" in text
+    assert json.loads(out.read_text())["cases"]["ideal"]["trials"] == 12
+    assert (tmp_path / "rep" / "report.md").is_file()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[world.effects]\nbogus_units = 1.0\n")
+    with pytest.raises(SystemExit) as exc:
+        run_cli(study_group("toyworld"), ["robustness", str(bad), "--workers", "1", "--json",
+                                          str(tmp_path / "r2.json")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"error: {bad}: world.effects.bogus_units: unknown key" in err
+    assert not (tmp_path / "r2.json").exists()
+
+
+def test_every_study_group_has_the_verb(capsys):
+    from budget.runner.cli import study_group
+    from budget.runner.registry import study_names
+    from simcam.cli_common import run_cli
+
+    for name in study_names():
+        run_cli(study_group(name), ["robustness", "--help"])
+        assert "--trials" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam"])
+def test_cases_of_every_study_with_a_world(name):
+    """Cases are built generically (dump, set world.effects, from_dict): every case is the
+    scenario but for its effects (skipped for a study whose scenario has no world effects yet)."""
+    from budget.runner.registry import get_study, study_names
+    from simcam.effects import scenario_effects
+
+    if name not in study_names():
+        pytest.skip(f"{name} is not installed")
+    study = get_study(name)
+    scn = study.load_scenario()
+    if scenario_effects(scn) is None:
+        pytest.skip(f"the {name} scenario has no world effects")
+    cases = build_cases(study, scn)
+    base = scn.model_dump(mode="json")
+    base["world"]["effects"] = None
+    for c in cases:
+        d = c.scenario.model_dump(mode="json")
+        assert d["world"]["effects"] == c.magnitudes
+        d["world"]["effects"] = None
+        assert d == base
+        assert c.scenario.world.effects.active() == c.active
