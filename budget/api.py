@@ -11,6 +11,7 @@
 
 * :func:`validate` runs a study's Monte Carlo validation (the runner,
   :func:`budget.runner.run.run_study`) and returns its :class:`~budget.runner.run.StudyResult`;
+* :func:`robustness` runs a study's robustness cases (the world's effects) and returns them;
 * :func:`sweep` runs a design-trade sweep file into a Zarr store and returns it opened
   (:func:`budget.sweeps.run.run_sweep`).
 
@@ -29,7 +30,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["scenario_text", "studies", "sweep", "validate"]
+__all__ = ["robustness", "scenario_text", "studies", "sweep", "validate"]
 
 
 def studies() -> list[str]:
@@ -137,6 +138,28 @@ def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, 
         try:
             return run_study(st, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
                              progress=progress)
+        except Exception as exc:
+            hint = _broken_pool_hint(exc)
+            if hint is not None:
+                raise hint from None
+            raise
+
+
+def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
+               progress: bool = False):
+    """What each method's claim survives of the world's effects
+    (:func:`budget.runner.robustness.run_robustness`); ``study`` and ``scenario`` as for
+    :func:`validate`. Returns its ``RobustnessResult`` (``write_report(folder)``, ``to_json()``)."""
+    from budget.runner.executors import default_workers
+    from budget.runner.robustness import run_robustness
+
+    st = _study(study)
+    scn = _scenario(st, scenario)
+    with _workers_skip_main(st):
+        try:
+            return run_robustness(st, scn, trials=trials, seed=seed,
+                                  workers=default_workers() if workers is None else workers, progress=progress,
+                                  source=str(scenario) if isinstance(scenario, (str, Path)) else "")
         except Exception as exc:
             hint = _broken_pool_hint(exc)
             if hint is not None:
