@@ -113,3 +113,19 @@ def test_a_study_defined_in_an_unguarded_script_says_what_to_do(tmp_path):
     assert p.returncode != 0 and "RESULT" not in p.stdout
     last = p.stderr.strip().splitlines()[-1]
     assert last.startswith("RuntimeError: budget:") and 'if __name__ == "__main__":' in last and "workers=1" in last
+
+
+def test_robustness_through_the_api_equals_the_runner_and_writes_html(tmp_path):
+    from toy_world_study import ToyWorldStudy
+
+    from budget.runner.robustness import run_robustness
+
+    study = ToyWorldStudy()
+    got = budget.robustness(study, trials=30, seed=5, workers=1)
+    ref = run_robustness(study, study.load_scenario(), trials=30, seed=5, workers=1)
+    a, b = got.to_json(), ref.to_json()
+    a.pop("elapsed_s", None), b.pop("elapsed_s", None)
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+    got.write_report(tmp_path / "rep")
+    page = (tmp_path / "rep" / "report.html").read_text()
+    assert page.startswith("<!DOCTYPE html>") and "<h1>" in page and "http" not in page
