@@ -42,6 +42,8 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
                f"on {res.executor}")
     click.echo(world_line(scenario))
     click.echo(format_table(res))
+    from budget.runner.findings import findings_lines  # the findings in words
+    click.echo("\n".join(findings_lines(res)))
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
     from simcam.outputs import StagedOutputs
@@ -147,6 +149,8 @@ def study_group(study_name: str) -> click.Group:
             self.add_command(robustness_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
+            from budget.runner.scenario_cmd import scenario_command_for  # every study's, with comments
+            self.add_command(scenario_command_for(study_name))
 
         def list_commands(self, ctx):
             self._load()

@@ -81,6 +81,9 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
               "dtau = 0, as the paper does.", ""]
     lines += [f"![{f.stem}]({f.name})" for f in figs]
     (d / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    from budget.runner.html import write_html  # its self-contained twin, report.html
+
+    write_html(d / "report.md")
     return d / "report.md"
 
 

@@ -71,18 +71,28 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
     names = ("uncompensated", "without_estimate", "published", "improved")
     fig, axes = plt.subplots(len(scans), len(names), figsize=(4 * len(names), 3.4 * len(scans)), squeeze=False)
     lat0, lon0 = _nominal_latlon(world, setup.g0)
+    # panels that are compared share one colour scale (logarithmic: the compensations differ
+    # by orders of magnitude), with one colour bar
+    from matplotlib.colors import LogNorm
+
+    mags = np.concatenate([np.hypot(*out["errors"][s][n]).ravel() for s in scans for n in names])
+    pos = mags[mags > 0]
+    norm = LogNorm(vmin=max(float(pos.min()), float(pos.max()) * 1e-6), vmax=float(pos.max())) if pos.size else None
+    sc = None
     for i, s in enumerate(scans):
         sel = setup.scan == s
         for j, n in enumerate(names):
             ax = axes[i, j]
             lat, lon = out["errors"][s][n]
             mag = np.hypot(lat, lon)
-            sc = ax.scatter(lon0[sel], lat0[sel], c=mag, s=2, cmap="viridis")
-            fig.colorbar(sc, ax=ax, label="|error| (deg)")
+            sc = ax.scatter(lon0[sel], lat0[sel], c=np.maximum(mag, norm.vmin) if norm else mag, s=2,
+                            cmap="viridis", norm=norm)
             ax.set_title(f"scan {s}: {n}\nmax lat {np.abs(lat).max():.4f}, lon {np.abs(lon).max():.4f} deg", fontsize=8)
             ax.set_xlabel("nominal longitude (deg E)")
             ax.set_ylabel("nominal latitude (deg N)")
     fig.tight_layout()
+    if sc is not None:
+        fig.colorbar(sc, ax=axes.ravel().tolist(), label="|error| (deg), one scale for every panel", shrink=0.8)
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)

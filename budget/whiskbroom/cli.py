@@ -105,6 +105,9 @@ def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, rep
         md += [f"| {n} | {a:.4f} | {b:.4f} |" for n, a, b in zip(sob["names"], sob["S1"], sob["ST"])]
         md += [""] + [f"![{f.stem}]({f.name})" for f in figs]
         (out / "report.md").write_text("\n".join(md) + "\n")
+        from budget.runner.html import write_html  # its self-contained twin, report.html
+
+        write_html(out / "report.md")
 
 
 @click.command("synthesize", help="Monte Carlo synthesis of the image-motion residual (seed 002 steps 1-5) "
