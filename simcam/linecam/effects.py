@@ -67,8 +67,10 @@ T_SUN_K = 5772.0
 T_COOL_K, T_HOT_K = 3500.0, 20000.0
 #: reference wavelength of the Cauchy dispersion shape, nm
 LAMBDA_REF_NM = 550.0
-#: time step of the world's sampled jitter, s (linear interpolation between samples)
-JITTER_STEP_S = 1e-3
+#: time step of the world's sampled jitter, s (linear interpolation between samples): 2^-10 s, so
+#: that the grid k 2^-10 is exact in binary and its steps are equal (the Gauss-Markov recursion
+#: then runs as one IIR filter)
+JITTER_STEP_S = 2.0**-10
 
 
 class LineCamEffects(EffectsBase):
@@ -202,11 +204,12 @@ class Jitter:
         from simcam.noise_processes import sample
 
         n = int(np.ceil((t1_s - t0_s) / JITTER_STEP_S)) + 2
-        self.t_s = t0_s + JITTER_STEP_S * np.arange(n)
+        self.t0_s = float(t0_s)
+        self.tau_s = JITTER_STEP_S * np.arange(n)  # since t0_s, exact
         comps = jitter_components(effects, tau_s)
-        self.samples = np.column_stack([sample(child, self.t_s, comps) for child in rng.spawn(3)])
+        self.samples = np.column_stack([sample(child, self.tau_s, comps) for child in rng.spawn(3)])
 
     def __call__(self, t_s) -> np.ndarray:
         """Jitter rotation vectors (n, 3), rad, at times ``t_s``."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        return np.column_stack([np.interp(t, self.t_s, self.samples[:, i]) for i in range(3)])
+        t = np.atleast_1d(np.asarray(t_s, dtype=float)) - self.t0_s
+        return np.column_stack([np.interp(t, self.tau_s, self.samples[:, i]) for i in range(3)])
