@@ -333,3 +333,14 @@ def test_truth_depends_on_the_distortion_effects_only():
 
     assert STUDY.truth_depends_on_effects(DEFAULT) == {"distortion_k3_edge_px", "thin_prism_edge_px"}
     assert STUDY.truth_depends_on_effects(DEFAULT) <= set(LineCamEffects.names())
+
+
+def test_an_effect_out_of_range_is_one_error_naming_the_field():
+    from simcam.config_base import ScenarioError
+
+    with pytest.raises(ScenarioError, match=r"x\.toml.*world\.effects\.line_rate_mismatch_percent"):
+        from_dict({"world": {"effects": {"line_rate_mismatch_percent": 60.0}}}, source="x.toml")
+    with pytest.raises(ScenarioError, match=r"world\.effects\.time_tag_bias_ms"):
+        from_dict({"world": {"effects": {"time_tag_bias_ms": -1.0}}}, source="x.toml")
+    with pytest.raises(ScenarioError, match=r"world\.effects\.no_such_effect"):
+        from_dict({"world": {"effects": {"no_such_effect": 1.0}}}, source="x.toml")

@@ -55,7 +55,9 @@ __all__ = ["LineCamEffects", "LineCamWorld", "JITTER_TONES_HZ", "JITTER_TONE_RAT
            "extra_distortion_px", "lateral_colour_px", "mean_colour_weight", "chromatic_centroid",
            "jitter_components", "Jitter", "effects_generator"]
 
-_Mag = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+def _mag(upper: float):
+    """A magnitude: 0 (off) up to a bound far above any real instrument's (a typo is an error)."""
+    return Annotated[float, Field(ge=0.0, le=upper, allow_inf_nan=False)]
 
 #: ZY-3 gyro jitter lines, Hz, and their amplitudes relative to the first (Tang et al. 2020, Table 1:
 #: 0.07, 0.04, 0.04 arcsec)
@@ -76,30 +78,30 @@ JITTER_STEP_S = 2.0**-10
 class LineCamEffects(EffectsBase):
     """Magnitudes of the line camera world's unmodelled effects (0 = off)."""
 
-    distortion_k3_edge_px: _Mag = Field(
+    distortion_k3_edge_px: _mag(100.0) = Field(
         0.1, description="Brown's k3 r^6 at the line's end, px: <= 0.1 px at the field edge in a traced lens "
                          "(about 0.3 % of the r^3 term)")
-    thin_prism_edge_px: _Mag = Field(
+    thin_prism_edge_px: _mag(100.0) = Field(
         0.2, description="thin-prism distortion (Weng et al. 1992) at the line's end, px, each axis: 0.1-0.3 px "
                          "from element and detector tilt (engineering estimate)")
-    jitter_tones_arcsec: _Mag = Field(
+    jitter_tones_arcsec: _mag(3600.0) = Field(
         0.07, description="amplitude of the 0.21 Hz attitude-jitter line (0.56 and 1.12 Hz at 4/7 of it), arcsec "
                           "per axis: ZY-3 gyro lines 0.07/0.04/0.04 arcsec (Tang et al. 2020, Table 1)")
-    jitter_band_arcsec: _Mag = Field(
+    jitter_band_arcsec: _mag(3600.0) = Field(
         0.2, description="rms of the Gauss-Markov jitter band the attitude data miss, arcsec per axis: "
                          "0.1-10 Hz content below ZY-3's 1-3 arcsec image jitter (Tong et al. 2015; "
                          "engineering estimate)")
-    time_tag_bias_ms: _Mag = Field(
+    time_tag_bias_ms: _mag(1000.0) = Field(
         0.1, description="star-tracker time-tag bias, ms: 0.1-1 ms (a mapping camera's synchronisation went "
                          "from 1 ms to 20 us; Swarm removes a fixed tracker delay)")
-    gaia_pm_error_sigmas: _Mag = Field(
+    gaia_pm_error_sigmas: _mag(100.0) = Field(
         1.6, description="world stars on Gaia DR3 positions, hip2 proper motions perturbed by this many formal "
                          "errors: hip2 minus Gaia at J2016 is 1.5-3 times hip2's formal error (van Leeuwen 2007 "
                          "vs Gaia DR3)")
-    lateral_colour_px: _Mag = Field(
+    lateral_colour_px: _mag(100.0) = Field(
         0.1, description="star-colour centroid shift at the line's end, 3500 K minus 20000 K star, px: "
                          "0.04-0.14 px for a traced lens with silicon QE, 0.02-0.15 px for TDI lenses")
-    line_rate_mismatch_percent: _Mag = Field(
+    line_rate_mismatch_percent: _mag(40.0) = Field(
         0.4, description="scan rate above the rate matched to the line period, %: 0.2-2 % for 0.001-0.005 "
                          "deg/s rate control (Guo et al. 2013); 0.005 deg/s at the 1.15 deg/s star scan")
 
