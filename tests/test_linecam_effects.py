@@ -45,7 +45,7 @@ def test_effects_shape_follows_the_contract():
     for name in fx.names():
         line = next(ln for ln in text.splitlines() if ln.startswith(name))
         assert "#" in line, name
-    ideal = Path(__file__).resolve().parents[1] / "examples" / "linecam_ideal_world.toml"
+    ideal = Path(__file__).resolve().parents[1] / "docs" / "examples" / "scenarios" / "linecam_ideal_world.toml"
     from simcam.linecam.scenario import load
 
     assert load(ideal).world.effects.active() == ()
