@@ -22,7 +22,7 @@ from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, default, from_di
 from simcam.linecam.world import AttitudeReports, image_passes, sky_strip, world_sky_strip
 
 DEFAULT = default()
-OFF = {n: 0.0 for n in LineCamEffects.names()}
+OFF = {n: 0.0 for n in LineCamEffects().names()}
 
 
 def _only(**effects) -> dict:
@@ -332,7 +332,7 @@ def test_truth_depends_on_the_distortion_effects_only():
     from budget.linecam.study import STUDY
 
     assert STUDY.truth_depends_on_effects(DEFAULT) == {"distortion_k3_edge_px", "thin_prism_edge_px"}
-    assert STUDY.truth_depends_on_effects(DEFAULT) <= set(LineCamEffects.names())
+    assert STUDY.truth_depends_on_effects(DEFAULT) <= set(LineCamEffects().names())
 
 
 def test_an_effect_out_of_range_is_one_error_naming_the_field():
