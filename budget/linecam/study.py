@@ -155,6 +155,13 @@ class LineCamStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
 
+    def truth_depends_on_effects(self, scenario) -> set[str] | None:
+        """World effects (issue 22) whose magnitude changes the truths: the distortion outside
+        the Brown family changes the true line-of-sight field; the others (jitter, time-tag
+        bias, Gaia world, star colour against the solar reference, line-rate mismatch) change
+        what the lab measures, not the camera."""
+        return {"distortion_k3_edge_px", "thin_prism_edge_px"}
+
     def chunk_trials(self, scenario) -> int:
         return 20
 
