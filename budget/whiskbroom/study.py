@@ -68,8 +68,7 @@ class WhiskbroomStudy(Study):
             cache[key] = (np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3]))
         return cache[key]
 
-    def motion(self, scenario, seed: int, k: int):
-        """The trial's generator (after the 17 draws) and its worst-column residual."""
+    def _draw(self, scenario, seed: int, k: int):
         from simcam.whiskbroom import synthesis as sy
         from simcam.whiskbroom.scenario import VARIABLES
 
@@ -78,7 +77,86 @@ class WhiskbroomStudy(Study):
         draws = sy.standard_draws(scenario, u)
         know, true = sy.trial_params(scenario, draws, [k])
         x1, x3 = self._field(scenario)
-        return rng, sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
+        return rng, know, true, sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
+
+    def motion(self, scenario, seed: int, k: int):
+        """The trial's generator (after the 17 draws) and its worst-column residual."""
+        rng, _, _, r = self._draw(scenario, seed, k)
+        return rng, r
+
+    def truth_depends_on_effects(self, scenario) -> set[str]:
+        """The effects that change the truth (the motion MTF): the world's image motion
+        (flattening, jitter, ripple); the pixel crosstalk is common to moving and static
+        exposures, so it changes only the edge image."""
+        from simcam.whiskbroom.world import TRUTH_EFFECTS
+
+        return set(TRUTH_EFFECTS)
+
+    def _world_truth(self, scenario, seed, k, know, true, r, cap):
+        """The truth under the world's effects (:mod:`simcam.whiskbroom.world`): the motion
+        MTF of the worst column along and across for N = 1..cap, and the uniform
+        ``(eps, eta)`` of the edge image (the mean rate over the array's N stages)."""
+        from simcam.whiskbroom import geometry as geo
+        from simcam.whiskbroom import raytrace as rt
+        from simcam.whiskbroom import tdi
+        from simcam.whiskbroom import world as wd
+
+        cam, t, w = scenario.camera, scenario.tdi, scenario.world
+        eff = w.effects
+        i = int(r.worst[0])
+        x1, x3 = self._field(scenario)
+        px1, px3 = x1[i:i + 1], x3[i:i + 1]
+        flat = eff.earth_flattening_scale * rt.WGS84_F
+        vk = r.v_know[0, i]
+        vt = (wd.world_motion(true[0], geo.PARAMS, px1, px3, flat)[0]
+              if eff.earth_flattening_scale > 0 else r.v_true[0, i])
+        eps, eta = (float(v) for v in tdi.smear_per_stage(vt, vk))
+        if eff.attitude_jitter_arcsec == 0 and eff.mirror_rate_ripple_fraction == 0:
+            a, c = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase,
+                                 columns=t.columns, aperture_samples=t.aperture_samples)
+            return a, c, eps, eta
+        p_mm = cam.pixel_pitch_um * 1e-3
+        sk = float(np.hypot(*vk))
+        tl = wd.sample_times(cap, cam.n_phase, t.time_samples_per_phase)     # line periods
+        ts = tl * p_mm / sk                                                   # seconds
+        disp = np.zeros((ts.size, 2))                                          # image displacement, mm
+        if eff.attitude_jitter_arcsec > 0:
+            g = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "roll_rate_rad_s")[0]
+            ang = wd.jitter_angle(wd.effects_rng(seed, k, 0), ts, eff.attitude_jitter_arcsec,
+                                  w.jitter_tones_hz, w.jitter_tone_weights)
+            disp += ang[:, None] * g[None, :]
+        if eff.mirror_rate_ripple_fraction > 0:
+            g = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "mirror_rate_rad_s")[0]
+            ang = wd.ripple_angle(wd.effects_rng(seed, k, 1), ts, eff.mirror_rate_ripple_fraction,
+                                  true[0, geo.P["mirror_rate_rad_s"]], w.ripple_period_deg)
+            disp += ang[:, None] * g[None, :]
+        tau = vk / sk
+        da = (1.0 + eps) * tl + (disp @ tau) / p_mm
+        dc = eta * tl + (tau[0] * disp[:, 1] - tau[1] * disp[:, 0]) / p_mm
+        a, c = wd.tdi_mtf_path(da, dc, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase)
+        # the edge image (uniform-motion kernel): the mean rate over the array's N stages
+        m = cam.tdi_stages * cam.n_phase * t.time_samples_per_phase
+        eps_e = float(np.polyfit(tl[:m], da[:m], 1)[0]) - 1.0
+        eta_e = float(np.polyfit(tl[:m], dc[:m], 1)[0])
+        return a, c, eps_e, eta_e
+
+    def _edge(self, scenario, eps, eta, rng):
+        """The lab's slanted-edge image made by the world (crosstalk before the noise)."""
+        from simcam.whiskbroom import tdi
+        from simcam.whiskbroom import world as wd
+
+        cam, t = scenario.camera, scenario.tdi
+        x = scenario.world.effects.pixel_crosstalk_fraction
+        mean = tdi.edge_image(eps, eta, n_stages=cam.tdi_stages, n_phase=cam.n_phase,
+                              n_time=t.edge_time_samples_per_phase, angle_deg=t.edge_angle_deg,
+                              lines=t.edge_lines, columns=t.edge_columns)
+        mean = wd.diffuse(mean, x)
+        if not t.noise:
+            return mean
+        img = rng.poisson(mean * t.signal_e_per_stage * cam.tdi_stages).astype(float)
+        if t.read_noise_e > 0:
+            img += rng.normal(0.0, t.read_noise_e, img.shape)
+        return img
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         from budget.whiskbroom import estimators as est
@@ -87,22 +165,27 @@ class WhiskbroomStudy(Study):
         cam, t, thr = scenario.camera, scenario.tdi, scenario.synthesis.mtf_threshold
         n = cam.tdi_stages
         cap = STAGE_CAP_FACTOR * n
-        rng, r = self.motion(scenario, seed, k)
+        rng, know, true, r = self._draw(scenario, seed, k)
         eps, eta = float(r.eps[0]), float(r.eta[0])
         eps_pub = float(r.dv_mm_s[0] / r.speed_mm_s[0])
-        # truth: the pixel-level simulation, every stage count up to the cap in one pass
-        along_px, cross_px = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase,
-                                           n_time=t.time_samples_per_phase, columns=t.columns,
-                                           aperture_samples=t.aperture_samples)
         stages = np.arange(1, cap + 1)
         pub_curve = est.published_mtf(eps_pub, 1.0, stages)
         imp_along, imp_cross = est.improved_mtf(eps, eta, stages, cam.n_phase)
-        # the lab's slanted-edge measurement at the array's stage count
-        img = tdi.edge_image(eps, eta, n_stages=n, n_phase=cam.n_phase, n_time=t.edge_time_samples_per_phase,
-                             angle_deg=t.edge_angle_deg, lines=t.edge_lines, columns=t.edge_columns,
-                             signal_e_per_stage=t.signal_e_per_stage,
-                             read_noise_e=t.read_noise_e if t.noise else 0.0,
-                             rng=rng if t.noise else None)
+        if scenario.world.effects.active():
+            # the world beyond the paper's model (simcam.whiskbroom.world): truth and edge image
+            along_px, cross_px, eps_w, eta_w = self._world_truth(scenario, seed, k, know, true, r, cap)
+            img = self._edge(scenario, eps_w, eta_w, rng)
+        else:
+            # truth: the pixel-level simulation, every stage count up to the cap in one pass
+            along_px, cross_px = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase,
+                                               n_time=t.time_samples_per_phase, columns=t.columns,
+                                               aperture_samples=t.aperture_samples)
+            # the lab's slanted-edge measurement at the array's stage count
+            img = tdi.edge_image(eps, eta, n_stages=n, n_phase=cam.n_phase, n_time=t.edge_time_samples_per_phase,
+                                 angle_deg=t.edge_angle_deg, lines=t.edge_lines, columns=t.edge_columns,
+                                 signal_e_per_stage=t.signal_e_per_stage,
+                                 read_noise_e=t.read_noise_e if t.noise else 0.0,
+                                 rng=rng if t.noise else None)
         edge = est.slanted_edge_mtf(img, oversampling=t.edge_oversampling)["mtf"]
         est_ = {
             ("mtf_nyquist", "published", "along"): float(pub_curve[n - 1]),

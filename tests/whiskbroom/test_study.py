@@ -13,7 +13,10 @@ def small():
     sc = STUDY.load_scenario()
     return sc.model_copy(update={
         "tdi": sc.tdi.model_copy(update={"columns": 20, "edge_columns": 114, "edge_time_samples_per_phase": 2}),
-        "synthesis": sc.synthesis.model_copy(update={"trials": 20, "sobol_base_samples": 16})})
+        "synthesis": sc.synthesis.model_copy(update={"trials": 20, "sobol_base_samples": 16}),
+        # the paper's (ideal) world: these tests check the identities of the model itself
+        # (tests/whiskbroom/test_world.py covers the realistic world's effects)
+        "world": sc.world.model_copy(update={"effects": sc.world.effects.ideal()})})
 
 
 def test_trial_keys_and_truths(small):
