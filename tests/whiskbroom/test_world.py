@@ -213,3 +213,31 @@ def test_effects_scenario_errors():
     data["world"]["jitter_tone_weights"] = [1.0]
     with pytest.raises(ScenarioError, match="world"):
         wsc.from_dict(data)
+
+
+# ------------------------------------------------------------------ issue 22 item 4
+def test_seed_distribution_quantiles():
+    from budget.whiskbroom import claims
+    from simcam.whiskbroom import synthesis as sy
+
+    sc = wsc.default()
+    d = claims.seed_distribution(sc, range(3), trials=30, backend="numpy")
+    assert d["chosen"]["camera.focal_length_mm"] == sc.camera.focal_length_mm
+    level = d["levels"][0]["dv_max_abs_mm_s"]
+    direct = [sy.synthesize(sc, s, trials=30, backend="numpy").table[0]["dv_max_abs_mm_s"] for s in range(3)]
+    np.testing.assert_allclose(level["values"], direct, rtol=1e-12)
+    assert level["median"] == pytest.approx(np.median(direct))
+    assert level["p05"] <= level["median"] <= level["p95"]
+
+
+def test_published_sinc_by_its_own_criterion():
+    # the paper's criterion (loss from the motion residual, MTF(eps)/MTF(0)): right to < 5e-4;
+    # the static clocking factor MTF(0) is the continuous sawtooth's sinc(pi/8) to the
+    # midpoint rule over the pi/4 of phase a clock phase spans, 16 samples: relative error
+    # ~ (pi/64)^2 / 24 = 1.0e-4
+    from budget.whiskbroom import claims
+
+    c = claims.published_criterion(wsc.default(), 0, 12, n_time=16)
+    assert c["max_abs_error"] < 5e-4
+    assert c["clocking_factor"] == pytest.approx(float(np.sinc(0.125)), abs=1.5e-4)
+    assert c["clocking_sinc"] == pytest.approx(0.9745, abs=1e-4)
