@@ -93,3 +93,53 @@ def published_criterion(sc, seed: int = 0, trials: int = 200, *, n_time: int | N
     return {"max_abs_error": float(np.max(np.abs(err))), "mean_error": float(np.mean(err)),
             "clocking_factor": static, "clocking_sinc": float(np.sinc(0.5 / cam.n_phase)),
             "n_stages": n, "trials": int(trials)}
+
+
+def world_synthesis(sc, seed: int = 0, *, trials: int | None = None) -> dict | None:
+    """The synthesis's truth side in the scenario's world (issue 22): at the first mirror-rate
+    error, the same trials with ``V_true`` ray-traced to the world's ellipsoid
+    (``world.effects.earth_flattening_scale`` x WGS 84; :mod:`simcam.whiskbroom.raytrace`, no
+    code shared with the paper's chain) while the knowledge stays the paper's chain on its
+    sphere. None when the world is the paper's sphere (scale 0).
+
+    Returns ``{"flattening", "mirror_rate_error_deg_s", "paper": {...}, "world": {...}}``, each
+    with ``dv_min_mm_s``, ``dv_max_mm_s``, ``dbeta_max_abs_deg``, ``eps_quantile``,
+    ``eta_quantile``, ``n_max_published``, ``n_max_improved``.
+    """
+    from simcam.whiskbroom import geometry as geo
+    from simcam.whiskbroom import raytrace as rt
+    from simcam.whiskbroom import synthesis as sy
+    from simcam.whiskbroom import world as wd
+
+    scale = sc.world.effects.earth_flattening_scale
+    if scale == 0:
+        return None
+    level = sc.synthesis.mirror_rate_errors_deg_s[0]
+    K = sc.synthesis.trials if trials is None else int(trials)
+    ks = np.arange(K)
+    scl = sc.model_copy(update={"errors": sc.errors.model_copy(
+        update={"mirror_rate_deg_s": sc.errors.mirror_rate_deg_s.with_scale(level)})})
+    know, true = sy.trial_params(scl, sy.standard_draws(scl, sy.trial_uniforms(seed, ks)), ks)
+    x1, x3 = sy.field_points(sc)
+    x1, x3 = np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
+    paper = sy.evaluate(know, true, x1, x3, backend="numpy")
+    flat = scale * rt.WGS84_F
+    vt = np.array([wd.world_motion(row, geo.PARAMS, x1, x3, flat) for row in true])
+    vk = paper.v_know
+    sk, st = np.hypot(vk[..., 0], vk[..., 1]), np.hypot(vt[..., 0], vt[..., 1])
+    db = (rt.drift_angle(vt) - rt.drift_angle(vk) + np.pi) % (2 * np.pi) - np.pi
+    eps, eta = st * np.cos(db) / sk - 1.0, st * np.sin(db) / sk
+    w = np.argmax(np.abs(eps), axis=1)
+    i = np.arange(K)
+    q, thr, n_phase = sc.synthesis.quantile, sc.synthesis.mtf_threshold, sc.camera.n_phase
+
+    def summary(dv, dbeta, e, h):
+        eq, hq = float(np.quantile(np.abs(e), q)), float(np.quantile(np.abs(h), q))
+        return {"dv_min_mm_s": float(dv.min()), "dv_max_mm_s": float(dv.max()),
+                "dbeta_max_abs_deg": float(np.abs(dbeta).max()), "eps_quantile": eq, "eta_quantile": hq,
+                "n_max_published": sy.stage_limit(eq, threshold=thr),
+                "n_max_improved": sy.stage_limit(eq, n_phase=n_phase, cross_q=hq, threshold=thr)}
+
+    return {"flattening": flat, "mirror_rate_error_deg_s": level, "trials": K,
+            "paper": summary(paper.dv_mm_s, paper.dbeta_deg, paper.eps, paper.eta),
+            "world": summary((st - sk)[i, w], np.degrees(db[i, w]), eps[i, w], eta[i, w])}

@@ -46,7 +46,7 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
         echo("  ".join(c.rjust(w) for c, w in zip(r, widths)))
     echo("Sobol total indices of Delta V_P (centre): " + ", ".join(
         f"{n} {v:.3f}" for n, v in sorted(zip(sob["names"], sob["ST"]), key=lambda x: -x[1])[:5]))
-    dist = crit = None
+    dist = crit = wsyn = None
     claim_md = []
     if seeds:
         from budget.whiskbroom import claims
@@ -54,6 +54,9 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
         dist = claims.seed_distribution(sc, range(seeds), trials=trials)
         crit = claims.published_criterion(sc, seed, criterion_trials) if criterion_trials else None
         claim_md = _claims_lines(dist, crit)
+        wsyn = claims.world_synthesis(sc, seed, trials=trials)
+        if wsyn is not None:
+            claim_md += _world_lines(wsyn)
         for line in claim_md:
             echo(line)
     payload = res.to_json()
@@ -66,6 +69,8 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
         payload["seed_distribution"] = dist
     if crit is not None:
         payload["published_criterion"] = crit
+    if seeds and wsyn is not None:
+        payload["world_synthesis"] = wsyn
     if json_out:
         write_json_atomic(json_out, payload)
     if report_dir:
@@ -125,6 +130,21 @@ def _claims_lines(dist, crit) -> list[str]:
                     f"{crit['mean_error']:+.1e}). The {crit['clocking_factor']:.4f} of the charge clocking "
                     f"(sinc(pi/(2 n_phase)) = {crit['clocking_sinc']:.4f}) is a separate, static effect of "
                     f"the detector, common to every N, outside that criterion."]
+    return out
+
+
+def _world_lines(w) -> list[str]:
+    """Markdown of the synthesis with its truth side in the world (ray trace to the ellipsoid)."""
+    out = ["", f"The synthesis's truth side in the world ({w['trials']} trials, {w['mirror_rate_error_deg_s']:g} deg/s): "
+               f"V_true ray-traced to the ellipsoid of flattening {w['flattening']:.6g} (simcam.whiskbroom.raytrace), "
+               f"the knowledge the paper's chain on its sphere:", "",
+           "| truth | Delta V_P mm/s | max abs Delta beta deg | abs eps q | abs eta q | N pub | N impr |",
+           "|---|---|---|---|---|---|---|"]
+    for name, label in (("paper", "the paper's sphere"), ("world", "the world (ray trace)")):
+        r = w[name]
+        out.append(f"| {label} | {r['dv_min_mm_s']:.3f} .. {r['dv_max_mm_s']:.3f} | {r['dbeta_max_abs_deg']:.3f} | "
+                   f"{r['eps_quantile']:.2e} | {r['eta_quantile']:.2e} | {r['n_max_published']} | "
+                   f"{r['n_max_improved']} |")
     return out
 
 

@@ -92,6 +92,15 @@ class WhiskbroomStudy(Study):
 
         return set(TRUTH_EFFECTS)
 
+    def claim(self, scenario, class_name: str, variant: str) -> float:
+        """The accuracy a prediction of this study claims, in the class's unit (this
+        project's reading; the paper states no tolerance on its formula): the MTF at Nyquist
+        to 0.005, a tenth of the paper's 5 % MTF-drop budget; the stage limit to 5 % of
+        the array's stage count."""
+        if class_name == "stage_limit":
+            return 0.05 * scenario.camera.tdi_stages
+        return 0.005
+
     def _world_truth(self, scenario, seed, k, know, true, r, cap):
         """The truth under the world's effects (:mod:`simcam.whiskbroom.world`): the motion
         MTF of the worst column along and across for N = 1..cap, and the uniform

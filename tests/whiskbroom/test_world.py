@@ -241,3 +241,18 @@ def test_published_sinc_by_its_own_criterion():
     assert c["max_abs_error"] < 5e-4
     assert c["clocking_factor"] == pytest.approx(float(np.sinc(0.125)), abs=1.5e-4)
     assert c["clocking_sinc"] == pytest.approx(0.9745, abs=1e-4)
+
+
+def test_world_synthesis_truth_side():
+    # near the equator (trials 0-4: gamma 0-1.4 deg) WGS 84 and the sphere agree to first
+    # order (docs: 8e-9 of V at gamma 0), so the world's residuals equal the paper's closely;
+    # on the paper's sphere (scale 0) there is no world route
+    from budget.whiskbroom import claims
+
+    sc = wsc.default()
+    w = claims.world_synthesis(sc, 0, trials=5)
+    assert w["world"]["eps_quantile"] == pytest.approx(w["paper"]["eps_quantile"], abs=2e-5)
+    assert w["world"]["dv_max_mm_s"] == pytest.approx(w["paper"]["dv_max_mm_s"], abs=5e-3)
+    data = sc.model_dump(mode="json")
+    data["world"]["effects"]["earth_flattening_scale"] = 0.0
+    assert claims.world_synthesis(wsc.from_dict(data), 0, trials=5) is None
