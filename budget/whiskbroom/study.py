@@ -103,8 +103,8 @@ class WhiskbroomStudy(Study):
 
     def _world_truth(self, scenario, seed, k, know, true, r, cap):
         """The truth under the world's effects (:mod:`simcam.whiskbroom.world`): the motion
-        MTF of the worst column along and across for N = 1..cap, and the uniform
-        ``(eps, eta)`` of the edge image (the mean rate over the array's N stages)."""
+        MTF of the worst column along and across for N = 1..cap, and the edge image's
+        image path (a function of the time in line periods -> along, across pixels)."""
         from simcam.whiskbroom import geometry as geo
         from simcam.whiskbroom import raytrace as rt
         from simcam.whiskbroom import tdi
@@ -120,45 +120,57 @@ class WhiskbroomStudy(Study):
         vt = (wd.world_motion(true[0], geo.PARAMS, px1, px3, flat)[0]
               if eff.earth_flattening_scale > 0 else r.v_true[0, i])
         eps, eta = (float(v) for v in tdi.smear_per_stage(vt, vk))
-        if eff.attitude_jitter_arcsec == 0 and eff.mirror_rate_ripple_fraction == 0:
-            a, c = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase,
-                                 columns=t.columns, aperture_samples=t.aperture_samples)
-            return a, c, eps, eta
         p_mm = cam.pixel_pitch_um * 1e-3
         sk = float(np.hypot(*vk))
-        tl = wd.sample_times(cap, cam.n_phase, t.time_samples_per_phase)     # line periods
-        ts = tl * p_mm / sk                                                   # seconds
-        disp = np.zeros((ts.size, 2))                                          # image displacement, mm
-        if eff.attitude_jitter_arcsec > 0:
-            g = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "roll_rate_rad_s")[0]
-            ang = wd.jitter_angle(wd.effects_rng(seed, k, 0), ts, eff.attitude_jitter_arcsec,
-                                  w.jitter_tones_hz, w.jitter_tone_weights)
-            disp += ang[:, None] * g[None, :]
-        if eff.mirror_rate_ripple_fraction > 0:
-            g = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "mirror_rate_rad_s")[0]
-            ang = wd.ripple_angle(wd.effects_rng(seed, k, 1), ts, eff.mirror_rate_ripple_fraction,
-                                  true[0, geo.P["mirror_rate_rad_s"]], w.ripple_period_deg)
-            disp += ang[:, None] * g[None, :]
         tau = vk / sk
-        da = (1.0 + eps) * tl + (disp @ tau) / p_mm
-        dc = eta * tl + (tau[0] * disp[:, 1] - tau[1] * disp[:, 0]) / p_mm
-        a, c = wd.tdi_mtf_path(da, dc, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase)
-        # the edge image (uniform-motion kernel): the mean rate over the array's N stages
-        m = cam.tdi_stages * cam.n_phase * t.time_samples_per_phase
-        eps_e = float(np.polyfit(tl[:m], da[:m], 1)[0]) - 1.0
-        eta_e = float(np.polyfit(tl[:m], dc[:m], 1)[0])
-        return a, c, eps_e, eta_e
+        roll = eff.attitude_jitter_arcsec > 0 or eff.wheel_jitter_arcsec > 0
+        g_roll = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "roll_rate_rad_s")[0] if roll else None
+        g_mir = (wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "mirror_rate_rad_s")[0]
+                 if eff.mirror_rate_ripple_fraction > 0 else None)
 
-    def _edge(self, scenario, eps, eta, rng):
-        """The lab's slanted-edge image made by the world (crosstalk before the noise)."""
+        def path(tl):
+            """Image path (along, across; pixels) at times ``tl`` (line periods): the uniform
+            residual plus the jitter and ripple displacements (each from its own stream,
+            recreated per call, so the truth and the edge image see the same phases)."""
+            ts = tl * p_mm / sk
+            disp = np.zeros((ts.size, 2))                                      # mm
+            if eff.attitude_jitter_arcsec > 0:
+                ang = wd.jitter_angle(wd.effects_rng(seed, k, 0), ts, eff.attitude_jitter_arcsec,
+                                      w.jitter_tones_hz, w.jitter_tone_weights)
+                disp += ang[:, None] * g_roll[None, :]
+            if eff.mirror_rate_ripple_fraction > 0:
+                ang = wd.ripple_angle(wd.effects_rng(seed, k, 1), ts, eff.mirror_rate_ripple_fraction,
+                                      true[0, geo.P["mirror_rate_rad_s"]], w.ripple_period_deg)
+                disp += ang[:, None] * g_mir[None, :]
+            if eff.wheel_jitter_arcsec > 0:
+                ang = wd.jitter_angle(wd.effects_rng(seed, k, 2), ts, eff.wheel_jitter_arcsec, [w.wheel_tone_hz], [1.0])
+                disp += ang[:, None] * g_roll[None, :]
+            return ((1.0 + eps) * tl + (disp @ tau) / p_mm,
+                    eta * tl + (tau[0] * disp[:, 1] - tau[1] * disp[:, 0]) / p_mm)
+
+        if not roll and eff.mirror_rate_ripple_fraction == 0:
+            a, c = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase,
+                                 columns=t.columns, aperture_samples=t.aperture_samples)
+            return a, c, (eps, eta)
+        da, dc = path(wd.sample_times(cap, cam.n_phase, t.time_samples_per_phase))
+        a, c = wd.tdi_mtf_path(da, dc, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase)
+        return a, c, path
+
+    def _edge(self, scenario, motion, rng):
+        """The lab's slanted-edge image made by the world: ``motion`` = uniform ``(eps, eta)``
+        or an image path (the crosstalk applied before the noise)."""
         from simcam.whiskbroom import tdi
         from simcam.whiskbroom import world as wd
 
         cam, t = scenario.camera, scenario.tdi
         x = scenario.world.effects.pixel_crosstalk_fraction
-        mean = tdi.edge_image(eps, eta, n_stages=cam.tdi_stages, n_phase=cam.n_phase,
-                              n_time=t.edge_time_samples_per_phase, angle_deg=t.edge_angle_deg,
-                              lines=t.edge_lines, columns=t.edge_columns)
+        kw = dict(n_stages=cam.tdi_stages, n_phase=cam.n_phase, n_time=t.edge_time_samples_per_phase,
+                  angle_deg=t.edge_angle_deg, lines=t.edge_lines, columns=t.edge_columns)
+        if callable(motion):
+            da, dc = motion(wd.sample_times(t.edge_lines + cam.tdi_stages, cam.n_phase, t.edge_time_samples_per_phase))
+            mean = wd.edge_image_path(da, dc, **kw)
+        else:
+            mean = tdi.edge_image(motion[0], motion[1], **kw)
         mean = wd.diffuse(mean, x)
         if not t.noise:
             return mean
@@ -182,8 +194,8 @@ class WhiskbroomStudy(Study):
         imp_along, imp_cross = est.improved_mtf(eps, eta, stages, cam.n_phase)
         if scenario.world.effects.active():
             # the world beyond the paper's model (simcam.whiskbroom.world): truth and edge image
-            along_px, cross_px, eps_w, eta_w = self._world_truth(scenario, seed, k, know, true, r, cap)
-            img = self._edge(scenario, eps_w, eta_w, rng)
+            along_px, cross_px, motion = self._world_truth(scenario, seed, k, know, true, r, cap)
+            img = self._edge(scenario, motion, rng)
         else:
             # truth: the pixel-level simulation, every stage count up to the cap in one pass
             along_px, cross_px = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase,

@@ -168,6 +168,13 @@ class WhiskbroomEffects(EffectsBase):
                     "= 1.2-3.6 arcsec (Tong et al., IEEE TGRS 53:3296, 2015, doi:10.1109/TGRS.2014.2379435); "
                     "the gyro tones 0.21/0.56/1.12 Hz at 0.07/0.04/0.04 arcsec (Tang et al., Sensors "
                     "20:736, 2020, Table 1) scale with it (world.jitter_tone_weights)")
+    wheel_jitter_arcsec: float = Field(
+        default=0.03, ge=0,
+        description="roll amplitude of a reaction-wheel structural-mode tone (world.wheel_tone_hz): "
+                    "0.01-0.1 arcsec at 10-200 Hz, an engineering estimate (structural modes dominate the "
+                    "rigid-body 1e-9 rad; QuickBird's 4.3 Hz line 0.1 m, Tang et al. 2020; model form "
+                    "Masterson et al., J. Sound Vib. 249:575, 2002, doi:10.1006/jsvi.2001.3868); 0.03 the "
+                    "geometric middle")
     mirror_rate_ripple_fraction: float = Field(
         default=0.0022, ge=0, lt=1,
         description="scan-mirror rate ripple a in omega(t) = omega_x [1 + a sin(2 pi omega_x t / 1 deg + phi)]: "
@@ -188,6 +195,7 @@ class WhiskbroomWorld(WorldBase):
     jitter_tones_hz: list[float] = Field(default=[0.65, 0.21, 0.56, 1.12], min_length=1)
     jitter_tone_weights: list[float] = Field(default=[1.0, 0.07 / 2.4, 0.04 / 2.4, 0.04 / 2.4], min_length=1)
     ripple_period_deg: float = Field(default=1.0, gt=0)
+    wheel_tone_hz: float = Field(default=100.0, gt=0)
 
     @model_validator(mode="after")
     def _check_tones(self):

@@ -13,6 +13,10 @@ measurement never see (``[world.effects]`` of :class:`simcam.whiskbroom.scenario
   sin(2 pi f_i t + phi_i)`` (:func:`simcam.noise_processes.tones`, phases uniform per
   trial; one-sided PSD lines ``(w_i A)^2 / 2`` at ``f_i``), ZY-3 class tones (Tong et
   al., doi:10.1109/TGRS.2014.2379435; Tang et al., Sensors 20:736, 2020).
+* **Reaction-wheel jitter** (``wheel_jitter_arcsec``): one roll tone at ``world.wheel_tone_hz``
+  (a structural mode excited by the wheel harmonics, model form of Masterson et al.,
+  doi:10.1006/jsvi.2001.3868), phase uniform per trial; its period (10 ms at 100 Hz) is
+  comparable to the integration, so it blurs rather than shifts the rate.
 * **Mirror-rate ripple** (``mirror_rate_ripple_fraction``): ``omega(t) = omega_x [1 + a
   sin(2 pi omega_x t / theta_p + phi)]``, i.e. a mirror-angle term ``a theta_p / (2 pi)``
   sinusoidal at ``omega_x / theta_p`` (``theta_p`` = ``world.ripple_period_deg``).
@@ -36,20 +40,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit, prange
 
 from simcam.noise_processes import tones
+from simcam.whiskbroom.kernels import _trapezoid_cdf
 from simcam.whiskbroom import raytrace as rt
 
 __all__ = ["EFFECTS_SPAWN_KEY", "effects_rng", "world_motion", "rate_sensitivity", "jitter_angle",
-           "ripple_angle", "tdi_mtf_path", "tdi_modulation", "crosstalk_mtf", "diffuse",
-           "seib_mtf", "TRUTH_EFFECTS"]
+           "ripple_angle", "sample_times", "tdi_mtf_path", "tdi_modulation", "crosstalk_mtf", "diffuse",
+           "seib_mtf", "edge_image_path", "TRUTH_EFFECTS"]
 
 #: spawn key of the effects' generators: ``SeedSequence(seed, spawn_key=(k, EFFECTS_SPAWN_KEY, j))``
 #: for effect ``j`` of trial ``k``, apart from the trial's own stream (which therefore does not
 #: move when an effect is switched on)
 EFFECTS_SPAWN_KEY = 2**30 + 22
 #: the effects that change the truth (the motion MTF); crosstalk changes only the edge image
-TRUTH_EFFECTS = frozenset({"earth_flattening_scale", "attitude_jitter_arcsec", "mirror_rate_ripple_fraction"})
+TRUTH_EFFECTS = frozenset({"earth_flattening_scale", "attitude_jitter_arcsec", "wheel_jitter_arcsec",
+                           "mirror_rate_ripple_fraction"})
 
 _ARCSEC = math.pi / (180.0 * 3600.0)
 
@@ -171,3 +178,46 @@ def seib_mtf(frequency_cyc_mm, *, absorption_per_um: float, depletion_um: float,
     lf = l0 / np.sqrt(1.0 + (2.0 * np.pi * f * l0) ** 2)
     e = math.exp(-a * ld)
     return (1.0 - e / (1.0 + a * lf)) / (1.0 - e / (1.0 + a * l0))
+
+
+@njit(parallel=True, cache=True)
+def _edge_path_kernel(xa, xc, n_stages, n_phase, n_time, angle, offset, n_lines, n_cols, out):  # pragma: no cover - jitted
+    """:func:`simcam.whiskbroom.kernels.tdi_edge_kernel` with an arbitrary image path: ``xa``,
+    ``xc`` the displacement (pixels) at ``t_k = (k + 1/2) dt``, ``k`` over ``(n_lines +
+    n_stages) n_phase n_time`` samples; output line ``L`` reads samples from ``L n_phase n_time``."""
+    ca, sa = math.cos(angle), math.sin(angle)
+    a, b = abs(ca), abs(sa)
+    if b > a:
+        a, b = b, a
+    per_line = n_phase * n_time
+    total = n_stages * per_line
+    for L in prange(n_lines):
+        for c in range(n_cols):
+            acc = 0.0
+            for m in range(n_stages):
+                for j in range(n_phase):
+                    u = m + j / n_phase
+                    for q in range(n_time):
+                        kk = (L + m) * per_line + j * n_time + q
+                        su = u - xa[kk]
+                        sw = c - xc[kk]
+                        acc += _trapezoid_cdf(offset - (ca * su + sa * sw), a, b)
+            out[L, c] = acc / total
+
+
+def edge_image_path(disp_along, disp_cross, *, n_stages: int, n_phase: int, n_time: int, angle_deg: float,
+                    lines: int, columns: int) -> np.ndarray:
+    """Noise-free TDI image of the slanted edge of :func:`simcam.whiskbroom.tdi.edge_image`
+    (same geometry, exact pixel area) for an image path sampled at
+    ``sample_times(lines + n_stages, n_phase, n_time)``; equal to ``edge_image`` for a
+    uniform path (tested)."""
+    a = math.radians(angle_deg)
+    offset = math.sin(a) * 0.5 * columns - math.cos(a) * 0.5 * lines
+    n = (lines + n_stages) * n_phase * n_time
+    xa = np.ascontiguousarray(disp_along, dtype=float)
+    xc = np.ascontiguousarray(disp_cross, dtype=float)
+    if xa.shape != (n,) or xc.shape != (n,):
+        raise ValueError(f"displacements: expected shape ({n},), got {xa.shape} and {xc.shape}")
+    out = np.empty((lines, columns))
+    _edge_path_kernel(xa, xc, n_stages, n_phase, n_time, a, offset, lines, columns, out)
+    return out

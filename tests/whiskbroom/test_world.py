@@ -36,6 +36,14 @@ def test_path_equals_the_uniform_kernel():
     assert np.max(np.abs(a - ka)) < 1e-11 and np.max(np.abs(c - kc)) < 1e-11
 
 
+def test_edge_path_equals_the_uniform_edge_kernel():
+    eps, eta = 0.004, -0.002
+    kw = dict(n_stages=16, n_phase=4, n_time=2, angle_deg=5.0, lines=12, columns=40)
+    t = wd.sample_times(12 + 16, 4, 2)
+    got = wd.edge_image_path((1 + eps) * t, eta * t, **kw)
+    np.testing.assert_allclose(got, tdi.edge_image(eps, eta, **kw), atol=1e-12)
+
+
 def test_fast_sinusoidal_jitter_gives_j0():
     # jitter of amplitude a px with period << integration: MTF factor J0(pi a) at Nyquist
     # (time average of exp(-i pi a sin)); 3.37 cycles per line over 384 lines leaves
@@ -188,7 +196,7 @@ def test_truth_depends_on_effects():
     from budget.whiskbroom.study import STUDY
 
     assert STUDY.truth_depends_on_effects(wsc.default()) == {
-        "earth_flattening_scale", "attitude_jitter_arcsec", "mirror_rate_ripple_fraction"}
+        "earth_flattening_scale", "attitude_jitter_arcsec", "wheel_jitter_arcsec", "mirror_rate_ripple_fraction"}
 
 
 def test_the_lab_never_reads_world():
