@@ -129,10 +129,10 @@ class WhiskbroomStudy(Study):
                  if eff.mirror_rate_ripple_fraction > 0 else None)
 
         def path(tl):
-            """Image path (along, across; pixels) at times ``tl`` (line periods): the uniform
-            residual plus the jitter and ripple displacements (each from its own stream,
+            """Image path (along, across; pixels, from the position at t = 0) at times ``tl``
+            (line periods): the uniform residual plus the jitter and ripple displacements (each from its own stream,
             recreated per call, so the truth and the edge image see the same phases)."""
-            ts = tl * p_mm / sk
+            ts = np.concatenate([[0.0], tl * p_mm / sk])                          # t = 0 first
             disp = np.zeros((ts.size, 2))                                      # mm
             if eff.attitude_jitter_arcsec > 0:
                 ang = wd.jitter_angle(wd.effects_rng(seed, k, 0), ts, eff.attitude_jitter_arcsec,
@@ -145,6 +145,7 @@ class WhiskbroomStudy(Study):
             if eff.wheel_jitter_arcsec > 0:
                 ang = wd.jitter_angle(wd.effects_rng(seed, k, 2), ts, eff.wheel_jitter_arcsec, [w.wheel_tone_hz], [1.0])
                 disp += ang[:, None] * g_roll[None, :]
+            disp = disp[1:] - disp[0]              # relative to the scene at t = 0 (the edge stays centred)
             return ((1.0 + eps) * tl + (disp @ tau) / p_mm,
                     eta * tl + (tau[0] * disp[:, 1] - tau[1] * disp[:, 0]) / p_mm)
 

@@ -165,7 +165,7 @@ class WhiskbroomEffects(EffectsBase):
     attitude_jitter_arcsec: float = Field(
         default=2.4, ge=0,
         description="roll amplitude of the dominant ZY-3 jitter tone, 0.65 Hz, 0.5-1.5 px cross-track "
-                    "= 1.2-3.6 arcsec (Tong et al., IEEE TGRS 53:3296, 2015, doi:10.1109/TGRS.2014.2379435); "
+                    "= 1.2-3.6 arcsec (Tong et al., IEEE TGRS, 2015, doi:10.1109/TGRS.2014.2379435); "
                     "the gyro tones 0.21/0.56/1.12 Hz at 0.07/0.04/0.04 arcsec (Tang et al., Sensors "
                     "20:736, 2020, Table 1) scale with it (world.jitter_tone_weights)")
     wheel_jitter_arcsec: float = Field(
