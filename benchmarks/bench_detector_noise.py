@@ -50,7 +50,7 @@ from benchmarks._common import (  # noqa: E402
     print_machine,
 )
 
-from simcam.starcam.detector import DetectorParams, expose  # noqa: E402
+from simcam.detector import DetectorParams, expose  # noqa: E402
 from simcam.rng import key_from_seed  # noqa: E402
 
 ROWS, COLS, CHIP_COLS = 2048, 4096, 2048

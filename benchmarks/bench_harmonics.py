@@ -34,9 +34,9 @@ def main() -> None:
         args.repeats = min(args.repeats, 2)
 
     from budget.inductosyn.validate import prepare, run_trials
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    sc = default_scenario()
+    sc = default()
     t0 = time.perf_counter()
     p = prepare(scenario=sc, dense_step_deg=0.1)
     t_prep = time.perf_counter() - t0

@@ -44,7 +44,7 @@ from benchmarks._common import (  # noqa: E402
 )
 
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
-from simcam.starcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402
 
 
@@ -93,7 +93,7 @@ def main() -> None:
     if args.quick:
         args.repeat, args.frames = min(args.repeat, 2), min(args.frames, 200)
     galsim = optional_import("galsim")
-    scn = default_scenario()
+    scn = default()
     cam = StarCamera(scn)
     placement = Placement(layout=star_grid(scn))
     t0 = time.perf_counter()

@@ -54,6 +54,7 @@ def _grid_file(d: str, points: int, hsfe_truth_frames: int) -> str:
     path = os.path.join(d, "bench.toml")
     with open(path, "w") as fh:
         fh.write(f"""name = "bench: HSFE vs PSF width and PRNU"
+kind = "starcam"
 seed = 1
 evaluate = "truth"
 [fixed]
@@ -104,13 +105,14 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     import numpy as np
 
     from budget.sweeps.evaluate import PointTask, evaluate_point
-    from budget.starcam.validate import worker_init
-    from simcam.starcam.scenario import default_scenario, with_updates
+    from budget.runner.executors import worker_setup
+    from budget.starcam.study import STUDY
+    from simcam.starcam.scenario import default, with_updates
 
-    worker_init()  # one numba thread, as in a worker process
-    full = default_scenario()
+    worker_setup(STUDY.worker_init)  # one numba thread, as in a worker process
+    full = default()
     base = with_updates(full, {"validation": {"hsfe_truth_frames": hsfe_truth_frames}})
-    evaluate_point(PointTask("grid", 0, "camera", "validate", base, 1, trials=2))  # warm-up (JIT)
+    evaluate_point(PointTask("grid", 0, "starcam", "validate", base, 1, trials=2))  # warm-up (JIT)
     rows = []
     n = 0
     for k in trials_list:
@@ -121,7 +123,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
             n += 1
             scn = with_updates(base, {"seed": base.seed + n})
             t0 = time.perf_counter()
-            evaluate_point(PointTask("grid", 0, "camera", "validate", scn, 100 + n, trials=k))
+            evaluate_point(PointTask("grid", 0, "starcam", "validate", scn, 100 + n, trials=k))
             ts.append(time.perf_counter() - t0)
         rows.append((k, min(ts), max(ts)))
         print(f"  {k} trials: best {min(ts):.2f} s", flush=True)
@@ -134,7 +136,7 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     k_full = trials_list[0]
     scn = with_updates(full, {"seed": full.seed + n + 1})
     t0 = time.perf_counter()
-    evaluate_point(PointTask("grid", 0, "camera", "validate", scn, 100 + n + 1, trials=k_full))
+    evaluate_point(PointTask("grid", 0, "starcam", "validate", scn, 100 + n + 1, trials=k_full))
     t_full = time.perf_counter() - t0
     print(f"  {k_full} trials, HSFE truth of {full.validation.hsfe_truth_frames} frames per phase "
           f"(the scenario's own), once: {t_full:.2f} s", flush=True)

@@ -34,7 +34,7 @@ from budget.starcam import validate as V  # noqa: E402
 from budget.runner.executors import default_workers  # noqa: E402
 from budget.runner.run import run_study  # noqa: E402
 from budget.starcam.study import STUDY  # noqa: E402
-from simcam.starcam.scenario import default_scenario  # noqa: E402
+from simcam.starcam.scenario import default  # noqa: E402
 
 
 def main() -> None:
@@ -48,7 +48,7 @@ def main() -> None:
     import numba
 
     numba.set_num_threads(1)
-    scn = default_scenario()
+    scn = default()
     warnings.simplefilter("ignore")
     V.run_trial(scn, 0, 0)
     times = []

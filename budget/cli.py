@@ -1,28 +1,34 @@
-"""`budget` command line: the lab side (estimators, combination, validation)."""
+"""`budget` command line: the lab side (estimators, combination, validation).
+
+One grammar for every study: ``budget <study> <verb>`` (``budget starcam measure``,
+``budget inductosyn fit``, ``budget linecam validate``, ...), one group per registered
+study (:mod:`budget.runner.registry`). Besides them: ``budget sweep`` and ``budget plot``
+(the sweep engine), and ``budget validate``, the documented alias of the main job
+(``budget starcam validate``).
+"""
 
 from __future__ import annotations
 
 import click
 
 from budget import __version__
-from simcam.cli_common import run_cli
-
+from simcam.cli_common import UserInputError, run_cli
 
 #: command name -> "module:attribute"; each module is imported only when its command runs
 #: (or when ``--help`` lists them), so a command pays only for its own imports
 COMMANDS = {
-    "combine": "budget.starcam.combine:combine_command",
-    "measure": "budget.starcam.measure:measure_command",
-    "simulate": "budget.starcam.simulate:simulate_command",
-    "harmonics": "budget.inductosyn.cli:harmonics_group",
     "sweep": "budget.sweeps.run:sweep_command",
     "plot": "budget.sweeps.plot:plot_command",
 }
+#: the main job's alias: ``budget validate`` is ``budget starcam validate``
+MAIN_STUDY = "starcam"
+#: former top-level commands -> where they live now (invoking one is a one-line error)
+MOVED = {"measure": "starcam measure", "simulate": "starcam simulate", "combine": "starcam combine"}
 
 
 class _LazyGroup(click.Group):
     """The ``budget`` group: sub-commands from :data:`COMMANDS` and one group per registered
-    study (:mod:`budget.runner.registry`), imported on first use."""
+    study (:mod:`budget.runner.registry`; an alias gives the same group), imported on first use."""
 
     def list_commands(self, ctx):
         from budget.runner.registry import study_names
@@ -32,33 +38,38 @@ class _LazyGroup(click.Group):
     def get_command(self, ctx, cmd_name):
         import importlib
 
-        if cmd_name in self.commands:
-            return self.commands[cmd_name]
-        if cmd_name in COMMANDS:
-            module_name, attr = COMMANDS[cmd_name].split(":")
+        from budget.runner.registry import aliases, study_names
+
+        name = aliases().get(cmd_name, cmd_name)
+        if name in self.commands:
+            return self.commands[name]
+        if name in COMMANDS:
+            module_name, attr = COMMANDS[name].split(":")
             cmd = getattr(importlib.import_module(module_name), attr)
-        elif cmd_name == "validate":
-            # `budget validate`: the seed-000 study, as it always was
-            from budget.runner.cli import validate_command_for
-
-            cmd = validate_command_for("starcam", help_text="Monte Carlo validation of the seed-000 lab methods "
-                                                            "on SCENARIO (default: the embedded seed-000 scenario).")
-        else:
+        elif name == "validate":
+            # `budget validate`: the main job, the seed-000 study's validate
+            group = self.get_command(ctx, MAIN_STUDY)
+            cmd = group.get_command(ctx, "validate")
+        elif name in MOVED:
+            raise UserInputError(f"`budget {name}` is now `budget {MOVED[name]}`")
+        elif name in study_names():
             from budget.runner.cli import study_group
-            from budget.runner.registry import study_names
 
-            if cmd_name not in study_names():
-                return None
-            cmd = study_group(cmd_name)
-        self.add_command(cmd, cmd_name)
+            cmd = study_group(name)
+        else:
+            return None
+        self.add_command(cmd, name)
         return cmd
 
 
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="budget")
 def cli() -> None:
-    """Error-budget tools: run the lab's estimators on frames or tables, validate lab methods
-    against injected truth (one study per source method), sweep design parameters."""
+    """Error-budget tools: `budget <study> <verb>` runs a study's lab methods on frames or
+    tables (e.g. `budget starcam measure`) or validates them against injected truth
+    (`budget <study> validate`; `budget validate` is the star camera's, the main job);
+    `budget sweep` / `budget plot` sweep design parameters. `budget harmonics` is an alias
+    of `budget inductosyn`."""
 
 
 def main(argv: list[str] | None = None) -> None:

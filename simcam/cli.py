@@ -23,9 +23,9 @@ def cli() -> None:
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
 def scenario_command(scenario: str | None) -> None:
     """Print the resolved SCENARIO (default: the embedded seed-000 one) as TOML."""
-    from simcam.starcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.scenario import load, scenario_to_toml
 
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     click.echo(f"# scenario hash {scn.hash}, simcam {__version__}")
     click.echo(scenario_to_toml(scn), nl=False)
 
@@ -43,21 +43,21 @@ def scenario_command(scenario: str | None) -> None:
 @click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Output directory.")
 @click.option("--overwrite", is_flag=True, help="Replace a non-empty output directory.")
 @click.option("--compress", is_flag=True,
-              help="Full frames as Rice tile-compressed FITS (lossless; `budget measure` reads them).")
+              help="Full frames as Rice tile-compressed FITS (lossless; `budget starcam measure` reads them).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, compress, progress) -> None:
     """Render the star target of SCENARIO (default: embedded seed-000) to FITS + truth.csv."""
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
-    from simcam.starcam.scenario import load_scenario, scenario_to_toml
+    from simcam.starcam.scenario import load, scenario_to_toml
     from simcam.lifecycle import progress as progress_bar
     from simcam.starcam.targets import star_grid
 
     t0 = time.perf_counter()
     if compress and mode != "full":
         raise UserInputError("--compress: only full frames are compressed (--mode full)")
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     if filter_nm is not None and filter_nm not in [f.center_nm for f in scn.lab.filters]:
         raise UserInputError(
             f"--filter {filter_nm:g}: no lab filter centred there (lab.filters: "

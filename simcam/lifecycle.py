@@ -1,6 +1,6 @@
 """Process lifecycle shared by every long command: signals, workers, partial output, sizes.
 
-One small module so that every command (``simcam render``, ``budget simulate``,
+One small module so that every command (``simcam render``, ``budget starcam simulate``,
 ``budget validate``, ``budget sweep``, the generic runner of ``budget.runner``) behaves the
 same under faults:
 

@@ -40,7 +40,7 @@ Counter layout
 ``counter = pixel_index * 2**DRAW_BITS + slot * 2**SLOT_BITS + j`` with
 ``DRAW_BITS = 16`` and ``SLOT_BITS = 12``: each mosaic pixel owns 65536 consecutive
 counters, split into 16 *slots* of 4096, one slot per variate (PRNU, DSNU, read noise,
-shot noise, ...; assigned in :mod:`simcam.starcam.kernels.detector`). A variate starts at
+shot noise, ...; assigned in :mod:`simcam.kernels.detector`). A variate starts at
 ``j = 0`` and a rejection method moves on to ``j = 1, 2, ...`` inside its slot:
 :func:`std_normal` needs a second word with probability 0.012, :func:`poisson` uses one
 word (inversion; a second with probability below 1/16) or two per PTRS trial (acceptance

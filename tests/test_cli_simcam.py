@@ -12,7 +12,7 @@ from simcam import __version__
 from simcam.cli import cli, main
 from simcam.io import read_frame, read_windows
 from simcam.starcam.render import Placement, StarCamera
-from simcam.starcam.scenario import default_scenario, load_scenario, scenario_to_toml
+from simcam.starcam.scenario import default, load, scenario_to_toml
 from simcam.starcam.targets import star_grid
 
 SMALL = """
@@ -39,7 +39,7 @@ def test_scenario_command_prints_toml_that_render_accepts(tmp_path):
     assert r.exit_code == 0, r.output
     p = tmp_path / "resolved.toml"
     p.write_text(r.output)
-    assert load_scenario(p) == default_scenario()
+    assert load(p) == default()
 
 
 def test_render_full_writes_fits_truth_and_manifest(tmp_path, small_file):
@@ -48,7 +48,7 @@ def test_render_full_writes_fits_truth_and_manifest(tmp_path, small_file):
                                  "--out", str(out)])
     assert r.exit_code == 0, r.output
     data, hdr = read_frame(out / "frame_0001.fits")
-    scn = load_scenario(small_file)
+    scn = load(small_file)
     assert data.shape == (256, 512)
     for key, val in {"EXPTIME": scn.camera.exposure_s, "GAIN1": 1.0, "FILTER": "600nm", "SEED": 4,
                      "SCENHASH": scn.hash, "SIMCAMV": __version__, "PLATDX": 0.0, "FRAME": 1}.items():
@@ -110,7 +110,7 @@ def test_render_refuses_non_empty_out_and_unknown_filter(tmp_path, small_file, c
 
 
 def test_identical_pixels_whatever_the_thread_count():
-    scn = default_scenario()
+    scn = default()
     placement = Placement(layout=star_grid(scn))
     a = StarCamera(scn, parallel=False)
     b = StarCamera(scn, parallel=True)
@@ -132,5 +132,5 @@ def test_identical_pixels_whatever_the_thread_count():
 def test_scenario_toml_of_render_dir_round_trips(tmp_path, small_file):
     out = tmp_path / "r"
     CliRunner().invoke(cli, ["render", str(small_file), "--out", str(out)])
-    assert load_scenario(out / "scenario.toml") == load_scenario(small_file)
-    assert scenario_to_toml(load_scenario(small_file)) == (out / "scenario.toml").read_text()
+    assert load(out / "scenario.toml") == load(small_file)
+    assert scenario_to_toml(load(small_file)) == (out / "scenario.toml").read_text()

@@ -118,7 +118,7 @@ def test_cli_wrapper_prints_error_without_traceback(tmp_path, capsys):
 
     p = _write(tmp_path, COMPONENTS.replace("x = 0.29", "x = -1"))
     with pytest.raises(SystemExit) as exc:
-        main(["combine", str(p)])
+        main(["starcam", "combine", str(p)])
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "lsfe_c1.x" in err and "Traceback" not in err

@@ -16,7 +16,7 @@ import pytest
 from scipy import constants, integrate
 
 from simcam.starcam.render import Placement, StarCamera
-from simcam.starcam.scenario import default_scenario, with_updates
+from simcam.starcam.scenario import default, with_updates
 from simcam.starcam.targets import star_grid
 
 NO_COLOUR = {
@@ -33,7 +33,7 @@ def _truth(scn, **placement):
 
 
 def test_field_angle_toward_plus_u_moves_star_to_plus_x():
-    base = with_updates(default_scenario(), NO_COLOUR | NO_DISTORTION)
+    base = with_updates(default(), NO_COLOUR | NO_DISTORTION)
     a = _truth(base)
     moved = with_updates(base, {"lab.target_center_px": [-1000.0, 10.0]})  # +24 px in u, +10 in v
     b = _truth(moved)
@@ -42,7 +42,7 @@ def test_field_angle_toward_plus_u_moves_star_to_plus_x():
 
 
 def test_hexapod_step_moves_star_by_the_step():
-    base = with_updates(default_scenario(), NO_COLOUR | NO_DISTORTION)
+    base = with_updates(default(), NO_COLOUR | NO_DISTORTION)
     a = _truth(base)
     b = _truth(base, platform_dx_px=0.2 / np.sqrt(2), platform_dy_px=0.2 / np.sqrt(2))
     np.testing.assert_allclose(b.x_true - a.x_true, 0.2 / np.sqrt(2), atol=1e-12)
@@ -50,7 +50,7 @@ def test_hexapod_step_moves_star_by_the_step():
 
 
 def test_positive_k1_moves_off_axis_star_outward():
-    base = with_updates(default_scenario(), NO_COLOUR | {"optics.distortion.k1": 0.0, "optics.distortion.k2": 0.0})
+    base = with_updates(default(), NO_COLOUR | {"optics.distortion.k1": 0.0, "optics.distortion.k2": 0.0})
     k1 = with_updates(base, {"optics.distortion.k1": 1e-3})
     t0, t1 = _truth(base), _truth(k1)
     r0 = np.hypot(t0.u_ideal_px + t0.distortion_dx_px, t0.v_ideal_px + t0.distortion_dy_px)
@@ -62,7 +62,7 @@ def test_positive_k1_moves_off_axis_star_outward():
 
 
 def test_constant_cubic_term_moves_every_star_to_plus_x():
-    base = with_updates(default_scenario(), NO_COLOUR | NO_DISTORTION)
+    base = with_updates(default(), NO_COLOUR | NO_DISTORTION)
     c = [0.5] + [0.0] * 9
     t = _truth(with_updates(base, {"optics.distortion.cubic_x_px": c}))
     np.testing.assert_allclose(t.distortion_dx_px, 0.5, atol=1e-12)
@@ -70,7 +70,7 @@ def test_constant_cubic_term_moves_every_star_to_plus_x():
 
 
 def test_uniform_lateral_colour_puts_red_image_at_larger_x():
-    base = with_updates(default_scenario(), NO_COLOUR | {"optics.lateral_colour.uniform_x_px_per_nm": [6e-4]})
+    base = with_updates(default(), NO_COLOUR | {"optics.lateral_colour.uniform_x_px_per_nm": [6e-4]})
     t6 = _truth(base, filter_nm=600.0)
     t8 = _truth(base, filter_nm=800.0)
     d = (t8.x_true - t6.x_true).to_numpy()
@@ -81,7 +81,7 @@ def test_uniform_lateral_colour_puts_red_image_at_larger_x():
 
 
 def test_radial_lateral_colour_moves_red_away_from_axis():
-    base = with_updates(default_scenario(), NO_COLOUR | {"optics.lateral_colour.radial_px_per_nm": [1e-3]})
+    base = with_updates(default(), NO_COLOUR | {"optics.lateral_colour.radial_px_per_nm": [1e-3]})
     t6 = _truth(base, filter_nm=600.0)
     t8 = _truth(base, filter_nm=800.0)
     r6 = np.hypot(t6.u_ideal_px + t6.distortion_dx_px + t6.chromatic_dx_px,
@@ -120,7 +120,7 @@ def test_hotter_star_shift_has_sign_and_size_of_the_coefficient(hot, cool):
     from simcam.spectra import star_teff_k
 
     c1 = 6e-4  # px per nm, uniform x
-    base = with_updates(default_scenario(), NO_COLOUR | {
+    base = with_updates(default(), NO_COLOUR | {
         "optics.lateral_colour.uniform_x_px_per_nm": [c1], "lab.source.kind": "star",
         "render.wavelength_step_nm": 2.0,
     })

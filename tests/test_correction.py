@@ -1,4 +1,4 @@
-"""The camera's own distortion correction (simcam.correction) and the LSFE-C1 truth of a
+"""The camera's own distortion correction (simcam.starcam.correction) and the LSFE-C1 truth of a
 calibrated camera (issue 12).
 
 Independent references: the least-squares algebra of a polynomial fit to exact
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from budget.starcam.truth import lsfe_c1_truth
-from simcam.correction import poly_design
+from simcam.starcam.correction import poly_design
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import ScenarioError, scenario_from_dict
+from simcam.starcam.scenario import ScenarioError, from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -29,7 +29,7 @@ SMALL = {
 def _scn(**corr):
     d = {k: dict(v) for k, v in SMALL.items()}
     d["optics"] = dict(d["optics"], distortion_correction=corr)
-    return scenario_from_dict(d)
+    return from_dict(d)
 
 
 def test_poly_design_has_every_monomial_once():
@@ -52,7 +52,7 @@ def test_error_free_calibration_of_no_distortion_leaves_nothing():
     d = {k: dict(v) for k, v in SMALL.items()}
     d["optics"] = dict(d["optics"], distortion={"k1": 0.0, "k2": 0.0},
                        distortion_correction={"marker_error_3sigma_arcsec": 0.0, "centroid_noise_px": 0.0})
-    cam = StarCamera(scenario_from_dict(d))
+    cam = StarCamera(from_dict(d))
     c = cam.onboard_correction
     assert np.max(np.abs(c.coef_x)) < 1e-9 and np.max(np.abs(c.coef_y)) < 1e-9
     t = lsfe_c1_truth(cam)
@@ -72,7 +72,7 @@ def test_marker_noise_in_the_earlier_calibration_sets_the_remaining_displacement
         d["seed"] = seed
         d["optics"] = dict(d["optics"], distortion={"k1": 0.0, "k2": 0.0},
                            distortion_correction={"marker_error_3sigma_arcsec": sig_arcsec, "centroid_noise_px": 0.0})
-        scn = scenario_from_dict(d)
+        scn = from_dict(d)
         cam = StarCamera(scn)
         c = cam.onboard_correction
         cx, cy = c.correction_px(c.points_x, c.points_y)

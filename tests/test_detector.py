@@ -1,4 +1,4 @@
-"""Tests of the detector chain :mod:`simcam.starcam.detector` against its analytic model.
+"""Tests of the detector chain :mod:`simcam.detector` against its analytic model.
 
 References: the photon-transfer / EMVA 1288 moments (mean DN = (S g + d)/K + offset,
 variance DN^2 = (S g + d + sigma_read^2)/K^2 + 1/12), scipy.stats distributions and
@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from simcam.config_base import ScenarioError
-from simcam.starcam.detector import (
+from simcam.detector import (
     DetectorParameterError,
     DetectorParams,
     dsnu_map,

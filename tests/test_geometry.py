@@ -8,12 +8,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from simcam.starcam.geometry import Mosaic
-from simcam.starcam.scenario import ARCSEC_PER_RAD, default_scenario, with_updates
+from simcam.starcam.scenario import ARCSEC_PER_RAD, default, with_updates
 from simcam.starcam.targets import calibration_grid, collimator_px_per_mm, pinhole_radius_px, platform_offsets_px, star_grid
 
 
 def test_nominal_mosaic_centres_and_gap():
-    det = default_scenario().detector  # 2 chips of 2048, gap 20 px
+    det = default().detector  # 2 chips of 2048, gap 20 px
     m = Mosaic.from_model(det)
     np.testing.assert_allclose(m.center_u_px, [-(2048 + 20) / 2, (2048 + 20) / 2])
     # the optical axis (u = 0) is in the gap
@@ -33,7 +33,7 @@ def test_nominal_mosaic_centres_and_gap():
     off=st.floats(-3, 3), rot=st.floats(-0.5, 0.5),
 )
 def test_focal_chip_round_trip(u, v, off, rot):
-    scn = with_updates(default_scenario(), {"detector.chips": [
+    scn = with_updates(default(), {"detector.chips": [
         {"offset_x_px": off, "offset_y_px": -off, "rotation_deg": rot}, {"rotation_deg": -rot}]})
     m = Mosaic.from_model(scn.detector)
     chip, xc, yc = m.focal_to_chip(u, v)
@@ -47,11 +47,11 @@ def test_focal_chip_round_trip(u, v, off, rot):
 
 
 def test_chip_offset_and_rotation_directions():
-    scn = with_updates(default_scenario(), {"detector.chips": [
+    scn = with_updates(default(), {"detector.chips": [
         {"offset_x_px": 2.0, "offset_y_px": 1.0}, {"rotation_deg": 90.0}]})
     m = Mosaic.from_model(scn.detector)
     # chip 0 displaced by +2 px in u: a fixed focal point lands 2 px lower in chip x
-    nominal = Mosaic.from_model(default_scenario().detector)
+    nominal = Mosaic.from_model(default().detector)
     _, x0, y0 = nominal.focal_to_chip(-1000.0, 10.0)
     _, x1, y1 = m.focal_to_chip(-1000.0, 10.0)
     assert x1[0] - x0[0] == pytest.approx(-2.0) and y1[0] - y0[0] == pytest.approx(-1.0)
@@ -64,7 +64,7 @@ def test_chip_offset_and_rotation_directions():
 
 
 def test_star_grid_spacing_from_collimator():
-    scn = default_scenario()
+    scn = default()
     # 2 mm at a 1000 mm collimator = 2e-3 rad = 412.53" -> / 5.5"/px = 75.0 px
     k = collimator_px_per_mm(scn)
     assert k == pytest.approx(ARCSEC_PER_RAD / 1000.0 / 5.5)
@@ -78,7 +78,7 @@ def test_star_grid_spacing_from_collimator():
 
 
 def test_calibration_grid_32_points_with_marker_error():
-    scn = default_scenario()
+    scn = default()
     lay = calibration_grid(scn)
     assert lay.n_stars == 32
     err = np.concatenate([lay.reference_u_px - lay.u_px, lay.reference_v_px - lay.v_px])

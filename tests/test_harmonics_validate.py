@@ -1,7 +1,8 @@
-"""Monte Carlo validation of the seed-001 calibration and the `budget harmonics` CLI.
+"""Monte Carlo validation of the seed-001 calibration and the `budget inductosyn` CLI.
 
 The validation runs through the one runner (budget.runner.run_study on the inductosyn
-study); `budget harmonics validate` is its alias with the seed-001 report sections.
+study); `budget inductosyn validate` adds the seed-001 summary and report sections, and
+`budget harmonics` is an alias of the same group.
 References: seed 001 sections 3-4 (in-sequence procedure, 3 sigma as 3 x sample std,
 acceptance at requirement/3); the per-trial SeedSequence convention (docs/conventions.md).
 """
@@ -14,7 +15,6 @@ import math
 import numpy as np
 import pytest
 
-from budget.inductosyn.cli import harmonics_group
 from budget.inductosyn.harmonics import DesignError, HarmonicSpec, design_matrix
 from budget.inductosyn.study import COEFFICIENTS, PUBLISHED_COEFFICIENTS, STUDY
 from budget.inductosyn.validate import (
@@ -22,21 +22,32 @@ from budget.inductosyn.validate import (
     run_trials,
     simulate_trial_exact,
 )
-from budget.runner.cli import study_group
 from budget.runner.run import run_study
 from simcam.cli_common import run_cli
-from simcam.encoder.inductosyn import AutocollimatorParams, default_scenario
+from simcam.encoder.inductosyn import AutocollimatorParams, default
 
 
 def budget_main(argv):
-    """`budget harmonics ...` / `budget inductosyn ...` as budget.cli.main runs them
+    """`budget inductosyn ...` / `budget harmonics ...` as budget.cli.main runs them
     (run_cli: user errors exit 2)."""
-    group = {"harmonics": harmonics_group, "inductosyn": study_group("inductosyn")}[argv[0]]
-    run_cli(group, argv[1:])
+    from budget.cli import cli
+
+    run_cli(cli, argv)
+
+
+def _scenario_file(tmp_path, step_deg, capsys) -> str:
+    """The default scenario written by `budget inductosyn scenario`, with the truth grid's
+    step ``validation.dense_step_deg`` = ``step_deg``."""
+    budget_main(["inductosyn", "scenario"])
+    text = capsys.readouterr().out
+    assert "dense_step_deg = 0.001" in text
+    path = tmp_path / f"step_{step_deg}.toml"
+    path.write_text(text.replace("dense_step_deg = 0.001", f"dense_step_deg = {step_deg}"))
+    return str(path)
 
 
 def _scenario(**cal_updates):
-    sc = default_scenario()
+    sc = default()
     cal = sc.calibration.model_copy(update=cal_updates)
     return sc.model_copy(update={"calibration": cal})
 
@@ -66,7 +77,7 @@ def test_fast_path_equals_exact_path_trial_by_trial():
 def test_trial_k_independent_of_batching():
     """Trial k's tables are bit-identical however the trials are batched; the fits agree
     to floating-point rounding (BLAS sums in a different order for another batch size)."""
-    p = prepare(scenario=default_scenario(), dense_step_deg=1.0)
+    p = prepare(scenario=default(), dense_step_deg=1.0)
     whole = run_trials(prepared=p, trials=8, seed=9)
     part = run_trials(prepared=p, trials=3, seed=9, first_trial=4)
     for key in ("y_long", "y_long_verify", "y_short", "y_short_verify"):
@@ -80,7 +91,7 @@ def test_trial_k_independent_of_batching():
 
 def test_dense_statistics_against_direct_evaluation():
     """Gram-identity 3 sigma and chunked max equal a direct evaluation of the residual."""
-    p = prepare(scenario=default_scenario(), dense_step_deg=0.05)
+    p = prepare(scenario=default(), dense_step_deg=0.05)
     r = run_trials(prepared=p, trials=4, seed=1)
     for i in range(4):
         c = np.r_[r["c_long"][i], r["c_short"][i]]
@@ -94,7 +105,7 @@ def test_quantisation_only_coefficient_spread_matches_uniform_prediction():
     written error is e(theta_i) - s1_i d with d uniform on [-q/2, q/2), so the eq-7
     coefficients have covariance P diag(s1^2 q^2/12) P^T (P the pseudo-inverse).
     K=3000 trials: relative sd of a sample std 1/sqrt(2K) = 1.3%; bound 5 sd."""
-    sc = default_scenario()
+    sc = default()
     enc = sc.encoder.model_copy(update={"reading_noise_arcsec": 0.0})
     lp = sc.calibration.long_polygon.model_copy(update={"face_error_arcsec": 0.0})
     sp = sc.calibration.short_polygon.model_copy(update={"face_error_arcsec": 0.0})
@@ -115,7 +126,7 @@ def test_monte_carlo_default_scenario_short():
     recovery of the coefficients the in-sequence method can see (|bias| < 4 spread /
     sqrt(K): the bias is a mean of K trials), the ~145 arcsec short-period error reduced
     below requirement/3, the joint fit better."""
-    sc = _with_step(default_scenario(), 0.05)
+    sc = _with_step(default(), 0.05)
     k = 400
     res = run_study(STUDY, sc, trials=k, seed=123, workers=1)
     for name in PUBLISHED_COEFFICIENTS:
@@ -132,7 +143,7 @@ def test_monte_carlo_default_scenario_short():
 @pytest.mark.slow
 def test_monte_carlo_default_scenario_long():
     """K=20000: unbiasedness of every in-sequence coefficient at 4 standard errors."""
-    sc = _with_step(default_scenario(), 0.1)
+    sc = _with_step(default(), 0.1)
     k = 20000
     res = run_study(STUDY, sc, trials=k, seed=321, workers=1)
     for name in PUBLISHED_COEFFICIENTS:
@@ -155,13 +166,14 @@ SEED001_PLOTS = ("error_curves.png", "residual_distribution.png", "posterior_ban
 
 
 def test_harmonics_validate_report_and_json_through_the_runner(tmp_path, monkeypatch, capsys):
-    """`budget harmonics validate --report --json`: the runner's report (table, findings,
+    """`budget inductosyn validate --report --json`: the runner's report (table, findings,
     estimates plot, summary.json) with the seed-001 sections and plots; the JSON is the
-    runner's schema with the seed-001 figures under "details"; the seed defaults to the
-    scenario's validation.seed."""
+    runner's schema with the seed-001 figures under "details"; the seed defaults to 0, as
+    for every study."""
     monkeypatch.setattr(STUDY, "posterior_steps", 300)  # the band's emcee run, shortened for the test
     rep, js = tmp_path / "rep", tmp_path / "v.json"
-    budget_main(["harmonics", "validate", "--trials", "20", "--dense-step-deg", "0.05",
+    scn = _scenario_file(tmp_path, 0.05, capsys)
+    budget_main(["inductosyn", "validate", scn, "--trials", "20", "--workers", "1",
                  "--report", str(rep), "--json", str(js)])
     out = capsys.readouterr().out
     assert "coefficient  A_S1s" in out and "after drift (in sequence)" in out
@@ -175,7 +187,7 @@ def test_harmonics_validate_report_and_json_through_the_runner(tmp_path, monkeyp
     assert "| e0 |" in md and "| A_S4s |" in md and "emcee 300 steps" in md
     d = json.loads(js.read_text())
     assert d["schema"] == "budget.study-result/1" and d["study"] == "inductosyn"
-    assert d["seed"] == default_scenario().validation.seed and d["trials"] == 20
+    assert d["seed"] == 0 and d["trials"] == 20
     assert len(d["scenario_hash"]) == 16 and d["version"]
     assert "dense_step_deg = 0.05" in d["scenario_toml"]
     det = d["details"]
@@ -187,20 +199,22 @@ def test_harmonics_validate_report_and_json_through_the_runner(tmp_path, monkeyp
     assert json.loads((rep / "summary.json").read_text())["details"] == det
 
 
-def test_harmonics_validate_equals_inductosyn_validate(tmp_path, capsys):
-    """The alias and the study's own command are one computation: the same scenario
-    (the step given as an option or in the file) and seed give the same hash and the same
-    statistics and seed-001 figures. Compared with == : a bit-identity claim (the same
-    trials through the same runner, written to JSON and read back)."""
-    budget_main(["harmonics", "scenario"])
-    text = capsys.readouterr().out.replace("dense_step_deg = 0.001", "dense_step_deg = 0.1")
-    assert "dense_step_deg = 0.1" in text
-    scn = tmp_path / "s.toml"
-    scn.write_text(text)
+def test_harmonics_is_the_inductosyn_group_with_one_default_seed(tmp_path, capsys):
+    """`budget harmonics` is the same group (the same command objects) as `budget
+    inductosyn`, and the seed defaults to 0 under either name: `budget harmonics validate`
+    without --seed gives what `budget inductosyn validate --seed 0` gives, on one process
+    or two. Compared with == : a bit-identity claim (the same trials through the same
+    runner, written to JSON and read back; each trial draws its own streams)."""
+    import click
+
+    from budget.cli import cli
+
+    ctx = click.Context(cli)
+    assert cli.get_command(ctx, "harmonics") is cli.get_command(ctx, "inductosyn")
+    scn = _scenario_file(tmp_path, 0.1, capsys)
     a, b = tmp_path / "a.json", tmp_path / "b.json"
-    budget_main(["harmonics", "validate", "--trials", "8", "--seed", "4", "--dense-step-deg", "0.1",
-                 "--json", str(a)])
-    budget_main(["inductosyn", "validate", str(scn), "--trials", "8", "--seed", "4", "--workers", "1",
+    budget_main(["harmonics", "validate", scn, "--trials", "8", "--workers", "1", "--json", str(a)])
+    budget_main(["inductosyn", "validate", scn, "--trials", "8", "--seed", "0", "--workers", "2",
                  "--json", str(b)])
     ja, jb = json.loads(a.read_text()), json.loads(b.read_text())
     for key in ("scenario_hash", "seed", "trials", "truths", "details"):
@@ -209,12 +223,13 @@ def test_harmonics_validate_equals_inductosyn_validate(tmp_path, capsys):
     assert json.dumps(ja["classes"], sort_keys=True) == json.dumps(jb["classes"], sort_keys=True)
 
 
-def test_harmonics_validate_bad_options_exit_2(capsys):
-    for argv, msg in ((["--dense-step-deg", "2"], "--dense-step-deg: must be in (0, 1]"),
-                      (["--trials", "1"], "--trials: need at least 2 trials"),
-                      (["--seed", "-1"], "--seed: must be >= 0")):
+def test_inductosyn_validate_bad_options_exit_2(capsys):
+    # the truth grid's step is the scenario's validation.dense_step_deg, not an option
+    for argv, msg in ((["--dense-step-deg", "0.1"], "No such option '--dense-step-deg'"),
+                      (["--trials", "1"], "'--trials': 1 is not in the range x>=2"),
+                      (["--seed", "-1"], "'--seed': -1 is not in the range x>=0")):
         with pytest.raises(SystemExit) as ei:
-            budget_main(["harmonics", "validate", *argv])
+            budget_main(["inductosyn", "validate", *argv])
         assert ei.value.code == 2
         err = capsys.readouterr().err
         assert msg in err and "Traceback" not in err
@@ -228,7 +243,7 @@ def test_cli_fit_example_table(tmp_path, capsys):
     coefficient errors s sqrt(2/23) near +-0.5" (orthogonal harmonics on 23 phases)."""
     out = tmp_path / "fit.json"
     png = tmp_path / "fit.png"
-    budget_main(["harmonics", "fit", "docs/examples/polygon_23.csv", "--period", "short",
+    budget_main(["inductosyn", "fit", "docs/examples/polygon_23.csv", "--period", "short",
                  "--json", str(out), "--plot", str(png)])
     d = json.loads(out.read_text())
     assert set(d["coefficients"]) == {"offset", "A_S1c", "A_S1s", "A_S2c", "A_S2s"}
@@ -247,32 +262,34 @@ def test_cli_fit_errors_exit_2(tmp_path, capsys):
     t24 = tmp_path / "t24.csv"
     t24.write_text("angle_deg,error_arcsec\n" + "".join(f"{15 * i},{0.1 * i}\n" for i in range(24)))
     with pytest.raises(SystemExit) as ei:
-        budget_main(["harmonics", "fit", str(t24), "--period", "short"])
+        budget_main(["inductosyn", "fit", str(t24), "--period", "short"])
     assert ei.value.code == 2
     err = capsys.readouterr().err
     assert "t24.csv: design cannot separate" in err and "Traceback" not in err
     bad = tmp_path / "bad.csv"
     bad.write_text("angle_deg,error_arcsec\n0,1\nzz,2\n")
     with pytest.raises(SystemExit) as ei:
-        budget_main(["harmonics", "fit", str(bad), "--period", "long"])
+        budget_main(["inductosyn", "fit", str(bad), "--period", "long"])
     assert ei.value.code == 2 and "bad.csv:3" in capsys.readouterr().err
 
 
 def test_cli_validate_scenario_and_unknown_key(tmp_path, capsys):
-    budget_main(["harmonics", "scenario"])
+    budget_main(["inductosyn", "scenario"])
     text = capsys.readouterr().out
     assert "pole_pairs = 360" in text
     sc = tmp_path / "s.toml"
     sc.write_text(text)
     out = tmp_path / "v.json"
-    budget_main(["harmonics", "validate", str(sc), "--trials", "50", "--seed", "2",
-                 "--dense-step-deg", "0.1", "--json", str(out)])
+    coarse = tmp_path / "coarse.toml"
+    coarse.write_text(text.replace("dense_step_deg = 0.001", "dense_step_deg = 0.1"))
+    budget_main(["inductosyn", "validate", str(coarse), "--trials", "50", "--seed", "2", "--workers", "1",
+                 "--json", str(out)])
     d = json.loads(out.read_text())
     assert d["schema"] == "budget.study-result/1" and d["trials"] == 50 and d["seed"] == 2
     bad = tmp_path / "bad.toml"
     bad.write_text("[calibration]\nrequirement = 3\n")
     with pytest.raises(SystemExit) as ei:
-        budget_main(["harmonics", "validate", str(bad)])
+        budget_main(["inductosyn", "validate", str(bad)])
     assert ei.value.code == 2
     assert "bad.toml: calibration.requirement: unknown key" in capsys.readouterr().err
 
@@ -287,16 +304,16 @@ def test_joint_design_matrix_shape():
 def test_cli_design_and_sequence(tmp_path, capsys):
     """`design` reports the hand-derived aliases; `fit --period sequence` runs eq 7 then
     eq 8 on two tables written by the simulated rig (exact path)."""
-    budget_main(["harmonics", "design", "--faces", "23"])
+    budget_main(["inductosyn", "design", "--faces", "23"])
     out = capsys.readouterr().out
     assert "electrical 1 (360/turn): appears as mechanical order 8" in out
     assert "electrical 2 (720/turn): appears as mechanical order 7" in out
-    ex = simulate_trial_exact(scenario=default_scenario(), seed=4, trial=0)
+    ex = simulate_trial_exact(scenario=default(), seed=4, trial=0)
     long_csv, short_csv = tmp_path / "l.csv", tmp_path / "s.csv"
     ex["tables"][0].to_csv(long_csv, index=False)
     ex["tables"][2].to_csv(short_csv, index=False)
     js = tmp_path / "seq.json"
-    budget_main(["harmonics", "fit", str(long_csv), str(short_csv), "--period", "sequence",
+    budget_main(["inductosyn", "fit", str(long_csv), str(short_csv), "--period", "sequence",
                  "--json", str(js), "--requirement-arcsec", "10"])
     d = json.loads(js.read_text())
     seq = ex["in_sequence"]
@@ -304,5 +321,5 @@ def test_cli_design_and_sequence(tmp_path, capsys):
         seq["short"].coefficients_arcsec[seq["short"].names.index("A_S1s")], abs=1e-6)  # CSV round trip ~1e-12
     assert d["accepted"] is True and d["sigma3_after_arcsec"] < 10 / 3
     with pytest.raises(SystemExit) as ei:
-        budget_main(["harmonics", "fit", str(long_csv), "--period", "sequence"])
+        budget_main(["inductosyn", "fit", str(long_csv), "--period", "sequence"])
     assert ei.value.code == 2

@@ -22,10 +22,10 @@ from simcam.encoder.inductosyn import (
     MechanicalErrors,
     WindingHarmonic,
     apply_drift,
-    default_scenario,
+    default,
     demodulated_error,
     first_order_electrical_error_rad,
-    load_scenario,
+    load,
     mechanical_error_rad,
     tracking_null_numeric_rad,
     tracking_null_rad,
@@ -179,7 +179,7 @@ def test_mechanical_maps_expansions():
 
 # ------------------------------------------------------------------------ encoder
 def test_truth_at_reading_consistent_with_truth_at_angle():
-    enc = Inductosyn(params=default_scenario().encoder)
+    enc = Inductosyn(params=default().encoder)
     th = np.array([0.0, 1.2345, 47.9, 180.5, 359.99])
     r = enc.continuous_reading_deg(angle_deg=th)
     back = enc.true_angle_deg(reading_deg=r)
@@ -203,7 +203,7 @@ def test_encoder_electrical_error_maps_to_mechanical_by_pole_pairs():
 def test_default_scenario_resembles_seed_001():
     """Default unit: ~145 arcsec 3 sigma short-period (23 faces) and a few arcsec long
     period (24 faces), as in seed 001 Tables 1 and 2 (2.7 and 145.6 arcsec)."""
-    enc = Inductosyn(params=default_scenario().encoder)
+    enc = Inductosyn(params=default().encoder)
     e23 = enc.error_at_reading_arcsec(reading_deg=nominal_face_angles_deg(faces=23))
     e24 = enc.error_at_reading_arcsec(reading_deg=nominal_face_angles_deg(faces=24))
     # The paper's figures are 3 x a sample sd of n = 23 / 24 points: their relative standard
@@ -221,13 +221,13 @@ def test_unknown_key_and_bad_values_are_scenario_errors(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text("[encoder.electrical]\noffset_sinn = 0.1\n")
     with pytest.raises(ScenarioError, match=r"s.toml: encoder.electrical.offset_sinn: unknown key"):
-        load_scenario(str(p))
+        load(str(p))
     p.write_text("[encoder]\nresolution_deg = -1\n")
     with pytest.raises(ScenarioError, match="encoder.resolution_deg"):
-        load_scenario(str(p))
+        load(str(p))
     p.write_text("[encoder.electrical]\nwinding_harmonics = [{order = 4, amplitude = 0.01}]\n")
     with pytest.raises(ScenarioError, match="winding_harmonics.0.order"):
-        load_scenario(str(p))
+        load(str(p))
 
 
 def test_non_monotonic_reading_is_refused(tmp_path):
@@ -237,7 +237,7 @@ def test_non_monotonic_reading_is_refused(tmp_path):
     p.write_text("[encoder.electrical]\noffset_sin = 0.3\n"
                  "winding_harmonics = [{order = 7, amplitude = 0.19}]\n")
     with pytest.raises(ScenarioError, match="not monotonic"):
-        load_scenario(str(p))
+        load(str(p))
 
 
 # ---------------------------------------------------------------- quantisation
@@ -268,7 +268,7 @@ def test_polygon_measurement_noise_free_is_truth_at_reading():
     down exactly the truth at the reading."""
     from simcam.encoder.inductosyn import AutocollimatorParams, PolygonParams
 
-    sc = default_scenario()
+    sc = default()
     enc = Inductosyn(params=sc.encoder.model_copy(update={"resolution_deg": 0.0,
                                                            "reading_noise_arcsec": 0.0}))
     poly = PolygonParams(faces=23)
@@ -281,7 +281,7 @@ def test_polygon_measurement_noise_free_is_truth_at_reading():
 def test_face_taylor_matches_exact_inverse():
     """The fast path's second-order expansion about each face agrees with the exact
     inverse map for displacements up to 1 arcsec (truncation |d|^3 f'''/6 < 1e-6)."""
-    enc = Inductosyn(params=default_scenario().encoder)
+    enc = Inductosyn(params=default().encoder)
     ft = face_taylor(encoder=enc, faces=23, step_arcsec=0.36)
     for d in (-1.0, -0.18, 0.05, 0.5, 1.0):
         exact = (enc.true_angle_deg(reading_deg=ft.angles_deg + d / 3600) - ft.angles_deg) * 3600
@@ -289,7 +289,7 @@ def test_face_taylor_matches_exact_inverse():
 
 
 def test_drift_is_seeded_and_moves_parameters():
-    sc = default_scenario()
+    sc = default()
     a = apply_drift(params=sc.encoder, drift=sc.drift, seed=5)
     b = apply_drift(params=sc.encoder, drift=sc.drift, seed=5)
     c = apply_drift(params=sc.encoder, drift=sc.drift, seed=6)

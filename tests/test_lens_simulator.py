@@ -20,7 +20,7 @@ from simcam.starcam.scenario import (
     ARCSEC_PER_RAD,
     OpticsModel,
     Scenario,
-    scenario_from_dict,
+    from_dict,
     scenario_to_toml,
     with_updates,
 )
@@ -99,7 +99,7 @@ def test_lateral_colour_table_form_by_hand():
         optics.lateral_colour_shift_px(wavelength_nm=wl, u_px=u, v_px=v, ref_wavelength_nm=600.0,
                                        radial_coeffs=np.zeros((2, 2, 2)), r_norm_px=2048.0)
     with pytest.raises(ScenarioError, match=r"radial_px_per_nm: table rows must have the same length"):
-        scenario_from_dict({"optics": {"lateral_colour": {"radial_px_per_nm": [[1e-3, 1e-4], [1e-6]]}}})
+        from_dict({"optics": {"lateral_colour": {"radial_px_per_nm": [[1e-3, 1e-4], [1e-6]]}}})
 
 
 def test_the_fit_recovers_the_simulator_models_exactly():
@@ -151,7 +151,7 @@ def lens_scenario(lens_file, extra=None):
         for part in parents:
             node = node.setdefault(part, {})
         node[leaf] = v
-    return scenario_from_dict(data, source="lens_scenario.toml")
+    return from_dict(data, source="lens_scenario.toml")
 
 
 def test_a_scenario_with_a_lens_takes_its_optics_from_the_lens(lens_file):
@@ -168,7 +168,7 @@ def test_a_scenario_with_a_lens_takes_its_optics_from_the_lens(lens_file):
     assert o.lateral_colour.uniform_x_px_per_nm == () == o.lateral_colour.uniform_y_px_per_nm
     assert scn.camera.aperture_diameter_mm == pytest.approx(60.0, rel=1e-12)
     # the resolved TOML loads back to the same scenario (the lens values match themselves)
-    again = scenario_from_dict(__import__("tomllib").loads(scenario_to_toml(scn)))
+    again = from_dict(__import__("tomllib").loads(scenario_to_toml(scn)))
     assert again == scn and again.hash == scn.hash
     # built in Python, the same
     assert Scenario(optics=OpticsModel(lens=str(lens_file))) == scn
@@ -199,9 +199,9 @@ def test_scenario_errors_name_the_field(lens_file, extra, message):
 
 def test_a_missing_lens_file_is_named(tmp_path):
     with pytest.raises(ScenarioError, match=r"optics\.lens: .*nope\.toml: lens prescription file not found"):
-        scenario_from_dict({"optics": {"lens": str(tmp_path / "nope.toml")}})
+        from_dict({"optics": {"lens": str(tmp_path / "nope.toml")}})
     with pytest.raises(ScenarioError, match=r"optics\.lens: embedded:nope: no embedded lens"):
-        scenario_from_dict({"optics": {"lens": "embedded:nope"}})
+        from_dict({"optics": {"lens": "embedded:nope"}})
 
 
 def test_rendering_through_the_lens_puts_stars_where_the_lens_images_them(lens_file):

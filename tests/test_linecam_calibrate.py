@@ -18,9 +18,9 @@ from budget.linecam.calibrate import (CalibrationError, calibrate_joint, calibra
 from budget.linecam.model import NominalCamera, Observations, los_angles, residuals
 from budget.linecam.trial import los_grid, simulate
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
-from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, from_dict, load_default
+from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, from_dict, default
 
-SC = load_default()
+SC = default()
 CAM = NominalCamera.from_model(SC.camera)
 GRID = los_grid(SC)
 

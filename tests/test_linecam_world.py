@@ -1,7 +1,7 @@
 """The world of seed 004 (simcam.linecam): camera models, apparent places, TDI imaging.
 
 Independent references: the forward model against its own inverse written differently
-(Newton inverse of simcam.starcam.optics vs the explicit Brown correction), astropy/ERFA for the
+(Newton inverse of simcam.distortion vs the explicit Brown correction), astropy/ERFA for the
 apparent places, the analytic mid-exposure position of a moving star and photutils'
 centroid for the TDI rendering, Pecaut & Mamajek (2013) temperatures for the colour
 relation, Pogson's ratio for the signal chain.
@@ -18,10 +18,10 @@ from simcam.config_base import ScenarioError
 from simcam.linecam import signal
 from simcam.linecam.attitude import orbit_state, rodrigues, scan_plan
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
-from simcam.linecam.scenario import ARCSEC_PER_RAD, from_dict, load_default
+from simcam.linecam.scenario import ARCSEC_PER_RAD, from_dict, default
 from simcam.linecam.world import crossing_times, image_passes, sky_strip
 
-SC = load_default()
+SC = default()
 
 
 def _angle(a, b):
@@ -39,7 +39,7 @@ def test_scenario_is_strict_and_names_the_field():
         from_dict({"camera": {"n_pixel": 10}}, source="x.toml")
     with pytest.raises(ScenarioError, match=r"x\.toml: camera\.tdi_stages"):
         from_dict({"camera": {"tdi_stages": 0}}, source="x.toml")
-    assert load_default().hash == SC.hash
+    assert default().hash == SC.hash
 
 
 def test_forward_and_inverse_camera_models_round_trip():

@@ -15,7 +15,7 @@ from budget.starcam.measure import measure_frames
 from budget.starcam.protocols import estimate, make_plan, simulate
 from budget.starcam.simulate import write_protocol_frames
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import default_scenario, scenario_from_dict
+from simcam.starcam.scenario import default, from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -42,11 +42,11 @@ def _mean_and_pooled_sd(cen):
 
 @pytest.fixture(scope="module")
 def small():
-    return scenario_from_dict(SMALL)
+    return from_dict(SMALL)
 
 
 def test_plans_follow_seed000():
-    scn = default_scenario()
+    scn = default()
     te = make_plan("te", scn)
     assert len(te.conditions) == 1 and te.conditions[0].frames >= 30
     h = make_plan("hsfe", scn).to_frame()
@@ -165,7 +165,7 @@ def test_measure_on_simulated_frames_matches_truth(frames_dir, proto):
 
 def test_measure_cli_json(frames_dir, tmp_path):
     out = tmp_path / "te.json"
-    r = CliRunner().invoke(budget_cli, ["measure", "te", str(frames_dir["te"]), "--json", str(out)])
+    r = CliRunner().invoke(budget_cli, ["starcam", "measure", "te", str(frames_dir["te"]), "--json", str(out)])
     assert r.exit_code == 0, r.output
     assert "published  TE" in r.output
     data = json.loads(out.read_text())
@@ -186,30 +186,30 @@ def test_measure_bad_inputs(frames_dir, tmp_path, capsys):
     # no manifest
     empty = tmp_path / "empty"
     empty.mkdir()
-    assert _run(["measure", "te", str(empty)]) == 2
+    assert _run(["starcam", "measure", "te", str(empty)]) == 2
     assert "manifest not found" in capsys.readouterr().err
     # a manifest naming a missing frame
     m = pd.read_csv(te / "manifest.csv")
     m.loc[0, "file"] = "nope.fits"
     bad = tmp_path / "m1.csv"
     m.to_csv(bad, index=False)
-    assert _run(["measure", "te", str(te), "--manifest", str(bad)]) == 2
+    assert _run(["starcam", "measure", "te", str(te), "--manifest", str(bad)]) == 2
     assert "nope.fits: frame file not found" in capsys.readouterr().err
     # fewer than 2 frames
     m = pd.read_csv(te / "manifest.csv")
     m1 = m[(m.dark == 1) | (m.frame == 0)]
     one = tmp_path / "m2.csv"
     m1.to_csv(one, index=False)
-    assert _run(["measure", "te", str(te), "--manifest", str(one)]) == 2
+    assert _run(["starcam", "measure", "te", str(te), "--manifest", str(one)]) == 2
     assert "at least 2 are needed" in capsys.readouterr().err
     # unknown column
     m2 = pd.read_csv(te / "manifest.csv").assign(exposure=1)
     uk = tmp_path / "m3.csv"
     m2.to_csv(uk, index=False)
-    assert _run(["measure", "te", str(te), "--manifest", str(uk)]) == 2
+    assert _run(["starcam", "measure", "te", str(te), "--manifest", str(uk)]) == 2
     assert "unknown column(s) exposure" in capsys.readouterr().err
     # distortion without reference
-    assert _run(["measure", "distortion", str(frames_dir["distortion"])]) == 2
+    assert _run(["starcam", "measure", "distortion", str(frames_dir["distortion"])]) == 2
     assert "--reference" in capsys.readouterr().err
 
 
@@ -283,9 +283,9 @@ def test_measure_finds_only_the_target_stars_at_the_validate_threshold(tmp_path)
     found, each matched to one true star within 0.5 px."""
     from budget.starcam.measure import DEFAULT_THRESHOLD_SIGMA
 
-    assert DEFAULT_THRESHOLD_SIGMA == default_scenario().validation.threshold_sigma
+    assert DEFAULT_THRESHOLD_SIGMA == default().validation.threshold_sigma
     # the seed's V = 7.5 source (SMALL's brighter one saturates the TE pinholes)
-    scn = scenario_from_dict(dict(SMALL, protocols=dict(SMALL["protocols"], te={"frames": 2}),
+    scn = from_dict(dict(SMALL, protocols=dict(SMALL["protocols"], te={"frames": 2}),
                                   lab=dict(SMALL["lab"], source={"match_v_mag": 7.5})))
     for seed in range(3):
         d = tmp_path / f"te{seed}"

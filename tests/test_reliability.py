@@ -99,15 +99,15 @@ def _load_sweep(path):
 
 
 def _load_scn(path):
-    from simcam.starcam.scenario import load_scenario
+    from simcam.starcam.scenario import load
 
-    return load_scenario(path)
+    return load(path)
 
 
 def _load_ind(path):
-    from simcam.encoder.inductosyn import load_scenario
+    from simcam.encoder.inductosyn import load
 
-    return load_scenario(str(path))
+    return load(str(path))
 
 
 def _load_budget(path):
@@ -137,8 +137,9 @@ TOML_READERS = {
     "scenario": ("simcam", ["render", "FILE", "--out", "OUT", "--no-progress"]),
     "scenario (validate)": ("budget", ["validate", "FILE", "--trials", "2", "--workers", "1", "--no-progress",
                                        "--json", "OUT.json"]),
-    "inductosyn scenario": ("budget", ["harmonics", "validate", "FILE", "--trials", "2", "--json", "OUT.json"]),
-    "budget combination": ("budget", ["combine", "FILE", "--json", "OUT.json"]),
+    "inductosyn scenario": ("budget", ["inductosyn", "validate", "FILE", "--trials", "2", "--workers", "1",
+                                               "--json", "OUT.json"]),
+    "budget combination": ("budget", ["starcam", "combine", "FILE", "--json", "OUT.json"]),
     "sweep file": ("budget", ["sweep", "FILE", "--out", "OUT", "--no-progress"]),
     "lens prescription": ("simcam", ["optics", "FILE", "--out", "OUT"]),
 }
@@ -195,7 +196,7 @@ def test_fuzz_bytes_to_polygon_csv(payload):
 
     with tempfile.TemporaryDirectory() as d:
         _fuzz_file(Path(d), "polygon.csv", payload, "budget",
-                   ["harmonics", "fit", "FILE", "--period", "short", "--json", "OUT.json"], reader="polygon")
+                   ["inductosyn", "fit", "FILE", "--period", "short", "--json", "OUT.json"], reader="polygon")
 
 
 @FUZZ
@@ -206,7 +207,7 @@ def test_fuzz_structures_to_polygon_csv(rows, header):
 
     with tempfile.TemporaryDirectory() as d:  # a table the reader accepts is not bad input: skipped
         _fuzz_file(Path(d), "polygon.csv", _csv([header, *rows]), "budget",
-                   ["harmonics", "fit", "FILE", "--period", "short", "--json", "OUT.json"], reader="polygon")
+                   ["inductosyn", "fit", "FILE", "--period", "short", "--json", "OUT.json"], reader="polygon")
 
 
 @FUZZ
@@ -216,7 +217,7 @@ def test_fuzz_bytes_to_manifest(payload):
 
     with tempfile.TemporaryDirectory() as d:
         # the manifest is DIR/manifest.csv: any message about it or its frames names DIR
-        _fuzz_file(Path(d), "manifest.csv", payload, "budget", ["measure", "te", "DIR", "--json", "OUT.json",
+        _fuzz_file(Path(d), "manifest.csv", payload, "budget", ["starcam", "measure", "te", "DIR", "--json", "OUT.json",
                                                                  "--no-progress"], named=d)
 
 
@@ -229,7 +230,7 @@ def test_fuzz_structures_to_manifest(cols, rows):
 
     with tempfile.TemporaryDirectory() as d:
         _fuzz_file(Path(d), "manifest.csv", _csv([cols, *[r[:len(cols)] for r in rows]]), "budget",
-                   ["measure", "te", "DIR", "--json", "OUT.json", "--no-progress"], named=d)
+                   ["starcam", "measure", "te", "DIR", "--json", "OUT.json", "--no-progress"], named=d)
 
 
 def _good_fits() -> bytes:
@@ -274,7 +275,7 @@ def test_fuzz_fits_frames(payload, cut, flip, kind):
             assume(False)
         except UserInputError:
             pass
-        _fuzz_file(Path(d), "f0.fits", payload, "budget", ["measure", "te", "DIR", "--json", "OUT.json",
+        _fuzz_file(Path(d), "f0.fits", payload, "budget", ["starcam", "measure", "te", "DIR", "--json", "OUT.json",
                                                            "--no-progress"], named=str(Path(d) / "f0.fits"))
 
 
@@ -296,17 +297,17 @@ def test_issue_cases_are_one_line_naming_file_and_field(tmp_path):
     assert code == 2 and "--trials 1000000000000" in err and "of memory" in err and len(err.splitlines()) == 1
     csv = tmp_path / "big.csv"
     csv.write_text("angle_deg,error_arcsec\n0,1\n15,1e308\n30,2\n")
-    code, err = _cli("budget", ["harmonics", "fit", str(csv), "--period", "short"])
+    code, err = _cli("budget", ["inductosyn", "fit", str(csv), "--period", "short"])
     assert code == 2 and f"{csv}:3: out of range" in err
     csv.write_text("angle_deg,error_arcsec\n0,1\n15,2\n375,3\n")
-    code, err = _cli("budget", ["harmonics", "fit", str(csv), "--period", "short"])
+    code, err = _cli("budget", ["inductosyn", "fit", str(csv), "--period", "short"])
     assert code == 2 and f"{csv}:4: duplicated angle: angle_deg 375 repeats line 3's 15" in err
 
 
 def test_sweep_of_a_billion_values_is_refused_before_expanding(tmp_path):
     (tmp_path / "tiny.toml").write_text(TINY)
     p = tmp_path / "big.toml"
-    p.write_text('base = "tiny.toml"\nseed = 1\nevaluate = "truth"\n[parameters]\n'
+    p.write_text('kind = "starcam"\nbase = "tiny.toml"\nseed = 1\nevaluate = "truth"\n[parameters]\n'
                  '"lab.source.match_v_mag" = {start = 6.0, stop = 8.0, num = 1000000000}\n')
     code, err = _cli("budget", ["sweep", str(p), "--out", str(tmp_path / "s"), "--no-progress"])
     # the message names the count of points: refused from the count, before any value is made
@@ -326,14 +327,14 @@ def test_manifest_entries_stay_in_the_dataset_folder(tmp_path):
     d = tmp_path / "data"
     d.mkdir()
     (d / "manifest.csv").write_text("file,condition\n../outside.fits,0\nf1.fits,0\n")
-    code, err = _cli("budget", ["measure", "te", str(d), "--no-progress"])
+    code, err = _cli("budget", ["starcam", "measure", "te", str(d), "--no-progress"])
     assert code == 2 and "row 2: file '../outside.fits' is outside the dataset folder" in err
     assert "--allow-outside-files" in err
     (d / "manifest.csv").write_text(f"file,condition\n{tmp_path / 'abs.fits'},0\nf1.fits,0\n")
-    code, err = _cli("budget", ["measure", "te", str(d), "--no-progress"])
+    code, err = _cli("budget", ["starcam", "measure", "te", str(d), "--no-progress"])
     assert code == 2 and "outside the dataset folder" in err
     # allowed explicitly: the entry is read (and here reported missing, by its path)
-    code, err = _cli("budget", ["measure", "te", str(d), "--no-progress", "--allow-outside-files"])
+    code, err = _cli("budget", ["starcam", "measure", "te", str(d), "--no-progress", "--allow-outside-files"])
     assert code == 2 and f"{tmp_path / 'abs.fits'}: frame file not found" in err
 
 
@@ -363,7 +364,7 @@ def test_compressed_frames_round_trip_exactly_and_are_measured(tmp_path):
 
     (tmp_path / "tiny.toml").write_text(TINY)
     for tag, extra in (("plain", []), ("rice", ["--compress"])):
-        code, err = _cli("budget", ["simulate", "te", str(tmp_path / "tiny.toml"), "--frames", "3",
+        code, err = _cli("budget", ["starcam", "simulate", "te", str(tmp_path / "tiny.toml"), "--frames", "3",
                                     "--out", str(tmp_path / tag), "--no-progress", *extra])
         assert code == 0, err
     names = sorted(p.name for p in (tmp_path / "plain").glob("*.fits"))
@@ -466,8 +467,8 @@ def test_render_interrupted_leaves_no_partial_output(tmp_path, sig):
 def test_simulate_sigterm_leaves_no_partial_output(tmp_path):
     (tmp_path / "tiny.toml").write_text(TINY)
     log = tmp_path / "err.txt"
-    proc = _start(["budget", "simulate", "hsfe", "tiny.toml", "--frames", "300", "--out", "lab", "--no-progress"],
-                  tmp_path, log)
+    proc = _start(["budget", "starcam", "simulate", "hsfe", "tiny.toml", "--frames", "300", "--out", "lab",
+                   "--no-progress"], tmp_path, log)
     _wait_for(lambda: any(len(list(p.iterdir())) >= 2 for p in tmp_path.glob(".lab.partial.*")), 180, proc,
               "two frames written")
     rc = _stop(proc, signal.SIGTERM)
@@ -497,6 +498,7 @@ def test_validate_sigterm_ends_its_workers(tmp_path):
 #: four truth-mode points of the tiny camera (as in tests/test_sweep_run.py, smaller)
 GRID = """
     name = "tiny grid"
+    kind = "starcam"
     base = "tiny.toml"
     seed = 11
     evaluate = "truth"

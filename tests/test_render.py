@@ -7,7 +7,7 @@ import pytest
 from scipy.special import erf
 
 from simcam.starcam.render import Placement, RenderError, StarCamera
-from simcam.starcam.scenario import default_scenario, with_updates
+from simcam.starcam.scenario import default, with_updates
 from simcam.starcam.targets import star_grid
 
 
@@ -27,7 +27,7 @@ def _cog(img, col0, row0):
 
 @pytest.fixture(scope="module")
 def camera():
-    return StarCamera(default_scenario())
+    return StarCamera(default())
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_windows_equal_full_frame_pixels(camera, scene):
 
 
 def test_noise_free_centroid_equals_truth_over_full_stamp():
-    scn = _quiet(default_scenario())
+    scn = _quiet(default())
     cam = StarCamera(scn)
     sc = cam.scene(Placement(layout=star_grid(scn)))
     # The whole stamp holds the whole image, so its centre of gravity differs from the true
@@ -64,7 +64,7 @@ def test_noise_free_centroid_equals_truth_over_full_stamp():
         assert abs(x + sc.chip[j] * k - sc.truth.x_true[j]) < tol
         assert abs(y - sc.truth.y_true[j]) < tol
     # with a wide PSF the sampling error vanishes: then the CoG is the truth to rounding
-    scn2 = _quiet(default_scenario(), **{"optics.psf.sigma0_px": 1.6})
+    scn2 = _quiet(default(), **{"optics.psf.sigma0_px": 1.6})
     cam2 = StarCamera(scn2)
     sc2 = cam2.scene(Placement(layout=star_grid(scn2)))
     for j in range(sc2.n_stars):
@@ -75,7 +75,7 @@ def test_noise_free_centroid_equals_truth_over_full_stamp():
 
 def test_noise_free_window_centroid_matches_analytic_truncation():
     """Gaussian PSF, point pinhole, no colour: the 11x11 window CoG against erf pixel integrals."""
-    scn = _quiet(default_scenario(), **{
+    scn = _quiet(default(), **{
         "lab.target.pinhole_diameter_um": 0.0,
         "optics.lateral_colour.radial_px_per_nm": [], "optics.lateral_colour.uniform_x_px_per_nm": [],
         "optics.lateral_colour.uniform_y_px_per_nm": [], "optics.psf.sigma_r2_px": 0.0,
@@ -116,14 +116,14 @@ def test_truth_components_add_up(camera, scene):
 
 def test_pixel_mean_and_variance_match_the_noise_model():
     """Per-pixel mean and variance over frames against gain, shot, read and quantisation noise."""
-    scn = with_updates(default_scenario(), {"detector.background_e_per_s": 500.0})
+    scn = with_updates(default(), {"detector.background_e_per_s": 500.0})
     cam = StarCamera(scn)
     sc = cam.scene(Placement(layout=star_grid(scn)))
     n = 400
     win = cam.render_windows(sc, frames=n, seed=11)
     pix = win.pixels[:, 0].astype(float)  # star 0's window, (n, 11, 11)
     # expected electrons per pixel with this detector's own PRNU/DSNU maps
-    from simcam.starcam.detector import dsnu_map, prnu_map
+    from simcam.detector import dsnu_map, prnu_map
 
     sig, col0, row0 = cam.expected_windows_e(sc)
     shape = sig.shape[1:]
@@ -144,23 +144,23 @@ def test_pixel_mean_and_variance_match_the_noise_model():
 
 
 def test_star_off_detector_is_a_named_error():
-    scn = with_updates(default_scenario(), {"lab.target_center_px": [0.0, 0.0]})  # on the chip gap
+    scn = with_updates(default(), {"lab.target_center_px": [0.0, 0.0]})  # on the chip gap
     cam = StarCamera(scn)
     with pytest.raises(RenderError, match=r"star \d+ at focal .* off the detector"):
         cam.scene(Placement(layout=star_grid(scn), label="gap"))
-    scn = with_updates(default_scenario(), {"lab.target_center_px": [-1024.0, 1000.0]})
+    scn = with_updates(default(), {"lab.target_center_px": [-1024.0, 1000.0]})
     with pytest.raises(RenderError, match="off the detector"):
         StarCamera(scn).scene(Placement(layout=star_grid(scn)))
 
 
 def test_same_seed_same_pixels_and_detector_seed_changes_maps(scene):
-    a = StarCamera(default_scenario())
-    b = StarCamera(default_scenario())
+    a = StarCamera(default())
+    b = StarCamera(default())
     sa = a.scene(scene.placement)
     wa = a.render_windows(sa, frames=2, seed=5)
     wb = b.render_windows(b.scene(scene.placement), frames=2, seed=5)
     np.testing.assert_array_equal(wa.pixels, wb.pixels)
-    c = StarCamera(default_scenario(), detector_seed=99)
+    c = StarCamera(default(), detector_seed=99)
     wc = c.render_windows(c.scene(scene.placement), frames=2, seed=5)
     assert np.any(wc.pixels != wa.pixels)
 
@@ -173,7 +173,7 @@ def test_scene_cache_reuses_images_when_only_the_reference_changes():
 
     from simcam.starcam.targets import calibration_grid
 
-    scn = default_scenario()
+    scn = default()
     a, b = calibration_grid(scn, marker_seed=1), calibration_grid(scn, marker_seed=2)
     assert np.array_equal(a.u_px, b.u_px) and not np.array_equal(a.reference_u_px, b.reference_u_px)
     cam = StarCamera(scn)

@@ -1,6 +1,7 @@
 """The study runner (budget.runner) on a study with analytic answers (tests/toy_study.py)."""
 
 import json
+import os
 import math
 
 import numpy as np
@@ -115,3 +116,42 @@ def test_aux_kept_for_every_trial_in_order_and_details_in_the_json(workers):
     assert payload["details"] == {"mean_trial_number": 12.0}  # mean of 0..24, exact in binary
     assert res.details() is res.details()
     assert run_study(STUDY, Toy(), trials=3, seed=3).to_json()["details"] == {}
+
+
+#: numba's thread count when the study's own worker_init ran (in that worker process)
+_THREADS_AT_INIT: list[int] = []
+
+
+class _ThreadsToy(type(STUDY)):
+    """The toy study reporting, per trial, the numba threads of the thread that runs it
+    and those it had when the study's own worker set-up ran."""
+
+    def worker_init(self):
+        import numba
+
+        _THREADS_AT_INIT.append(numba.get_num_threads())
+
+    def trial(self, scenario, seed, k):
+        import os
+
+        import numba
+
+        r = super().trial(scenario, seed, k)
+        r.aux.update(numba_threads=float(numba.get_num_threads()), pid=float(os.getpid()),
+                     threads_at_init=float(_THREADS_AT_INIT[-1]) if _THREADS_AT_INIT else -1.0)
+        return r
+
+
+@pytest.mark.parametrize("where", [{"workers": 2}, {"workers": None, "dask_local": 1}], ids=["processes", "dask"])
+def test_every_worker_the_runner_starts_has_one_numba_thread(where):
+    """The runner owns the worker set-up (issue 21): one numba thread in every worker it
+    starts, local process or Dask worker, already when the study's own worker_init runs;
+    a study sets nothing itself (the toy's worker_init only records)."""
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core: numba's default is already one thread, nothing to tell apart")
+    res = run_study(_ThreadsToy(), Toy(), trials=12, seed=1, **where)
+    assert set(res.aux["numba_threads"]) == {1.0}
+    assert set(res.aux["threads_at_init"]) == {1.0}
+    assert os.getpid() not in set(res.aux["pid"])  # run in workers, not here

@@ -13,7 +13,7 @@ from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, publi
 from budget.scanmirror.pipeline import ARCSEC, Setup, run
 from simcam.config_base import ScenarioError
 from simcam.scanmirror.geometry import attitude_matrix_br, line_of_sight_body, rot_x, rot_y, rotvec_matrix
-from simcam.scanmirror.scenario import default_text, scenario_from_dict
+from simcam.scanmirror.scenario import default_text, from_dict
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
 from simcam.scanmirror.world import World
 
@@ -28,7 +28,7 @@ def _default(**changes):
         for k in head:
             node = node[k]
         node[last] = value
-    return scenario_from_dict(data, source="test.toml")
+    return from_dict(data, source="test.toml")
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +166,7 @@ def test_error_scan_leaves_earth_disc():
     seg = copy.deepcopy(data["scan_plan"]["segments"][1])
     seg["line_deg"] = 12.0
     data["scan_plan"]["segments"][1] = seg
-    sc = scenario_from_dict(data, source="test.toml")
+    sc = from_dict(data, source="test.toml")
     with pytest.raises(ScenarioError, match=r"test.toml: scan_plan.segments: area scan 1 leaves the Earth disc"):
         Setup(sc, 1.0, source="test.toml")
 
@@ -183,7 +183,7 @@ def test_unknown_key_is_named():
     data = tomllib.loads(default_text())
     data["mirror"]["tilt"] = 1.0
     with pytest.raises(ScenarioError, match=r"mirror.tilt: unknown key"):
-        scenario_from_dict(data, source="test.toml")
+        from_dict(data, source="test.toml")
 
 
 def test_profile_attitude_mode_runs_through_the_pipeline():

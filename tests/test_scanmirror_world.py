@@ -14,7 +14,7 @@ from simcam.scanmirror.geometry import line_of_sight_body
 from simcam.scanmirror.orbit import (EarthModel, elements_to_state, first_order_orbit_error_matrix,
                                      orbit_angles, orbit_error_parameters, exact_orbit_error_matrix, propagate,
                                      state_to_elements, zonal_acceleration)
-from simcam.scanmirror.scenario import default_text, scenario_from_dict
+from simcam.scanmirror.scenario import default_text, from_dict
 from simcam.scanmirror.world import World
 
 DEG = np.pi / 180
@@ -22,7 +22,7 @@ DEG = np.pi / 180
 
 @pytest.fixture(scope="module")
 def world():
-    return World(scenario_from_dict(tomllib.loads(default_text()), source="default"))
+    return World(from_dict(tomllib.loads(default_text()), source="default"))
 
 
 def _angle(u, v):
@@ -243,7 +243,7 @@ def test_ellipsoid_option_agrees_with_proj_geos():
     pyproj = pytest.importorskip("pyproj")
     data = tomllib.loads(default_text())
     data["orbit"]["earth_shape"] = "ellipsoid"
-    w = World(scenario_from_dict(data, source="default"))
+    w = World(from_dict(data, source="default"))
     a_m = w.earth.radius_km * 1e3
     h = (w.R0_km - w.earth.radius_km) * 1e3
     proj = pyproj.Proj(f"+proj=geos +h={h} +lon_0=105 +sweep=x +a={a_m} +rf={1 / w.earth.flattening} +units=m +no_defs")

@@ -10,16 +10,16 @@ from simcam.config_base import ScenarioError
 from simcam.starcam.scenario import (
     ARCSEC_PER_RAD,
     Scenario,
-    default_scenario,
-    load_scenario,
-    scenario_from_dict,
+    default,
+    load,
+    from_dict,
     scenario_to_toml,
     with_updates,
 )
 
 
 def test_default_is_seed000_camera_and_lab():
-    scn = default_scenario()
+    scn = default()
     assert scn == Scenario()
     assert scn.camera.scale_arcsec_per_px == 5.5
     assert scn.detector.n_chips == 2 and scn.detector.mosaic_shape == (2048, 4096)
@@ -32,17 +32,17 @@ def test_default_is_seed000_camera_and_lab():
 
 
 def test_toml_round_trip_is_identity(tmp_path):
-    scn = default_scenario()
+    scn = default()
     text = scenario_to_toml(scn)
     path = tmp_path / "s.toml"
     path.write_text(text)
-    back = load_scenario(path)
+    back = load(path)
     assert back == scn
     assert back.hash == scn.hash
 
 
 def test_hash_changes_with_content():
-    scn = default_scenario()
+    scn = default()
     other = with_updates(scn, {"detector.prnu_rms": 0.02})
     assert other.hash != scn.hash
 
@@ -50,10 +50,10 @@ def test_hash_changes_with_content():
 def test_focal_length_and_plate_scale_agree():
     # plate scale = pitch / f: 5.5 um / 206.2648 mm = 5.5 arcsec exactly when f = pitch * ARCSEC_PER_RAD / s
     f_mm = 5.5e-3 * ARCSEC_PER_RAD / 5.5
-    scn = scenario_from_dict({"camera": {"focal_length_mm": f_mm}})
+    scn = from_dict({"camera": {"focal_length_mm": f_mm}})
     assert scn.camera.scale_arcsec_per_px == pytest.approx(5.5, rel=1e-12)
     with pytest.raises(ScenarioError, match="camera: .*contradicts"):
-        scenario_from_dict({"camera": {"plate_scale_arcsec": 5.0, "focal_length_mm": f_mm}})
+        from_dict({"camera": {"plate_scale_arcsec": 5.0, "focal_length_mm": f_mm}})
 
 
 @pytest.mark.parametrize(
@@ -80,26 +80,26 @@ def test_focal_length_and_plate_scale_agree():
 )
 def test_bad_scenarios_name_the_field(data, pattern):
     with pytest.raises(ScenarioError, match=pattern):
-        scenario_from_dict(data, source="bad.toml")
+        from_dict(data, source="bad.toml")
 
 
 def test_error_names_the_file(tmp_path):
     p = tmp_path / "broken.toml"
     p.write_text("[camera]\nexposure_s = -2.0\n")
     with pytest.raises(ScenarioError, match=r"broken\.toml: camera\.exposure_s"):
-        load_scenario(p)
+        load(p)
     p.write_text("[camera\n")
     with pytest.raises(ScenarioError, match=r"broken\.toml: not valid TOML"):
-        load_scenario(p)
+        load(p)
     with pytest.raises(ScenarioError, match="not found"):
-        load_scenario(tmp_path / "missing.toml")
+        load(tmp_path / "missing.toml")
 
 
 def test_with_updates_rejects_unknown_dotted_key():
     with pytest.raises(ScenarioError, match="unknown key 'read_noise'"):
-        with_updates(default_scenario(), {"detector.read_noise": 1.0})
+        with_updates(default(), {"detector.read_noise": 1.0})
 
 
 def test_printed_toml_parses():
-    data = tomllib.loads(scenario_to_toml(default_scenario()))
+    data = tomllib.loads(scenario_to_toml(default()))
     assert data["camera"]["plate_scale_arcsec"] == 5.5

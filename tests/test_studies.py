@@ -22,9 +22,9 @@ def test_starcam_study_equals_its_trials_and_truths():
     import tomllib
 
     from budget.starcam.validate import run_trial, truths
-    from simcam.starcam.scenario import scenario_from_dict
+    from simcam.starcam.scenario import from_dict
 
-    scn = scenario_from_dict(tomllib.loads(TINY), source="tiny")
+    scn = from_dict(tomllib.loads(TINY), source="tiny")
     study = get_study("starcam")
     res = run_study(study, scn, trials=3, seed=5, workers=1)
     f = 3.0 * scn.camera.scale_arcsec_per_px
@@ -39,9 +39,9 @@ def test_starcam_study_equals_its_trials_and_truths():
 
 def test_inductosyn_study_equals_harmonics_validate():
     from budget.inductosyn.validate import prepare, run_trials
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    scn = default_scenario()
+    scn = default()
     study = get_study("inductosyn")
     res = run_study(study, scn, trials=30, seed=2, workers=1)
     ref = run_trials(prepared=prepare(scenario=scn, dense_step_deg=scn.validation.dense_step_deg),
@@ -67,11 +67,11 @@ def test_starcam_truths_spread_over_workers_are_the_same(new_maps):
     import tomllib
 
     from budget.starcam.validate import truths
-    from simcam.starcam.scenario import scenario_from_dict
+    from simcam.starcam.scenario import from_dict
 
     data = tomllib.loads(TINY)
     data["validation"]["new_maps_per_trial"] = new_maps
-    scn = scenario_from_dict(data, source="tiny")
+    scn = from_dict(data, source="tiny")
     study = get_study("starcam")
     res = run_study(study, scn, trials=2, seed=4, workers=2)
     whole = study._contract_truths(scn, truths(scn, seed=4))

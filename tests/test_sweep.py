@@ -72,6 +72,7 @@ def test_bad_values_are_named(spec, needle):
 def test_product_and_zip_grids_and_dimensions(tmp_path):
     sw = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         evaluate = "truth"
         [parameters]
@@ -91,6 +92,7 @@ def test_product_and_zip_grids_and_dimensions(tmp_path):
 
     z = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         mode = "zip"
         [parameters]
@@ -105,6 +107,7 @@ def test_product_and_zip_grids_and_dimensions(tmp_path):
 def test_zip_needs_equal_lengths(tmp_path):
     msg = _err(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         mode = "zip"
         [parameters]
@@ -117,6 +120,7 @@ def test_zip_needs_equal_lengths(tmp_path):
 def test_index_and_wildcard_keys_reach_list_elements(tmp_path):
     sw = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         evaluate = "truth"
         [fixed]
@@ -135,6 +139,7 @@ def test_index_and_wildcard_keys_reach_list_elements(tmp_path):
 def test_unknown_dotted_key_is_named_with_the_known_keys(tmp_path):
     msg = _err(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         [parameters]
         "detector.read_noise" = [1.0, 2.0]
@@ -145,6 +150,7 @@ def test_unknown_dotted_key_is_named_with_the_known_keys(tmp_path):
 
 def test_unknown_setting_of_the_sweep_file_is_named(tmp_path):
     msg = _err(tmp_path, """
+        kind = "starcam"
         seed = 1
         trails = 20
         [parameters]
@@ -156,6 +162,7 @@ def test_unknown_setting_of_the_sweep_file_is_named(tmp_path):
 def test_value_the_scenario_rejects_names_point_key_and_reason(tmp_path):
     msg = _err(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         [parameters]
         "detector.prnu_rms" = [0.01, -0.1]
@@ -167,6 +174,7 @@ def test_value_the_scenario_rejects_names_point_key_and_reason(tmp_path):
 def test_int_field_given_a_float_is_rejected(tmp_path):
     msg = _err(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         [parameters]
         "protocols.te.frames" = {start = 10, stop = 20, num = 4}
@@ -177,6 +185,7 @@ def test_int_field_given_a_float_is_rejected(tmp_path):
 def test_star_off_the_detector_is_rejected_before_any_work(tmp_path):
     msg = _err(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         [parameters]
         "lab.target_center_px.0" = [-133.0, -600.0]
@@ -196,29 +205,39 @@ def test_polygon_that_cannot_separate_the_harmonics_is_rejected(tmp_path):
     assert "point 1 (calibration.short_polygon.faces = 24)" in msg and "cannot separate" in msg
 
 
+K = 'kind = "starcam"\n'
+
+
 @pytest.mark.parametrize("body, needle", [
-    ('seed = 1\nevaluate = "truth"\ntrials = 5\n[parameters]\n"camera.exposure_s" = [0.1]', "validate' only"),
-    ('seed = 1\ntrials = 5\ntolerance_3sigma_arcsec = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
-     "give one of them"),
-    ('seed = 1\nkind = "nosuchstudy"\n[parameters]\n"camera.exposure_s" = [0.1]', "unknown study 'nosuchstudy'"),
+    (K + 'seed = 1\nevaluate = "truth"\ntrials = 5\n[parameters]\n"camera.exposure_s" = [0.1]', "validate' only"),
+    (K + 'seed = 1\ntrials = 5\ntolerance = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]', "give one of them"),
+    # no default study, and no former names: one line saying what to write
+    ('seed = 1\n[parameters]\n"camera.exposure_s" = [0.1]', "kind: required, the registered study the sweep runs"),
+    ('seed = 1\nkind = "camera"\n[parameters]\n"camera.exposure_s" = [0.1]',
+     "kind = 'camera' is a former name: write kind = 'starcam'"),
+    ('seed = 1\nkind = "nosuchstudy"\n[parameters]\n"camera.exposure_s" = [0.1]',
+     "kind: 'nosuchstudy' is not a registered study (starcam, inductosyn"),
+    (K + 'seed = 1\ntolerance_3sigma_arcsec = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
+     "tolerance_3sigma_arcsec: no longer a sweep setting; write tolerance"),
     (('seed = 1\nkind = "inductosyn"\nevaluate = "truth"\n[parameters]\n'
       '"calibration.short_polygon.faces" = [23]'), "not available for inductosyn"),
-    ('seed = 1\ndense_step_deg = 0.01\n[parameters]\n"camera.exposure_s" = [0.1]',
-     "dense_step_deg: 'validation.dense_step_deg': unknown key 'dense_step_deg' at validation"),
-    ('seed = 1', "nothing to do"),
-    ('seed = 1\n[fixed]\n"camera.exposure" = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
+    (('seed = 1\nkind = "inductosyn"\ndense_step_deg = 0.01\n[parameters]\n'
+      '"calibration.short_polygon.faces" = [23]'),
+     'dense_step_deg: no longer a sweep setting; write [fixed] "validation.dense_step_deg"'),
+    (K + 'seed = 1', "nothing to do"),
+    (K + 'seed = 1\n[fixed]\n"camera.exposure" = 0.1\n[parameters]\n"camera.exposure_s" = [0.1]',
      "fixed: 'camera.exposure': unknown key 'exposure' at camera"),
-    ('seed = 1\n[fixed]\n"detector.n_chips" = 3\n[parameters]\n"camera.exposure_s" = [0.1]',
+    (K + 'seed = 1\n[fixed]\n"detector.n_chips" = 3\n[parameters]\n"camera.exposure_s" = [0.1]',
      "chips lists 2 chip(s) but n_chips = 3"),
-    ('[parameters]\n"camera.exposure_s" = [0.1]', "seed: Field required"),
-    ('seed = 1\nbase = "missing.toml"\n[parameters]\n"camera.exposure_s" = [0.1]', "scenario file not found"),
+    (K + '[parameters]\n"camera.exposure_s" = [0.1]', "seed: Field required"),
+    (K + 'seed = 1\nbase = "missing.toml"\n[parameters]\n"camera.exposure_s" = [0.1]', "scenario file not found"),
 ])
 def test_bad_settings(tmp_path, body, needle):
     assert needle in _err(tmp_path, body)
 
 
 def test_sensitivity_settings_and_samples_are_checked(tmp_path):
-    head = 'base = "tiny.toml"\nseed = 1\n[sensitivity]\n'
+    head = K + 'base = "tiny.toml"\nseed = 1\n[sensitivity]\n'
     assert "power of 2" in _err(tmp_path, head + 'samples = 6\n[sensitivity.parameters]\n'
                                 '"detector.prnu_rms" = {dist = "uniform", low = 0.0, high = 0.02}\n')
     assert "uniform needs low, high (missing high)" in _err(
@@ -238,6 +257,7 @@ def test_sensitivity_settings_and_samples_are_checked(tmp_path):
 def test_point_seed_depends_only_on_sweep_seed_and_point_values(tmp_path):
     a = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 7
         evaluate = "truth"
         [parameters]
@@ -247,6 +267,7 @@ def test_point_seed_depends_only_on_sweep_seed_and_point_values(tmp_path):
     # another grid, other order of keys and points, 7 written as an integer: same point, same seed
     b = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 7
         evaluate = "truth"
         [parameters]
@@ -268,6 +289,7 @@ def test_point_seed_depends_only_on_sweep_seed_and_point_values(tmp_path):
 def test_hash_ignores_layout_but_not_content(tmp_path):
     body = """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 1
         evaluate = "truth"
         [parameters]
@@ -292,6 +314,7 @@ def test_sobol_samples_follow_their_distributions(tmp_path):
     of a (scrambled, so unbiased) Sobol sequence: the plain-MC standard error bounds it)."""
     sw = load_sweep(_write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 2
         [sensitivity]
         samples = 16

@@ -86,7 +86,7 @@ def test_example_sweep_gives_the_same_store_inline_and_on_two_processes(case, tm
         # seed 001: 2 face counts x 8 simulated calibrations, a coarse truth grid
         path = _tiny_example("polygon_faces.toml", tmp_path,
                              keep={"calibration.short_polygon.faces": 2},
-                             set_={"trials": 8, "dense_step_deg": 0.05})
+                             set_={"trials": 8}, fixed={"validation.dense_step_deg": 0.05})
     else:
         # seed 000 on the tiny camera: 2 magnitudes x 1 exposure, 2 trials each
         path = _tiny_example("te_magnitude_exposure.toml", tmp_path,
@@ -107,7 +107,7 @@ def test_store_carries_each_class_unit_and_plots_only_classes_on_the_axis(tmp_pa
     from budget.sweeps.plot import _classes_on, plot_store
 
     path = _tiny_example("polygon_faces.toml", tmp_path, keep={"calibration.short_polygon.faces": 2},
-                         set_={"trials": 4, "dense_step_deg": 0.05})
+                         set_={"trials": 4}, fixed={"validation.dense_step_deg": 0.05})
     run_sweep(path, tmp_path / "store", inline=True)
     ds = open_sweep(tmp_path / "store")
     study = study_for_kind("inductosyn")

@@ -29,6 +29,7 @@ from tiny_camera import TINY
 GRID = """
     name = "tiny grid"
     base = "tiny.toml"
+    kind = "starcam"
     seed = 11
     evaluate = "truth"
     [parameters]
@@ -124,6 +125,7 @@ def test_dask_local_cluster_started_by_the_command_gives_the_same_store(grid, tm
 ZIP = """
     name = "tiny frames"
     base = "tiny.toml"
+    kind = "starcam"
     seed = 4
     mode = "zip"
     trials = 3
@@ -255,7 +257,8 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
         kind = "inductosyn"
         seed = 3
         trials = 20
-        dense_step_deg = 0.02
+        [fixed]
+        "validation.dense_step_deg" = 0.02
         [parameters]
         "calibration.short_polygon.faces" = [19, 23]
         [sensitivity]
@@ -269,7 +272,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
     ds = open_sweep(tmp_path / "i")
     assert list(ds["class"].values) == ["before", "residual", "coefficient"]
     p = load_sweep(path).points[1]
-    assert p.scenario.validation.dense_step_deg == 0.02  # the sweep's shorthand, set as given
+    assert p.scenario.validation.dense_step_deg == 0.02  # [fixed], set as given
     s = run_study(STUDY, p.scenario, trials=20, seed=p.seed, workers=1).details()
     d = ds.sel({"calibration.short_polygon.faces": 23, "axis": "angle"})
     # the sweep store holds what a direct run of the study gives: its statistics equal the
@@ -312,6 +315,7 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
     (SALib's conf is 1.96 of them at 95 %)."""
     path = _write(tmp_path, """
         base = "tiny.toml"
+        kind = "starcam"
         seed = 5
         [sensitivity]
         samples = 8

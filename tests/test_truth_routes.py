@@ -17,7 +17,7 @@ import budget.starcam.protocols as P
 from budget.starcam import truth as T
 from simcam import spectra
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import scenario_from_dict
+from simcam.starcam.scenario import from_dict
 import tomllib
 
 from tiny_camera import TINY
@@ -36,7 +36,7 @@ def _forbid(monkeypatch):
 
 @pytest.fixture(scope="module")
 def cam():
-    return StarCamera(scenario_from_dict(tomllib.loads(TINY)))
+    return StarCamera(from_dict(tomllib.loads(TINY)))
 
 
 @pytest.mark.parametrize("cls", ["te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2"])
@@ -70,7 +70,7 @@ def test_lsfe_s_truth_for_uniform_linear_colour_is_c_times_the_population_sd():
     lambda_ref), so about the population mean the rms is |c| sd(lambda_bar) (ddof 0) at every
     field point. The render grid (10 nm) against the 1 nm quadrature differ by < 0.5 %."""
     c = 6e-4
-    scn = scenario_from_dict({"optics": {"lateral_colour": {"radial_px_per_nm": [], "uniform_x_px_per_nm": [c],
+    scn = from_dict({"optics": {"lateral_colour": {"radial_px_per_nm": [], "uniform_x_px_per_nm": [c],
                                                              "uniform_y_px_per_nm": []}}})
     t = T.lsfe_s_truth(StarCamera(scn))
     lam = np.array([_mean_wavelength_nm(st, scn) for st in scn.validation.lsfe_spectral_types])
@@ -84,23 +84,23 @@ def test_lab_knowledge_is_the_lab_s_not_the_simulator_s():
     (the QE peak moved by 20 nm and Teff by 3 % shift the mean wavelengths by nm)."""
     zero = {"qe_peak_nm_error": 0.0, "filter_center_nm_error": 0.0, "filter_width_nm_error": 0.0,
             "lamp_temperature_k_error": 0.0, "star_teff_fraction_error": 0.0}
-    exact = scenario_from_dict({"lab": {"knowledge": zero}})
+    exact = from_dict({"lab": {"knowledge": zero}})
     d0 = P.spectral_design(exact)
     lam = np.array([_mean_wavelength_nm(st, exact) for st in exact.validation.lsfe_spectral_types])
     np.testing.assert_allclose(d0["star_wavelengths_nm"], lam, rtol=5e-3)
     assert d0["calibration_wavelength_nm"] == pytest.approx(np.mean(d0["star_wavelengths_nm"]), rel=1e-12)
-    d1 = P.spectral_design(scenario_from_dict({}))
+    d1 = P.spectral_design(from_dict({}))
     assert np.max(np.abs(np.array(d1["star_wavelengths_nm"]) - d0["star_wavelengths_nm"])) > 1.0
 
 
 def test_embedded_noisy_scenario_is_the_default_with_the_seed_s_noise():
     """`embedded:seed000_noisy` is the default camera and lab with three noise values
     changed (source V, PRNU, DSNU); an unknown embedded name is a scenario error."""
-    from simcam.starcam.scenario import ScenarioError, default_scenario, load_scenario
+    from simcam.starcam.scenario import ScenarioError, default, load
 
-    noisy = load_scenario("embedded:seed000_noisy")
-    base = default_scenario()
-    assert load_scenario("embedded:default") == base
+    noisy = load("embedded:seed000_noisy")
+    base = default()
+    assert load("embedded:default") == base
     assert noisy.lab.source.match_v_mag > base.lab.source.match_v_mag
     assert noisy.detector.prnu_rms > base.detector.prnu_rms and noisy.detector.dsnu_rms_e > base.detector.dsnu_rms_e
     a = noisy.model_dump(mode="json")
@@ -112,4 +112,4 @@ def test_embedded_noisy_scenario_is_the_default_with_the_seed_s_noise():
     a["lab"]["source"].pop("match_v_mag"), b["lab"]["source"].pop("match_v_mag")
     assert a == b
     with pytest.raises(ScenarioError, match="no embedded scenario 'nope'"):
-        load_scenario("embedded:nope")
+        load("embedded:nope")

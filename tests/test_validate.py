@@ -20,7 +20,7 @@ from budget.runner.run import run_study
 from budget.starcam.study import STUDY
 from budget.starcam.validate import run_trial
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import default_scenario, scenario_from_dict
+from simcam.starcam.scenario import default, from_dict
 
 BASE = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
@@ -42,16 +42,16 @@ NO_OPTICS = {
 }
 
 
-def validate(scn, *, trials=None, tolerance_3sigma_arcsec=None, seed=0, workers=1):
+def validate(scn, *, trials=None, tolerance=None, seed=0, workers=1):
     """The seed-000 study through the one runner (values in arcsec, 3 sigma)."""
-    return run_study(STUDY, scn, trials=trials, tolerance=tolerance_3sigma_arcsec, seed=seed, workers=workers)
+    return run_study(STUDY, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers)
 
 
 def _scn(**sections):
     data = json.loads(json.dumps(BASE))
     for sec, val in sections.items():
         data.setdefault(sec, {}).update(val)
-    return scenario_from_dict(data)
+    return from_dict(data)
 
 
 @pytest.fixture(scope="module")
@@ -194,14 +194,14 @@ def test_predictive_interval_coverage_within_binomial_limits():
 
 
 def test_adaptive_stopping_reaches_the_tolerance(small):
-    res = validate(small, tolerance_3sigma_arcsec=0.05, seed=2)
+    res = validate(small, tolerance=0.05, seed=2)
     assert res.stopped_by == "tolerance"
     for cls in res.summary().values():
         for ax in cls.values():
             for var in ax.values():
                 assert var["se_bias"] <= 0.05 and var["se_std"] <= 0.05
     with pytest.raises(ValueError, match="give one of them"):
-        validate(small, trials=4, tolerance_3sigma_arcsec=0.1)
+        validate(small, trials=4, tolerance=0.1)
 
 
 def test_validate_cli_writes_json_and_report(tmp_path, small):
@@ -234,7 +234,7 @@ def test_default_scenario_long_run():
     the truth combined); eq 29 on the calibrated camera reports the marker floor, above
     the camera's remaining displacement (bias significant and positive), while the
     improved C1's 95 % interval holds the truth; LSFE-C2 is an input."""
-    res = validate(default_scenario(), trials=200, seed=1, workers=2)
+    res = validate(default(), trials=200, seed=1, workers=2)
     s = res.summary()
     for ax in ("x", "y"):
         te = s["te"][ax]["improved"]
@@ -249,7 +249,7 @@ def test_default_trial_count_comes_from_the_scenario():
     scn = _scn(validation=BASE["validation"] | {"trials": 3})
     res = validate(scn, seed=1)
     assert res.trials == 3 and res.stopped_by == "trials"
-    scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance_3sigma_arcsec": 0.2, "batch_trials": 10})
+    scn = _scn(validation=BASE["validation"] | {"trials": 100, "tolerance": 0.2, "batch_trials": 10})
     res = validate(scn, seed=1)
     assert res.stopped_by == "tolerance" and res.trials < 100
 

@@ -50,7 +50,8 @@ class Listener(ev.Listener):
         "nothing to record when a compile ends"
 
 ev.register("numba:compile", Listener())
-st.worker_init()
+from budget.runner.executors import worker_setup
+worker_setup(st.worker_init)  # as in a worker of the runner: one numba thread
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     st.trial(scn, 0, 1)

@@ -1,7 +1,8 @@
-"""`budget harmonics ...`: inductosyn calibration fits, design analysis and validation.
+"""`budget inductosyn ...` (alias `budget harmonics`): calibration fits, design analysis
+and validation of the seed-001 inductosyn.
 
-Registered in :mod:`budget.cli` as the click group ``harmonics_group``. User mistakes
-raise :class:`simcam.config_base.ScenarioError` or
+The commands of the inductosyn study's group (:meth:`InductosynStudy.commands`, one group
+under both names). User mistakes raise :class:`simcam.config_base.ScenarioError` or
 :class:`simcam.cli_common.UserInputError`; ``budget.cli.main`` prints them as one line
 each and exits 2.
 """
@@ -15,7 +16,7 @@ import numpy as np
 
 from simcam.cli_common import UserInputError, write_json_atomic
 
-__all__ = ["harmonics_group"]
+__all__ = ["commands", "design_command", "fit_command", "scenario_command", "validate_command"]
 
 
 def _orders(text: str, what: str) -> tuple[int, ...]:
@@ -31,22 +32,17 @@ def _orders(text: str, what: str) -> tuple[int, ...]:
     return out
 
 
-@click.group("harmonics", context_settings={"help_option_names": ["-h", "--help"]})
-def harmonics_group() -> None:
-    """Inductosyn angle-error harmonics (seed 001): fit, design, validate."""
-
-
-@harmonics_group.command("scenario")
+@click.command("scenario")
 def scenario_command() -> None:
     """Print the resolved default inductosyn scenario (TOML, all fields)."""
     import tomli_w
 
-    from simcam.encoder.inductosyn import default_scenario
+    from simcam.encoder.inductosyn import default
 
-    click.echo(tomli_w.dumps(default_scenario().model_dump(mode="json")), nl=False)
+    click.echo(tomli_w.dumps(default().model_dump(mode="json", exclude_none=True)), nl=False)
 
 
-@harmonics_group.command("design")
+@click.command("design")
 @click.option("--faces", type=int, required=True, help="Polygon face count.")
 @click.option("--pole-pairs", type=int, default=360, show_default=True)
 @click.option("--mech-orders", default="1,2", show_default=True)
@@ -81,7 +77,7 @@ def design_command(faces, pole_pairs, mech_orders, elec_orders, no_constant, jso
         write_json_atomic(json_out, {"faces": faces, "pole_pairs": pole_pairs, **an.as_dict()})
 
 
-@harmonics_group.command("fit")
+@click.command("fit")
 @click.argument("csv_files", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--period", type=click.Choice(["long", "short", "both", "sequence"]), required=True,
               help="long: eq 7; short: eq 8 (sorted by fractional degree); both: joint fit of "
@@ -211,45 +207,25 @@ def _plot_fit(fits, path, pole_pairs) -> None:
     plt.close(fig)
 
 
-@harmonics_group.command("validate")
-@click.argument("scenario", required=False, type=click.Path(dir_okay=False))
-@click.option("--trials", type=int, default=None, help="Number of calibrations (default: scenario's).")
-@click.option("--seed", type=int, default=None, help="Seed (default: scenario's validation.seed).")
-@click.option("--dense-step-deg", type=float, default=None,
-              help="Step of the truth grid (default: scenario's validation.dense_step_deg, 0.001 deg).")
-@click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None,
-              help="Write the runner's JSON result (schema budget.study-result/1).")
-@click.option("--report", "report_dir", type=click.Path(file_okay=False), default=None,
-              help="Write the runner's report with the seed-001 sections and plots.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
-def validate_command(scenario, trials, seed, dense_step_deg, json_out, report_dir, progress) -> None:
-    """Monte Carlo validation of the calibration on SCENARIO (default: embedded).
-
-    The same run as `budget inductosyn validate` (the one runner, the inductosyn study), in
-    one process, with the scenario's seed by default, the truth grid's step as an option and
-    the seed-001 figures printed after the runner's table.
-    """
-    import sys
-
+def _summary_lines(result) -> list[str]:
     from budget.inductosyn.report import summary_lines
-    from budget.inductosyn.study import STUDY
-    from budget.runner.cli import run_and_write
 
-    sc = STUDY.load_scenario(scenario)
-    s = sc.validation.seed if seed is None else seed
-    if trials is not None and trials < 2:
-        raise UserInputError("--trials: need at least 2 trials for a spread")
-    if s < 0:
-        raise UserInputError("--seed: must be >= 0")
-    if dense_step_deg is not None:
-        if not (0 < dense_step_deg <= 1):
-            raise UserInputError("--dense-step-deg: must be in (0, 1]")
-        # the step is a field of the scenario (validation.dense_step_deg): the study, its
-        # hash and the JSON's scenario all carry it
-        sc = STUDY.from_dict({**sc.model_dump(mode="json"),
-                              "validation": {**sc.validation.model_dump(mode="json"),
-                                             "dense_step_deg": dense_step_deg}},
-                             source="--dense-step-deg")
-    run_and_write(STUDY, sc, trials=trials, seed=s, workers=1, json_out=json_out, report_dir=report_dir,
-                  progress=progress and sys.stderr.isatty(), more_lines=summary_lines)
+    return summary_lines(result)
+
+
+def _validate_command() -> click.Command:
+    from budget.runner.cli import validate_command_for
+
+    return validate_command_for(
+        "inductosyn", more_lines=_summary_lines,
+        help_text="Monte Carlo validation of the polygon calibration on SCENARIO (default: the embedded "
+                  "seed-001 scenario); the seed-001 figures are printed after the table. The truth grid's "
+                  "step is the scenario's validation.dense_step_deg.")
+
+
+validate_command = _validate_command()
+
+
+def commands() -> list[click.Command]:
+    """The inductosyn study's commands besides the plain ``validate`` (which its own replaces)."""
+    return [scenario_command, design_command, fit_command, validate_command]

@@ -49,29 +49,7 @@ class InductosynStudy(Study):
     title = "Inductosyn polygon calibration (seed 001)"
     seed_document = "001"
     variants = ("published", "improved")
-
-    def default_text(self) -> str:
-        from simcam.encoder.inductosyn import default_scenario_toml
-
-        return default_scenario_toml()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.config_base import validate_model
-        from simcam.encoder.inductosyn import Inductosyn, InductosynScenario
-
-        scn = validate_model(InductosynScenario, data, source=source)
-        Inductosyn(params=scn.encoder, source=source)  # monotonicity check
-        return scn
-
-    def load_scenario(self, path=None):
-        from simcam.encoder.inductosyn import load_scenario
-
-        return load_scenario(path)
-
-    def scenario_hash(self, scenario) -> str:
-        from simcam.config_base import model_hash
-
-        return model_hash(scenario)
+    scenario_module = "simcam.encoder.inductosyn"
 
     def check(self, scenario, *, where: str) -> None:
         # the calibration designs (24-face long, short and joint) separate the harmonics
@@ -86,18 +64,12 @@ class InductosynStudy(Study):
                       "error over the whole circle"),
             ClassSpec("residual", "error after compensation", _UNIT, ("angle",),
                       "the 23-face verification's 3 sigma, against the 3 sigma over the whole circle of "
-                      "the trial's compensated error", per_trial_truth=True),
+                      "the trial's compensated error", per_trial_truth=True, role="residual"),
             ClassSpec("coefficient", "harmonic coefficient", "arcsec", COEFFICIENTS,
                       "each fitted coefficient (eq 7 mechanical A_L, eq 8 electrical A_S; the joint fit "
                       "also electrical 3-4), against the projection of the continuous true error (as a "
                       "function of the reading) on the same harmonics"),
         )
-
-    def max_trials(self, scenario) -> int:
-        return 1_000_000
-
-    def batch_trials(self, scenario) -> int:
-        return 1000
 
     def chunk_trials(self, scenario) -> int:
         return 2000  # vectorised: a chunk costs little more than one trial
@@ -174,6 +146,12 @@ class InductosynStudy(Study):
 
         return report_sections(result, self._prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
+
+    # ------------------------------------------------------------ commands
+    def commands(self) -> list:
+        from budget.inductosyn.cli import commands
+
+        return commands()
 
 
 #: per-trial figures of run_trials kept in ``aux`` (no truth: the report summarises them)

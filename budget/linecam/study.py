@@ -56,17 +56,9 @@ class LineCamStudy(Study):
     title = "Line camera star-observation calibration (seed 004)"
     seed_document = "004"
     variants = ("published", "improved", "lookangle")
+    scenario_module = "simcam.linecam.scenario"
 
     # ------------------------------------------------------------ scenario
-    def default_text(self) -> str:
-        from simcam.linecam.scenario import default_text
-
-        return default_text()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.linecam.scenario import from_dict
-
-        return from_dict(data, source=source)
 
     def check(self, scenario, *, where: str) -> None:
         from simcam.config_base import ScenarioError
@@ -74,25 +66,22 @@ class LineCamStudy(Study):
         if scenario.lab.grid_step_px >= scenario.camera.n_pixels:
             raise ScenarioError(f"{where}: lab.grid_step_px must be below camera.n_pixels")
 
-    def default_tolerance(self, scenario) -> float | None:
-        # the classes mix units (arcsec, px, mm): a fixed number of trials by default,
-        # --tolerance on request
-        return None
-
     # ------------------------------------------------------------ method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
-        axes_los = tuple(f"{d}_{int(round(100 * p))}" for d in ("along", "across") for p in LOS_POINTS)
+        axes_los = tuple(f"{direction}_{int(round(100 * fraction))}"
+                         for direction in ("along", "across") for fraction in LOS_POINTS)
         out = [
             ClassSpec("los_rms", "rms LOS error over the line: stated (estimate) vs actual (truth)", "arcsec",
                       ("along", "across"), "estimate: rms of the stated 1-sigma over the line; truth: rms of "
-                      "the calibrated minus the injected look angles", per_trial_truth=True),
+                      "the calibrated minus the injected look angles", per_trial_truth=True, role="stated"),
             ClassSpec("los_ms", "mean-square LOS error over the line: stated (estimate) vs actual (truth)",
                       "arcsec^2", ("along", "across"), "estimate: mean of the stated variance over the line; "
                       "truth: mean square of the calibrated minus the injected look angles (equal in "
-                      "expectation when the stated covariance is right)", per_trial_truth=True),
+                      "expectation when the stated covariance is right)", per_trial_truth=True,
+                      role="stated"),
             ClassSpec("los_max", "largest LOS error over the line: stated 3 sigma (estimate) vs actual (truth)",
                       "arcsec", ("along", "across"), "estimate: largest stated 3-sigma; truth: largest "
-                      "absolute error of the calibrated look angles", per_trial_truth=True),
+                      "absolute error of the calibrated look angles", per_trial_truth=True, role="stated"),
             ClassSpec("los", "calibrated look angle minus nominal at 0-100 % of the line", "arcsec", axes_los,
                       "estimate: calibrated look angle minus nominal; truth: the injected camera's",
                       per_trial_truth=True),
@@ -109,18 +98,13 @@ class LineCamStudy(Study):
         from .trial import simulate
 
         try:
-            sim = simulate(scenario, trial_seed_sequence(seed, k))
+            simulation = simulate(scenario, trial_seed_sequence(seed, k))
         except CalibrationError as exc:
             raise ScenarioError(f"{scenario.source}: stars.mag_limit / observation.passes: {exc}") from None
-        return trial_result(scenario, sim, keep_extra=(k == 0))
+        return trial_result(scenario, simulation, keep_extra=(k == 0))
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
-
-    def worker_init(self) -> None:
-        import numba
-
-        numba.set_num_threads(1)
 
     def chunk_trials(self, scenario) -> int:
         return 20
@@ -143,42 +127,47 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
 
     from .trial import to_report_units
 
-    est, tru, sig = {}, {}, {}
-    ta, tc = sim.los_true
-    na, nc = sim.los_before
-    grid = sim.grid
-    n = scenario.camera.n_pixels
-    pick = [int(np.argmin(np.abs(grid - p * (n - 1)))) for p in LOS_POINTS]
+    estimates, truths, sigmas = {}, {}, {}
+    true_along, true_across = sim.los_true
+    nominal_along, nominal_across = sim.los_before
+    n_pixels = scenario.camera.n_pixels
+    # the grid detectors nearest to LOS_POINTS of the line
+    picked = [int(np.argmin(np.abs(sim.grid - fraction * (n_pixels - 1)))) for fraction in LOS_POINTS]
     theta_true = to_report_units(sim.theta_true)
-    for v, L in sim.los.items():
-        ea, ec = (L["along"] - ta) * ARCSEC_PER_RAD, (L["across"] - tc) * ARCSEC_PER_RAD
-        sa, sc = L["sigma_along"] * ARCSEC_PER_RAD, L["sigma_across"] * ARCSEC_PER_RAD
-        for axis, e, s in (("along", ea, sa), ("across", ec, sc)):
-            est[("los_rms", v, axis)] = float(np.sqrt(np.mean(s * s)))
-            tru[("los_rms", v, axis)] = float(np.sqrt(np.mean(e * e)))
-            est[("los_ms", v, axis)] = float(np.mean(s * s))
-            tru[("los_ms", v, axis)] = float(np.mean(e * e))
-            est[("los_max", v, axis)] = float(3.0 * np.max(s))
-            tru[("los_max", v, axis)] = float(np.max(np.abs(e)))
-        for axis, cal, true, nom, s in (("along", L["along"], ta, na, sa), ("across", L["across"], tc, nc, sc)):
-            for p, i in zip(LOS_POINTS, pick):
-                key = ("los", v, f"{axis}_{int(round(100 * p))}")
-                est[key] = float((cal[i] - nom[i]) * ARCSEC_PER_RAD)
-                tru[key] = float((true[i] - nom[i]) * ARCSEC_PER_RAD)
-                sig[key] = float(s[i])
-        if v not in sim.calibrations:  # the look-angle model has no camera parameters
+    for variant, los in sim.los.items():
+        error_along = (los["along"] - true_along) * ARCSEC_PER_RAD
+        error_across = (los["across"] - true_across) * ARCSEC_PER_RAD
+        sigma_along = los["sigma_along"] * ARCSEC_PER_RAD
+        sigma_across = los["sigma_across"] * ARCSEC_PER_RAD
+        for axis, error, sigma in (("along", error_along, sigma_along), ("across", error_across, sigma_across)):
+            estimates[("los_rms", variant, axis)] = float(np.sqrt(np.mean(sigma * sigma)))
+            truths[("los_rms", variant, axis)] = float(np.sqrt(np.mean(error * error)))
+            estimates[("los_ms", variant, axis)] = float(np.mean(sigma * sigma))
+            truths[("los_ms", variant, axis)] = float(np.mean(error * error))
+            estimates[("los_max", variant, axis)] = float(3.0 * np.max(sigma))
+            truths[("los_max", variant, axis)] = float(np.max(np.abs(error)))
+        for axis, calibrated, true, nominal, sigma in (
+                ("along", los["along"], true_along, nominal_along, sigma_along),
+                ("across", los["across"], true_across, nominal_across, sigma_across)):
+            for fraction, index in zip(LOS_POINTS, picked):
+                key = ("los", variant, f"{axis}_{int(round(100 * fraction))}")
+                estimates[key] = float((calibrated[index] - nominal[index]) * ARCSEC_PER_RAD)
+                truths[key] = float((true[index] - nominal[index]) * ARCSEC_PER_RAD)
+                sigmas[key] = float(sigma[index])
+        if variant not in sim.calibrations:  # the look-angle model has no camera parameters
             continue
-        c = sim.calibrations[v]
-        th = to_report_units(c.theta)
-        sd = np.sqrt(np.maximum(np.diag(c.cov), 0.0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
+        calibration = sim.calibrations[variant]
+        theta = to_report_units(calibration.theta)
+        theta_sd = (np.sqrt(np.maximum(np.diag(calibration.cov), 0.0))
+                    * np.abs(to_report_units(np.ones(len(PARAMETERS)))))
         for name, _, _, axes in _PARAM_CLASSES:
-            for a in axes:
-                j = PARAMETERS.index(a)
-                est[(name, v, a)] = float(th[j])
-                tru[(name, v, a)] = float(theta_true[j])
-                sig[(name, v, a)] = float(sd[j])
+            for parameter in axes:
+                index = PARAMETERS.index(parameter)
+                estimates[(name, variant, parameter)] = float(theta[index])
+                truths[(name, variant, parameter)] = float(theta_true[index])
+                sigmas[(name, variant, parameter)] = float(theta_sd[index])
     extra = trial_extra(scenario, sim) if keep_extra else {}
-    return TrialResult(estimates=est, truths=tru, sigmas=sig, extra=extra)
+    return TrialResult(estimates=estimates, truths=truths, sigmas=sigmas, extra=extra)
 
 
 def trial_extra(scenario, sim) -> dict:
@@ -188,29 +177,31 @@ def trial_extra(scenario, sim) -> dict:
     from .calibrate import separability
     from .model import NominalCamera, residuals
 
-    cam = NominalCamera.from_model(scenario.camera)
-    obs = sim.identified.obs
-    sep = separability(cam, obs, rcond=scenario.lab.rcond)
-    before = residuals(cam, np.zeros(10), obs)
-    after = {v: c.residuals_px for v, c in sim.calibrations.items()}
-    ta, tc = sim.los_true
+    camera = NominalCamera.from_model(scenario.camera)
+    observations = sim.identified.obs
+    separable = separability(camera, observations, rcond=scenario.lab.rcond)
+    before = residuals(camera, np.zeros(10), observations)
+    after = {variant: calibration.residuals_px for variant, calibration in sim.calibrations.items()}
+    true_along, true_across = sim.los_true
     return {
-        "sample": obs.sample, "t_s": sim.identified.t_s, "pass": obs.pass_index,
+        "sample": observations.sample, "t_s": sim.identified.t_s, "pass": observations.pass_index,
         "line": sim.centroids.line[sim.identified.centroid_index],
         "residual_before_px": before, "residual_after_px": after,
         "grid": sim.grid,
-        "los_error_arcsec": {v: ((L["along"] - ta) * ARCSEC_PER_RAD, (L["across"] - tc) * ARCSEC_PER_RAD,
-                                 L["sigma_along"] * ARCSEC_PER_RAD, L["sigma_across"] * ARCSEC_PER_RAD)
-                             for v, L in sim.los.items()},
-        "los_error_before_arcsec": ((sim.los_before[0] - ta) * ARCSEC_PER_RAD,
-                                    (sim.los_before[1] - tc) * ARCSEC_PER_RAD),
-        "condition": {v: c.condition for v, c in sim.calibrations.items()},
-        "sigma0_px": {v: c.sigma0_px for v, c in sim.calibrations.items()},
-        "iterations": {v: c.iterations for v, c in sim.calibrations.items()},
-        "separability": {"condition": sep.condition, "null_space": sep.null_space,
-                         "inseparable": list(sep.inseparable)},
+        "los_error_arcsec": {variant: ((los["along"] - true_along) * ARCSEC_PER_RAD,
+                                       (los["across"] - true_across) * ARCSEC_PER_RAD,
+                                       los["sigma_along"] * ARCSEC_PER_RAD, los["sigma_across"] * ARCSEC_PER_RAD)
+                             for variant, los in sim.los.items()},
+        "los_error_before_arcsec": ((sim.los_before[0] - true_along) * ARCSEC_PER_RAD,
+                                    (sim.los_before[1] - true_across) * ARCSEC_PER_RAD),
+        "condition": {variant: calibration.condition for variant, calibration in sim.calibrations.items()},
+        "sigma0_px": {variant: calibration.sigma0_px for variant, calibration in sim.calibrations.items()},
+        "iterations": {variant: calibration.iterations for variant, calibration in sim.calibrations.items()},
+        "separability": {"condition": separable.condition, "null_space": separable.null_space,
+                         "inseparable": list(separable.inseparable)},
         "windows": int(sim.images.windows_dn.shape[0]), "centroids": int(sim.centroids.sample.size),
-        "identified": len(obs), "unmatched": sim.identified.unmatched, "ambiguous": sim.identified.ambiguous,
+        "identified": len(observations), "unmatched": sim.identified.unmatched,
+        "ambiguous": sim.identified.ambiguous,
         "n_pixels": scenario.camera.n_pixels, "coverage_bins": scenario.lab.coverage_bins,
     }
 

@@ -5,7 +5,7 @@ stars of the strip imaged pass by pass through the true camera, the attitude rep
 Lab (:mod:`budget.linecam`): centroids and time tags, identification against its own
 apparent places, the published and the joint calibrations, their look-angle fields.
 Truth: the true look-angle field of the injected camera (:meth:`CameraTruth.los_angles`,
-through the Newton-free explicit Brown correction of :mod:`simcam.starcam.optics` and the true
+through the Newton-free explicit Brown correction of :mod:`simcam.distortion` and the true
 principal distance and misalignment; nothing of the lab's model).
 """
 

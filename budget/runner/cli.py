@@ -42,11 +42,17 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     return res
 
 
-def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None) -> click.Command:
-    """``validate [SCENARIO] --trials --tolerance --seed --workers --scheduler --dask-local --json --report``."""
+def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None,
+                         more_lines=None) -> click.Command:
+    """``validate [SCENARIO] --trials --tolerance --seed --workers --scheduler --dask-local --json --report``.
+
+    ``more_lines(result)``: a study's own summary lines printed after the table (a study
+    whose :meth:`Study.commands` returns its own ``validate`` built here replaces the plain one).
+    """
+    from budget.runner.registry import summary
 
     @click.command(name, help=help_text or f"Monte Carlo validation of the {study_name} study on SCENARIO "
-                                           "(default: its embedded scenario).")
+                                           f"(default: its embedded scenario). {summary(study_name)}")
     @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
     @click.option("--trials", type=click.IntRange(min=2), default=None,
                   help="Number of Monte Carlo trials (default: the scenario's validation.trials).")
@@ -66,17 +72,18 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
         study = get_study(study_name)
         run_and_write(study, study.load_scenario(scenario), trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
-                      report_dir=report_dir, progress=progress)
+                      report_dir=report_dir, progress=progress, more_lines=more_lines)
 
     return validate
 
 
 def study_group(study_name: str) -> click.Group:
-    """The click group of a registered study: ``validate`` plus :meth:`Study.commands`.
+    """The click group of a registered study: ``validate`` plus :meth:`Study.commands` (a
+    command of the study named ``validate`` replaces the plain one).
 
     The study module is imported only when the group is invoked (or asked for help).
     """
-    from budget.runner.registry import SUMMARIES
+    from budget.runner.registry import summary
 
     class _Lazy(click.Group):
         def _load(self) -> None:
@@ -97,4 +104,4 @@ def study_group(study_name: str) -> click.Group:
             self._load()
             return super().get_command(ctx, cmd_name)
 
-    return _Lazy(name=study_name, help=f"{SUMMARIES.get(study_name, study_name)} Validation and its own commands.")
+    return _Lazy(name=study_name, help=f"{summary(study_name)} Validation and its own commands.")

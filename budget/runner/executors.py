@@ -7,11 +7,16 @@ the order of completion.
 
 * :class:`InlineExecutor`: one after the other in this process;
 * :class:`ProcessExecutor`: a pool of local processes started with ``spawn`` (numba's thread
-  pools must not be forked), each initialised by ``initializer`` (one numba thread per
-  process: the processes are the parallelism). The pool is started on entering the
-  context, so workers import while the caller does serial work (the truths);
+  pools must not be forked). The pool is started on entering the context, so workers
+  import while the caller does serial work (the truths);
 * :class:`DaskExecutor`: an existing scheduler (``tcp://host:port``) or a
   :class:`distributed.LocalCluster` of single-threaded worker processes.
+
+The runner owns the set-up of every worker it starts (:func:`worker_setup`): one numba
+thread (the workers are the parallelism; a study's ``parallel=True`` kernel would
+otherwise start a thread per core in each worker and oversubscribe the cores), then the
+caller's ``initializer`` (a study's own :meth:`Study.worker_init`). With one worker the
+tasks run in this process, set up the same way.
 """
 
 from __future__ import annotations
@@ -23,7 +28,8 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, Self
 
-__all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor"]
+__all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor",
+           "worker_setup"]
 
 
 def default_workers() -> int:
@@ -61,14 +67,29 @@ class InlineExecutor(Executor):
             yield i, fn(t)
 
 
+def worker_setup(initializer: Callable | None = None, args: tuple = ()) -> None:
+    """What runs first in every worker the runner starts: one numba thread, then
+    ``initializer(*args)``.
+
+    numba's thread count is per calling thread (``numba.set_num_threads`` is thread-local),
+    so it is set in the thread that runs the tasks: a process pool's worker runs its
+    initializer and its tasks in one thread; a Dask worker runs tasks in its own threads,
+    so there it is set before each task (:func:`_dask_call`).
+    """
+    import numba
+
+    numba.set_num_threads(1)
+    if initializer is not None:
+        initializer(*args)
+
+
 def _init_worker(initializer, args):
     # the parent-death guard first (simcam.lifecycle): a parent killed while its workers
     # still import leaves no worker behind
     from simcam.lifecycle import exit_with_parent
 
     exit_with_parent()
-    if initializer is not None:
-        initializer(*args)
+    worker_setup(initializer, args)
 
 
 class ProcessExecutor(Executor):
@@ -130,9 +151,9 @@ class ProcessExecutor(Executor):
 
 
 def _dask_call(fn, task, initializer, initargs):
-    # one numba thread per Dask worker thread; the study's own worker set-up
-    if initializer is not None:
-        initializer(*initargs)
+    # one numba thread in the Dask worker thread that runs this task (thread-local), then
+    # the study's own worker set-up
+    worker_setup(initializer, initargs)
     return fn(task)
 
 
@@ -218,7 +239,6 @@ def make_executor(*, workers: int | None = None, scheduler: str | None = None, d
     if n < 1:
         raise UserInputError(f"--workers: must be >= 1 (got {n})")
     if n == 1:
-        if initializer is not None:
-            initializer(*initargs)
+        worker_setup(initializer, initargs)
         return InlineExecutor()
     return ProcessExecutor(n, initializer=initializer, initargs=initargs)

@@ -1,56 +1,94 @@
-"""The registry of studies: name -> where its :class:`~budget.runner.study.Study` lives.
+"""The registry of studies: one table, name -> where its :class:`~budget.runner.study.Study`
+lives and one line of help.
 
 Nothing else in the machinery knows a study's name: the CLI, the sweep engine and the
-reports look studies up here. Entries are imported only when used, so a command pays only
-for the study it runs.
+reports look studies up here (a test scans budget/runner and budget/sweeps for study names
+outside this table). Entries are imported only when used, so a command pays only for the
+study it runs.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
+from dataclasses import dataclass
 
 from budget.runner.study import Study
 
-__all__ = ["STUDIES", "get_study", "study_names"]
+__all__ = ["REGISTRY", "StudyEntry", "aliases", "entry", "get_study", "renamed", "study_names", "summary"]
 
-#: name -> "module:attribute" of the study instance
-STUDIES: dict[str, str] = {
-    "starcam": "budget.starcam.study:STUDY",
-    "inductosyn": "budget.inductosyn.study:STUDY",
-    "whiskbroom": "budget.whiskbroom.study:STUDY",
-    "scanmirror": "budget.scanmirror.study:STUDY",
-    "linecam": "budget.linecam.study:STUDY",
-}
-#: one line of help per study (shown without importing it)
-SUMMARIES: dict[str, str] = {
-    "starcam": "Seed 000: star-camera TE, HSFE and LSFE lab methods.",
-    "inductosyn": "Seed 001: polygon calibration of an inductosyn's harmonic errors.",
-    "whiskbroom": "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF.",
-    "scanmirror": "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars.",
-    "linecam": "Seed 004: star-based on-orbit calibration of a TDI line camera.",
-}
+
+@dataclass(frozen=True)
+class StudyEntry:
+    """One registered study: its name (CLI group, sweep ``kind``), where its instance lives
+    (``"module:attribute"``) and one line of help (shown without importing it)."""
+
+    name: str
+    target: str
+    summary: str
+    #: other names of its CLI group (the same command objects)
+    aliases: tuple[str, ...] = ()
+    #: names it had before (e.g. as a sweep file's ``kind``): refused, naming this one
+    former_names: tuple[str, ...] = ()
+
+    @property
+    def module(self) -> str:
+        return self.target.split(":")[0]
+
+
+#: every registered study, in the order the CLI lists them
+REGISTRY: tuple[StudyEntry, ...] = (
+    StudyEntry("starcam", "budget.starcam.study:STUDY",
+               "Seed 000: star-camera TE, HSFE and LSFE lab methods.", former_names=("camera",)),
+    StudyEntry("inductosyn", "budget.inductosyn.study:STUDY",
+               "Seed 001: polygon calibration of an inductosyn's harmonic errors.", aliases=("harmonics",)),
+    StudyEntry("whiskbroom", "budget.whiskbroom.study:STUDY",
+               "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF."),
+    StudyEntry("scanmirror", "budget.scanmirror.study:STUDY",
+               "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars."),
+    StudyEntry("linecam", "budget.linecam.study:STUDY",
+               "Seed 004: star-based on-orbit calibration of a TDI line camera."),
+)
+_BY_NAME = {e.name: e for e in REGISTRY}
+_ALIASES = {a: e.name for e in REGISTRY for a in e.aliases}
+
+
+def entry(name: str) -> StudyEntry | None:
+    """The entry registered as ``name`` or as one of its aliases (None if neither)."""
+    return _BY_NAME.get(_ALIASES.get(name, name))
+
+
+def renamed(name: str) -> str | None:
+    """The study that ``name`` was a former name of (None if it was none)."""
+    return next((e.name for e in REGISTRY if name in e.former_names), None)
+
+
+def aliases() -> dict[str, str]:
+    """alias -> study name, for the CLI's group aliases."""
+    return dict(_ALIASES)
 
 
 def study_names(*, available_only: bool = True) -> list[str]:
-    """Registered study names (those whose module is installed, by default)."""
-    if not available_only:
-        return list(STUDIES)
-    out = []
-    for name, target in STUDIES.items():
-        mod = target.split(":")[0]
-        if importlib.util.find_spec(mod.rsplit(".", 1)[0]) is not None:
-            out.append(name)
-    return out
+    """Registered study names (those whose package is installed, by default)."""
+    return [e.name for e in REGISTRY
+            if not available_only or importlib.util.find_spec(e.module.rsplit(".", 1)[0]) is not None]
+
+
+def summary(name: str) -> str:
+    """The one-line help of study ``name`` (without importing it)."""
+    e = entry(name)
+    return e.summary if e is not None else name
 
 
 def get_study(name: str) -> Study:
     """The study registered as ``name``; an unknown name is an error listing the known ones."""
     from simcam.cli_common import UserInputError
 
-    if name not in STUDIES:
+    e = _BY_NAME.get(name)
+    if e is None:
         raise UserInputError(f"unknown study {name!r}; known: {', '.join(study_names())}")
-    mod, attr = STUDIES[name].split(":")
+    mod, attr = e.target.split(":")
     study = getattr(importlib.import_module(mod), attr)
     if not isinstance(study, Study):
-        raise TypeError(f"{STUDIES[name]} is not a Study")
+        raise TypeError(f"{e.target} is not a Study")
     return study

@@ -53,6 +53,14 @@ def finding(result, key) -> str:
                 f"taken as given, not measured: nothing to validate.")
     truth = (f"the truth {_fmt(st['truth'])} {unit}" + (f" (+- {_fmt(st['truth_se'])})" if st["truth_se"] > 0 else "")
              if not st["per_trial_truth"] else "the truth of each trial")
+    if st.get("role") in ("residual", "stated"):
+        # not an estimate of its truth: the difference is no estimator's bias
+        diff = (f"{_fmt(st['bias'])} +- {_fmt(st['se_bias'])} {unit}"
+                + (", significant" if st["bias_significant"] else ", not significant"))
+        what = ("a residual (what the calibration leaves), not an estimate" if st["role"] == "residual"
+                else "a stated uncertainty compared with the actual error")
+        return (f"{spec.label}, {ax}, {var}: {what}: mean {_fmt(st['mean'])} {unit} against {truth} "
+                f"(difference {diff}); its spread over {st['n']} trials is {_fmt(st['std'])} {unit}.")
     if st["bias_significant"]:
         pct = f" ({st['bias_percent']:+.1f} %)" if math.isfinite(st["bias_percent"]) and not st["per_trial_truth"] else ""
         verdict = f"is biased by {_fmt(st['bias'])} {unit}{pct} +- {_fmt(st['se_bias'])}"

@@ -130,7 +130,7 @@ class StudyResult:
 
         s = self.summary()
         info = {c.name: {"label": c.label, "unit": c.unit, "description": c.description,
-                         "per_trial_truth": c.per_trial_truth, "axes": list(c.axes)}
+                         "per_trial_truth": c.per_trial_truth, "axes": list(c.axes), "role": c.role}
                 for c in self.classes if c.name in s}
         return {
             "schema": SCHEMA, "study": self.study.name, "title": self.study.title,

@@ -1,5 +1,6 @@
 """The study contract: what one lab method on one instrument provides to the shared machinery.
 
+This docstring is the one definition of the contract (``docs/architecture.md`` points here).
 A *study* (seed 000's star-camera lab methods, seed 001's inductosyn calibration, the
 whiskbroom TDI camera of seed 002, ...) implements :class:`Study` and nothing more. The
 runner (:mod:`budget.runner.run`) turns any study into seeded trials on processes or a
@@ -7,27 +8,59 @@ Dask cluster, adaptive stopping, statistics with their standard errors, a JSON r
 and a report; the sweep engine varies any of its scenario fields; the CLI is built from
 the registry (:mod:`budget.runner.registry`).
 
-What a study provides
----------------------
-* ``name`` (the registry key and CLI group, e.g. ``"whiskbroom"``), ``title`` and the seed
-  document it implements;
-* its scenario: :meth:`Study.load_scenario` (strict TOML through a frozen pydantic model,
-  errors as :class:`simcam.config_base.ScenarioError` naming file and field),
-  :meth:`Study.default_text` (the embedded default, with comments) and
-  :meth:`Study.from_dict` (what sweeps use after setting dotted keys);
-* :meth:`Study.classes`: the error classes with labels, units and axes, and the
-  :attr:`Study.variants` of its estimators (``published``, ``improved``, ...);
+What a study must provide
+-------------------------
+* ``name`` (the registry key and CLI group, e.g. ``"whiskbroom"``), ``title``,
+  ``seed_document`` (the seed document it implements) and ``variants`` (its estimators:
+  ``published``, ``improved``, ...; report order);
+* ``scenario_module``: the dotted name of its instrument's scenario module in
+  :mod:`simcam` (e.g. ``"simcam.whiskbroom.scenario"``). Every such module has the same
+  four functions, ``default_text()`` (the embedded default, TOML with comments),
+  ``from_dict(data, *, source)``, ``load(path=None)`` (strict TOML through
+  :func:`simcam.config_base.read_toml`; None: the embedded default) and ``default()``, and
+  a frozen model subclassing :class:`simcam.config_base.ScenarioBase` (``name``,
+  ``validation``, ``hash``, ``source``). :meth:`Study.default_text`,
+  :meth:`Study.from_dict` (what sweeps use after setting dotted keys) and
+  :meth:`Study.load_scenario` delegate to it; errors are
+  :class:`simcam.config_base.ScenarioError` naming file and field;
+* :meth:`Study.classes`: its error classes (:class:`ClassSpec`: label, unit, axes, whether
+  the truth is drawn per trial, and the role: an estimate of a truth, an input, a residual
+  or a stated uncertainty);
 * :meth:`Study.trial`: the estimates of one simulated measurement, computed by the same
   estimators that run on real data, keyed ``(class, variant, axis)``; where the truth
   changes from trial to trial (an injected error drawn per trial), the trial's own truth
   under the same key, and where the estimator states an uncertainty, its 1-sigma value
   (the runner reports coverage);
-* :meth:`Study.trial_batch` (optional): many trials at once, for studies whose trials are
-  vectorised; it must give, for each ``k``, exactly what :meth:`Study.trial` gives;
 * :meth:`Study.truths`: the truth of each class that is a property of the scenario, keyed
-  ``(class, axis)``, with its own standard error (0 when exact);
-* :meth:`Study.report_sections`: the sections and plots its report adds, and
-  :meth:`Study.details`: the study's own figures in the JSON result (under ``details``).
+  ``(class, axis)``, with its own standard error (0 when exact).
+
+What a study may override (each has a default)
+-----------------------------------------------
+Scenario: :meth:`Study.check` (cheap checks of what the simulator would refuse later; sweeps
+run it on every point first), :meth:`Study.scenario_hash` (the model's ``hash``),
+:meth:`Study.scenario_text` (the resolved scenario as TOML in the JSON result).
+
+The method: :meth:`Study.trial_batch` (many trials at once, for vectorised studies; it must
+give, for each ``k``, exactly what :meth:`Study.trial` gives).
+
+Run settings (how many trials, where they run):
+
+* :meth:`Study.default_trials`, :meth:`Study.default_tolerance`, :meth:`Study.max_trials`,
+  :meth:`Study.batch_trials`: read from the scenario's ``[validation]`` table
+  (:class:`simcam.config_base.ValidationSettings`: ``trials``, ``tolerance``,
+  ``max_trials``, ``batch_trials``);
+* :meth:`Study.chunk_trials`: most trials in one task sent to a worker (10);
+* :meth:`Study.prewarm`: once in the run's own process before any work (compile numba
+  kernels in parallel; nothing by default);
+* :meth:`Study.worker_init`: once in each worker process (e.g. one numba thread).
+
+Truth distribution (a heavy truth spread over the workers): :meth:`Study.truth_parts`,
+:meth:`Study.truth_part`, :meth:`Study.truths_from_parts` (default: one part, the whole of
+:meth:`Study.truths`; the result must equal it).
+
+Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
+:meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
+:meth:`Study.commands` (extra click commands of its CLI group besides ``validate``).
 
 Randomness: trial ``k`` of a run with ``seed`` must draw only from
 ``numpy.random.SeedSequence(seed, spawn_key=(k,))`` (see :func:`trial_seed_sequence`),
@@ -45,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ClassSpec", "Key", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
+__all__ = ["CLASS_ROLES", "ClassSpec", "Key", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
            "Truth", "trial_seed_sequence", "truth_seed_sequence"]
 
 #: spawn key of the truths' seed sequence (trials use 0, 1, 2, ...)
@@ -53,6 +86,9 @@ TRUTH_SPAWN_KEY = 2**31
 
 #: (class, variant, axis)
 Key = tuple[str, str, str]
+
+#: what a class's figures are (:attr:`ClassSpec.role`)
+CLASS_ROLES = ("result", "input", "residual", "stated")
 
 
 def trial_seed_sequence(seed: int, k: int) -> np.random.SeedSequence:
@@ -84,9 +120,18 @@ class ClassSpec:
     per_trial_truth : bool
         True when each trial carries its own truth (an error drawn per trial): the
         runner then compares estimate and truth trial by trial.
-    role : {"result", "input"}
-        ``"input"`` for a class the method takes as given rather than measures (seed 000's
-        target marker error): reported, never called biased.
+    role : {"result", "input", "residual", "stated"}
+        What the class's figures are, so that the summary names a difference rightly:
+
+        * ``"result"``: an estimate of a truth (a difference is a bias of the estimator);
+        * ``"input"``: a figure the method takes as given rather than measures (seed 000's
+          target marker error): reported, never called biased;
+        * ``"residual"``: what a calibration or compensation leaves (the scan mirror's ground
+          error after compensation, the inductosyn's error after compensation): its mean is
+          the residual reached, not the bias of an estimate;
+        * ``"stated"``: an uncertainty the method states, compared with the actual error
+          (the line camera's rms LOS error): a difference says the statement is optimistic
+          or pessimistic.
     """
 
     name: str
@@ -96,6 +141,10 @@ class ClassSpec:
     description: str = ""
     per_trial_truth: bool = False
     role: str = "result"
+
+    def __post_init__(self) -> None:
+        if self.role not in CLASS_ROLES:
+            raise ValueError(f"ClassSpec {self.name!r}: role must be one of {CLASS_ROLES}, got {self.role!r}")
 
 
 @dataclass(frozen=True)
@@ -142,8 +191,15 @@ class ReportSection:
 
 
 class Study(ABC):
-    """One lab method on one instrument (see the module docstring for the contract)."""
+    """One lab method on one instrument (see the module docstring for the contract).
 
+    The members come in the module docstring's groups, as sections of this one class
+    (not mixins: a study overrides a hook by name, and one class keeps every default in
+    one place to read): identity, scenario, the method, run settings, truth distribution,
+    presentation.
+    """
+
+    # ------------------------------------------------------------ identity (required)
     #: registry key and CLI group name
     name: str = ""
     #: one line for humans
@@ -152,26 +208,37 @@ class Study(ABC):
     seed_document: str = ""
     #: estimator variants, in report order
     variants: tuple[str, ...] = ("published", "improved")
+    #: the instrument's scenario module (``default_text``, ``from_dict``, ``load``, ``default``)
+    scenario_module: str = ""
 
     # ------------------------------------------------------------ scenario
-    @abstractmethod
+    def _scenario_module(self):
+        import importlib
+
+        if not self.scenario_module:
+            raise NotImplementedError(f"{type(self).__name__}: set scenario_module (or override the scenario methods)")
+        return importlib.import_module(self.scenario_module)
+
     def default_text(self) -> str:
         """The embedded default scenario, as TOML text with its comments."""
+        return self._scenario_module().default_text()
 
-    @abstractmethod
     def from_dict(self, data: dict, *, source: str) -> Any:
         """Validate a scenario mapping into the study's frozen model.
 
         Raises :class:`simcam.config_base.ScenarioError` naming ``source`` and the field.
         """
+        return self._scenario_module().from_dict(data, source=source)
 
     def load_scenario(self, path: str | Path | None = None) -> Any:
-        """The scenario at ``path`` (strict TOML) or the embedded default."""
-        from budget.runner.scenario_io import read_toml
+        """The scenario at ``path`` (strict TOML) or, for None, the embedded default."""
+        if self.scenario_module:
+            return self._scenario_module().load(path)
+        from simcam.config_base import read_toml
 
         if path is None:
-            return self.from_dict(read_toml(text=self.default_text(), source=f"embedded {self.name} default"),
-                                  source=f"embedded {self.name} default")
+            source = f"embedded {self.name} default"
+            return self.from_dict(read_toml(text=self.default_text(), source=source), source=source)
         return self.from_dict(read_toml(path=path), source=str(path))
 
     def check(self, scenario: Any, *, where: str) -> None:
@@ -205,6 +272,41 @@ class Study(ABC):
     def truths(self, scenario: Any, seed: int) -> dict[tuple[str, str], Truth]:
         """The truth of every class without ``per_trial_truth``, keyed ``(class, axis)``."""
 
+    # ------------------------------------------------------------ run settings
+    # (from the scenario's [validation] table, simcam.config_base.ValidationSettings)
+    def default_trials(self, scenario: Any) -> int:
+        """Trials when the user gives neither a count nor a tolerance (``validation.trials``)."""
+        return int(scenario.validation.trials)
+
+    def default_tolerance(self, scenario: Any) -> float | None:
+        """Adaptive-stopping tolerance when the user gives neither trials nor a tolerance
+        (``validation.tolerance``; None: a fixed number of trials)."""
+        return getattr(getattr(scenario, "validation", None), "tolerance", None)
+
+    def max_trials(self, scenario: Any) -> int:
+        """Cap on trials under adaptive stopping (``validation.max_trials``)."""
+        return int(getattr(scenario.validation, "max_trials", 10 * self.default_trials(scenario)))
+
+    def batch_trials(self, scenario: Any) -> int:
+        """Trials between two convergence checks under adaptive stopping (``validation.batch_trials``)."""
+        return int(getattr(scenario.validation, "batch_trials", 50))
+
+    def chunk_trials(self, scenario: Any) -> int:
+        """Most trials in one task sent to a worker (a few seconds of work at most)."""
+        return 10
+
+    def prewarm(self, scenario: Any) -> None:
+        """Called once in the run's own process before any trial or truth: a study whose
+        first run on a fresh install compiles many numba kernels may compile them here in
+        parallel processes (:func:`simcam.numba_warm.compiling_in_parallel`), so that this
+        process and every worker load them from numba's cache. Nothing by default; it must
+        not change any result.
+        """
+
+    def worker_init(self) -> None:
+        """Called once in each worker process (e.g. one numba thread per process)."""
+
+    # ------------------------------------------------------------ truth distribution
     def truth_parts(self, scenario: Any, seed: int) -> list:
         """Independent pieces of :meth:`truths` a runner may spread over its workers
         (default: one piece, the whole of :meth:`truths`)."""
@@ -218,39 +320,7 @@ class Study(ABC):
         """:meth:`truths` from its pieces' results, in :meth:`truth_parts` order; must equal it."""
         return results[0]
 
-    # ------------------------------------------------------------ run settings
-    def default_trials(self, scenario: Any) -> int:
-        """Trials when the user gives neither a count nor a tolerance."""
-        return int(scenario.validation.trials)
-
-    def default_tolerance(self, scenario: Any) -> float | None:
-        """Adaptive-stopping tolerance when the user gives neither trials nor a tolerance."""
-        return getattr(getattr(scenario, "validation", None), "tolerance", None)
-
-    def max_trials(self, scenario: Any) -> int:
-        """Cap on trials under adaptive stopping."""
-        return int(getattr(scenario.validation, "max_trials", 10 * self.default_trials(scenario)))
-
-    def batch_trials(self, scenario: Any) -> int:
-        """Trials between two convergence checks under adaptive stopping."""
-        return int(getattr(scenario.validation, "batch_trials", 50))
-
-    def chunk_trials(self, scenario: Any) -> int:
-        """Most trials in one task sent to a worker (a few seconds of work at most)."""
-        return 10
-
-    def worker_init(self) -> None:
-        """Called once in each worker process (e.g. one numba thread per process)."""
-
-    def prewarm(self, scenario: Any) -> None:
-        """Called once in the run's own process before any trial or truth: a study whose
-        first run on a fresh install compiles many numba kernels may compile them here in
-        parallel processes (:func:`simcam.numba_warm.compiling_in_parallel`), so that this
-        process and every worker load them from numba's cache. Nothing by default; it must
-        not change any result.
-        """
-
-    # ------------------------------------------------------------ report
+    # ------------------------------------------------------------ presentation
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
         """Sections and plots this study adds to the common report (none by default)."""
         return []

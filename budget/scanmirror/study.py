@@ -33,23 +33,12 @@ class ScanMirrorStudy(Study):
     title = "GEO two-axis scan mirror: normal deviation from stars and compensated ground error (seed 003)"
     seed_document = "003"
     variants = ("published", "improved", "without_estimate")
+    scenario_module = "simcam.scanmirror.scenario"
 
     # ------------------------------------------------------------ scenario
-    def default_text(self) -> str:
-        from simcam.scanmirror.scenario import default_text
-
-        return default_text()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.scanmirror.scenario import scenario_from_dict
-
-        return scenario_from_dict(data, source=source)
 
     def check(self, scenario, *, where: str) -> None:
         self._setup(scenario, source=where)
-
-    def default_tolerance(self, scenario):
-        return scenario.validation.tolerance
 
     def chunk_trials(self, scenario) -> int:
         return 50  # about 10 ms a trial
@@ -62,9 +51,10 @@ class ScanMirrorStudy(Study):
                       "deviation at that dwell", per_trial_truth=True),
             ClassSpec("ground_max", "max |ground error| over the last area scan after compensation", "deg",
                       ("lat", "lon"), "geocentric latitude/longitude error of the line of sight's ground point "
-                      "against the nominal one; truth 0"),
+                      "against the nominal one; truth 0", role="residual"),
             ClassSpec("ground_rms", "rms ground error over the last area scan after compensation", "deg",
-                      ("lat", "lon"), "as ground_max, root mean square over the scan's samples; truth 0"),
+                      ("lat", "lon"), "as ground_max, root mean square over the scan's samples; truth 0",
+                      role="residual"),
         )
 
     def _setup(self, scenario, *, source: str | None = None):

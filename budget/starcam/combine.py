@@ -1,4 +1,4 @@
-"""``budget combine``: combine per-class errors into LSFE, single-star and attitude totals.
+"""``budget starcam combine``: combine per-class errors into LSFE, single-star and attitude totals.
 
 Seed 000: ``LSFE = sqrt(S^2 + (C1 + C2)^2)`` (eq 31), single star = RSS(TE, HSFE, LSFE)
 (section 2.4), attitude = single star / sqrt(N) (eq 32), per axis, in arcsec (3 sigma).
@@ -123,7 +123,7 @@ def load_budget_toml(path: str | Path) -> tuple[dict[str, dict[str, float]], int
     """
     path = Path(path)
     source = str(path)
-    from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
+    from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 
     data = read_toml(path=path, source=source)
     allowed = set(COMPONENTS) | set(TOTALS) | {"stars"}

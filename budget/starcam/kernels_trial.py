@@ -1,10 +1,10 @@
 """numba kernel of the Monte Carlo fast path: windows exposed and centroided in one pass.
 
 :func:`expose_centroid_frames` gives, for each (frame, window), exactly what
-:func:`simcam.starcam.detector.expose_windows_frames` followed by the float64 conversion, the
+:func:`simcam.detector.expose_windows_frames` followed by the float64 conversion, the
 dark subtraction and :func:`budget.centroid.core.centroid_windows` (thresholded centre of
 gravity, border or given background, given threshold) give, bit for bit, because it
-calls the same pixel kernel (:func:`simcam.starcam.kernels.detector.noise_adc_frames`) and the same
+calls the same pixel kernel (:func:`simcam.kernels.detector.noise_adc_frames`) and the same
 per-window centroid functions (:func:`budget.centroid.kernels.border_one`,
 :func:`budget.centroid.kernels.cog_one`). What it saves is memory traffic: a window
 lives in a scratch buffer of ``frames * h * w`` doubles instead of passing through a
@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from budget.centroid.kernels import FLAG_LOST, border_one, cog_one
-from simcam.starcam.kernels.detector import noise_adc_frames
+from simcam.kernels.detector import noise_adc_frames
 
 
 @njit(cache=True)
@@ -38,7 +38,7 @@ def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, ga
     Parameters
     ----------
     mean_e : float64 (n, h, w)
-        Mean charge (e-) from :func:`simcam.starcam.detector.window_chain`.
+        Mean charge (e-) from :func:`simcam.detector.window_chain`.
     row0, col0 : int64 (n,)
         Mosaic origins of the windows (the centroid's ``y0``, ``x0``).
     mosaic_cols, chip_cols, gain, offset, read_noise, full_well, max_dn
@@ -121,7 +121,7 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
 
 def expose_centroid_chain(chain, keys, *, dark_mean, threshold_dn, parallel: bool):
     """The kernels' call for :func:`budget.starcam.protocols._expose_centroid`: a
-    :class:`simcam.starcam.detector.WindowChain` exposed with the frame ``keys`` (uint64)
+    :class:`simcam.detector.WindowChain` exposed with the frame ``keys`` (uint64)
     and centroided; x, y, flux, flag as (frames, W)."""
     frames = keys.shape[0]
     W, h, w = chain.mean_e.shape

@@ -1,4 +1,4 @@
-"""`budget measure PROTOCOL DIR`: the lab's estimators on real (or simulated) FITS frames.
+"""`budget starcam measure PROTOCOL DIR`: the lab's estimators on real (or simulated) FITS frames.
 
 The directory holds FITS frames and a manifest that says which file is which condition.
 Manifest (``manifest.csv`` in DIR, or ``--manifest FILE``), one row per frame::
@@ -49,7 +49,7 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"{path}: manifest not found (write manifest.csv in the frame directory "
-                             "or pass --manifest; see `budget measure --help`)")
+                             "or pass --manifest; see `budget starcam measure --help`)")
     try:
         m = pd.read_csv(path, dtype={"file": str, "field": str}, encoding="utf-8")
     except pd.errors.EmptyDataError:

@@ -5,7 +5,7 @@ the field, which hexapod pose, which filter and how many frames: exactly what a 
 technician writes in a test procedure and what a manifest of real frames records. The
 plans are built from the scenario's ``[protocols]`` section (no protocol is a branch in
 code), and the same centroid tables come out of :func:`simulate` (simulated windows) and
-out of ``budget measure`` (real FITS frames).
+out of ``budget starcam measure`` (real FITS frames).
 
 Plans (seed 000, section 1):
 
@@ -293,7 +293,7 @@ def simulate(
         )
     if camera.onboard_correction is not None:
         # the camera reports its centroids through its own distortion correction
-        # (optics.distortion_correction, simcam.correction), as a flight camera does
+        # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
         table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
     ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
     return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)

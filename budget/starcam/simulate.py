@@ -1,9 +1,9 @@
-"""`budget simulate PROTOCOL`: a lab dry run, written as the lab's own data would be.
+"""`budget starcam simulate PROTOCOL`: a lab dry run, written as the lab's own data would be.
 
 Renders every condition of a protocol's acquisition plan as full FITS frames, with a
-``manifest.csv`` in the format ``budget measure`` reads, the grid target's
+``manifest.csv`` in the format ``budget starcam measure`` reads, the grid target's
 ``reference.csv`` (distortion), and ``truth.csv`` (what was injected), so that
-``budget measure PROTOCOL DIR`` can be tried on data whose answer is known.
+``budget starcam measure PROTOCOL DIR`` can be tried on data whose answer is known.
 """
 
 from __future__ import annotations
@@ -88,15 +88,15 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 @click.option("--json", "json_out", type=click.Path(dir_okay=False),
               help="Write a summary (files, conditions, scenario hash, seed) as JSON.")
 @click.option("--compress", is_flag=True,
-              help="Rice tile-compressed FITS frames (lossless; `budget measure` reads them).")
+              help="Rice tile-compressed FITS frames (lossless; `budget starcam measure` reads them).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out, compress,
                      progress) -> None:
-    """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget measure`."""
-    from simcam.starcam.scenario import load_scenario
+    """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget starcam measure`."""
+    from simcam.starcam.scenario import load
 
-    scn = load_scenario(scenario)
+    scn = load(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite, compress=compress, progress=progress,
                               source=str(scenario or "<embedded scenario>"))
@@ -110,4 +110,4 @@ def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwri
             "scenario_hash": scn.hash, "seed": seed, "version": __version__,
         })
     click.echo(f"{protocol}: wrote {len(m)} frames ({m['condition'].nunique()} condition(s)) to {out}; "
-               f"try: budget measure {protocol} {out}" + (f" --reference {out}/reference.csv" if protocol == "distortion" else ""))
+               f"try: budget starcam measure {protocol} {out}" + (f" --reference {out}/reference.csv" if protocol == "distortion" else ""))

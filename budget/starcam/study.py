@@ -8,7 +8,6 @@ scenario's plate scale, as seed 000 reports them).
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
@@ -36,21 +35,7 @@ class StarCameraStudy(Study):
     title = "Star-camera lab methods (seed 000)"
     seed_document = "000"
     variants = ("published", "improved")
-
-    def default_text(self) -> str:
-        from simcam.starcam.scenario import DEFAULT_RESOURCE
-
-        return resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.starcam.scenario import scenario_from_dict
-
-        return scenario_from_dict(data, source=source)
-
-    def load_scenario(self, path=None):
-        from simcam.starcam.scenario import load_scenario
-
-        return load_scenario(path)
+    scenario_module = "simcam.starcam.scenario"
 
     def scenario_text(self, scenario) -> str:
         from simcam.starcam.scenario import scenario_to_toml
@@ -58,9 +43,9 @@ class StarCameraStudy(Study):
         return scenario_to_toml(scenario)
 
     def check(self, scenario, *, where: str) -> None:
-        from budget.sweeps.spec import check_camera_geometry
+        from budget.starcam.checks import check_geometry
 
-        check_camera_geometry(scenario, where=where)
+        check_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         from budget.starcam.validate import INPUT_CLASSES
@@ -79,18 +64,6 @@ class StarCameraStudy(Study):
         sub-pixel phases, whatever pose reaches them), so a robustness case with only those on
         reuses the ideal world's truths."""
         return {"distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta"}
-
-    def default_trials(self, scenario) -> int:
-        return int(scenario.validation.trials)
-
-    def default_tolerance(self, scenario):
-        return scenario.validation.tolerance_3sigma_arcsec
-
-    def max_trials(self, scenario) -> int:
-        return int(scenario.validation.max_trials)
-
-    def batch_trials(self, scenario) -> int:
-        return int(scenario.validation.batch_trials)
 
     def worker_init(self) -> None:
         from budget.starcam.validate import worker_init
@@ -190,6 +163,14 @@ class StarCameraStudy(Study):
                     "differences per corner field (fig. 7), distortion residuals before and after the cubic "
                     "fit (fig. 8).")
         return [ReportSection("Seed-000 details", "\n\n".join(text), figs)]
+
+    def commands(self) -> list:
+        """``budget starcam simulate|measure|combine`` beside ``validate``: the lab's data."""
+        from budget.starcam.combine import combine_command
+        from budget.starcam.measure import measure_command
+        from budget.starcam.simulate import simulate_command
+
+        return [simulate_command, measure_command, combine_command]
 
 
 STUDY = StarCameraStudy()

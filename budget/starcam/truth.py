@@ -138,7 +138,7 @@ def cramer_rao_bound_px(camera, scene, *, step_px: float = 1e-3):
     """
     from dataclasses import replace as dreplace
 
-    from simcam.starcam.detector import dsnu_map, prnu_map
+    from simcam.detector import dsnu_map, prnu_map
 
     p = scene.placement
     out = []
@@ -388,7 +388,7 @@ def lsfe_c1_truth(camera) -> ClassTruth:
 
     * Calibrated camera (``optics.distortion_correction.kind = "fitted"``, the default): the
       camera reports its centroids through the correction of an earlier calibration
-      (:mod:`simcam.correction`). On a dense grid spanning the lab's calibration grid, the
+      (:mod:`simcam.starcam.correction`). On a dense grid spanning the lab's calibration grid, the
       lamp's image of each ideal point ``p`` (distortion, then lateral colour) is reported
       at ``R(M(D(p) + s(D(p))))`` with ``R`` the camera's correction and ``M`` focal plane
       to mosaic; the remaining displacement ``r = reported - M(p)`` about its mean over the
@@ -401,7 +401,7 @@ def lsfe_c1_truth(camera) -> ClassTruth:
 
     Neither route uses the lab's centroid tables, reference coordinates or estimators.
     """
-    from simcam.correction import lamp_image_focal_px, poly_design
+    from simcam.starcam.correction import lamp_image_focal_px, poly_design
 
     scn = camera.scenario
     lay = calibration_grid(scn)

@@ -39,15 +39,13 @@ _PARALLEL: bool | None = False
 
 
 def worker_init() -> None:
-    """Worker processes run single-threaded kernels: the processes are the parallelism.
+    """Worker processes run the serial kernels: the processes are the parallelism (the
+    runner gives each worker one numba thread, :func:`budget.runner.executors.worker_setup`).
 
     Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
     the worker exit when its parent dies.
     """
     global _PARALLEL
-    import numba
-
-    numba.set_num_threads(1)
     _PARALLEL = False
 
 

@@ -2,7 +2,7 @@
 
 A trial needs three groups of numba kernels: the PSF stamps
 (:mod:`simcam.starcam.kernels.psf`), the detector's fixed pattern
-(:func:`simcam.starcam.kernels.detector.mean_charge_windows`) and the fused
+(:func:`simcam.kernels.detector.mean_charge_windows`) and the fused
 expose-and-centroid kernel (:mod:`budget.starcam.kernels_trial`, with the noise, random
 number and centroid kernels it calls). On a fresh install numba compiles them one after
 the other, about 10 s on one core. :func:`prewarm` splits them over two processes
@@ -31,7 +31,7 @@ def prewarm(scenario) -> None:
     """Compile what a validation of ``scenario`` calls, on two cores, if numba's cache is cold."""
     from budget.starcam import kernels_trial as kt
     from simcam.numba_warm import compiling_in_parallel
-    from simcam.starcam.kernels import detector as kd
+    from simcam.kernels import detector as kd
     from simcam.starcam.kernels import psf as kp
 
     val = scenario.validation
@@ -51,11 +51,11 @@ def prewarm(scenario) -> None:
 def compile_support(arg: str) -> None:
     """Child target: the random-number kernels the noise kernel calls (first: this
     process needs them once its stamps are compiled), the fixed pattern through
-    :func:`simcam.starcam.detector.window_chain`, and the per-window centroid kernels,
+    :func:`simcam.detector.window_chain`, and the per-window centroid kernels,
     with the types the fused kernel passes. ``arg``: JSON options (unused)."""
     from budget.centroid.kernels import border_one, cog_one
     from simcam.rng import poisson_prepared, std_normal
-    from simcam.starcam.detector import DetectorParams, window_chain
+    from simcam.detector import DetectorParams, window_chain
 
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
     std_normal(np.uint64(1), np.uint64(2))
@@ -75,10 +75,10 @@ def compile_stamps_and_exposure(arg: str) -> None:
     expose-and-centroid kernel (option ``fused``) and the window exposure (option
     ``windows``: dark frames, or a method other than the centre of gravity), through
     :func:`budget.starcam.kernels_trial.expose_centroid_chain` and
-    :func:`simcam.starcam.detector.expose_windows_frames`. ``arg``: JSON options."""
+    :func:`simcam.detector.expose_windows_frames`. ``arg``: JSON options."""
     from budget.starcam.kernels_trial import expose_centroid_chain
     from simcam.rng import child_keys
-    from simcam.starcam.detector import WindowChain, expose_windows_frames
+    from simcam.detector import WindowChain, expose_windows_frames
     from simcam.starcam.optics import render_stamps
 
     opts = json.loads(arg)

@@ -3,8 +3,8 @@
 Every point runs in a worker (a local process, a Dask worker, or this process) through
 :func:`evaluate_point`, a pure function of the point's scenario, seed and settings: the
 same inputs give bit-identical outputs wherever it runs. The sweep's ``kind`` names a
-registered study (:mod:`budget.runner.registry`; ``camera`` is the seed-000 ``starcam``
-study), and nothing here knows one study from another:
+registered study (:mod:`budget.runner.registry`), and nothing here knows one study from
+another:
 
 * ``validate``: :func:`budget.runner.run.run_study` with one worker (the parallelism is
   across points): for each class, axis and estimator variant the truth (and its standard
@@ -43,15 +43,13 @@ __all__ = [
 
 #: codes of ``stopped_by`` (CF flag values)
 STOPPED_BY = ("trials", "tolerance", "max_trials")
-#: sweep kinds kept from before the study registry
-KIND_ALIASES = {"camera": "starcam"}
 
 
 def study_for_kind(kind: str):
     """The registered study a sweep ``kind`` names."""
     from budget.runner.registry import get_study
 
-    return get_study(KIND_ALIASES.get(kind, kind))
+    return get_study(kind)
 
 
 def _layout(kind: str):
@@ -122,7 +120,7 @@ class PointTask:
     scenario: Any
     seed: int
     trials: int | None = None
-    tolerance_3sigma_arcsec: float | None = None
+    tolerance: float | None = None  # in the unit of the study's classes
 
 
 @dataclass
@@ -161,7 +159,7 @@ def _evaluate(task: PointTask) -> dict:
             for v in lab["variant"]:
                 put_truth(c, a, v, t.value, t.se)
         return {"truth": truth, "truth_se": truth_se}
-    res = run_study(study, task.scenario, trials=task.trials, tolerance=task.tolerance_3sigma_arcsec,
+    res = run_study(study, task.scenario, trials=task.trials, tolerance=task.tolerance,
                     seed=task.seed, workers=1, progress=False, prewarm=False)
     out = {k: np.full(shape, np.nan) for k in ("mean", "bias", "spread", "se_bias", "se_spread",
                                               "ci95_low", "ci95_high")}

@@ -6,9 +6,9 @@ scenario and seed), so the results do not depend on the executor, the number of 
 or the order in which they finish. The executors are the same as the Monte Carlo
 runner's (this process; local ``spawn`` processes guarded against outliving their parent
 and stopped on an interruption; a Dask scheduler or LocalCluster), each worker set up by
-the sweep's study (:meth:`Study.worker_init`: one numba thread per worker, the workers
-are the parallelism). Remote Dask workers need this package installed (same version:
-checked on every result).
+the runner (:func:`budget.runner.executors.worker_setup`: one numba thread per worker, the
+workers are the parallelism) and then by the sweep's study (:meth:`Study.worker_init`).
+Remote Dask workers need this package installed (same version: checked on every result).
 """
 
 from __future__ import annotations
@@ -57,13 +57,13 @@ class SweepRunner:
             yield res
 
 
-def make_runner(*, kind: str = "camera", workers: int | None = None, scheduler: str | None = None,
+def make_runner(*, kind: str, workers: int | None = None, scheduler: str | None = None,
                 dask_local: int | None = None, inline: bool = False) -> SweepRunner:
     """The runner asked for (at most one option; default all local cores), set up for ``kind``."""
-    from budget.runner.executors import InlineExecutor, make_executor
+    from budget.runner.executors import InlineExecutor, make_executor, worker_setup
 
     if inline:
-        _init_for_kind(kind)
+        worker_setup(_init_for_kind, (kind,))
         return SweepRunner(InlineExecutor())
     return SweepRunner(make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
                                      initializer=_init_for_kind, initargs=(kind,)))

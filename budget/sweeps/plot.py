@@ -400,7 +400,8 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
 @click.argument("store", type=click.Path(file_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Folder of the PNG files (default: STORE_plots beside the store).")
-@click.option("--axis", default=None, help="Axis to draw (camera: x or y; default the first).")
+@click.option("--axis", default=None,
+              help="Axis to draw (one of the store's axis labels, e.g. x or y; default the first).")
 @click.option("--variant", default="improved", show_default=True,
               help="Variant drawn in 2-D line plots and bias heatmaps.")
 @click.option("--precision", type=click.FloatRange(min=0, min_open=True), default=None,

@@ -74,12 +74,12 @@ def plan_tasks(sweep: Sweep) -> tuple[list, list]:
 
     s = sweep.spec
     grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials,
-                      s.tolerance_3sigma_arcsec) for p in sweep.points]
+                      s.tolerance) for p in sweep.points]
     sens = []
     if s.sensitivity is not None:
         t = s.sensitivity
         sens = [PointTask("sensitivity", p.index, s.kind, t.evaluate, p.scenario, p.seed, t.trials,
-                          t.tolerance_3sigma_arcsec) for p in sweep.sample_points]
+                          t.tolerance) for p in sweep.sample_points]
     return grid, sens
 
 

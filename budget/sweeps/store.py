@@ -69,7 +69,7 @@ def store_attrs(sweep) -> dict:
         "sweep_file": sweep.text, "sweep_path": str(sweep.path), "seed": s.seed,
         "version": simcam.__version__, "kind": s.kind, "mode": s.mode, "evaluate": s.evaluate,
         "trials": -1 if s.trials is None else s.trials,
-        "tolerance_3sigma_arcsec": -1.0 if s.tolerance_3sigma_arcsec is None else s.tolerance_3sigma_arcsec,
+        "tolerance": -1.0 if s.tolerance is None else s.tolerance,
         "parameters": [k for k, _ in sweep.params], "point_dims": list(sweep.dims),
         "points": len(sweep.points), "base_scenario": scenario_text(s.kind, sweep.base),
         "base_scenario_hash": scenario_hash(s.kind, sweep.base), "seed_rule": SEED_RULE,
@@ -137,8 +137,7 @@ def create_store(path: str | os.PathLike, sweep) -> None:
             names = sweep.sensitivity_names
             sattrs = {"samples_N": sens.samples, "evaluate": sens.evaluate, "output": sens.output,
                       "trials": -1 if sens.trials is None else sens.trials,
-                      "tolerance_3sigma_arcsec": -1.0 if sens.tolerance_3sigma_arcsec is None
-                      else sens.tolerance_3sigma_arcsec,
+                      "tolerance": -1.0 if sens.tolerance is None else sens.tolerance,
                       "conf_level": sens.conf_level, "resamples": sens.resamples,
                       "distributions": {k: d.model_dump(mode="json", exclude_none=True)
                                         for k, d in sens.parameters.items()},

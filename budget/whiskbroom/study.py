@@ -39,22 +39,7 @@ class WhiskbroomStudy(Study):
     title = "Whiskbroom TDICCD camera: image-motion residual and TDI MTF (seed 002)"
     seed_document = "002"
     variants = ("published", "improved", "edge")
-
-    # ------------------------------------------------------------ scenario
-    def default_text(self) -> str:
-        from simcam.whiskbroom.scenario import default_text
-
-        return default_text()
-
-    def from_dict(self, data: dict, *, source: str):
-        from simcam.whiskbroom.scenario import from_dict
-
-        return from_dict(data, source=source)
-
-    def load_scenario(self, path=None):
-        from simcam.whiskbroom.scenario import load
-
-        return load(path)
+    scenario_module = "simcam.whiskbroom.scenario"
 
     # ------------------------------------------------------------ the method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -69,11 +54,6 @@ class WhiskbroomStudy(Study):
                       f"searched up to {STAGE_CAP_FACTOR} x {n}; truth from the pixel-level prefix sums",
                       per_trial_truth=True),
         )
-
-    def worker_init(self) -> None:
-        import numba
-
-        numba.set_num_threads(1)
 
     def chunk_trials(self, scenario) -> int:
         return 20

@@ -17,7 +17,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspa
 import numpy as np  # noqa: E402
 
 from budget.scanmirror.pipeline import ARCSEC, Setup, run  # noqa: E402
-from simcam.scanmirror.scenario import default_text, scenario_from_dict  # noqa: E402
+from simcam.scanmirror.scenario import default_text, from_dict  # noqa: E402
 
 NAMES = ("uncompensated", "without_estimate", "published", "improved")
 
@@ -30,7 +30,7 @@ def scenario(changes: dict):
         for k in head:
             node = node[k]
         node[last] = value
-    return scenario_from_dict(data, source="paper-numbers")
+    return from_dict(data, source="paper-numbers")
 
 
 PAPER = {  # the paper's deviation with its lost inputs chosen: axis 30 deg, f(t) = sin(omega t), phase 0

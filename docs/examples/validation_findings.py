@@ -32,7 +32,7 @@ from budget.runner.run import run_study
 from budget.starcam.study import STUDY
 from budget.starcam.validate import trial_seeds
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import load_scenario, with_updates
+from simcam.starcam.scenario import load, with_updates
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 LABELS = {"te": "TE", "hsfe": "HSFE", "lsfe_s": "LSFE-S", "lsfe_c1": "LSFE-C1", "lsfe_c2": "LSFE-C2",
@@ -66,7 +66,7 @@ def cell(s: dict) -> str:
 
 
 def camera_table(name: str, trials: int, workers: int) -> None:
-    scn = load_scenario(f"embedded:{name}")
+    scn = load(f"embedded:{name}")
     t0 = time.perf_counter()
     res = run_study(STUDY, scn, trials=trials, seed=1, workers=workers)
     dt = time.perf_counter() - t0
@@ -111,7 +111,7 @@ def c1_table(trials: int) -> None:
     print(f"\n### LSFE-C1 against the camera's true remaining displacement ({trials} trials, seed 1)\n")
     print("| camera's remaining displacement | truth x / y | eq 29 x | eq 29 y | improved x | improved y |")
     print("|---|---|---|---|---|---|")
-    base = load_scenario(None)
+    base = load(None)
     f = 3 * base.camera.scale_arcsec_per_px
     for label, upd in C1_CASES:
         scn = with_updates(base, upd) if upd else base
@@ -125,7 +125,7 @@ def s_table(trials: int) -> None:
     print(f"\n### LSFE-S with the lab's spectral model exact and mismatched ({trials} trials, seed 1)\n")
     print("| lab's spectral model | truth x / y | published x | published y | improved x | improved y |")
     print("|---|---|---|---|---|---|")
-    base = load_scenario(None)
+    base = load(None)
     f = 3 * base.camera.scale_arcsec_per_px
     for label, scn in (("exact (all stated errors 0)", with_updates(base, EXACT_KNOWLEDGE)),
                        ("default stated errors (QE peak +20 nm, filters +3/+2 nm, lamp +50 K, Teff +3 %)", base)):
@@ -142,7 +142,7 @@ def one_effect_table(trials: int, workers: int) -> None:
     runs: dict = {}
     for name, cls in ONE_EFFECT:
         if name not in runs:
-            scn = load_scenario(os.path.join(HERE, "scenarios", f"{name}.toml"))
+            scn = load(os.path.join(HERE, "scenarios", f"{name}.toml"))
             runs[name] = run_study(STUDY, scn, trials=trials, seed=1, workers=workers).summary()
         for ax in ("x", "y"):
             d = runs[name][cls][ax]

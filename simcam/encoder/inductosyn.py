@@ -39,13 +39,15 @@ from __future__ import annotations
 
 import math
 from importlib import resources
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 from scipy.optimize import brentq
 
-from simcam.config_base import ScenarioError, StrictModel, validate_model
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
+                                read_toml, validate_model)
 
 ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
 ARCSEC_PER_DEG = 3600.0
@@ -66,11 +68,12 @@ __all__ = [
     "WindingHarmonic",
     "apply_drift",
     "channel_signals",
-    "default_scenario",
-    "default_scenario_toml",
+    "default",
+    "default_text",
     "demodulated_error",
     "first_order_electrical_error_rad",
-    "load_scenario",
+    "from_dict",
+    "load",
     "mechanical_error_rad",
     "tracking_null_numeric_rad",
     "tracking_null_rad",
@@ -244,15 +247,17 @@ class CalibrationParams(StrictModel):
     autocollimator: AutocollimatorParams = AutocollimatorParams()
 
 
-class ValidationParams(StrictModel):
-    """Monte Carlo validation settings (trials, seed, dense truth grid)."""
+class ValidationParams(ValidationSettings):
+    """Monte Carlo settings (:class:`simcam.config_base.ValidationSettings`; trials are
+    vectorised, hence the large cap and batch) and the step of the dense truth grid."""
 
-    trials: int = Field(1000, ge=1, le=1_000_000)
-    seed: int = Field(1, ge=0)
+    trials: Trials = 1000
+    max_trials: Trials = 1_000_000
+    batch_trials: BatchTrials = 1000
     dense_step_deg: float = Field(0.001, gt=0, le=1)
 
 
-class InductosynScenario(StrictModel):
+class InductosynScenario(ScenarioBase):
     """A whole inductosyn scenario: the encoder, its drift, the calibration, the MC."""
 
     encoder: InductosynParams = InductosynParams()
@@ -261,43 +266,37 @@ class InductosynScenario(StrictModel):
     validation: ValidationParams = ValidationParams()
 
 
-def default_scenario_toml() -> str:
-    """Text of the embedded default scenario (resembles seed 001's unit)."""
+def default_text() -> str:
+    """Text of the embedded default scenario (resembles seed 001's unit), with comments."""
     return resources.files("simcam.data").joinpath("inductosyn_default.toml").read_text()
 
 
-def load_scenario(path: str | None = None) -> InductosynScenario:
-    """Load and validate an inductosyn scenario TOML (the embedded default if ``None``).
+def from_dict(data: dict, *, source: str = "scenario") -> InductosynScenario:
+    """Validate a mapping into :class:`InductosynScenario`.
 
     Raises
     ------
     ScenarioError
-        Unknown key, wrong type, out-of-range value (message names file and field), or
-        a parameter set whose reading is not monotonic.
+        Unknown key, wrong type, out-of-range value (message names ``source`` and field),
+        or a parameter set whose reading is not monotonic.
     """
-    import tomllib
-
-    if path is None:
-        source, text = "inductosyn_default.toml", default_scenario_toml()
-    else:
-        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
-
-        source = str(path)
-        text = None
-        data = read_toml(path=path, source=source)
-    if text is not None:
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
-    scenario = validate_model(InductosynScenario, data, source=source)
+    scenario = validate_model(InductosynScenario, data, source=source).with_source(source)
     Inductosyn(params=scenario.encoder, source=source)  # monotonicity check
     return scenario
 
 
-def default_scenario() -> InductosynScenario:
+def load(path: str | Path | None = None) -> InductosynScenario:
+    """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
+    for None, the embedded default."""
+    if path is None:
+        source = "embedded inductosyn default"
+        return from_dict(read_toml(text=default_text(), source=source), source=source)
+    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+
+
+def default() -> InductosynScenario:
     """The embedded default scenario, validated."""
-    return load_scenario(None)
+    return load(None)
 
 
 # ------------------------------------------------------------------ physical models

@@ -19,7 +19,7 @@ Frames and conventions (seed 004, ``shared/methods/004.md`` section a):
   ``Dx = r_n [k1 X r^2 + k2 X r^4 + p1 (r^2 + 2 X^2) + 2 p2 X Y]``,
   ``Dy = r_n [k1 Y r^2 + k2 Y r^4 + p2 (r^2 + 2 Y^2) + 2 p1 X Y]``, ``X = x'/r_n``,
   ``Y = y'/r_n``, ``x' = x - x0``.
-  The world evaluates this through :class:`simcam.starcam.optics.BrownConradyDistortion`, whose
+  The world evaluates this through :class:`simcam.distortion.BrownConradyDistortion`, whose
   ``forward`` with coefficients ``(-k1, -k2, -p2, -p1)`` is exactly ``x' -> x' - Dx``
   (its ``p1``/``p2`` are the OpenCV ones, swapped against Brown's photogrammetric
   convention), and whose tested Newton ``inverse`` gives the measured coordinates of an
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from simcam.starcam.optics import BrownConradyDistortion
+from simcam.distortion import BrownConradyDistortion
 
 from .scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
 

@@ -1,7 +1,7 @@
 """numba kernels of the line camera: a star imaged through the TDI stages with its motion.
 
 Arrays and scalars only, ``@njit(cache=True)``; no random numbers (the detector noise is
-added afterwards by :mod:`simcam.starcam.detector`).
+added afterwards by :mod:`simcam.detector`).
 """
 
 from __future__ import annotations

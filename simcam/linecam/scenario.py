@@ -10,13 +10,15 @@ from __future__ import annotations
 import math
 from functools import cached_property
 from importlib import resources
+from pathlib import Path
 from typing import Annotated, ClassVar, Literal
 
-from pydantic import ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import ConfigDict, Field, model_validator
 
-from simcam.config_base import StrictModel, model_hash, validate_model
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, model_hash, read_toml,
+                                validate_model)
 
-__all__ = ["ARCSEC_PER_RAD", "LineCamScenario", "default_text", "load_default", "from_dict",
+__all__ = ["ARCSEC_PER_RAD", "LineCamScenario", "default_text", "from_dict", "load", "default",
            "PARAMETERS"]
 
 #: arcsec per radian
@@ -160,14 +162,20 @@ class LabModel(_M):
     grid_step_px: Annotated[int, Field(ge=1, le=4096)] = 16
 
 
-class ValidationModel(_M):
-    trials: Annotated[int, Field(ge=2)] = 200
-    max_trials: Annotated[int, Field(ge=2)] = 2000
-    batch_trials: Annotated[int, Field(ge=1)] = 50
-    tolerance: Pos = 0.05
+class ValidationModel(ValidationSettings):
+    """Monte Carlo settings (:class:`simcam.config_base.ValidationSettings`, this study's
+    defaults; strict types like the rest of the scenario). ``tolerance`` is None by default:
+    the classes mix units (arcsec, px, mm, 1e-4), so a run uses a fixed number of trials
+    unless a tolerance is given (in the scenario or by ``--tolerance``)."""
+
+    model_config = _M.model_config
+
+    trials: Trials = 200
+    max_trials: Trials = 2000
+    batch_trials: BatchTrials = 50
 
 
-class LineCamScenario(_M):
+class LineCamScenario(ScenarioBase):
     """The whole scenario: camera, detector, orbit, attitude, stars, plan, errors, lab."""
 
     camera: LineCameraModel = LineCameraModel()
@@ -179,12 +187,8 @@ class LineCamScenario(_M):
     errors: ErrorsModel = ErrorsModel()
     lab: LabModel = LabModel()
     validation: ValidationModel = ValidationModel()
-    #: where the scenario came from (a file name), for errors found later (in a worker)
-    _source: str = PrivateAttr(default="scenario")
 
-    @property
-    def source(self) -> str:
-        return self._source
+    model_config = _M.model_config
 
     @cached_property
     def hash(self) -> str:
@@ -197,14 +201,20 @@ def default_text() -> str:
     return resources.files("simcam.linecam").joinpath("data/default.toml").read_text(encoding="utf-8")
 
 
-def from_dict(data: dict, *, source: str) -> LineCamScenario:
+def from_dict(data: dict, *, source: str = "scenario") -> LineCamScenario:
     """Validate a mapping into :class:`LineCamScenario` (errors name ``source`` and field)."""
-    sc = validate_model(LineCamScenario, data, source=source)
-    sc._source = source
-    return sc
+    return validate_model(LineCamScenario, data, source=source).with_source(source)
 
 
-def load_default() -> LineCamScenario:
-    import tomllib
+def load(path: str | Path | None = None) -> LineCamScenario:
+    """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
+    for None, the embedded default."""
+    if path is None:
+        source = "embedded linecam default"
+        return from_dict(read_toml(text=default_text(), source=source), source=source)
+    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
 
-    return from_dict(tomllib.loads(default_text()), source="embedded linecam default")
+
+def default() -> LineCamScenario:
+    """The embedded default scenario."""
+    return load(None)

@@ -27,7 +27,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from simcam.starcam import detector as _det
+from simcam import detector as _det
 from simcam.sky.apparent import aberration_first_order, apparent_directions
 from simcam.sky.catalogue import Catalogue, hipparcos
 
@@ -216,7 +216,7 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
     :func:`crossing_times`), the image motion about ``t*`` (second order, from the exact
     model at ``t* +- N T``), the expected electrons of a window of the TDI output
     (:func:`simcam.linecam.kernels.render_tdi_windows`), then the detector chain
-    (:func:`simcam.starcam.detector.expose_windows`: PRNU, dark, shot and read noise, ADC).
+    (:func:`simcam.detector.expose_windows`: PRNU, dark, shot and read noise, ADC).
     Stars whose window leaves the pass or the line are not imaged.
 
     Parameters

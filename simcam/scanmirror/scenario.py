@@ -4,14 +4,16 @@
 from __future__ import annotations
 
 from importlib.resources import files
+from pathlib import Path
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import Field, PrivateAttr, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
+                                read_toml, validate_model)
 
-__all__ = ["ScanMirrorScenario", "default_text", "scenario_from_dict", "OrbitConfig", "AttitudeConfig",
+__all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
            "MirrorConfig", "StarSensingConfig", "ScanPlan"]
 
 Vec3 = tuple[float, float, float]
@@ -95,11 +97,13 @@ class CompensationConfig(StrictModel):
     ground_step_s: Annotated[float, Field(gt=0, le=10)] = 0.1
 
 
-class ValidationConfig(StrictModel):
-    trials: Annotated[int, Field(ge=1)] = 1000
-    max_trials: Annotated[int, Field(ge=1)] = 4000
-    batch_trials: Annotated[int, Field(ge=1)] = 200
-    tolerance: Annotated[float, Field(gt=0)] | None = None
+class ValidationConfig(ValidationSettings):
+    """Monte Carlo settings (:class:`simcam.config_base.ValidationSettings`, this study's
+    defaults) and the sampling step of the ground track inside a trial."""
+
+    trials: Trials = 1000
+    max_trials: Trials = 4000
+    batch_trials: BatchTrials = 200
     ground_step_s: Annotated[float, Field(gt=0, le=10)] = 0.5
 
 
@@ -148,7 +152,7 @@ class ScanPlan(StrictModel):
     segments: tuple[Segment, ...] = Field(min_length=1)
 
 
-class ScanMirrorScenario(StrictModel):
+class ScanMirrorScenario(ScenarioBase):
     orbit: OrbitConfig = OrbitConfig()
     attitude: AttitudeConfig = AttitudeConfig()
     mirror: MirrorConfig = MirrorConfig()
@@ -156,16 +160,6 @@ class ScanMirrorScenario(StrictModel):
     compensation: CompensationConfig = CompensationConfig()
     validation: ValidationConfig = ValidationConfig()
     scan_plan: ScanPlan
-    #: where the scenario came from (named in errors found later, e.g. in a worker process)
-    _source: str = PrivateAttr(default="scenario")
-
-    @property
-    def hash(self) -> str:
-        return model_hash(self)
-
-    @property
-    def source(self) -> str:
-        return self._source
 
     @property
     def effective_plan(self) -> ScanPlan:
@@ -202,11 +196,24 @@ def default_text() -> str:
     return files("simcam.scanmirror").joinpath("data/default.toml").read_text(encoding="utf-8")
 
 
-def scenario_from_dict(data: dict, *, source: str) -> ScanMirrorScenario:
+def from_dict(data: dict, *, source: str = "scenario") -> ScanMirrorScenario:
     """Validate a mapping; errors are :class:`ScenarioError` lines naming ``source`` and field."""
-    sc = validate_model(ScanMirrorScenario, data, source=source)
-    sc._source = source
-    n_scan = sum(1 for s in sc.scan_plan.segments if s.kind == "area_scan")
+    scenario = validate_model(ScanMirrorScenario, data, source=source).with_source(source)
+    n_scan = sum(1 for s in scenario.scan_plan.segments if s.kind == "area_scan")
     if n_scan < 1:
         raise ScenarioError(f"{source}: scan_plan.segments: at least one area_scan is needed")
-    return sc
+    return scenario
+
+
+def load(path: str | Path | None = None) -> ScanMirrorScenario:
+    """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
+    for None, the embedded default."""
+    if path is None:
+        source = "embedded scanmirror default"
+        return from_dict(read_toml(text=default_text(), source=source), source=source)
+    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+
+
+def default() -> ScanMirrorScenario:
+    """The embedded default scenario."""
+    return load(None)

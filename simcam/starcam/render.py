@@ -13,7 +13,7 @@ The chain for each pinhole star (stages in a fixed order, as in a detector pipel
    ``sum_l w_l s_l`` (the spectrum-weighted chromatic displacement);
 5. **PSF**: pinhole disc x camera PSF, integrated over each pixel (simcam.starcam.optics);
 6. **detector**: PRNU, dark signal + DSNU, shot noise, read noise, full well, ADC
-   (simcam.starcam.detector), keyed per mosaic pixel so windows and full frames agree.
+   (simcam.detector), keyed per mosaic pixel so windows and full frames agree.
 
 The true position reported for a star is the centroid of its noise-free image:
 ``D(u + platform) + sum_l w_l s_l``, mapped to mosaic pixel coordinates.
@@ -29,7 +29,7 @@ import pandas as pd
 
 from simcam.starcam import optics
 from simcam.config_base import ScenarioError
-from simcam.starcam.detector import DetectorParams, expose, expose_windows_frames, window_chain
+from simcam.detector import DetectorParams, expose, expose_windows_frames, window_chain
 from simcam.starcam.geometry import Mosaic
 from simcam.rng import child_keys, key_from_seed
 from simcam.starcam.scenario import Scenario
@@ -203,10 +203,10 @@ class StarCamera:
     @property
     def onboard_correction(self):
         """The distortion correction this camera applies to its centroids
-        (:class:`simcam.correction.OnboardCorrection`, from ``optics.distortion_correction``),
+        (:class:`simcam.starcam.correction.OnboardCorrection`, from ``optics.distortion_correction``),
         or None for an uncalibrated camera. Computed once."""
         if "_onboard" not in self.__dict__:
-            from simcam.correction import fit_onboard_correction
+            from simcam.starcam.correction import fit_onboard_correction
 
             self.__dict__["_onboard"] = fit_onboard_correction(self)
         return self.__dict__["_onboard"]
@@ -408,7 +408,7 @@ class StarCamera:
 
     # ------------------------------------------------------------------ noise
     def window_chain(self, scene: Scene, *, dark: bool = False):
-        """The scene's windows through the detector's fixed pattern (:func:`simcam.starcam.detector.window_chain`):
+        """The scene's windows through the detector's fixed pattern (:func:`simcam.detector.window_chain`):
         mean charge per pixel and the chip constants, for the noise kernels. ``dark``: lamp
         off (no star, no stray light). Cached on the scene (callers must not modify it).
         """

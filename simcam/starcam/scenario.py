@@ -18,7 +18,6 @@ import hashlib
 import json
 import math
 import re
-import tomllib
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -27,7 +26,7 @@ from typing import Annotated, Any, Literal
 import tomli_w
 from pydantic import ConfigDict, Field, model_validator
 
-from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+from simcam.config_base import ScenarioBase, ScenarioError, StrictModel, ValidationSettings, model_hash, read_toml, validate_model
 from simcam.effects import EffectsBase, WorldBase
 
 #: arcsec per radian (exact: 180 * 3600 / pi)
@@ -489,12 +488,13 @@ class ProtocolsModel(_Model):
     distortion: DistortionProtocolModel = DistortionProtocolModel()
 
 
-class ValidationModel(_Model):
+class ValidationModel(ValidationSettings):
     """Monte Carlo validation settings (read by budget.starcam.validate).
 
-    * ``trials`` / ``tolerance_3sigma_arcsec`` / ``max_trials`` / ``batch_trials``: a fixed
-      number of trials, or batches until the Monte Carlo standard error of every bias and
-      spread (3 sigma arcsec) is below the tolerance (JCGM 101 section 7.9), with a cap;
+    * ``trials`` / ``tolerance`` / ``max_trials`` / ``batch_trials``: as every scenario
+      (:class:`simcam.config_base.ValidationSettings`): a fixed number of trials, or batches
+      until the Monte Carlo standard error of every bias and spread (arcsec, 3 sigma) is
+      below the tolerance (JCGM 101 section 7.9), with a cap;
     * ``new_maps_per_trial``, ``new_markers_per_trial``: draw new PRNU/DSNU maps and new
       target marker errors in every trial (else fixed by the scenario seed); the hexapod
       positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
@@ -508,10 +508,8 @@ class ValidationModel(_Model):
       points per axis for the field averages.
     """
 
-    trials: Annotated[int, Field(ge=2)] = 200
-    tolerance_3sigma_arcsec: Annotated[float, Field(gt=0.0)] | None = None
-    max_trials: Annotated[int, Field(ge=2)] = 5000
-    batch_trials: Annotated[int, Field(ge=2)] = 50
+    model_config = _Model.model_config
+
     new_maps_per_trial: bool = False
     new_markers_per_trial: bool = True
     centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
@@ -604,7 +602,7 @@ class StarCameraWorld(WorldBase):
     setup_s: NonNeg = 300.0
 
 
-class Scenario(_Model):
+class Scenario(ScenarioBase):
     """A complete star-camera + lab scenario (see module docstring)."""
 
     name: str = "seed-000 sub-arcsec star camera, lab"
@@ -679,7 +677,12 @@ def _strip_none(obj: Any) -> Any:
     return obj
 
 
-def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Scenario:
+def default_text() -> str:
+    """The embedded seed-000 default scenario (TOML with comments)."""
+    return resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+
+
+def from_dict(data: dict[str, Any], *, source: str = "scenario") -> Scenario:
     """Validate a dict (parsed TOML) into a :class:`Scenario`, or raise ScenarioError."""
     if not isinstance(data, dict):
         raise ScenarioError(f"{source or 'scenario'}: top level must be a table")
@@ -692,7 +695,7 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None) -> Sc
             data = apply_lens(data)
         except ValueError as exc:
             raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
-    scn = validate_model(Scenario, data, source=source)
+    scn = validate_model(Scenario, data, source=source).with_source(source)
     _check_derived_finite(scn, source=source)
     return scn
 
@@ -712,10 +715,11 @@ EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noi
                       "seed000_ideal": "seed000_ideal.toml"}
 
 
-def load_scenario(path: str | Path | None = None) -> Scenario:
-    """Load a scenario TOML file; ``None`` gives the embedded seed-000 default, and
-    ``"embedded:NAME"`` an embedded scenario of :data:`EMBEDDED_SCENARIOS` (``default``;
-    ``seed000_noisy``: the seed-000 camera with the seed's own noise and pixel errors)."""
+def load(path: str | Path | None = None) -> Scenario:
+    """Load a scenario TOML file (strict: :func:`simcam.config_base.read_toml`); ``None``
+    gives the embedded seed-000 default, and ``"embedded:NAME"`` an embedded scenario of
+    :data:`EMBEDDED_SCENARIOS` (``default``; ``seed000_noisy``: the seed-000 camera with the
+    seed's own noise and pixel errors)."""
     if isinstance(path, str) and path.startswith("embedded:"):
         name = path.split(":", 1)[1]
         if name not in EMBEDDED_SCENARIOS:
@@ -724,27 +728,21 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = resources.files("simcam.data").joinpath(EMBEDDED_SCENARIOS[name]).read_text()
         source = f"<embedded {EMBEDDED_SCENARIOS[name]}>"
     elif path is None:
-        text = resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+        text = default_text()
         source = f"<embedded {DEFAULT_RESOURCE}>"
     else:
-        from budget.runner.scenario_io import read_toml  # strict: missing, non-UTF-8, empty, invalid
-
         source = str(path)
-        return scenario_from_dict(read_toml(path=path, source=source), source=source)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
-    return scenario_from_dict(data, source=source)
+        return from_dict(read_toml(path=path, source=source), source=source)
+    return from_dict(read_toml(text=text, source=source), source=source)
 
 
-def default_scenario() -> Scenario:
+def default() -> Scenario:
     """The embedded seed-000 scenario."""
-    return load_scenario(None)
+    return load(None)
 
 
 def scenario_to_toml(scenario: Scenario) -> str:
-    """Resolved scenario as TOML text that :func:`load_scenario` accepts back."""
+    """Resolved scenario as TOML text that :func:`load` accepts back."""
     data = _strip_none(scenario.model_dump(mode="json"))
     text = tomli_w.dumps(data)
     # tomli_w writes every array one item per line; fold arrays of scalars onto one line.
@@ -780,4 +778,4 @@ def with_updates(scenario: Scenario, dotted: dict[str, Any]) -> Scenario:
         if not isinstance(node, dict) or parts[-1] not in node:
             raise ScenarioError(f"{key}: unknown key {parts[-1]!r}")
         node[parts[-1]] = value
-    return scenario_from_dict(data, source="override")
+    return from_dict(data, source="override")

@@ -8,7 +8,6 @@ the paper's Table 1 and are chosen there (docs/whiskbroom.md shows how the resul
 from __future__ import annotations
 
 import math
-import tomllib
 from importlib import resources
 from pathlib import Path
 from typing import Literal
@@ -16,7 +15,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from simcam.config_base import ScenarioError, StrictModel, model_hash, validate_model
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
+                                read_toml, validate_model)
 
 __all__ = ["Distribution", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
            "VARIABLES", "default_text", "from_dict", "load", "default"]
@@ -143,14 +143,15 @@ class Tdi(StrictModel):
     edge_time_samples_per_phase: int = Field(default=8, ge=1)
 
 
-class Validation(StrictModel):
-    trials: int = Field(default=200, ge=1)
-    max_trials: int = Field(default=10000, ge=1)
-    batch_trials: int = Field(default=100, ge=1)
-    tolerance: float | None = Field(default=None, gt=0)
+class Validation(ValidationSettings):
+    """Monte Carlo settings (:class:`simcam.config_base.ValidationSettings`, this study's defaults)."""
+
+    trials: Trials = 200
+    max_trials: Trials = 10000
+    batch_trials: BatchTrials = 100
 
 
-class WhiskbroomScenario(StrictModel):
+class WhiskbroomScenario(ScenarioBase):
     """The whole scenario (see ``data/default.toml`` for every field's meaning)."""
 
     orbit: Orbit
@@ -160,10 +161,6 @@ class WhiskbroomScenario(StrictModel):
     synthesis: Synthesis = Synthesis()
     tdi: Tdi = Tdi()
     validation: Validation = Validation()
-
-    @property
-    def hash(self) -> str:
-        return model_hash(self)
 
     @property
     def inclination_rad(self) -> float:
@@ -190,44 +187,34 @@ def default_text() -> str:
 
 def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
     """Validate a mapping; every problem is a line ``source: field.path: message``."""
-    sc = validate_model(WhiskbroomScenario, data, source=source)
+    scenario = validate_model(WhiskbroomScenario, data, source=source).with_source(source)
     problems = []
-    o = sc.orbit
-    if o.sun_synchronous and o.inclination_deg is not None:
+    orbit = scenario.orbit
+    if orbit.sun_synchronous and orbit.inclination_deg is not None:
         problems.append("orbit.inclination_deg: give it only with sun_synchronous = false")
-    if not o.sun_synchronous and o.inclination_deg is None:
+    if not orbit.sun_synchronous and orbit.inclination_deg is None:
         problems.append("orbit.inclination_deg: required when sun_synchronous = false")
-    if sc.synthesis.drift_angle and sc.mirror.rate_deg_s == 0.0:
+    if scenario.synthesis.drift_angle and scenario.mirror.rate_deg_s == 0.0:
         problems.append("mirror.rate_deg_s: must be nonzero when synthesis.drift_angle = true "
                         "(a whiskbroom drift angle needs a scanning mirror; set "
                         "synthesis.drift_angle = false for the push-broom limit)")
-    if o.sun_synchronous and not problems:
+    if orbit.sun_synchronous and not problems:
         try:
-            sc.inclination_rad
+            scenario.inclination_rad
         except ValueError as exc:
             problems.append(f"orbit.altitude_km: {exc}")
     if problems:
         raise ScenarioError("\n".join(f"{source}: {p}" for p in problems))
-    return sc
+    return scenario
 
 
 def load(path: str | Path | None = None) -> WhiskbroomScenario:
-    """The scenario file at ``path`` or the embedded default (errors name file and field)."""
+    """The scenario file at ``path`` (strict: :func:`simcam.config_base.read_toml`) or, for
+    None, the embedded default; errors name file and field."""
     if path is None:
-        source, text = "embedded whiskbroom default", default_text()
-    else:
-        source = str(path)
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ScenarioError(f"{source}: file not found") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ScenarioError(f"{source}: cannot read ({exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
-    return from_dict(data, source=source)
+        source = "embedded whiskbroom default"
+        return from_dict(read_toml(text=default_text(), source=source), source=source)
+    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
 
 
 def default() -> WhiskbroomScenario:

@@ -357,7 +357,7 @@ def load_prescription(ref: str | Path) -> Prescription:
         if not path.is_file():
             raise LensError(f"{path}: lens prescription file not found (or use embedded:NAME, one of "
                             f"{', '.join(embedded_lens_names())})")
-        from budget.runner.scenario_io import read_toml  # strict: non-UTF-8, empty, invalid
+        from simcam.config_base import read_toml  # strict: non-UTF-8, empty, invalid
         from simcam.config_base import ScenarioError
 
         source = str(path)

@@ -29,7 +29,7 @@ EMVA Standard 1288 release 4.0 (2021) (linear camera model):
 
 Note for developers: numba's on-disk cache (``cache=True``) keys a kernel on its own
 source file only; after editing :mod:`simcam.rng`, delete the ``detector.*.nbi/nbc``
-files under ``simcam/starcam/kernels/__pycache__`` or the kernels keep the old generator
+files under ``simcam/kernels/__pycache__`` or the kernels keep the old generator
 (``tests/test_detector.py::test_kernel_equals_composition_of_rng_primitives`` fails
 if they do).
 """

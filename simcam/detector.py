@@ -7,7 +7,7 @@ relative to its mean, DSNU as the rms of the dark signal across pixels) and EMVA
 Standard 1288 release 4.0 (2021), linear camera model (``mu_y = mu_e/K + offset``,
 ``sigma_y^2 = (sigma_e^2 + sigma_read^2)/K^2 + 1/12`` with the quantisation variance
 1/12 DN^2, electrons ``mu_e`` = photo-electrons + dark). The per-pixel model and its
-counter-based random numbers are described in :mod:`simcam.starcam.kernels.detector`; the
+counter-based random numbers are described in :mod:`simcam.kernels.detector`; the
 maps (PRNU, DSNU, hot pixels) are keyed by the detector key and so are fixed for a
 camera, the temporal noise is keyed by the frame key.
 """
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simcam.config_base import ScenarioError
-from simcam.starcam.kernels import detector as _k
+from simcam.kernels import detector as _k
 from simcam.rng import MAX_PIXEL_INDEX, _as_key
 
 __all__ = [
@@ -467,7 +467,7 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
 def _fixed_pattern_block(signal_e: float, shape, row0, col0, mosaic_cols, params, detector_key, *,
                          dark: bool) -> np.ndarray:
     """``S g + d`` (e-) of a block with uniform signal ``signal_e``, by the window
-    fixed-pattern kernel :func:`simcam.starcam.kernels.detector.mean_charge_windows` (one
+    fixed-pattern kernel :func:`simcam.kernels.detector.mean_charge_windows` (one
     kernel for numba to compile, not one per map); ``dark=False`` leaves the dark signal
     out (``d = 0``), ``True`` the PRNU (``g = 1``)."""
     h, w, r0, c0, mc = _block_args(shape, row0, col0, mosaic_cols)
@@ -492,7 +492,7 @@ class WindowChain:
     applied, e-); ``row0``/``col0`` (n,) int64 the mosaic origins; ``gain``, ``offset``,
     ``read_noise``, ``full_well`` the per-chip constants (float64 arrays); ``max_dn`` the
     ADC maximum. Built by :func:`window_chain`; consumed by
-    :func:`simcam.starcam.kernels.detector._noise_adc_row` (through :func:`expose_windows_frames`
+    :func:`simcam.kernels.detector._noise_adc_row` (through :func:`expose_windows_frames`
     or a caller's own fused kernel, which then gives the same pixels bit for bit).
     """
 

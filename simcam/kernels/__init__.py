@@ -1,0 +1,1 @@
+"""Numba kernels shared by the instruments: array-in, array-out numerical cores, free of orchestration."""
