@@ -374,7 +374,7 @@ def _expose_centroid_drift(camera, scene, drift, *, seed: int, dark_mean, thresh
 
 def _render_windows_drift(camera, scene, drift, *, seed: int):
     """:meth:`simcam.starcam.render.StarCamera.render_windows` for a drifting image."""
-    from simcam.starcam.detector import expose_windows_frames
+    from simcam.detector import expose_windows_frames
     from simcam.starcam.render import Windows
 
     n = drift.shape[0]

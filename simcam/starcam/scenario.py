@@ -546,7 +546,7 @@ class StarCameraEffects(EffectsBase):
     value, so the default scenario is the realistic world and ``budget validate`` answers the
     real question. The model forms are in :mod:`simcam.starcam.world` (hexapod, drift),
     :class:`simcam.starcam.optics.HigherOrderRadialDistortion` (distortion beyond the cubic)
-    and :mod:`simcam.starcam.detector` (non-linearity). Sources: Janesick, *Photon Transfer*,
+    and :mod:`simcam.detector` (non-linearity). Sources: Janesick, *Photon Transfer*,
     SPIE PM170 (2007), ch. 7; Gpixel GSENSE4040 data sheet; Andor sCMOS architecture notes;
     the project's traced lens ``embedded:star_camera`` (docs/lens.md).
     """

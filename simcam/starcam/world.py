@@ -4,7 +4,7 @@
 :class:`simcam.starcam.scenario.StarCameraWorld` the settings of the model forms. The other
 two effects live where their physics is: the distortion beyond the cubic in
 :class:`simcam.starcam.optics.HigherOrderRadialDistortion`, the detector's integral
-non-linearity in :mod:`simcam.starcam.detector`. Only the simulator and the truth routes
+non-linearity in :mod:`simcam.detector`. Only the simulator and the truth routes
 read them; the lab's plans and estimators never do.
 
 Timeline of a lab run (:func:`timeline`). The protocols run in the order TE, HSFE,
