@@ -232,10 +232,17 @@ def simulate(
             drift = None
         else:
             pdx, pdy, roll = motion.pose(plan.protocol, c.index)
-            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px + pdx,
-                                  platform_dy_px=c.platform_dy_px + pdy, filter_nm=c.filter_nm, condition=stream,
-                                  label=c.label, platform_roll_rad=roll)
             drift = motion.drift_of(plan.protocol, c.index, c.frames)
+            # the condition's mean drift is rendered exactly (in the scene's pose), the drift
+            # about it per frame to first order (StarCamera.drift_chain)
+            d0 = (0.0, 0.0) if drift is None else tuple(float(v) for v in drift.mean(axis=0))
+            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px + pdx + d0[0],
+                                  platform_dy_px=c.platform_dy_px + pdy + d0[1], filter_nm=c.filter_nm,
+                                  condition=stream, label=c.label, platform_roll_rad=roll)
+            if drift is not None:
+                drift = (drift - np.array(d0)[None, :], Placement(
+                    layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                    filter_nm=c.filter_nm, condition=stream, label=c.label))
         scene = camera.scene(placement)
         W = scene.n_stars
         n = c.frames
@@ -348,11 +355,13 @@ def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean,
 
 
 def _drifted_chains(camera, scene, drift):
-    """One window chain per frame of a scene whose image drifts by ``drift`` (frames, 2) px
-    (:meth:`simcam.starcam.render.StarCamera.drift_chain`), with the frames' noise keys."""
+    """One window chain per frame of a scene whose image drifts by ``drift[0]`` (frames, 2) px
+    about the scene's own position, with gradients at the commanded placement ``drift[1]``
+    (:meth:`simcam.starcam.render.StarCamera.drift_chain`)."""
     from dataclasses import replace
 
-    chain, gx, gy = camera.drift_chain(scene, drift)
+    drift, nominal = drift
+    chain, gx, gy = camera.drift_chain(scene, nominal)
     for f in range(drift.shape[0]):
         mean = np.maximum(chain.mean_e + drift[f, 0] * gx + drift[f, 1] * gy, 0.0)
         yield f, replace(chain, mean_e=mean)
@@ -362,7 +371,7 @@ def _expose_centroid_drift(camera, scene, drift, *, seed: int, dark_mean, thresh
     """:func:`_expose_centroid` for a drifting image: each frame exposed from its own chain."""
     from budget.starcam.kernels_trial import expose_centroid_chain
 
-    n = drift.shape[0]
+    n = drift[0].shape[0]
     keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
     out = [np.empty((n, scene.n_stars)) for _ in range(3)] + [np.zeros((n, scene.n_stars), dtype=np.int64)]
     for f, ch in _drifted_chains(camera, scene, drift):
@@ -377,7 +386,7 @@ def _render_windows_drift(camera, scene, drift, *, seed: int):
     from simcam.detector import expose_windows_frames
     from simcam.starcam.render import Windows
 
-    n = drift.shape[0]
+    n = drift[0].shape[0]
     keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
     frames = []
     for f, ch in _drifted_chains(camera, scene, drift):

@@ -176,28 +176,48 @@ class StarCamera:
             self.__dict__["_world_motion"] = hit
         return hit[1]
 
-    def drift_chain(self, scene: Scene, drift_px: np.ndarray, *, step_px: float = 1e-3):
-        """Window chains of ``scene`` displaced by a small common ``drift_px`` (frames, 2) px,
-        one per frame: ``mean + dx G_x + dy G_y`` with ``G`` the central difference of the
-        chain's mean charge over ``+-step_px`` displacements of the scene (first order in the
-        drift: the neglected term is ``d^2 / 2`` times the image's second derivative, below
-        1e-4 of a pixel's charge for a drift under 0.01 px and a PSF sigma of 0.8 px).
-        Returns ``(chain, dmean_dx, dmean_dy)``; the gradients are cached on the scene."""
-        grads = scene.__dict__.get("_drift_grads")
+    def drift_chain(self, scene: Scene, nominal: Placement | None = None, *, step_px: float = 1e-3):
+        """The window chain of ``scene`` and the gradient of its mean charge with respect to a
+        common image displacement (u and v, e- per px), for a drift within the condition:
+        frame ``f`` of a drift ``d_f`` about the scene's own position has the mean charge
+        ``mean + d_f,u G_u + d_f,v G_v`` (first order in ``d_f``; the simulation puts the
+        condition's mean drift into the scene itself, so ``d_f`` stays below 1e-3 px at the
+        sourced magnitudes and the neglected ``d^2`` term below 1e-6 of a pixel's charge).
+
+        ``G`` is the central difference over ``+-step_px`` displacements of the ``nominal``
+        placement (the commanded pose: default the scene's own), evaluated at the scene's window
+        origins. At the commanded pose the gradients are computed once for every trial (cached):
+        they differ from those at the scene's pose (a hexapod error away, ~0.2 px) by about
+        that fraction of a PSF width, i.e. by ~25 % of a within-condition drift of < 1e-3 px.
+        Returns ``(chain, G_u, G_v)``.
+        """
         chain = self.window_chain(scene)
+        p = scene.placement if nominal is None else nominal
+        key = (p.layout.u_px.tobytes(), p.layout.v_px.tobytes(), p.layout.pinhole_radius_px, p.platform_dx_px,
+               p.platform_dy_px, p.platform_roll_rad, p.filter_nm, chain.col0.tobytes(), chain.row0.tobytes(),
+               float(step_px))
+        cache = self.__dict__.setdefault("_drift_grads", {})
+        grads = cache.get(key)
         if grads is None:
-            p = scene.placement
+            scenes = self.__dict__.setdefault("_drift_scenes", {})
             out = []
             for dx, dy in ((step_px, 0.0), (-step_px, 0.0), (0.0, step_px), (0.0, -step_px)):
-                sc = self._scene(dataclasses.replace(p, platform_dx_px=p.platform_dx_px + dx,
-                                                     platform_dy_px=p.platform_dy_px + dy))
+                sk = key[:7] + (dx, dy)
+                sc = scenes.get(sk)
+                if sc is None:
+                    if len(scenes) > 1024:
+                        scenes.clear()
+                    sc = scenes[sk] = self._scene(dataclasses.replace(
+                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy))
                 sig = _expected_windows_at(self, sc, chain.col0, chain.row0)
                 _, cols = self.mosaic.shape
                 out.append(window_chain(signal_e=sig, row0=chain.row0, col0=chain.col0, mosaic_cols=cols,
                                         chip_cols=self.mosaic.chip_cols, params=self.detector_params,
                                         detector_key=self.detector_key).mean_e)
             grads = ((out[0] - out[1]) / (2 * step_px), (out[2] - out[3]) / (2 * step_px))
-            object.__setattr__(scene, "_drift_grads", grads)
+            if len(cache) > 1024:
+                cache.clear()
+            cache[key] = grads
         return chain, grads[0], grads[1]
 
     @property
