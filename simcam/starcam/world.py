@@ -41,7 +41,9 @@ Gauss-Markov process per axis (stationary sigma ``drift_random_arcsec``, time co
 ``drift_time_constant_s``), exact discretisation between frame times
 ``x_{k+1} = x_k e^{-dt/tau} + sigma sqrt(1 - e^{-2 dt/tau}) z`` (e.g. Gelb, *Applied Optimal
 Estimation*, 1974, section 3.8), stationary start. Draws from
-``SeedSequence(seed, spawn_key=(STREAM_DRIFT,))``.
+``SeedSequence(seed, spawn_key=(STREAM_DRIFT,))``. The simulation
+(:func:`budget.starcam.protocols.simulate`) renders a condition's mean drift exactly and each
+frame's deviation from it to first order (:meth:`simcam.starcam.render.StarCamera.drift_chain`).
 """
 
 from __future__ import annotations
