@@ -142,9 +142,10 @@ class StarCamera:
             ),
         )
         eff = scenario.world.effects
-        if eff.distortion_r5_px_at_corner != 0.0 or eff.distortion_r7_px_at_corner != 0.0:
+        if o.lens is None and (eff.distortion_r5_px_at_corner != 0.0 or eff.distortion_r7_px_at_corner != 0.0):
             # the world's lens distortion beyond the scenario's (issue 22): fifth and seventh
-            # order radial terms, sized at the mosaic's corner
+            # order radial terms, sized at the mosaic's corner. A traced lens (optics.lens)
+            # already carries its own higher orders (fitted up to r^5): nothing is added to it
             self.distortion = optics.HigherOrderRadialDistortion(
                 base=self.distortion, a5_px=eff.distortion_r5_px_at_corner, a7_px=eff.distortion_r7_px_at_corner,
                 r_corner_px=mosaic_corner_radius_px(scenario))

@@ -553,7 +553,8 @@ class StarCameraEffects(EffectsBase):
 
     distortion_r5_px_at_corner: float = Field(
         1.47, description="traced embedded lens (embedded:star_camera): fifth-order radial distortion 1.47 px at "
-        "the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights, which no cubic removes")
+        "the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights, which no cubic removes "
+        "(sized at the corner of the scenario's mosaic; not added when optics.lens traces a lens, which has its own)")
     distortion_r7_px_at_corner: float = Field(
         0.081, description="traced embedded lens (embedded:star_camera): seventh-order radial distortion 0.081 px "
         "at the mosaic corner in the same fit")
