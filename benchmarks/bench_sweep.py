@@ -166,8 +166,8 @@ def main() -> None:
             if args.dask:
                 configs.append(("Dask LocalCluster 2", {"dask_local": 2}))
             print(f"throughput, {args.points} truth-mode points of the default scenario with a light HSFE "
-                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 2000 would make each "
-                  f"point 15-18 s), {args.repeat} run(s) each:", flush=True)
+                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 2000 make a point "
+                  f"far dearer: timed below), {args.repeat} run(s) each:", flush=True)
             rows = _throughput(path, d, args.repeat, configs)
             base_e2e, base_st = max(rows[0][1]), max(rows[0][2])
             print(format_table(

@@ -104,13 +104,13 @@ end to end with 1 and with 2 worker processes (a new process each, as a user run
 the fixed cost of `budget validate` (the wall time of a 2-trial run minus two warm trials
 and the truths' work, both measured in the same run) with a warm numba cache and with an
 empty one (a fresh install). The fixed-cost runs use the default scenario with
-`hsfe_truth_frames = 16`: the default's HSFE truth is 10-20 s of real work, and
-subtracting that much, measured in another process, would drown a fixed cost of a second
-or two in its noise. Targets: two workers give at least 1.7x the throughput of
+`hsfe_truth_frames = 16`: the default's HSFE truth is many times the fixed cost in real
+work (its time is printed below), and subtracting that much, measured in another process,
+would drown the fixed cost in its noise. Targets: two workers give at least 1.7x the throughput of
 one; fixed cost at most 2 s warm and at most 8 s with an empty cache. With an empty cache
-numba compiles the kernels a trial and the truths call (about 30 functions, 8-10 s of one
-core on this machine); the study's warm-up (`budget/starcam/warm.py`) splits them over two
-processes before the trials start, so the run waits about 4.5 s for them."""),
+numba compiles the kernels a trial and the truths call (about 30 functions); the study's
+warm-up (`budget/starcam/warm.py`) splits them over two processes before the trials
+start, so the run waits about half their compile time."""),
     "sweep": ("Sweeps", """\
 Truth-mode points of the default camera (PSF width x PRNU; each point a new camera:
 scenes, stamps and every class's truth) on 1 and 2 local worker processes, end to end and
@@ -118,7 +118,7 @@ in steady state (points finished after every worker finished its first), best ov
 repeats into a fresh store; and the cost of one validation point as its trial count grows
 (a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
 LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
-sub-pixel phase instead of the scenario's 2000, which make a point 15-18 s): the figures
+sub-pixel phase instead of the scenario's 2000, which make a point far dearer): the figures
 measure the machinery; one point with the full truth is timed once for scale. Target:
 at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
     "lens": ("Lens tracing", """\
@@ -463,7 +463,7 @@ def readme_main_job(runs: list[BenchRun], *, date: str | None = None,
     if two is None:
         return None
     trials = run.result.get("trials", 200)
-    text = f"{trials} trials: {two:.0f} s on 2 cores"
+    text = f"{trials} trials: {two:.0f} s on 2 cores, the report aside"
     if cold is not None and warm is not None:
         text += f", about {two + cold - warm:.0f} s the first time after the install, when numba compiles its kernels"
     return (text + f" (measured by [`benchmarks/run_all.py`]({page}#{anchor('runner')})"

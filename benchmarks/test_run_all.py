@@ -147,7 +147,7 @@ def test_readme_block_takes_the_main_job_time_from_the_runner():
                            figure("fixed_cost_cold_s", "w", 6.0, "s")]) | {"trials": 200}
     sentence = run_all.readme_main_job([run], date="2026-11-25")
     # 27.4 s warm; first run 27.4 + (6.0 - 1.5) = 31.9 s
-    assert sentence.startswith("200 trials: 27 s on 2 cores, about 32 s the first time")
+    assert sentence.startswith("200 trials: 27 s on 2 cores, the report aside, about 32 s the first time")
     assert "docs/benchmarks.md#bench-runner" in sentence and "2026-11-25" in sentence
     assert run_all.readme_main_job([_run([])]) is None
     text = f"a {run_all.README_BEGIN}old{run_all.README_END} b"
