@@ -21,6 +21,11 @@ Usage (from the repository root)::
     python benchmarks/run_all.py --only centroid,render --out /tmp/b.md
     python benchmarks/run_all.py --list
 
+A full run onto the default page (no ``--quick``, no ``--out``) also rewrites the marked
+block of ``README.md`` that states the main job's wall time (from ``bench_runner.py``'s
+figures of the same run), so that every speed figure of the docs comes from one run; the
+other pages link to the benchmarks' sections (anchors ``#bench-<name>``).
+
 ``--quick`` passes ``--quick`` to every benchmark that has it (fewer repeats and trials:
 the figures are then not meaningful, and the page says so); a benchmark without it runs
 with its own defaults. Exit status: 0 when every benchmark ran and printed its
