@@ -166,8 +166,8 @@ def main() -> None:
             if args.dask:
                 configs.append(("Dask LocalCluster 2", {"dask_local": 2}))
             print(f"throughput, {args.points} truth-mode points of the default scenario with a light HSFE "
-                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 2000 would make each "
-                  f"point 15-18 s), {args.repeat} run(s) each:", flush=True)
+                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 2000 make a point "
+                  f"far dearer: timed below), {args.repeat} run(s) each:", flush=True)
             rows = _throughput(path, d, args.repeat, configs)
             base_e2e, base_st = max(rows[0][1]), max(rows[0][2])
             print(format_table(
@@ -208,6 +208,9 @@ def main() -> None:
             figs += [figure("point_fixed_s", f"validation point: fixed cost (truths; HSFE truth of "
                             f"{args.hsfe_truth_frames} frames per phase), s", a, "s"),
                      figure("point_per_trial_s", "validation point: cost per trial, s", b, "s")]
+            if full is not None:  # what a point costs at the scenario's own settings (docs/sweeps.md)
+                figs.append(figure("point_full_truth_s", f"validation point of {k_full} trials, the scenario's "
+                                   f"own HSFE truth ({n_full} frames per phase), s", t_full, "s"))
         print("load after:", " ".join(f"{x:.2f}" for x in os.getloadavg()))
         emit_result("sweep", figs, quick=args.quick, points=args.points,
                     hsfe_truth_frames=args.hsfe_truth_frames)

@@ -139,3 +139,23 @@ def test_scripts_run_as_a_file_and_as_a_module(tmp_path, name):
                                env=env, capture_output=True, text=True, timeout=60)
     assert as_module.returncode == 0, as_module.stderr
     assert as_file.stdout == as_module.stdout
+
+
+def test_readme_block_takes_the_main_job_time_from_the_runner():
+    run = run_all.BenchRun(name="runner", script=run_all.HERE / "bench_runner.py", args=[], status="ok")
+    run.result = _payload([figure("two_workers_s", "w", 27.4, "s"), figure("fixed_cost_warm_s", "w", 1.5, "s"),
+                           figure("fixed_cost_cold_s", "w", 6.0, "s")]) | {"trials": 200}
+    sentence = run_all.readme_main_job([run], date="2026-11-25")
+    # 27.4 s warm; first run 27.4 + (6.0 - 1.5) = 31.9 s
+    assert sentence.startswith("200 trials: 27 s on 2 cores, the report aside, about 32 s the first time")
+    assert "docs/benchmarks.md#bench-runner" in sentence and "2026-11-25" in sentence
+    assert run_all.readme_main_job([_run([])]) is None
+    text = f"a {run_all.README_BEGIN}old{run_all.README_END} b"
+    assert run_all.rewrite_block(text, "new") == f"a {run_all.README_BEGIN}new{run_all.README_END} b"
+    with pytest.raises(ValueError):
+        run_all.rewrite_block("no markers", "new")
+
+
+def test_the_readme_carries_the_generated_block_once():
+    text = (run_all.ROOT / "README.md").read_text(encoding="utf-8")
+    run_all.rewrite_block(text, "x")  # raises when the markers are missing or doubled
