@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import sys
 from pathlib import Path
-from typing import Any
 
 __all__ = ["robustness", "scenario_text", "studies", "sweep", "validate"]
 

@@ -188,3 +188,14 @@ def read_toml(*, path: str | Path | None = None, text: str | None = None, source
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: not valid TOML: {exc}") from None
+
+
+def load_scenario_file(path, *, from_dict, default_text, study: str):
+    """The ``load(path=None)`` of an instrument's scenario module, written once: the file at
+    ``path`` read strictly (:func:`read_toml`: missing, not UTF-8, empty, invalid TOML, a FIFO
+    or a device is one line naming the file) and validated by ``from_dict``; for None, the
+    embedded default ``default_text()`` (named ``embedded STUDY default`` in errors)."""
+    if path is None:
+        source = f"embedded {study} default"
+        return from_dict(read_toml(text=default_text(), source=source), source=source)
+    return from_dict(read_toml(path=path, source=str(path)), source=str(path))

@@ -20,14 +20,9 @@ __all__ = ["synthesize_command", "run_synthesis", "main"]
 
 def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None, overwrite=False,
                   echo=click.echo, seeds=20, criterion_trials=200):
-    import numpy as np
-
-    from simcam.cli_common import write_json_atomic
-    from simcam.whiskbroom import geometry as geo
+    from simcam.outputs import StagedOutputs, check_run_outputs, is_earlier_report
     from simcam.whiskbroom import scenario as wsc
     from simcam.whiskbroom import synthesis as sy
-
-    from simcam.outputs import StagedOutputs, check_run_outputs, is_earlier_report
 
     check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # before the work
     if report_dir:

@@ -46,8 +46,8 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 from scipy.optimize import brentq
 
-from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
-                                read_toml, validate_model)
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials,
+                                ValidationSettings, load_scenario_file, validate_model)
 from simcam.effects import EffectsBase, WorldBase
 
 ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
@@ -364,10 +364,7 @@ def from_dict(data: dict, *, source: str = "scenario") -> InductosynScenario:
 def load(path: str | Path | None = None) -> InductosynScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
     for None, the embedded default."""
-    if path is None:
-        source = "embedded inductosyn default"
-        return from_dict(read_toml(text=default_text(), source=source), source=source)
-    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+    return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="inductosyn")
 
 
 def default() -> InductosynScenario:

@@ -15,8 +15,8 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, model_hash, read_toml,
-                                validate_model)
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings,
+                                load_scenario_file, model_hash, validate_model)
 
 from .effects import LineCamWorld
 
@@ -222,10 +222,7 @@ def from_dict(data: dict, *, source: str = "scenario") -> LineCamScenario:
 def load(path: str | Path | None = None) -> LineCamScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
     for None, the embedded default."""
-    if path is None:
-        source = "embedded linecam default"
-        return from_dict(read_toml(text=default_text(), source=source), source=source)
-    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+    return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="linecam")
 
 
 def default() -> LineCamScenario:

@@ -10,8 +10,8 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
-                                read_toml, validate_model)
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials,
+                                ValidationSettings, load_scenario_file, validate_model)
 from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
 
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
@@ -210,10 +210,7 @@ def from_dict(data: dict, *, source: str = "scenario") -> ScanMirrorScenario:
 def load(path: str | Path | None = None) -> ScanMirrorScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
     for None, the embedded default."""
-    if path is None:
-        source = "embedded scanmirror default"
-        return from_dict(read_toml(text=default_text(), source=source), source=source)
-    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+    return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="scanmirror")
 
 
 def default() -> ScanMirrorScenario:

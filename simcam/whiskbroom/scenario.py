@@ -15,8 +15,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
-                                read_toml, validate_model)
+from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials,
+                                ValidationSettings, load_scenario_file, validate_model)
 from simcam.effects import EffectsBase, WorldBase
 
 __all__ = ["Distribution", "WhiskbroomEffects", "WhiskbroomWorld", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
@@ -276,10 +276,7 @@ def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
 def load(path: str | Path | None = None) -> WhiskbroomScenario:
     """The scenario file at ``path`` (strict: :func:`simcam.config_base.read_toml`) or, for
     None, the embedded default; errors name file and field."""
-    if path is None:
-        source = "embedded whiskbroom default"
-        return from_dict(read_toml(text=default_text(), source=source), source=source)
-    return from_dict(read_toml(path=path, source=str(path)), source=str(path))
+    return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="whiskbroom")
 
 
 def default() -> WhiskbroomScenario:
