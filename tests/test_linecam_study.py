@@ -72,3 +72,16 @@ def test_trial_errors_agree_with_the_stated_sigmas():
         assert lo < z.std(ddof=1) < hi, (cls, var, ax, z.std(ddof=1))
         checked += 1
     assert checked == 12  # six parameters, published and improved
+
+
+def test_a_folding_distortion_drawn_by_a_trial_names_the_file_and_fields():
+    """A scenario at the edge of its ranges (distortion sigmas so large that a trial's camera
+    folds its focal plane) is one ScenarioError naming the file and the fields, not an
+    optics error without a file."""
+    import pytest
+
+    from simcam.config_base import ScenarioError
+
+    sc = STUDY.from_dict({"errors": {"k1": {"sigma": 5.0}, "k2": {"sigma": 5.0}}}, source="edge.toml")
+    with pytest.raises(ScenarioError, match=r"^edge\.toml: errors\.k1 / k2 / p1 / p2 .*folds"):
+        STUDY.trial(sc, 0, 0)

@@ -146,10 +146,17 @@ class LineCamStudy(Study):
         from .calibrate import CalibrationError
         from .trial import simulate
 
+        from simcam.distortion import OpticsError
+
         try:
             simulation = simulate(scenario, trial_seed_sequence(seed, k))
         except CalibrationError as exc:
             raise ScenarioError(f"{scenario.source}: stars.mag_limit / observation.passes: {exc}") from None
+        except OpticsError as exc:
+            # the camera drawn for this trial has a distortion the optics cannot invert (a
+            # scenario at the edge of its ranges): name the file and the fields that drew it
+            raise ScenarioError(f"{scenario.source}: errors.k1 / k2 / p1 / p2 (trial {k} of seed {seed} drew a "
+                                f"distortion that folds the focal plane; give smaller sigmas): {exc}") from None
         return trial_result(scenario, simulation, keep_extra=(k == 0))
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
