@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from budget.runner.cli import world_line
+from budget.runner.report import world_line
 from simcam.cli_common import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +32,7 @@ def test_ideal_world_flag_equals_the_ideal_scenario_file(tmp_path, capsys):
                     *common, "--json", str(b)]) == 0
     ja, jb = json.loads(a.read_text()), json.loads(b.read_text())
     assert ja["classes"] == jb["classes"] and ja["truths"] == jb["truths"]   # the same run, bit for bit
+    assert ja["world_effects_on"] == [] and jb["world_effects_on"] == []
 
 
 def test_world_line_names_the_effects_on():

@@ -40,6 +40,8 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
+    from budget.runner.report import world_line
+
     click.echo(world_line(scenario))
     click.echo(format_table(res))
     from budget.runner.findings import findings_lines  # the findings in words
@@ -56,19 +58,6 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     if report_dir:
         click.echo(f"report: {Path(report_dir) / 'report.md'}")
     return res
-
-
-def world_line(scenario) -> str:
-    """One line naming the world a run simulated: which ``[world.effects]`` were on."""
-    from simcam.effects import scenario_effects
-
-    effects = scenario_effects(scenario)
-    if effects is None:
-        return "world: the simulator's model (this study has no [world.effects])"
-    on = effects.active()
-    if not on:
-        return "world: ideal (every [world.effects] magnitude is 0: the world the lab's model assumes)"
-    return f"world: {len(on)} of {len(effects.names())} unmodelled effects on ({', '.join(on)})"
 
 
 def ideal_world_scenario(study, scenario, *, source: str):

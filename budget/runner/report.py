@@ -141,6 +141,20 @@ def estimates_caption(result, fdata: dict) -> str:
     return s
 
 
+def world_line(scenario) -> str:
+    """One line naming the world a run simulated: which ``[world.effects]`` were on
+    (printed under the validate header and at the top of the report)."""
+    from simcam.effects import scenario_effects
+
+    effects = scenario_effects(scenario)
+    if effects is None:
+        return "world: the simulator's model (this study has no [world.effects])"
+    on = effects.active()
+    if not on:
+        return "world: ideal (every [world.effects] magnitude is 0: the world the lab's model assumes)"
+    return f"world: {len(on)} of {len(effects.names())} unmodelled effects on ({', '.join(on)})"
+
+
 def write_report(result, out_dir: str | os.PathLike) -> Path:
     """Write ``report.md``, ``estimates.png``, the study's sections and figures,
     ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
@@ -165,6 +179,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                  + (f"`{getattr(result.scenario, 'name', '')}` " if getattr(result.scenario, "name", "") else "")
                  + f"(hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
+                 world_line(result.scenario).replace("world: ", "World: ", 1) + ".", "",
                  "## Findings", "", *findings_markdown(result, fdata),
                  "## Method", "",
                  "Each trial simulates one measurement with known injected errors and runs the lab's "

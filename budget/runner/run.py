@@ -154,6 +154,7 @@ class StudyResult:
             "schema": SCHEMA, "study": self.study.name, "title": self.study.title,
             "seed_document": self.study.seed_document, "version": __version__,
             "scenario_name": getattr(self.scenario, "name", None),
+            "world_effects_on": _effects_on(self.scenario),
             "scenario_hash": self.study.scenario_hash(self.scenario),
             "scenario_toml": self.study.scenario_text(self.scenario),
             "seed": self.seed, "trials": self.trials, "stopped_by": self.stopped_by,
@@ -186,6 +187,14 @@ def _check_trials(trials: int | None, tolerance: float | None) -> None:
         raise UserInputError(f"--trials: must be at least 2 (got {trials})")
     if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
         raise UserInputError(f"--tolerance: must be a positive number (got {tolerance})")
+
+
+def _effects_on(scenario) -> list[str] | None:
+    """The scenario's active ``[world.effects]`` (None for a study without world effects)."""
+    from simcam.effects import scenario_effects
+
+    effects = scenario_effects(scenario)
+    return None if effects is None else list(effects.active())
 
 
 def run_study(study: Study, scenario: Any, *, trials: int | None = None, tolerance: float | None = None,
