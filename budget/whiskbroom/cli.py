@@ -103,7 +103,7 @@ def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, rep
         md += ["", "Sobol indices of Delta V_P at the array centre (SALib, Saltelli sample):", "",
                "| variable | S1 | ST |", "|---|---|---|"]
         md += [f"| {n} | {a:.4f} | {b:.4f} |" for n, a, b in zip(sob["names"], sob["S1"], sob["ST"])]
-        md += [""] + [f"![{f.stem}]({f.name})" for f in figs]
+        md += ["", plots.figure_markdown(figs)]  # each figure with its caption under it
         (out / "report.md").write_text("\n".join(md) + "\n")
 
 

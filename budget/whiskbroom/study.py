@@ -150,7 +150,8 @@ class WhiskbroomStudy(Study):
               f"{float(np.sinc(0.5 / sc.camera.n_phase)):.4f} at Nyquist) and the cross-track drift; the "
               f"improved prediction includes both; the edge variant is the slanted-edge measurement of "
               f"a noisy simulated TDI edge image.")
-        return [ReportSection("Whiskbroom TDI MTF", md, figs)]
+        # the figures are placed in the text, each with its caption under it
+        return [ReportSection("Whiskbroom TDI MTF", md + ("\n\n" + plots.figure_markdown(figs) if figs else ""), [])]
 
     def commands(self) -> list:
         from budget.whiskbroom.cli import synthesize_command
