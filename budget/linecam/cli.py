@@ -62,7 +62,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
 
     from budget.runner.study import trial_seed_sequence
 
-    from .report import plot_coverage, plot_los_error, plot_residuals, plot_tracks
+    from .report import figure_markdown, plot_coverage, plot_los_error, plot_residuals, plot_tracks
     from .study import trial_extra
     from .trial import PARAM_UNITS, simulate, to_report_units
 
@@ -125,7 +125,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
             figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                     plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
             (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
-                                           + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+                                           + figure_markdown(figs) + "\n")
     if csv_out:
         click.echo(f"observations: {csv_out}")
     if report_dir:
@@ -438,7 +438,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         if json_out:
             write_json_atomic(staged.file(json_out), payload)
         if report_dir:
-            from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
+            from .report import figure_markdown, plot_coverage, plot_los_field, plot_residuals, plot_tracks
 
             d = staged.folder(report_dir)
             d.mkdir(parents=True, exist_ok=True)
@@ -450,7 +450,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                     plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
             (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"
-                                            + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+                                            + figure_markdown(figs) + "\n")
     if report_dir:
         click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 

@@ -189,8 +189,17 @@ def plot_scan_pattern(world, t_s, alpha_rad, beta_rad, scan, star, path: Path) -
     ax.fill(rdisc * np.cos(th), rdisc * np.sin(th), color="#cfe3f5", label="Earth disc")
     ax.plot(ew, ns, color="0.7", lw=0.5, label="mirror path")
     scans = np.unique(scan[scan > 0])
-    for s in scans:
-        ax.plot(ew[scan == s], ns[scan == s], lw=0.4, label=f"area scan {s}")
+    boxes = []
+    for k, s in enumerate(scans):
+        m = scan == s
+        if k == 0:
+            ax.plot(ew[m], ns[m], lw=0.3, color="C1", alpha=0.5)
+        # each scan's outline, in its own style: scans over the same field stay visible
+        x0, x1, y0, y1 = ew[m].min(), ew[m].max(), ns[m].min(), ns[m].max()
+        boxes.append((x0, x1, y0, y1))
+        pad = 0.15 * k
+        ax.plot([x0 - pad, x1 + pad, x1 + pad, x0 - pad, x0 - pad], [y0 - pad, y0 - pad, y1 + pad, y1 + pad, y0 - pad],
+                lw=1.4, ls=("-", "--", ":", "-.")[k % 4], color=f"C{1 + k}", label=f"area scan {s} (outline)")
     if (star > 0).any():
         ax.plot(ew[star > 0], ns[star > 0], "r*", ms=10, label="star dwell")
     ax.set_aspect("equal")
@@ -206,6 +215,8 @@ def plot_scan_pattern(world, t_s, alpha_rad, beta_rad, scan, star, path: Path) -
         r = float(np.max(np.hypot(ew[star > 0], ns[star > 0])))
         dwell = (f"; the star dwell lies {r - rdisc:+.2f} deg from the Earth's limb "
                  f"({'off' if r > rdisc else 'on'} the disc)")
-    caption = (f"{len(scans)} area scans covering {span_ew:.1f} x {span_ns:.1f} deg (E-W x N-S) of optical "
-               f"angle; the Earth disc has a radius of {rdisc:.2f} deg{dwell}.")
+    same = len(boxes) > 1 and all(np.allclose(b, boxes[0], atol=1e-3) for b in boxes)
+    caption = (f"{len(scans)} area scans " + ("cover the same field (their outlines drawn a little apart), "
+                                               if same else "cover ")
+               + f"{span_ew:.1f} x {span_ns:.1f} deg (E-W x N-S) of optical angle; the Earth disc has a radius of {rdisc:.2f} deg{dwell}.")
     return save(fig, path, caption)
