@@ -140,6 +140,15 @@ def _panel_title(ds, cls, axis=None) -> str:
     return f"{_class_label(ds, cls)}{ax} ({_unit(ds, cls)})"
 
 
+def _pair(a: float, b: float) -> tuple[str, str]:
+    """Two values with enough significant digits to tell them apart (up to 6)."""
+    for n in (3, 4, 5, 6):
+        sa, sb = f"{a:.{n}g}", f"{b:.{n}g}"
+        if sa != sb:
+            break
+    return sa, sb
+
+
 def _flat(series: list, ses: list) -> tuple[bool, float]:
     """Whether every drawn series of a panel is flat over the sweep: its range (max - min)
     within 2 Monte Carlo standard errors of the values (or exactly constant); and the
@@ -161,7 +170,7 @@ def _flat(series: list, ses: list) -> tuple[bool, float]:
 
 def _mark_flat(ax, flat: bool, rng: float, unit: str) -> bool:
     if flat:
-        ax.text(0.5, 0.92, f"flat over this range (varies by {rng:.2g} {unit}, within +-2 MC s.e.)",
+        ax.text(0.5, 0.92, f"flat: varies by {rng:.2g}\n(within +-2 MC s.e.)",
                 ha="center", va="top", fontsize=6, transform=ax.transAxes,
                 bbox=dict(boxstyle="round", fc="w", ec="0.6", alpha=0.9))
     return flat
@@ -219,7 +228,7 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
                 t = ci.truth.sel(variant=variant) if tv else ci.truth
                 se = ci.truth_se.sel(variant=variant) if tv else ci.truth_se
                 _truth_band(ax, x, t.values, se.values, col, f"{val:g}" if isinstance(val, (float, np.floating))
-                            else str(val))
+                            else str(val), ls=("-", "--", ":", "-.")[i % 4])  # coinciding lines stay visible
                 drawn.append(t.values)
                 drawn_se.append(se.values)
                 if has_mean:
@@ -234,11 +243,14 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
             t0 = np.asarray(drawn[0], dtype=float)
             f = np.isfinite(t0)
             if f.sum() >= 2:
-                changes.append(f"{_class_label(ds, cls)} from {t0[f][0]:.3g} to {t0[f][-1]:.3g} {_unit(ds, cls)}")
+                a_, b_ = _pair(t0[f][0], t0[f][-1])
+                changes.append(f"{_class_label(ds, cls)} from {a_} to {b_} {_unit(ds, cls)}")
         ax.set_title(_panel_title(ds, cls), fontsize=8)
         ax.set_xlabel(_label(ds, xname), fontsize=7)
         ax.set_ylabel(f"axis {axis} ({_unit(ds, cls)})", fontsize=7)
         ax.tick_params(labelsize=7)
+        if np.issubdtype(np.asarray(x).dtype, np.number):
+            ax.locator_params(axis="x", nbins=5)  # tick labels that do not run into each other
     _legend_first(axes, fontsize=6, title=(series if series else None), title_fontsize=6)
     head = f"{ds.attrs.get('title', '')}: axis {axis}"
     if series and has_mean:
@@ -284,10 +296,15 @@ def _heatmaps(ds, axis, variant, out_dir):
             if np.any(np.isfinite(z)):
                 iy, ix = np.unravel_index(np.nanargmax(np.abs(z)), z.shape)
                 lo_, hi_ = float(np.nanmin(z)), float(np.nanmax(z))
-                fl = (f"flat at {lo_:.3g}" if hi_ - lo_ <= 1e-9 * max(abs(hi_), abs(lo_), 1e-300)
-                      else f"{lo_:.3g} to {hi_:.3g}, largest |value| at {d0} = {d[d0].values[ix]}, "
-                           f"{d1} = {d[d1].values[iy]}")
-                found.append(f"{_class_label(ds, cls)} {fl} {_unit(ds, cls)}")
+                a_, b_ = _pair(lo_, hi_)
+                is_flat = hi_ - lo_ <= 1e-9 * max(abs(hi_), abs(lo_), 1e-300)
+                if is_flat:
+                    ax.text(0.5, 0.97, "flat over the grid", ha="center", va="top", fontsize=7,
+                            transform=ax.transAxes, bbox=dict(boxstyle="round", fc="w", ec="0.6", alpha=0.9))
+                fl = (f"flat at {lo_:.3g} {_unit(ds, cls)}" if is_flat
+                      else f"{a_} to {b_} {_unit(ds, cls)} (largest |value| at {d0} = {d[d0].values[ix]}, "
+                           f"{d1} = {d[d1].values[iy]})")
+                found.append(f"{_class_label(ds, cls)} {fl}")
             if q == "bias":
                 lim = np.nanmax(np.abs(z)) if np.any(np.isfinite(z)) else 1.0
                 im = ax.imshow(z, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
