@@ -144,8 +144,8 @@ def plot_trial_mtf(extra, scenario, path):
     i = int(np.argmin(np.abs(n - scenario.camera.tdi_stages)))
     t, p, im = (float(np.asarray(extra[k])[i]) for k in ("truth_along", "published", "improved_along"))
     caption = (f"Trial 0 at N = {n[i]:g} stages (dotted line): pixel-level MTF {t:.4f} along track; the "
-               f"published sinc predicts {p:.4f} ({p - t:+.4f}), the improved prediction {im:.4f} "
-               f"({im - t:+.4f}).")
+               f"published sinc predicts {p:.4f} ({p - t:+.2g}), the improved prediction {im:.4f} "
+               f"({im - t:+.2g}).")
     return _save(plt, fig, path, caption)
 
 
