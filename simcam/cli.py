@@ -21,13 +21,16 @@ def cli() -> None:
 
 @cli.command("scenario")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
-def scenario_command(scenario: str | None) -> None:
-    """Print the resolved SCENARIO (default: the embedded seed-000 one) as TOML."""
-    from simcam.starcam.scenario import load, scenario_to_toml
+@click.option("--resolved", is_flag=True, help="Every field, defaults filled in (no comments).")
+def scenario_command(scenario: str | None, resolved: bool) -> None:
+    """Print SCENARIO (default: the embedded seed-000 one) as TOML with its comments;
+    --resolved: every field, defaults filled in."""
+    from simcam.starcam.scenario import load, scenario_source_text, scenario_to_toml
 
     scn = load(scenario)
     click.echo(f"# scenario hash {scn.hash}, simcam {__version__}")
-    click.echo(scenario_to_toml(scn), nl=False)
+    text = None if resolved else scenario_source_text(scenario)
+    click.echo(scenario_to_toml(scn) if text is None else text, nl=False)
 
 
 @cli.command("render")

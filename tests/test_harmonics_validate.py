@@ -52,6 +52,11 @@ def _scenario(**cal_updates):
     return sc.model_copy(update={"calibration": cal})
 
 
+def _ideal(sc):
+    """The scenario in the ideal world (every world effect 0: the lab's own model)."""
+    return sc.model_copy(update={"world": sc.world.model_copy(update={"effects": sc.world.effects.ideal()})})
+
+
 def _with_step(sc, step_deg):
     """The scenario with the truth grid's step ``validation.dense_step_deg``."""
     return sc.model_copy(update={"validation": sc.validation.model_copy(update={"dense_step_deg": step_deg})})
@@ -105,7 +110,7 @@ def test_quantisation_only_coefficient_spread_matches_uniform_prediction():
     written error is e(theta_i) - s1_i d with d uniform on [-q/2, q/2), so the eq-7
     coefficients have covariance P diag(s1^2 q^2/12) P^T (P the pseudo-inverse).
     K=3000 trials: relative sd of a sample std 1/sqrt(2K) = 1.3%; bound 5 sd."""
-    sc = default()
+    sc = _ideal(default())  # the lab's own model world
     enc = sc.encoder.model_copy(update={"reading_noise_arcsec": 0.0})
     lp = sc.calibration.long_polygon.model_copy(update={"face_error_arcsec": 0.0})
     sp = sc.calibration.short_polygon.model_copy(update={"face_error_arcsec": 0.0})
@@ -126,7 +131,7 @@ def test_monte_carlo_default_scenario_short():
     recovery of the coefficients the in-sequence method can see (|bias| < 4 spread /
     sqrt(K): the bias is a mean of K trials), the ~145 arcsec short-period error reduced
     below requirement/3, the joint fit better."""
-    sc = _with_step(default(), 0.05)
+    sc = _with_step(_ideal(default()), 0.05)  # the lab's own model world
     k = 400
     res = run_study(STUDY, sc, trials=k, seed=123, workers=1)
     for name in PUBLISHED_COEFFICIENTS:
@@ -174,7 +179,7 @@ def _short_period_sigma3_reference(sc):
 @pytest.mark.slow
 def test_monte_carlo_default_scenario_long():
     """K=20000: unbiasedness of every in-sequence coefficient at 4 standard errors."""
-    sc = _with_step(default(), 0.1)
+    sc = _with_step(_ideal(default()), 0.1)  # the lab's own model world
     k = 20000
     res = run_study(STUDY, sc, trials=k, seed=321, workers=1)
     for name in PUBLISHED_COEFFICIENTS:

@@ -130,7 +130,7 @@ def test_output_locations_are_checked_before_the_work(tmp_path, monkeypatch):
         check_output_dir(tmp_path / "d", inputs=[tmp_path / "d" / "scn.toml"], replaceable=lambda _p: True)
     with pytest.raises(UserInputError, match="the same path"):
         check_run_outputs(json_out=tmp_path / "a.json", files={"--csv": tmp_path / "a.json"})
-    with pytest.raises(UserInputError, match="exists and is not empty"):
+    with pytest.raises(UserInputError, match="exists, is not empty"):
         check_output_dir(tmp_path, option="--report")
     # a read-only file system (statvfs flag), and not enough free space
     real = os.statvfs
@@ -221,7 +221,7 @@ def test_validate_refuses_a_non_report_folder_before_running(tmp_path, monkeypat
     (tmp_path / "notes").mkdir()
     (tmp_path / "notes" / "mine.txt").write_text("keep")
     monkeypatch.setattr(run, "run_study", lambda *a, **k: pytest.fail("the trials ran"))
-    with pytest.raises(UserInputError, match="--report .*exists and is not empty"):
+    with pytest.raises(UserInputError, match="--report .*exists, is not empty.*--overwrite"):
         run_and_write(STUDY, Toy(), report_dir=tmp_path / "notes", workers=1)
     with pytest.raises(UserInputError, match="--json .*is a folder"):
         run_and_write(STUDY, Toy(), json_out=tmp_path / "notes", workers=1)

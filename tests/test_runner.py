@@ -113,7 +113,8 @@ def test_json_and_report(tmp_path):
     assert payload["class_info"]["mean"]["per_trial_truth"] is True
     rep = write_report(res, tmp_path / "rep")
     text = rep.read_text()
-    assert "sample variance, a, published" in text and (tmp_path / "rep" / "estimates.png").is_file()
+    assert "## Findings" in text and "### published" in text and "sample variance (a)" in text
+    assert (tmp_path / "rep" / "estimates.png").is_file() and (tmp_path / "rep" / "report.html").is_file()
     assert not list(tmp_path.glob(".rep.partial.*"))
     assert "variance" in format_table(res)
     # a folder that is not an earlier report is never replaced

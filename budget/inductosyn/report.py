@@ -89,7 +89,8 @@ def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
 
     p = prepared
     sc = p.scenario
-    enc = Inductosyn(params=apply_drift(params=sc.encoder, drift=sc.drift, seed=seed))
+    # the prepared encoder is the world's (scenario.encoder plus its world effects)
+    enc = Inductosyn(params=apply_drift(params=p.encoder.params, drift=sc.drift, seed=seed))
     reading = enc.quantise_deg(reading_deg=enc.continuous_reading_deg(angle_deg=p.dense_true_deg))
     before = (reading - p.dense_true_deg) * ARCSEC_PER_DEG
     short = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=sc.encoder.pole_pairs, n_constants=0)

@@ -33,12 +33,13 @@ from budget.inductosyn.harmonics import (
     fit_joint,
     sigma3_arcsec,
 )
-from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario
+from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario, world_encoder_params
 from simcam.encoder.polygon import (
     face_taylor,
     measure_polygon,
     nominal_face_angles_deg,
     quantise_arcsec,
+    world_alpha_arcsec,
 )
 
 __all__ = ["JOINT_ELEC", "LONG", "Prepared", "dense_stats", "prepare", "reference_coefficients",
@@ -190,8 +191,12 @@ class Prepared:
 
 
 def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
-    """Truth on the dense grid, face expansions and the pseudo-inverses of the designs."""
-    enc = Inductosyn(params=scenario.encoder)
+    """Truth on the dense grid, face expansions and the pseudo-inverses of the designs.
+
+    The encoder is the world's (:func:`simcam.encoder.inductosyn.world_encoder_params`:
+    the scenario's encoder plus the world's encoder effects), so every truth includes them.
+    """
+    enc = Inductosyn(params=world_encoder_params(scenario=scenario))
     cal = scenario.calibration
     pp = scenario.encoder.pole_pairs
     al = nominal_face_angles_deg(faces=cal.long_polygon.faces)
@@ -288,9 +293,14 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     fl, fs, passes = split_draws(u=uu, z=zz, n_long=nl, n_short=ns)
     fl = fl * lp.face_error_arcsec
     fs = fs * sp.face_error_arcsec
+    faces = [fl, fl, fs, fs]
+    # the world's rig effects add to each face's deviation (None: all off, tables unchanged)
+    world = world_alpha_arcsec(scenario=sc, seed=seed, trials=range(first_trial, first_trial + k))
+    if world is not None:
+        faces = [f + w for f, w in zip(faces, world)]
     ys = []
-    for (u, nr, nac), (tay, face, poly) in zip(passes, ((p.taylor_long, fl, lp), (p.taylor_long, fl, lp),
-                                                        (p.taylor_short, fs, sp), (p.taylor_short, fs, sp))):
+    for (u, nr, nac), (tay, face, poly) in zip(passes, ((p.taylor_long, faces[0], lp), (p.taylor_long, faces[1], lp),
+                                                        (p.taylor_short, faces[2], sp), (p.taylor_short, faces[3], sp))):
         ys.append(_measure_fast(tay, u, nr, nac, face, poly.mount_offset_arcsec, q, sr,
                                 ac.noise_arcsec, ac.resolution_arcsec))
     y1, y2, y3, y4 = ys
@@ -324,16 +334,20 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
 
     Returns the four raw tables and the in-sequence and joint fits.
     """
-    enc = Inductosyn(params=scenario.encoder)
+    enc = Inductosyn(params=world_encoder_params(scenario=scenario))
     cal = scenario.calibration
     nl, ns = cal.long_polygon.faces, cal.short_polygon.faces
     u, z = trial_draws(rng=trial_rng(seed=seed, trial=trial), n_long=nl, n_short=ns)
     fl, fs, passes = split_draws(u=u, z=z, n_long=nl, n_short=ns)
     fl = fl * cal.long_polygon.face_error_arcsec
     fs = fs * cal.short_polygon.face_error_arcsec
+    faces = [fl, fl, fs, fs]
+    world = world_alpha_arcsec(scenario=scenario, seed=seed, trials=[trial])
+    if world is not None:
+        faces = [f + w[0] for f, w in zip(faces, world)]
     tables = []
-    for draws, (poly, face) in zip(passes, ((cal.long_polygon, fl), (cal.long_polygon, fl),
-                                            (cal.short_polygon, fs), (cal.short_polygon, fs))):
+    for draws, (poly, face) in zip(passes, ((cal.long_polygon, faces[0]), (cal.long_polygon, faces[1]),
+                                            (cal.short_polygon, faces[2]), (cal.short_polygon, faces[3]))):
         tables.append(measure_polygon(encoder=enc, polygon=poly, autocollimator=cal.autocollimator,
                                       face_errors_arcsec=face, draws=draws))
     seq = calibrate_in_sequence(long_angle_deg=tables[0].angle_deg.to_numpy(),

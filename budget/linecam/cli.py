@@ -84,13 +84,25 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
            "windows": ex["windows"], "separability": ex["separability"], "variants": {}}
     click.echo(f"trial {k} of seed {seed}: {ex['windows']} star windows, {ex['identified']} stars identified")
     click.echo(f"{'parameter':10s} {'unit':7s} {'truth':>10s} " + " ".join(f"{v:>21s}" for v in sim.calibrations))
+    undet = set(ex["separability"]["inseparable"])  # no sigma for what the plan cannot separate
     for j, p in enumerate(PARAMETERS):
         cols = []
         for c in sim.calibrations.values():
             est = to_report_units(c.theta)[j]
             sd = np.sqrt(max(c.cov[j, j], 0.0)) * abs(PARAM_UNITS[p][1])
-            cols.append(f"{est:10.4g} +-{sd:9.3g}")
+            cols.append(f"{est:10.4g} {'not determined':>10s}" if p in undet else f"{est:10.4g} +-{sd:9.3g}")
         click.echo(f"{p:10s} {PARAM_UNITS[p][0]:7s} {truth[j]:10.4g} " + " ".join(cols))
+    from .study import determined_combinations, gauge_combination_vector
+
+    f_px = scn.camera.focal_length_mm / scn.camera.pitch_mm
+    out["determined_combinations"] = {}
+    for name, ang, px, sign in determined_combinations(ex["separability"]["null_space"], f_px):
+        g = gauge_combination_vector(f_px, ang, px, sign)
+        vals = {v: {"value": float(g @ c.theta), "sigma": float(np.sqrt(max(g @ c.cov @ g, 0.0)))}
+                for v, c in sim.calibrations.items()}
+        out["determined_combinations"][name] = {"unit": "arcsec", "truth": float(g @ sim.theta_true), **vals}
+        click.echo(f"{name:10s} {'arcsec':7s} {g @ sim.theta_true:10.4g} "
+                   + " ".join(f"{d['value']:10.4g} +-{d['sigma']:9.3g}" for d in vals.values()))
     for v, (ea, ec, sa, sc) in ex["los_error_arcsec"].items():
         stats = {"rms_error_along_arcsec": float(np.sqrt(np.mean(ea**2))),
                  "rms_error_across_arcsec": float(np.sqrt(np.mean(ec**2))),
@@ -126,6 +138,9 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
                     plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
             (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
                                            + figure_markdown(figs) + "\n")
+            from budget.runner.html import write_html  # its self-contained twin, simulate.html
+
+            write_html(d / "simulate.md")
     if csv_out:
         click.echo(f"observations: {csv_out}")
     if report_dir:
@@ -424,11 +439,26 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             continue
         th = to_report_units(c.theta)
         sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
+        # parameters the plan cannot separate are "not determined" (no sigma); what it does
+        # determine of them is printed as the combinations (issue 23)
+        from .study import determined_combinations, gauge_combination_vector
+
+        undet = set(sep.inseparable) if sep is not None else set()
         for j, p in enumerate(PARAMETERS):
             if p in c.solved:
-                click.echo(f"  {p:6s} {th[j]:12.5g} +- {sd[j]:.3g} {PARAM_UNITS[p][0]}")
+                click.echo(f"  {p:6s} not determined (inseparable on this plan)" if p in undet else
+                           f"  {p:6s} {th[j]:12.5g} +- {sd[j]:.3g} {PARAM_UNITS[p][0]}")
+        combos = {}
+        for name, ang, px, sign in (determined_combinations(sep.null_space, cam.f_px) if sep is not None else []):
+            if ang in c.solved and px in c.solved:
+                g = gauge_combination_vector(cam.f_px, ang, px, sign)
+                combos[name] = {"value": float(g @ c.theta), "sigma": float(np.sqrt(max(g @ c.cov @ g, 0.0))),
+                                "unit": "arcsec"}
+                click.echo(f"  {name:6s} {combos[name]['value']:12.5g} +- {combos[name]['sigma']:.3g} arcsec")
         payload["methods"][m] = {
-            "theta": dict(zip(PARAMETERS, th.tolist())), "sigma": dict(zip(PARAMETERS, sd.tolist())),
+            "theta": dict(zip(PARAMETERS, th.tolist())),
+            "sigma": {p: (None if p in undet else v) for p, v in zip(PARAMETERS, sd.tolist())},
+            "not_determined": sorted(undet), "determined_combinations": combos,
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
             "los_field": field}
@@ -449,8 +479,22 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
                                         if m != "lookangle"}}
             figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                     plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
-            (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n"
+            rows = ["| method | parameter | value | 1-sigma | unit |", "|---|---|---|---|---|"]
+            for m, pm in payload["methods"].items():
+                for p in pm.get("solved", []):
+                    rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
+                                else f"| {m} | {p} | {pm['theta'][p]:.5g} | {pm['sigma'][p]:.3g} | {pm['units'][p]} |")
+                for name, cmb in pm.get("determined_combinations", {}).items():
+                    rows.append(f"| {m} | {name} | {cmb['value']:.5g} | {cmb['sigma']:.3g} | arcsec |")
+            note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
+                    "stars do determine are listed in their place." if any(
+                        pm.get("not_determined") for pm in payload["methods"].values()) else "")
+            (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
+                                            + (note + "\n\n" if note else "")
                                             + figure_markdown(figs) + "\n")
+            from budget.runner.html import write_html  # its self-contained twin, calibrate.html
+
+            write_html(d / "calibrate.md")
     if report_dir:
         click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 

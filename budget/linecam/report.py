@@ -141,8 +141,9 @@ def example_markdown(ex: dict) -> str:
         lines.append(f"| {v} | {ex['sigma0_px'][v]:.3f} | {ex['iterations'][v]} | {ex['condition'][v]:.3g} |")
     lines += ["", f"Plan separability (all ten parameters, column-normalised Jacobian): condition "
               f"{sep['condition']:.3g}; unobservable combinations: {null}. Parameters in them "
-              f"({', '.join(sep['inseparable']) or 'none'}) are a gauge: compare LOS fields, not these "
-              "parameters."]
+              f"({', '.join(sep['inseparable']) or 'none'}) are a gauge: not determined, reported without "
+              "a sigma; what the stars determine of them is the class `gauge_combination` "
+              "(pitch + dx0/F, roll - dy0/F). Compare LOS fields, not these parameters."]
     return "\n".join(lines)
 
 

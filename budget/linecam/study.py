@@ -49,6 +49,46 @@ _PARAM_CLASSES = (
 )
 
 
+#: what the stars determine on a line at x' = 0 (docs/linecam.md section 3): the null
+#: directions are ``-pitch F + dx0`` and ``roll F + dy0`` (px at the line's end), so
+#: ``pitch + dx0 / F`` and ``roll - dy0 / F`` (arcsec) are invariant along them:
+#: (axis name, angle parameter, px parameter, sign of the px term)
+GAUGE_COMBINATIONS = (("pitch+dx0/F", "pitch", "dx0", 1.0), ("roll-dy0/F", "roll", "dy0", -1.0))
+
+
+def _gauge_axes(scenario) -> tuple[str, ...]:
+    """Parameters the data cannot determine: the gauge pairs on a line at x' = 0."""
+    if scenario.camera.x_line_mm != 0.0:
+        return ()
+    return tuple(p for c in GAUGE_COMBINATIONS for p in c[1:3])
+
+
+def gauge_combination_vector(f_px: float, angle: str, px: str, sign: float):
+    """Coefficients (arcsec per model unit: rad, px) of ``angle + sign px / F`` over the ten
+    parameters (:data:`simcam.linecam.scenario.PARAMETERS`)."""
+    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+
+    g = np.zeros(len(PARAMETERS))
+    g[PARAMETERS.index(angle)] = ARCSEC_PER_RAD
+    g[PARAMETERS.index(px)] = sign * ARCSEC_PER_RAD / f_px
+    return g
+
+
+def determined_combinations(null_space: list[dict], f_px: float) -> list[tuple[str, str, str, float]]:
+    """From a plan's null space (:func:`budget.linecam.calibrate.separability`, px at the line's
+    end) the combinations that are determined: for each null direction of one angle and one
+    px parameter, ``c_a angle F + c_p px`` unobservable makes ``angle - (c_a / c_p) px / F``
+    invariant. Returns (name, angle, px, sign) like :data:`GAUGE_COMBINATIONS`."""
+    out = []
+    for comb in null_space:
+        ang = [p for p in comb if p in ("roll", "pitch", "yaw")]
+        pxs = [p for p in comb if p in ("dx0", "dy0")]
+        if len(comb) == 2 and len(ang) == 1 and len(pxs) == 1 and comb[pxs[0]] != 0:
+            sign = -comb[ang[0]] / comb[pxs[0]]
+            out.append((f"{ang[0]}{'+' if sign > 0 else '-'}{pxs[0]}/F", ang[0], pxs[0], float(sign)))
+    return out
+
+
 class LineCamStudy(Study):
     """Seed 004: star-observation calibration of a TDI line camera."""
 
@@ -86,9 +126,18 @@ class LineCamStudy(Study):
                       "estimate: calibrated look angle minus nominal; truth: the injected camera's",
                       per_trial_truth=True),
         ]
+        gauge = _gauge_axes(scenario)
         for name, label, unit, axes in _PARAM_CLASSES:
             out.append(ClassSpec(name, label, unit, axes, f"estimate of each parameter against the injected "
-                                 f"value ({unit})", per_trial_truth=True))
+                                 f"value ({unit})", per_trial_truth=True,
+                                 undetermined=tuple(a for a in axes if a in gauge)))
+        if gauge:
+            out.append(ClassSpec("gauge_combination", "determined combinations of the inseparable parameters",
+                                 "arcsec", tuple(c[0] for c in GAUGE_COMBINATIONS),
+                                 "on a line at x' = 0 pitch and dx0, roll and dy0 are not separable (seed 004 "
+                                 "section a): what the stars determine is pitch + dx0/F and roll - dy0/F (F the "
+                                 "focal length in px), estimate against the injected camera's, stated 1-sigma "
+                                 "from the fit's covariance", per_trial_truth=True))
         return tuple(out)
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
@@ -106,8 +155,26 @@ class LineCamStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
 
+    def truth_depends_on_effects(self, scenario) -> set[str] | None:
+        """World effects (issue 22) whose magnitude changes the truths: the distortion outside
+        the Brown family changes the true line-of-sight field; the others (jitter, time-tag
+        bias, Gaia world, star colour against the solar reference, line-rate mismatch) change
+        what the lab measures, not the camera."""
+        return {"distortion_k3_edge_px", "thin_prism_edge_px"}
+
     def chunk_trials(self, scenario) -> int:
         return 20
+
+    def likely_cause(self, result, key, stats):
+        cls, var, ax = key
+        if cls == "los_max":
+            return ("the estimate is the largest stated 3-sigma, the truth the largest actual error of one "
+                    "realisation: different quantities, equal only by chance.")
+        if cls in ("los_rms", "los_ms") and stats["bias"] > 0:
+            return "the stated covariance is larger than the actual scatter of the calibrated field."
+        if cls in ("los_rms", "los_ms") and stats["bias"] < 0:
+            return "the stated covariance is smaller than the actual scatter of the calibrated field."
+        return None
 
     # ------------------------------------------------------------ report and commands
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
@@ -160,12 +227,21 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
         theta = to_report_units(calibration.theta)
         theta_sd = (np.sqrt(np.maximum(np.diag(calibration.cov), 0.0))
                     * np.abs(to_report_units(np.ones(len(PARAMETERS)))))
+        gauge = _gauge_axes(scenario)
         for name, _, _, axes in _PARAM_CLASSES:
             for parameter in axes:
                 index = PARAMETERS.index(parameter)
                 estimates[(name, variant, parameter)] = float(theta[index])
                 truths[(name, variant, parameter)] = float(theta_true[index])
-                sigmas[(name, variant, parameter)] = float(theta_sd[index])
+                if parameter not in gauge:  # a parameter the data cannot determine states no sigma
+                    sigmas[(name, variant, parameter)] = float(theta_sd[index])
+        if gauge:
+            f_px = scenario.camera.focal_length_mm / scenario.camera.pitch_mm
+            for axis, angle, px, sign in GAUGE_COMBINATIONS:
+                g = gauge_combination_vector(f_px, angle, px, sign)
+                estimates[("gauge_combination", variant, axis)] = float(g @ calibration.theta)
+                truths[("gauge_combination", variant, axis)] = float(g @ sim.theta_true)
+                sigmas[("gauge_combination", variant, axis)] = float(np.sqrt(max(g @ calibration.cov @ g, 0.0)))
     extra = trial_extra(scenario, sim) if keep_extra else {}
     return TrialResult(estimates=estimates, truths=truths, sigmas=sigmas, extra=extra)
 

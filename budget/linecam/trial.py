@@ -19,7 +19,9 @@ import numpy as np
 
 from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
 from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
-from simcam.linecam.world import AttitudeReports, PassImages, SkyStrip, image_passes, sky_strip
+from simcam.linecam.effects import effects_generator
+from simcam.linecam.world import (PassImages, SkyStrip, attitude_reports, image_passes, sky_strip, world_jitter,
+                                  world_sky_strip)
 
 from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
 from .model import NominalCamera, Observations
@@ -56,9 +58,10 @@ def region(scenario: LineCamScenario) -> Region:
 
 
 def world_strip(scenario: LineCamScenario) -> SkyStrip:
-    """The stars the world images (all effects on, down to ``world_mag_limit``)."""
+    """The stars the world images (all apparent-place terms, down to ``world_mag_limit``, from the
+    world's catalogue: :func:`simcam.linecam.world.world_sky_strip`)."""
     r = region(scenario)
-    return sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg, mag_limit=scenario.stars.world_mag_limit)
+    return world_sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg)
 
 
 def lab_strip(scenario: LineCamScenario) -> SkyStrip:
@@ -99,9 +102,12 @@ def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *
     truth = camera_truth(scenario, theta)
     wstrip = world_strip(scenario)
     keys = rng.integers(1, 2**63, size=wstrip.plan.passes + 1, dtype=np.uint64)
-    images = image_passes(scenario, truth, wstrip, frame_keys=keys[1:], detector_key=keys[0], noise=noise)
+    # the world's unmodelled effects draw from their own stream (common random numbers)
+    jitter = world_jitter(scenario, wstrip.plan, effects_generator(seed_sequence))
+    images = image_passes(scenario, truth, wstrip, frame_keys=keys[1:], detector_key=keys[0], noise=noise,
+                          jitter=jitter)
     cents = extract_centroids(images, scenario)
-    reports = AttitudeReports(wstrip.plan, scenario.attitude.knowledge_noise_arcsec / ARCSEC_PER_RAD, rng)
+    reports = attitude_reports(scenario, wstrip.plan, rng)
     att = reports.report(cents.t_s, cents.pass_index).as_matrix()
     cam = NominalCamera.from_model(scenario.camera)
     ident = identify(cam, lab_strip(scenario), sample=cents.sample, t_s=cents.t_s, pass_index=cents.pass_index,

@@ -40,7 +40,10 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
+    click.echo(world_line(scenario))
     click.echo(format_table(res))
+    from budget.runner.findings import findings_lines  # the findings in words
+    click.echo("\n".join(findings_lines(res)))
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
     from simcam.outputs import StagedOutputs
@@ -53,6 +56,33 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     if report_dir:
         click.echo(f"report: {Path(report_dir) / 'report.md'}")
     return res
+
+
+def world_line(scenario) -> str:
+    """One line naming the world a run simulated: which ``[world.effects]`` were on."""
+    from simcam.effects import scenario_effects
+
+    effects = scenario_effects(scenario)
+    if effects is None:
+        return "world: the simulator's model (this study has no [world.effects])"
+    on = effects.active()
+    if not on:
+        return "world: ideal (every [world.effects] magnitude is 0: the world the lab's model assumes)"
+    return f"world: {len(on)} of {len(effects.names())} unmodelled effects on ({', '.join(on)})"
+
+
+def ideal_world_scenario(study, scenario, *, source: str):
+    """``scenario`` with every ``world.effects`` magnitude 0 (``--ideal-world``); a study
+    without world effects is a one-line user error."""
+    from budget.runner.robustness import scenario_with_effects
+    from simcam.cli_common import UserInputError
+    from simcam.effects import scenario_effects
+
+    effects = scenario_effects(scenario)
+    if effects is None:
+        raise UserInputError(f"--ideal-world: the {study.name} study has no [world.effects]")
+    return scenario_with_effects(study, scenario, {n: 0.0 for n in effects.names()},
+                                 source=f"{source} (--ideal-world)")
 
 
 def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None,
@@ -79,13 +109,19 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
     @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
     @overwrite_option
+    @click.option("--ideal-world", is_flag=True, default=False,
+                  help="Turn every [world.effects] magnitude to 0: the world the lab's model assumes "
+                       "(default: the scenario's world, realistic in the embedded defaults).")
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
     def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, overwrite,
-                 progress):
+                 ideal_world, progress):
         from budget.runner.registry import get_study
 
         study = get_study(study_name)
-        run_and_write(study, study.load_scenario(scenario), trials=trials, tolerance=tolerance, seed=seed,
+        scn = study.load_scenario(scenario)
+        if ideal_world:
+            scn = ideal_world_scenario(study, scn, source=str(scenario or f"embedded {study_name} default"))
+        run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
                       report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite)
 
@@ -113,6 +149,8 @@ def study_group(study_name: str) -> click.Group:
             self.add_command(robustness_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
+            from budget.runner.scenario_cmd import scenario_command_for  # every study's, with comments
+            self.add_command(scenario_command_for(study_name))
 
         def list_commands(self, ctx):
             self._load()

@@ -1,5 +1,6 @@
-"""The report every study gets: the table, one sentence per finding, the estimates plot,
-then the study's own sections (:meth:`Study.report_sections`).
+"""The report every study gets: the findings in words (:mod:`budget.runner.findings`), the
+table, the estimates plot, then the study's own sections (:meth:`Study.report_sections`);
+``report.md`` and its self-contained twin ``report.html`` (:mod:`budget.runner.html`).
 
 Written into a temporary folder beside the target and renamed into place when complete, so
 an interrupted run never leaves a half-written report that looks finished.
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 import math
 import os
+
+import numpy as np
 import shutil
 import tempfile
 from pathlib import Path
@@ -26,6 +29,19 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+def _sig(st: dict) -> str:
+    """The table's verdict column: input, ref(erence), n/d (not determined), exact, yes/no."""
+    if st.get("role") in ("input", "residual"):
+        return st["role"]
+    if st.get("reference"):
+        return "ref"
+    if st.get("determined") is False:
+        return "n/d"
+    if st.get("exact_to_numerical_precision"):
+        return "exact"
+    return "yes" if st["bias_significant"] else "no"
+
+
 def format_table(result) -> str:
     """A fixed-width text table of every key: truth (+- se), mean, bias (%), spread, coverage."""
     rows = [("class", "axis", "variant", "truth", "+-se", "mean", "bias", "bias %", "sig", "spread", "cov 1s")]
@@ -35,7 +51,7 @@ def format_table(result) -> str:
         cov = st.get("coverage")
         rows.append((cls, ax, var, _fmt(st["truth"]), _fmt(st["truth_se"]), _fmt(st["mean"]), _fmt(st["bias"]),
                      "n/a" if not math.isfinite(st["bias_percent"]) else f"{st['bias_percent']:+.1f}",
-                     "input" if st.get("role") == "input" else ("yes" if st["bias_significant"] else "no"),
+                     _sig(st),
                      _fmt(st["std"]),
                      f"{cov['within_1sigma']:.2f}" if cov else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -43,36 +59,12 @@ def format_table(result) -> str:
 
 
 def finding(result, key) -> str:
-    """One sentence: what the estimator recovers of its truth, with the uncertainty."""
-    cls, var, ax = key
-    spec = result.class_spec(cls)
+    """One sentence about ``key``, chosen by the shared rules (:mod:`budget.runner.findings`)."""
+    from budget.runner.findings import _sentence, _verdict
+
     st = result.statistics(key)
-    unit = spec.unit
-    if st.get("role") == "input":
-        return (f"{spec.label}, {ax}, {var}: an input of the method ({_fmt(st['mean'])} {unit}), "
-                f"taken as given, not measured: nothing to validate.")
-    truth = (f"the truth {_fmt(st['truth'])} {unit}" + (f" (+- {_fmt(st['truth_se'])})" if st["truth_se"] > 0 else "")
-             if not st["per_trial_truth"] else "the truth of each trial")
-    if st.get("role") in ("residual", "stated"):
-        # not an estimate of its truth: the difference is no estimator's bias
-        diff = (f"{_fmt(st['bias'])} +- {_fmt(st['se_bias'])} {unit}"
-                + (", significant" if st["bias_significant"] else ", not significant"))
-        what = ("a residual (what the calibration leaves), not an estimate" if st["role"] == "residual"
-                else "a stated uncertainty compared with the actual error")
-        return (f"{spec.label}, {ax}, {var}: {what}: mean {_fmt(st['mean'])} {unit} against {truth} "
-                f"(difference {diff}); its spread over {st['n']} trials is {_fmt(st['std'])} {unit}.")
-    if st["bias_significant"]:
-        pct = f" ({st['bias_percent']:+.1f} %)" if math.isfinite(st["bias_percent"]) and not st["per_trial_truth"] else ""
-        verdict = f"is biased by {_fmt(st['bias'])} {unit}{pct} +- {_fmt(st['se_bias'])}"
-    else:
-        verdict = f"recovers it without a significant bias ({_fmt(st['bias'])} +- {_fmt(st['se_bias'])} {unit})"
-    s = (f"{spec.label}, {ax}, {var}: against {truth}, the estimator {verdict}; "
-         f"its spread over {st['n']} trials is {_fmt(st['std'])} {unit}.")
-    cov = st.get("coverage")
-    if cov:
-        s += (f" Its stated 1-sigma interval holds the truth in {100 * cov['within_1sigma']:.1f} % of trials "
-              f"(+- {100 * cov['se_1sigma']:.1f}; 68.3 % expected).")
-    return s
+    cls, var, ax = key
+    return f"{result.class_spec(cls).label}, {ax}, {var}: {_sentence(result, key, st, _verdict(result, key, st))}."
 
 
 def _plt():
@@ -85,7 +77,15 @@ def _plt():
 
 
 def plot_estimates(result, path: Path) -> Path:
-    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked."""
+    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked.
+
+    Variants are drawn as outlines with their own line style and width (the widest first), so
+    that identical histograms stay visible; a reference variant is marked in the legend;
+    titles are wrapped, never clipped; a dimensionless class has no unit on its axis."""
+    import textwrap
+
+    from budget.runner.findings import _unit
+
     plt = _plt()
     keys = result.keys()
     groups: dict = {}
@@ -94,23 +94,31 @@ def plot_estimates(result, path: Path) -> Path:
     n = len(groups)
     ncol = min(3, n)
     nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.4 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.8 * ncol, 3.7 * nrow), squeeze=False)
+    styles = [("-", 2.6), ("--", 1.8), (":", 1.4), ("-.", 1.2)]
+    refs = set(getattr(result.study, "reference_variants", ()))
     for ax_, ((cls, ax), ks) in zip(axes.flat, groups.items()):
         spec = result.class_spec(cls)
-        for k in ks:
+        unit = _unit(spec.unit)
+        unit_s = "" if unit in ("", "1") else f" ({unit})"
+        for i, k in enumerate(ks):
             x = result.samples[k]
             if k in result.trial_truths:
                 x = x - result.trial_truths[k]
-            ax_.hist(x, bins=30, histtype="step", label=k[1])
+            # a constant (or numerically constant) sample has no 30 finite bins
+            flat = not np.ptp(x) > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
+            ls, lw = styles[i % len(styles)]
+            ax_.hist(x, bins=1 if flat else 30, histtype="step", linestyle=ls, linewidth=lw,
+                     label=k[1] + (" (reference)" if k[1] in refs else ""))
         if all(k in result.trial_truths for k in ks):
             ax_.axvline(0.0, color="k", lw=1, label="truth (error 0)")
-            ax_.set_xlabel(f"estimate - truth ({spec.unit})")
+            ax_.set_xlabel(f"estimate - truth{unit_s}")
         else:
             t = result.truths[(cls, ax)].value
             ax_.axvline(t, color="k", lw=1, label="truth")
-            ax_.set_xlabel(f"estimate ({spec.unit})")
+            ax_.set_xlabel(f"estimate{unit_s}")
         ax_.set_ylabel("trials")
-        ax_.set_title(f"{spec.label} ({ax})", fontsize=9)
+        ax_.set_title("\n".join(textwrap.wrap(f"{spec.label} ({ax})", 48)), fontsize=9)
         ax_.legend(fontsize=7)
     for ax_ in list(axes.flat)[n:]:
         ax_.set_visible(False)
@@ -118,6 +126,19 @@ def plot_estimates(result, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def estimates_caption(result, fdata: dict) -> str:
+    """The estimates figure's caption: what it shows, and its finding (from the findings)."""
+    biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
+                     if f["rule"] == "biased"})
+    s = ("Each panel: the estimates of one class and axis over the trials (for per-trial truths, estimate "
+         "minus the trial's truth), one outline per variant; the black line is the truth.")
+    if biased:
+        s += " Off the line (significantly biased): " + ", ".join(biased) + "."
+    else:
+        s += " Every variant's histogram is centred on the truth within its standard error."
+    return s
 
 
 def write_report(result, out_dir: str | os.PathLike) -> Path:
@@ -136,23 +157,31 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
     try:
         study = result.study
+        from budget.runner.findings import findings_json, findings_markdown
+
+        fdata = findings_json(result)
         lines = [f"# {study.title}: Monte Carlo validation", "",
                  f"Study `{study.name}` (seed document {study.seed_document}); scenario "
-                 f"`{getattr(result.scenario, 'name', '')}` (hash `{study.scenario_hash(result.scenario)}`), "
+                 + (f"`{getattr(result.scenario, 'name', '')}` " if getattr(result.scenario, "name", "") else "")
+                 + f"(hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
+                 "## Findings", "", *findings_markdown(result, fdata),
+                 "## Method", "",
                  "Each trial simulates one measurement with known injected errors and runs the lab's "
                  "estimators on it: `published` is the method as its source document writes it, the other "
                  "variants are improved estimators that use only what a lab would know. The truth of each "
                  "class is the quantity the method claims to measure, computed from the injected physics "
                  "without the estimator.", "", "## Classes", ""]
         for c in result.classes:
-            lines.append(f"* **{c.label}** (`{c.name}`, {c.unit}): {c.description}")
-        lines += ["", "## Findings", ""]
-        lines += [f"* {finding(result, k)}" for k in result.keys()]
+            unit = "dimensionless" if c.unit.strip() in ("1", "") else c.unit
+            lines.append(f"* **{c.label}** (`{c.name}`, {unit}): {c.description}")
         lines += ["", "## Table", "", "```", format_table(result), "```", "",
-                  "`+-se` is the truth's own Monte Carlo standard error; a bias is significant when it exceeds "
-                  "3 standard errors of the trials' mean combined with the truth's.", "",
-                  "![estimates](estimates.png)", ""]
+                  "`+-se` is the truth's own Monte Carlo standard error; a bias is significant (`sig`) when it "
+                  "exceeds 3 standard errors of the trials' mean combined with the truth's and the class's "
+                  "numerical floor (`exact` below it); `ref` marks a reference variant that does not estimate, "
+                  "`n/d` a quantity the data cannot determine; `bias %` only where the truth is far from zero "
+                  "against its spread.", "",
+                  "![estimates](estimates.png)", "", estimates_caption(result, fdata), ""]
         plot_estimates(result, tmp / "estimates.png")
         for sec in study.report_sections(result, tmp):
             lines += [f"## {sec.title}", "", sec.markdown, ""]
@@ -163,6 +192,9 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         (tmp / "scenario.toml").write_text(scenario_toml)
         write_json_atomic(tmp / "summary.json", result.to_json())
         (tmp / "report.md").write_text("\n".join(lines))
+        from budget.runner.html import write_html
+
+        write_html(tmp / "report.md", tmp / "report.html", title=f"{study.title}: Monte Carlo validation")
         if out.exists():
             if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
                 shutil.rmtree(out)  # an earlier report (or an empty folder): replaced whole

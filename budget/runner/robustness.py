@@ -556,6 +556,9 @@ class RobustnessResult:
             (tmp / "scenario.toml").write_text(scenario_toml)
             write_json_atomic(tmp / "robustness.json", self.to_json())
             (tmp / "report.md").write_text("\n".join(lines))
+            from budget.runner.html import write_html  # its self-contained twin, report.html
+
+            write_html(tmp / "report.md")
             if out.exists():
                 if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
                     shutil.rmtree(out)

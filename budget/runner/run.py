@@ -82,6 +82,22 @@ class StudyResult:
     aux: dict[str, np.ndarray] = field(default_factory=dict)
     _details: dict | None = field(default=None, repr=False)
 
+    def __repr__(self) -> str:
+        from budget.api import result_repr  # short: the samples are in .samples
+
+        return result_repr(self)
+
+    def _repr_html_(self) -> str:
+        from budget.api import result_html
+
+        return result_html(self)
+
+    def to_dataframe(self):
+        """Tidy statistics (pandas): class, axis, variant, statistic, value, unit."""
+        from budget.api import result_dataframe
+
+        return result_dataframe(self)
+
     def details(self) -> dict:
         """:meth:`Study.details` of this result (computed once: the JSON and the report share it)."""
         if self._details is None:
@@ -114,7 +130,9 @@ class StudyResult:
         if role == "input":
             # given to the method, not measured by it: nothing to validate
             st.update(bias_percent=float("nan"), bias_significant=False)
-        return st
+        from budget.runner.findings import annotate
+
+        return annotate(self, key, st)  # numerical floor, reference variant, undetermined axis
 
     def summary(self) -> dict:
         """``{class: {axis: {variant: statistics}}}``."""
@@ -146,8 +164,17 @@ class StudyResult:
             "class_info": info,
             "classes": s,
             "details": self.details(),
+            **_findings_json(self),
             "elapsed_s": self.elapsed_s, "executor": self.executor,
         }
+
+
+def _findings_json(result) -> dict:
+    from budget.runner.findings import findings_json
+
+    f = findings_json(result)
+    return {"findings": f["findings"], "findings_summary": {"variants": f["variants"],
+                                                           "recommendation": f["recommendation"]}}
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:

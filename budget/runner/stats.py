@@ -10,7 +10,11 @@ For each key ``(class, variant, axis)`` with estimates ``x_k`` (k = 1..n):
   bias ``mean(e)``, standard error ``sd(e) / sqrt(n)``, rms error ``sqrt(mean(e^2))``;
 * spread: the sample standard deviation of the estimates (of the errors for per-trial
   truths), with the standard error ``s / sqrt(2 (n - 1))`` (normal approximation);
-* a bias is *significant* when ``|b| > 3`` standard errors;
+* a bias is *significant* when ``|b| > 3`` standard errors (the runner also asks it to
+  exceed the class's numerical floor, :mod:`budget.runner.findings`);
+* the bias in percent of the truth only where the truth is far from zero against its
+  spread: a fixed truth beyond 3 ``s_T``; per-trial truths all of one sign, or their mean
+  beyond 2 sd of them (``truth_sd``); a percentage of a truth near zero says nothing;
 * coverage, where the estimator states a 1-sigma uncertainty ``u_k``: the fraction of trials
   with ``|e_k| <= u_k`` (expected 0.6827) and ``<= 2 u_k`` (expected 0.9545), each with its
   binomial standard error, and the sd of ``e_k / u_k`` (1 when the stated uncertainty is
@@ -41,8 +45,14 @@ def key_statistics(estimates, *, truth: float | None = None, truth_se: float = 0
         bias = float(e.mean())
         spread = float(e.std(ddof=1)) if n > 1 else 0.0
         se_bias = spread / math.sqrt(n)
+        truth_spread = float(t.std(ddof=1)) if n > 1 else 0.0
+        # truths of one sign (an rms, a stage count) are far from zero whatever their spread
+        if np.all(t > 0) or np.all(t < 0):
+            truth_spread = 0.0
+        else:
+            truth_spread *= 2.0 / 3.0  # else the mean beyond 2 sd of the trials' truths
         extra = {"rms_error": float(math.sqrt(np.mean(e * e))), "truth_se": 0.0,
-                 "per_trial_truth": True}
+                 "truth_sd": float(t.std(ddof=1)) if n > 1 else 0.0, "per_trial_truth": True}
     else:
         e = x - truth
         truth_value = float(truth)
@@ -50,12 +60,16 @@ def key_statistics(estimates, *, truth: float | None = None, truth_se: float = 0
         bias = mean - truth_value
         spread = float(x.std(ddof=1)) if n > 1 else 0.0
         se_bias = math.sqrt(spread**2 / n + truth_se**2)
+        truth_spread = float(truth_se)
         extra = {"truth_se": float(truth_se), "per_trial_truth": False}
     q = np.quantile(x, [0.025, 0.16, 0.84, 0.975])
     out = {
         "n": int(n), "truth": truth_value, "mean": float(x.mean()), "bias": bias,
-        "bias_percent": (100.0 * bias / abs(truth_value) if abs(truth_value) > _ZERO_TRUTH
-                         else (0.0 if abs(bias) <= 1e-12 else float("nan"))),
+        # a percentage only where the truth is far from zero against its own spread (the
+        # trials' truths' sd, or a fixed truth's standard error): 3 of them
+        "bias_percent": (100.0 * bias / abs(truth_value)
+                         if abs(truth_value) > max(_ZERO_TRUTH, 3.0 * truth_spread)
+                         else (0.0 if abs(bias) <= 1e-12 and abs(truth_value) <= _ZERO_TRUTH else float("nan"))),
         "se_bias": se_bias, "std": spread,
         "se_std": spread / math.sqrt(2 * (n - 1)) if n > 1 else float("inf"),
         "bias_significant": bool(abs(bias) > 3.0 * se_bias) if se_bias > 0 else bool(abs(bias) > 0),

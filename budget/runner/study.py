@@ -137,6 +137,11 @@ class ClassSpec:
         * ``"stated"``: an uncertainty the method states, compared with the actual error
           (the line camera's rms LOS error): a difference says the statement is optimistic
           or pessimistic.
+    numerical_floor : float
+        In the class's unit: a bias below it is numerical (quadrature, rounding), reported as
+        "exact to numerical precision", never significant (:mod:`budget.runner.findings`).
+    undetermined : tuple of str
+        Axes the data cannot determine (a gauge freedom): reported "not determined", no sigma.
     """
 
     name: str
@@ -146,6 +151,8 @@ class ClassSpec:
     description: str = ""
     per_trial_truth: bool = False
     role: str = "result"
+    numerical_floor: float = 0.0
+    undetermined: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.role not in CLASS_ROLES:
@@ -213,6 +220,8 @@ class Study(ABC):
     seed_document: str = ""
     #: estimator variants, in report order
     variants: tuple[str, ...] = ("published", "improved")
+    #: variants that do not estimate (a reference such as "without_estimate"): never "recover"
+    reference_variants: tuple[str, ...] = ()
     #: the instrument's scenario module (``default_text``, ``from_dict``, ``load``, ``default``)
     scenario_module: str = ""
 
@@ -342,6 +351,13 @@ class Study(ABC):
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
         """Sections and plots this study adds to the common report (none by default)."""
         return []
+
+    def likely_cause(self, result: Any, key: Key, stats: dict) -> str | None:
+        """The most likely cause of a class a variant does not recover (``stats``: its
+        statistics), one sentence, or None where the study does not know. Any number it quotes
+        must come from ``result``; it should return None where ``stats`` do not show the
+        pattern the cause explains."""
+        return None
 
     def details(self, result: Any) -> dict:
         """JSON-ready figures of this study beyond the per-class statistics (from the run's

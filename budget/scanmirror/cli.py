@@ -83,6 +83,9 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
 
     lines += [figure_markdown(figs)]  # each figure with its caption under it
     (d / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    from budget.runner.html import write_html  # its self-contained twin, report.html
+
+    write_html(d / "report.md")
     return d / "report.md"
 
 

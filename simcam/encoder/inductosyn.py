@@ -48,6 +48,7 @@ from scipy.optimize import brentq
 
 from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
                                 read_toml, validate_model)
+from simcam.effects import EffectsBase, WorldBase
 
 ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
 ARCSEC_PER_DEG = 3600.0
@@ -59,8 +60,10 @@ __all__ = [
     "DriftParams",
     "ElectricalErrors",
     "Inductosyn",
+    "InductosynEffects",
     "InductosynParams",
     "InductosynScenario",
+    "InductosynWorld",
     "MechanicalErrors",
     "PitchHarmonic",
     "PolygonParams",
@@ -78,6 +81,7 @@ __all__ = [
     "tracking_null_numeric_rad",
     "tracking_null_rad",
     "winding_harmonic_order_map",
+    "world_encoder_params",
 ]
 
 
@@ -257,12 +261,84 @@ class ValidationParams(ValidationSettings):
     dense_step_deg: float = Field(0.001, gt=0, le=1)
 
 
+class InductosynEffects(EffectsBase):
+    """What the real rig and encoder have and the seed-001 lab model leaves out (``[world.effects]``).
+
+    Each field is one effect's magnitude, 0 = off; the default is the sourced realistic value,
+    so the default scenario is the realistic world. Model forms: :mod:`simcam.encoder.polygon`
+    (the rig: :func:`~simcam.encoder.polygon.world_alpha_arcsec`) and
+    :func:`world_encoder_params` (the encoder). How each differs from the lab-known fields
+    (``calibration.*.face_error_arcsec``, ``calibration.autocollimator.noise_arcsec``,
+    ``encoder.pitch_harmonics``, ``drift``) is in docs/inductosyn.md, "World effects".
+    """
+
+    polygon_face_error_arcsec: float = Field(
+        0.05, ge=0, description="residual face-angle error of THE polygon after its certificate correction, 1 sigma "
+        "per face, closure sum = 0, the same in every calibration: NMI polygon uncertainties 0.02-0.1 arcsec "
+        "(EUROMET project 371 comparison; Estler, J. Res. NIST 103:141, 1998)")
+    autocollimator_drift_arcsec_per_sqrt_h: float = Field(
+        0.05, ge=0, description="autocollimator zero drift, random walk, rms change after 1 h: 0.02-0.1 arcsec/h "
+        "for an electronic autocollimator in a laboratory (EURAMET cg-22, 2017; engineering estimate)")
+    polygon_eccentricity_um: float = Field(
+        20.0, ge=0, description="centring of the polygon on its adapter, 10-50 um, remounted each calibration: a "
+        "translation leaves a flat face's reading unchanged, a face's curvature turns it into beam walk "
+        "<= 0.01-0.03 arcsec (geometry; engineering estimate)")
+    polygon_tilt_arcsec: float = Field(
+        20.0, ge=0, description="tilt of the polygon's axis to the axis of rotation, remounted each calibration; "
+        "with the faces' pyramidal errors (world.pyramidal_error_arcsec) it gives -tau gamma_i cos(theta_i - phi) "
+        "(small-angle rotation of the face normal; tau = 20 arcsec, gamma = 5 arcsec: 2.4e-9 rad)")
+    electrical_harmonic_3_arcsec: float = Field(
+        0.5, ge=0, description="3rd electrical harmonic of the reading error, outside the published eq 8 orders: "
+        "resolver/inductosyn signal harmonics give 3rd/4th electrical errors of 0.3-2 arcsec (Kuntz et al., "
+        "arXiv:2205.08472; HEIDENHAIN, Position Encoders for Servo Drives, interpolation error)")
+    nonharmonic_arcsec: float = Field(
+        0.3, ge=0, description="rms of an irregular pitch error of the scale, mechanical orders 3 to "
+        "world.nonharmonic_max_order with 1/m amplitudes: graduation errors not periodic in a fitted order "
+        "(HEIDENHAIN, Position Encoders for Servo Drives, position error within one revolution; engineering "
+        "estimate)")
+    thermal_drift_arcsec_per_sqrt_h: float = Field(
+        0.05, ge=0, description="random walk of each fitted harmonic coefficient (mechanical 1-2, electrical 1-2) "
+        "during the calibration, rms change after 1 h: seed 001 sec. 4.3 gives 1.1 arcsec per coefficient "
+        "after temperature cycling over tens of K; a lab holding +-1 K over a few hours gives a few percent of "
+        "that (engineering estimate)")
+
+
+class InductosynWorld(WorldBase):
+    """The inductosyn rig's world beyond the lab's model: ``effects`` (magnitudes) and the
+    settings of their model forms. The lab side (:mod:`budget.inductosyn.harmonics`) never
+    reads it; the simulator (:mod:`simcam.encoder.polygon`) and the truth
+    (:func:`world_encoder_params`) do.
+
+    * ``face_time_s``: time per face (rotate, settle, read); ``pass_setup_s``: time between
+      passes (compensation upload, polygon change). The four passes run in the order long
+      raw, long verify, short raw, short verify; the drifts start at 0 at the first reading
+      (the truth is the encoder at the start of the calibration).
+    * ``pyramidal_error_arcsec``: 1 sigma of the faces' pyramidal errors gamma_i.
+    * ``face_curvature_arcsec_per_mm``: change of a face's normal per mm along the face
+      (1/R of a spherical face; lambda/10 over a 20 mm face is about 0.25 arcsec/mm).
+    * ``nonharmonic_max_order``: highest mechanical order of the irregular pitch error.
+    * ``instrument_seed``: which polygon and encoder of the population (their fixed face
+      errors, pyramidal errors and harmonic phases); the per-calibration draws (mounting
+      azimuths, drifts) come from the trial's seed.
+    """
+
+    effects: InductosynEffects = InductosynEffects()
+    face_time_s: float = Field(60.0, gt=0)
+    pass_setup_s: float = Field(900.0, ge=0)
+    pyramidal_error_arcsec: float = Field(5.0, ge=0)
+    face_curvature_arcsec_per_mm: float = Field(0.5, ge=0)
+    nonharmonic_max_order: int = Field(72, ge=3, le=2000)
+    instrument_seed: int = Field(1, ge=0)
+
+
 class InductosynScenario(ScenarioBase):
-    """A whole inductosyn scenario: the encoder, its drift, the calibration, the MC."""
+    """A whole inductosyn scenario: the encoder, its drift, the calibration, the MC, and the
+    world's effects beyond the lab's model (``world``; never read by the lab side)."""
 
     encoder: InductosynParams = InductosynParams()
     drift: DriftParams = DriftParams()
     calibration: CalibrationParams = CalibrationParams()
+    world: InductosynWorld = InductosynWorld()
     validation: ValidationParams = ValidationParams()
 
 
@@ -595,3 +671,39 @@ def apply_drift(*, params: InductosynParams, drift: DriftParams, seed: int) -> I
     data["electrical"] = el2.model_dump()
     data["mechanical"] = me2.model_dump()
     return validate_model(InductosynParams, data, source="drift")
+
+
+def _instrument_rng(world: InductosynWorld, stream: int) -> np.random.Generator:
+    """Fixed draws of the instrument realisation ``world.instrument_seed`` (stream 0: polygon,
+    1: encoder), independent of the Monte Carlo seed."""
+    return np.random.default_rng(np.random.SeedSequence(world.instrument_seed, spawn_key=(stream,)))
+
+
+def world_encoder_params(*, scenario: InductosynScenario) -> InductosynParams:
+    """The encoder of the world: ``scenario.encoder`` plus the world's encoder effects.
+
+    ``electrical_harmonic_3_arcsec``: ``A3 sin(3 theta_e + phi3)``; ``nonharmonic_arcsec``:
+    ``sum_{m=3}^{M} a_m sin(m theta + phi_m)`` with ``a_m = c/m``, ``c`` such that the rms
+    over a turn, ``sqrt(sum a_m^2 / 2)``, is the magnitude (Parseval). Both as
+    :class:`PitchHarmonic` terms of the scale (phases from ``world.instrument_seed``), so
+    the truth (:meth:`Inductosyn.error_arcsec`, the dense grid, the Fourier projection)
+    includes them exactly. With both magnitudes 0 the scenario's encoder is returned
+    unchanged (the same object).
+    """
+    w = scenario.world
+    eff = w.effects
+    if eff.electrical_harmonic_3_arcsec == 0.0 and eff.nonharmonic_arcsec == 0.0:
+        return scenario.encoder
+    rng = _instrument_rng(w, 1)
+    phi3 = rng.uniform(0.0, 360.0)
+    orders = np.arange(3, w.nonharmonic_max_order + 1)
+    phis = rng.uniform(0.0, 360.0, orders.size)  # drawn whatever the magnitudes (common numbers)
+    extra = []
+    if eff.electrical_harmonic_3_arcsec > 0:
+        extra.append(PitchHarmonic(domain="electrical", order=3, amplitude_arcsec=eff.electrical_harmonic_3_arcsec,
+                                   phase_deg=float(phi3)))
+    if eff.nonharmonic_arcsec > 0:
+        c = eff.nonharmonic_arcsec * math.sqrt(2.0 / float(np.sum(1.0 / orders**2.0)))
+        extra += [PitchHarmonic(domain="mechanical", order=int(m), amplitude_arcsec=float(c / m), phase_deg=float(ph))
+                  for m, ph in zip(orders, phis)]
+    return scenario.encoder.model_copy(update={"pitch_harmonics": tuple(scenario.encoder.pitch_harmonics) + tuple(extra)})

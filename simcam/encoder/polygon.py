@@ -21,18 +21,32 @@ A polygon's face errors are one ``rng.standard_normal(N)`` draw scaled by its un
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
 from simcam.encoder.inductosyn import (
     ARCSEC_PER_DEG,
+    ARCSEC_PER_RAD,
     AutocollimatorParams,
     Inductosyn,
+    InductosynScenario,
     PolygonParams,
+    _instrument_rng,
 )
+from simcam.noise_processes import random_walk, white_noise
 
 __all__ = [
     "FaceTaylor",
+    "WORLD_STREAM",
+    "autocollimator_error_arcsec",
+    "autocollimator_reading_rad",
+    "certified_face_errors_arcsec",
+    "pass_times_s",
+    "tilted_face_reading_rad",
+    "world_alpha_arcsec",
+    "world_rng",
     "draw_face_errors_arcsec",
     "face_taylor",
     "measure_polygon",
@@ -140,3 +154,195 @@ def face_taylor(*, encoder: Inductosyn, faces: int, step_arcsec: float = 0.36) -
     s2 = (tp - 2 * t0 + tm) / (2 * h * h) / ARCSEC_PER_DEG  # per arcsec
     return FaceTaylor(angles_deg=angles, e0_arcsec=(angles - t0) * ARCSEC_PER_DEG, s1=s1,
                       s2_per_arcsec=s2)
+
+
+# ------------------------------------------------------------------ world effects
+# What the real rig has and the lab's model leaves out (issue "worlds richer than the lab"):
+# the magnitudes are ``scenario.world.effects`` (:class:`simcam.encoder.inductosyn.InductosynEffects`).
+# Each adds to the autocollimator's deviation ``alpha`` of a face (module docstring), like
+# the face errors; the lab writes down ``-alpha``.
+
+#: spawn-key tail of a trial's world draws: trial k's are ``SeedSequence(seed, spawn_key=(k, 1))``,
+#: a stream of their own, so the lab's draws (``spawn_key=(k,)``) are the same with or without them
+WORLD_STREAM = 1
+
+
+def world_rng(*, seed: int, trial: int) -> np.random.Generator:
+    """Generator of trial ``trial``'s world draws (independent of its measurement draws)."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(trial, WORLD_STREAM))))
+
+
+def certified_face_errors_arcsec(*, z, u_arcsec: float) -> np.ndarray:
+    """Face errors left after a certificate's correction: ``delta_i = u (z_i - mean z)``.
+
+    Closure: the face angles of a polygon add up to 360 deg, so ``sum delta_i = 0`` (circle
+    closure, Estler 1998). Each harmonic coefficient of a least-squares fit on ``n`` evenly
+    spaced faces, ``(2/n) sum delta_i cos(k theta_i)``, then has variance ``2 u^2 / n``
+    exactly, and the fitted constant is 0.
+    """
+    z = np.asarray(z, dtype=float)
+    return u_arcsec * (z - z.mean(axis=-1, keepdims=True))
+
+
+def autocollimator_reading_rad(*, face_normal_rad: float, face_radius_mm: float, offset_xy_mm=(0.0, 0.0)):
+    """Autocollimator reading of one face, traced in the plane (exact geometry).
+
+    The beam runs along ``-x`` on the line ``y = 0``; the face, centred at ``offset_xy_mm``
+    (the polygon's translation; each of x, y a number or an array) with its normal at
+    ``face_normal_rad`` from ``+x``, is a plane (``face_radius_mm = inf``) or a circle of that
+    radius (a curved face). The beam is reflected at the hit point about the local normal
+    there; the reading is half the angle of the returned beam from ``+x`` (the law of
+    reflection). A plane's normal is the same at every point, so a pure translation leaves
+    the reading unchanged, exactly; a curved face's reading moves by ``asin(sin psi - y/R) - psi``
+    (beam walk).
+    """
+    nx, ny = math.cos(face_normal_rad), math.sin(face_normal_rad)
+    px = np.asarray(offset_xy_mm[0], dtype=float)
+    py = np.asarray(offset_xy_mm[1], dtype=float)
+    shape = np.broadcast(px, py).shape
+    if math.isinf(face_radius_mm):
+        lx, ly = np.full(shape, nx), np.full(shape, ny)  # a plane: the local normal everywhere
+    else:
+        cx, cy = px - face_radius_mm * nx, py - face_radius_mm * ny  # centre of curvature
+        hy = 0.0
+        hx = cx + np.sqrt(face_radius_mm**2 - (hy - cy) ** 2)  # the hit point on y = 0 facing +x
+        lx, ly = (hx - cx) / face_radius_mm, (hy - cy) / face_radius_mm
+    dx, dy = -1.0, 0.0
+    dot = dx * lx + dy * ly
+    rx, ry = dx - 2.0 * dot * lx, dy - 2.0 * dot * ly
+    out = 0.5 * np.arctan2(ry, rx)
+    return float(out) if out.ndim == 0 else out
+
+
+def tilted_face_reading_rad(*, theta_rad, gamma_rad, tilt_rad: float, tilt_azimuth_rad: float):
+    """Horizontal angle (rad) of face normals on a polygon whose axis is tilted (exact rotation).
+
+    Face ``i``'s normal in the polygon frame is ``(cos g cos t, cos g sin t, sin g)``
+    (pyramidal error ``g = gamma_i``, nominal angle ``t = theta_i``); the polygon's axis is
+    tilted by ``tau`` about the horizontal axis at azimuth ``phi`` (Rodrigues' rotation);
+    the autocollimator reads the azimuth of the tilted normal minus ``theta_i``. To first
+    order in the small angles this is ``-tau gamma_i cos(theta_i - phi)`` plus a term in
+    ``tau^2`` (the tilt alone).
+    """
+    t = np.asarray(theta_rad, dtype=float)
+    g = np.asarray(gamma_rad, dtype=float)
+    n = np.stack([np.cos(g) * np.cos(t), np.cos(g) * np.sin(t), np.sin(g) * np.ones_like(t)])
+    a = np.array([math.cos(tilt_azimuth_rad), math.sin(tilt_azimuth_rad), 0.0])
+    c, s = math.cos(tilt_rad), math.sin(tilt_rad)
+    axn = np.cross(a, n, axis=0)
+    adn = np.tensordot(a, n, axes=(0, 0))
+    nr = n * c + axn * s + np.outer(a, adn).reshape(n.shape) * (1 - c)
+    return np.arctan2(nr[1], nr[0]) - t - np.round((np.arctan2(nr[1], nr[0]) - t) / (2 * math.pi)) * 2 * math.pi
+
+
+def autocollimator_error_arcsec(*, rng: np.random.Generator, t_s, noise_arcsec: float,
+                                drift_arcsec_per_sqrt_h: float) -> np.ndarray:
+    """Autocollimator error at reading times ``t_s``: white noise plus a random-walk drift.
+
+    :func:`simcam.noise_processes.white_noise` (``noise_arcsec`` per reading) plus
+    :func:`simcam.noise_processes.random_walk` of diffusion ``drift / sqrt(3600 s)`` (rms
+    change ``drift_arcsec_per_sqrt_h`` after one hour). Allan variance
+    ``noise^2 dt / tau + q tau / 3`` (IEEE Std 952-1997, Annex C): slope -1/2, then +1/2.
+    """
+    w = white_noise(rng, t_s, noise_arcsec)
+    return w + random_walk(rng, t_s, drift_arcsec_per_sqrt_h / math.sqrt(3600.0))
+
+
+def pass_times_s(*, scenario: InductosynScenario) -> list[np.ndarray]:
+    """Reading times (s from the first reading) of the four passes: long raw, long verify,
+    short raw, short verify; ``world.face_time_s`` per face, ``world.pass_setup_s`` between."""
+    w = scenario.world
+    cal = scenario.calibration
+    out, start = [], 0.0
+    for n in (cal.long_polygon.faces, cal.long_polygon.faces, cal.short_polygon.faces, cal.short_polygon.faces):
+        out.append(start + np.arange(n) * w.face_time_s)
+        start = out[-1][-1] + w.face_time_s + w.pass_setup_s
+    return out
+
+
+def _thermal_basis(angle_deg, pole_pairs: int) -> np.ndarray:
+    """cos/sin of mechanical 1, 2 and electrical 1, 2 at readings ``angle_deg`` (rows: 8)."""
+    a = np.asarray(angle_deg, dtype=float)
+    t = np.radians(a)
+    cyc = pole_pairs * a / 360.0
+    te = 2 * math.pi * (cyc - np.floor(cyc))
+    return np.stack([np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t),
+                     np.cos(te), np.sin(te), np.cos(2 * te), np.sin(2 * te)])
+
+
+def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> list[np.ndarray] | None:
+    """What the world adds to the autocollimator deviation ``alpha`` of each pass (arcsec).
+
+    For trials ``trials`` (a sequence of trial numbers) returns four arrays (long raw, long
+    verify, short raw, short verify) of shape ``(len(trials), faces)``, or None when every
+    rig effect is 0 (then the tables are today's, bit for bit). Terms (magnitudes in
+    ``world.effects``):
+
+    * ``polygon_face_error_arcsec``: the polygon's certificate residuals
+      (:func:`certified_face_errors_arcsec`), one set per polygon of the instrument, the same
+      in every trial;
+    * ``autocollimator_drift_arcsec_per_sqrt_h``: a random walk over the whole session
+      (:func:`pass_times_s`), 0 at the first reading;
+    * ``polygon_eccentricity_um``: beam walk over the curved face
+      (:func:`autocollimator_reading_rad`), lateral offset ``e sin(theta_i - phi)``, ``phi``
+      uniform per trial and polygon (each calibration remounts it);
+    * ``polygon_tilt_arcsec``: axis tilt with the faces' pyramidal errors
+      (:func:`tilted_face_reading_rad`), azimuth uniform per trial and polygon;
+    * ``thermal_drift_arcsec_per_sqrt_h``: each harmonic coefficient of the encoder
+      (mechanical 1-2, electrical 1-2) random-walks in time; the reading error moves by
+      ``sum_j dc_j(t) b_j(theta_i)``, so ``alpha`` by minus that.
+
+    Trial k's draws, in this order from :func:`world_rng`: 4 uniforms (eccentricity azimuth
+    long, short; tilt azimuth long, short), the autocollimator walk, then the 8 coefficient
+    walks (each over all readings of the session) — all drawn whatever the magnitudes, so
+    switching one effect off leaves the others' draws alone (common random numbers).
+    """
+    w = scenario.world
+    eff = w.effects
+    if not any((eff.polygon_face_error_arcsec, eff.autocollimator_drift_arcsec_per_sqrt_h,
+                eff.polygon_eccentricity_um, eff.polygon_tilt_arcsec, eff.thermal_drift_arcsec_per_sqrt_h)):
+        return None
+    cal = scenario.calibration
+    polys = (cal.long_polygon, cal.long_polygon, cal.short_polygon, cal.short_polygon)
+    angles = [nominal_face_angles_deg(faces=pp.faces) for pp in polys]
+    times = pass_times_s(scenario=scenario)
+    t_all = np.concatenate(times)
+    sizes = [a.size for a in angles]
+    edges = np.cumsum([0] + sizes)
+    # the instrument: certificate residuals and pyramidal errors of each polygon (fixed)
+    ri = _instrument_rng(w, 0)
+    fixed = {}
+    for key, poly in (("long", cal.long_polygon), ("short", cal.short_polygon)):
+        z = ri.standard_normal(poly.faces)
+        g = ri.standard_normal(poly.faces)
+        fixed[key] = (certified_face_errors_arcsec(z=z, u_arcsec=eff.polygon_face_error_arcsec),
+                      g * w.pyramidal_error_arcsec / ARCSEC_PER_RAD)
+    keys = ("long", "long", "short", "short")
+    basis = [_thermal_basis(a, scenario.encoder.pole_pairs) for a in angles]
+    radius_mm = math.inf if w.face_curvature_arcsec_per_mm == 0 else ARCSEC_PER_RAD / w.face_curvature_arcsec_per_mm
+    e_mm = eff.polygon_eccentricity_um * 1e-3
+    tau = eff.polygon_tilt_arcsec / ARCSEC_PER_RAD
+    q_ac = eff.autocollimator_drift_arcsec_per_sqrt_h / math.sqrt(3600.0)
+    q_th = eff.thermal_drift_arcsec_per_sqrt_h / math.sqrt(3600.0)
+    trials = list(trials)
+    out = [np.zeros((len(trials), n)) for n in sizes]
+    for row, k in enumerate(trials):
+        rng = world_rng(seed=seed, trial=k)
+        az = rng.uniform(0.0, 2 * math.pi, 4)
+        ac = random_walk(rng, t_all, q_ac)
+        th = np.stack([random_walk(rng, t_all, q_th) for _ in range(8)])
+        for p in range(4):
+            pk = 0 if keys[p] == "long" else 1
+            sl = slice(edges[p], edges[p + 1])
+            th_rad = np.radians(angles[p])
+            alpha = fixed[keys[p]][0] + ac[sl] - np.einsum("jn,jn->n", th[:, sl], basis[p])
+            if e_mm > 0 and not math.isinf(radius_mm):
+                base = autocollimator_reading_rad(face_normal_rad=0.0, face_radius_mm=radius_mm)
+                lat = e_mm * np.sin(th_rad - az[pk])
+                alpha = alpha + ARCSEC_PER_RAD * (autocollimator_reading_rad(
+                    face_normal_rad=0.0, face_radius_mm=radius_mm, offset_xy_mm=(0.0, lat)) - base)
+            if tau > 0:
+                alpha = alpha + ARCSEC_PER_RAD * tilted_face_reading_rad(
+                    theta_rad=th_rad, gamma_rad=fixed[keys[p]][1], tilt_rad=tau, tilt_azimuth_rad=az[2 + pk])
+            out[p][row] = alpha
+    return out

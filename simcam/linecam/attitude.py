@@ -10,7 +10,9 @@
   GCRS), the kinematics ``dR/dt = R [w]x`` integrated exactly for constant ``w``. The
   scan is about the camera ``y`` axis (along the line) at the matched rate
   ``w_y = p / (f T) (1 + rate_mismatch)``, so the image moves along ``+x`` at
-  ``f w_y`` (seed 004 eq. 4.1, first term), in step with the TDI charge.
+  ``f w_y`` (seed 004 eq. 4.1, first term), in step with the TDI charge; the world's
+  ``line_rate_mismatch_percent`` effect (:mod:`simcam.linecam.effects`) adds to
+  ``rate_mismatch``.
 * Pass ``k`` of ``P`` is shifted across track by a rotation about the camera ``x`` axis of
   ``(k - (P - 1)/2) shift_px p / f`` (the patent's step 7: repeated observations with
   shifts so that stars cover the whole line).
@@ -124,7 +126,9 @@ def scan_plan(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float) -> Sc
     """The passes of a scenario over the strip centred at (ra, dec)."""
     cam, att, obs = scenario.camera, scenario.attitude, scenario.observation
     w0 = cam.matched_rate_rad_s
-    rate = np.array([np.radians(att.cross_rate_deg_s), w0 * (1.0 + att.rate_mismatch),
+    # the world's line-rate mismatch effect (issue 22) adds to the scenario's own mismatch
+    mismatch = att.rate_mismatch + scenario.world.effects.line_rate_mismatch_percent / 100.0
+    rate = np.array([np.radians(att.cross_rate_deg_s), w0 * (1.0 + mismatch),
                      np.radians(att.yaw_rate_deg_s)])
     duration = np.radians(scenario.stars.strip_length_deg) / w0
     base = strip_frame(ra_deg, dec_deg, scenario.stars.scan_pa_deg)

@@ -70,6 +70,21 @@ class CameraTruth:
     n_pixels: int
     x_line_mm: float
     params: np.ndarray
+    #: distortion outside the Brown family (world effects, :func:`simcam.linecam.effects.extra_distortion_px`):
+    #: k3 r^6 and thin prism, displacement at the line's end, px; 0 = none
+    k3_edge_px: float = 0.0
+    prism_edge_px: float = 0.0
+
+    @property
+    def has_extra_distortion(self) -> bool:
+        return self.k3_edge_px != 0.0 or self.prism_edge_px != 0.0
+
+    def extra_distortion(self, u_px, v_px):
+        """The correction beyond Brown ``(Ex, Ey)``, px, at measured ``(x', y')`` px."""
+        from .effects import extra_distortion_px
+
+        return extra_distortion_px(u_px, v_px, k3_edge_px=self.k3_edge_px, prism_edge_px=self.prism_edge_px,
+                                   r_norm_px=0.5 * self.n_pixels)
 
     @property
     def f_true_mm(self) -> float:
@@ -110,6 +125,12 @@ class CameraTruth:
         yi = -self.f_true_mm * d[..., 1] / d[..., 2]
         p = self.pitch_mm
         um, vm = self.distortion.inverse(u_px=xi / p, v_px=yi / p, tol_px=1e-9)
+        if self.has_extra_distortion:
+            # x_ideal = x' - D(x') - E(x'): fixed point x' = D^-1(x_ideal + E(x')); E changes by
+            # |grad E| < 1e-3 px/px, so each iteration gains 3 digits
+            for _ in range(6):
+                ex, ey = self.extra_distortion(um, vm)
+                um, vm = self.distortion.inverse(u_px=xi / p + ex, v_px=yi / p + ey, tol_px=1e-9)
         x0, y0 = self.principal_point_mm
         return um * p + x0, vm * p + y0
 
@@ -122,6 +143,9 @@ class CameraTruth:
         p = self.pitch_mm
         ui, vi = self.distortion.forward(u_px=(np.asarray(x_mm, float) - x0) / p,
                                          v_px=(np.asarray(y_mm, float) - y0) / p)
+        if self.has_extra_distortion:
+            ex, ey = self.extra_distortion((np.asarray(x_mm, float) - x0) / p, (np.asarray(y_mm, float) - y0) / p)
+            ui, vi = ui - ex, vi - ey
         v = np.stack([ui * p, vi * p, np.full(np.shape(ui), -self.f_true_mm)], axis=-1)
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
@@ -144,8 +168,10 @@ def camera_truth(scenario: LineCamScenario, params) -> CameraTruth:
     p = np.asarray(params, dtype=float)
     if p.shape != (len(PARAMETERS),):
         raise ValueError(f"params: expected {len(PARAMETERS)} values")
+    fx = scenario.world.effects
     return CameraTruth(focal_length_mm=cam.focal_length_mm, pitch_mm=cam.pitch_mm,
-                       n_pixels=cam.n_pixels, x_line_mm=cam.x_line_mm, params=p)
+                       n_pixels=cam.n_pixels, x_line_mm=cam.x_line_mm, params=p,
+                       k3_edge_px=fx.distortion_k3_edge_px, prism_edge_px=fx.thin_prism_edge_px)
 
 
 def draw_errors(scenario: LineCamScenario, rng: np.random.Generator) -> np.ndarray:

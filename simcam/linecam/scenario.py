@@ -18,6 +18,8 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, model_hash, read_toml,
                                 validate_model)
 
+from .effects import LineCamWorld
+
 __all__ = ["ARCSEC_PER_RAD", "LineCamScenario", "default_text", "from_dict", "load", "default",
            "PARAMETERS"]
 
@@ -196,6 +198,8 @@ class LineCamScenario(ScenarioBase):
     errors: ErrorsModel = ErrorsModel()
     lab: LabModel = LabModel()
     validation: ValidationModel = ValidationModel()
+    #: the world's unmodelled effects (issue 22); read by the world only, never by the lab
+    world: LineCamWorld = LineCamWorld()
 
     model_config = _M.model_config
 

@@ -34,11 +34,11 @@ from simcam.sky.catalogue import Catalogue, hipparcos
 from . import kernels as _k
 from .attitude import ScanPlan, orbit_state, rodrigues, scan_plan
 from .camera import CameraTruth
-from .scenario import LineCamScenario
+from .scenario import ARCSEC_PER_RAD, LineCamScenario
 from .signal import star_electron_rate
 
-__all__ = ["SkyStrip", "sky_strip", "strip_radius_rad", "PassImages", "image_passes",
-           "AttitudeReports", "crossing_times", "SUBSTEPS"]
+__all__ = ["SkyStrip", "sky_strip", "world_sky_strip", "strip_radius_rad", "PassImages", "image_passes",
+           "AttitudeReports", "attitude_reports", "world_jitter", "crossing_times", "SUBSTEPS"]
 
 #: midpoint steps per line period in the TDI rendering
 SUBSTEPS = 4
@@ -86,21 +86,45 @@ class SkyStrip:
 
 
 def sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float, mag_limit: float,
-              aberration: bool = True, parallax: bool = True, proper_motion: bool = True) -> SkyStrip:
+              aberration: bool = True, parallax: bool = True, proper_motion: bool = True,
+              gaia_pm_error_sigmas: float = 0.0, gaia_sky_seed: int = 0) -> SkyStrip:
     """The stars (V <= ``mag_limit``) around the strip centred at (ra, dec) and their
-    apparent directions for each pass (through :func:`simcam.sky.apparent.apparent_directions`)."""
+    apparent directions for each pass (through :func:`simcam.sky.apparent.apparent_directions`).
+
+    The stars are Hipparcos's (the lab's table) unless ``gaia_pm_error_sigmas > 0``: then
+    the world's Gaia DR3 catalogue (:func:`simcam.sky.gaia.gaia_world`, proper motions
+    perturbed by that many hip2 formal errors, one draw of seed ``gaia_sky_seed``)."""
     return _sky_strip(scenario, float(ra_deg), float(dec_deg), float(mag_limit), bool(aberration),
-                      bool(parallax), bool(proper_motion))
+                      bool(parallax), bool(proper_motion), float(gaia_pm_error_sigmas), int(gaia_sky_seed))
+
+
+def world_sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float) -> SkyStrip:
+    """The stars the world images (V <= ``stars.world_mag_limit``, every apparent-place term),
+    from the catalogue of the world's ``gaia_pm_error_sigmas`` effect."""
+    w = scenario.world
+    return sky_strip(scenario, ra_deg=ra_deg, dec_deg=dec_deg, mag_limit=scenario.stars.world_mag_limit,
+                     gaia_pm_error_sigmas=w.effects.gaia_pm_error_sigmas, gaia_sky_seed=w.gaia_sky_seed)
+
+
+@lru_cache(maxsize=4)
+def _catalogue(mag_limit: float, gaia_pm_error_sigmas: float, gaia_sky_seed: int) -> Catalogue:
+    if gaia_pm_error_sigmas == 0.0:
+        return hipparcos()
+    from simcam.sky.gaia import gaia_world
+
+    return gaia_world(mag_limit, pm_error_scale=gaia_pm_error_sigmas, rng=np.random.default_rng(gaia_sky_seed))
 
 
 @lru_cache(maxsize=16)
-def _sky_strip(scenario, ra_deg, dec_deg, mag_limit, aberration, parallax, proper_motion):
+def _sky_strip(scenario, ra_deg, dec_deg, mag_limit, aberration, parallax, proper_motion,
+               gaia_pm_error_sigmas=0.0, gaia_sky_seed=0):
     from astropy.time import Time
 
     plan = scan_plan(scenario, ra_deg=ra_deg, dec_deg=dec_deg)
     ra, dec = np.radians(ra_deg), np.radians(dec_deg)
     centre = np.array([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)])
-    cat = hipparcos().cone(centre, strip_radius_rad(scenario), mag_limit=mag_limit)
+    cat = _catalogue(mag_limit, gaia_pm_error_sigmas, gaia_sky_seed).cone(centre, strip_radius_rad(scenario),
+                                                                         mag_limit=mag_limit)
     epoch = Time(scenario.orbit.epoch_utc, scale="utc")
     dirs = np.empty((plan.passes, len(cat), 3))
     vel = np.empty((plan.passes, 3))
@@ -124,15 +148,19 @@ def _sec():
 
 
 # --------------------------------------------------------------------------- crossing
-def _focal_plane_at(camera: CameraTruth, plan: ScanPlan, a_gcrs, t, k):
-    """Measured focal-plane (x, y) mm of GCRS directions ``a`` at times ``t`` of passes ``k``."""
-    r_true = plan.matrices(t, k) @ camera.misalignment.as_matrix()
+def _focal_plane_at(camera: CameraTruth, plan: ScanPlan, a_gcrs, t, k, jitter=None):
+    """Measured focal-plane (x, y) mm of GCRS directions ``a`` at times ``t`` of passes ``k``
+    (the true attitude: the plan times the world's ``jitter`` rotation, when given)."""
+    r_body = plan.matrices(t, k)
+    if jitter is not None:
+        r_body = r_body @ rodrigues(jitter(t))
+    r_true = r_body @ camera.misalignment.as_matrix()
     d = np.einsum("nji,nj->ni", r_true, a_gcrs)
     return camera.focal_plane(d)
 
 
 def crossing_times(camera: CameraTruth, plan: ScanPlan, a_gcrs, k, *, t0=None, tol_s: float = 1e-10,
-                   max_iter: int = 20):
+                   max_iter: int = 20, jitter=None):
     """Times at which stars of GCRS directions ``a`` cross the line (``x = x_line``) in
     passes ``k``: secant iterations on the exact forward model, started from ``t0`` (default:
     the middle of the pass) and a first step with the nominal image rate ``f w_y``.
@@ -142,11 +170,11 @@ def crossing_times(camera: CameraTruth, plan: ScanPlan, a_gcrs, k, *, t0=None, t
     f = camera.focal_length_mm
     w = plan.rate_rad_s[1]
     t_a = plan.t_mid_s[k].astype(float).copy() if t0 is None else np.array(t0, dtype=float)
-    x_a, _ = _focal_plane_at(camera, plan, a_gcrs, t_a, k)
+    x_a, _ = _focal_plane_at(camera, plan, a_gcrs, t_a, k, jitter)
     x_a = x_a - camera.x_line_mm
     t_b = t_a - x_a / (f * w)
     for _ in range(max_iter):
-        x_b, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k)
+        x_b, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k, jitter)
         x_b = x_b - camera.x_line_mm
         denom = x_b - x_a
         slope = np.where(np.abs(denom) > 0, denom / np.where(t_b != t_a, t_b - t_a, 1.0), f * w)
@@ -155,7 +183,7 @@ def crossing_times(camera: CameraTruth, plan: ScanPlan, a_gcrs, k, *, t0=None, t
         t_a, x_a, t_b = t_b, x_b, t_new
         if np.max(np.abs(t_b - t_a), initial=0.0) < tol_s:
             break
-    x, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k)
+    x, y = _focal_plane_at(camera, plan, a_gcrs, t_b, k, jitter)
     return t_b, x - camera.x_line_mm, y
 
 
@@ -201,7 +229,7 @@ def window_half_px(scenario: LineCamScenario) -> int:
     """Half size of the windows: 3 sigma of the PSF plus half the smear plus half a pixel, at least 3 px."""
     cam, att = scenario.camera, scenario.attitude
     n = cam.tdi_stages
-    along = abs(att.rate_mismatch) * n
+    along = abs(att.rate_mismatch + scenario.world.effects.line_rate_mismatch_percent / 100.0) * n
     w = cam.matched_rate_rad_s
     # across-track drift per exposure: f w_x T N (+ X w_z, zero on the line centre)
     across = abs(math.radians(att.cross_rate_deg_s)) / w * n
@@ -209,7 +237,7 @@ def window_half_px(scenario: LineCamScenario) -> int:
 
 
 def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip, *,
-                 frame_keys, detector_key, noise: bool = True) -> PassImages:
+                 frame_keys, detector_key, noise: bool = True, jitter=None) -> PassImages:
     """Image the stars of ``strip`` in every pass through the true ``camera``.
 
     For each pass and star: the crossing time ``t*`` of the line (exact forward model,
@@ -227,6 +255,12 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
         Key of the fixed PRNU/DSNU maps.
     noise : bool
         False: the expected signal in DN (no shot/read noise, no quantisation).
+    jitter : callable or None
+        The world's attitude jitter (:func:`world_jitter`): rotation vectors (n, 3) at times.
+
+    The world's star-colour effect (``world.effects.lateral_colour_px``) moves each star's
+    image along the line by ``c(T) y'/r_n`` (:func:`simcam.linecam.effects.lateral_colour_px`;
+    the along-track part ``c(T) x'/r_n`` is below 1e-3 of it on the line and left out).
     """
     cam = scenario.camera
     plan = strip.plan
@@ -246,9 +280,9 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
     near = (body[:, 2] < 0) & (np.abs(np.arctan2(body[:, 1], -body[:, 2])) < half_across)
     near &= np.abs(np.arctan2(body[:, 0], -body[:, 2])) < half_along
     kk, jj = kk[near], jj[near]
-    t, _, _ = crossing_times(camera, plan, strip.directions[kk, jj], kk, tol_s=1e-3)
+    t, _, _ = crossing_times(camera, plan, strip.directions[kk, jj], kk, tol_s=1e-3, jitter=jitter)
     a = strip.at(kk, jj, t)
-    t, xres, y = crossing_times(camera, plan, a, kk, t0=t)
+    t, xres, y = crossing_times(camera, plan, a, kk, t0=t, jitter=jitter)
     s = y / p + 0.5 * (cam.n_pixels - 1)
     t_pass0 = plan.t_start_s
     line_c = (t - t_pass0[kk]) / T + 0.5 * N
@@ -258,16 +292,25 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
     kk, jj, a, t, s, line_c = kk[ok], jj[ok], a[ok], t[ok], s[ok], line_c[ok]
     # image motion about t* (px from the line centre along x, samples along y)
     dt = N * T
-    xp, yp = _focal_plane_at(camera, plan, a, t + dt, kk)
-    xm, ym = _focal_plane_at(camera, plan, a, t - dt, kk)
+    xp, yp = _focal_plane_at(camera, plan, a, t + dt, kk, jitter)
+    xm, ym = _focal_plane_at(camera, plan, a, t - dt, kk, jitter)
     xp, xm = (xp - camera.x_line_mm) / p, (xm - camera.x_line_mm) / p
     sp, sm = yp / p + 0.5 * (cam.n_pixels - 1), ym / p + 0.5 * (cam.n_pixels - 1)
     vx, ax = (xp - xm) / (2 * dt), (xp + xm) / (2 * dt * dt)
     vs, as_ = (sp - sm) / (2 * dt), (sp + sm - 2 * s) / (2 * dt * dt)
-    line0 = np.rint(line_c).astype(np.int64) - half
-    col0 = np.rint(s).astype(np.int64) - half
     v, bv = strip.cat.v_mag[jj], strip.cat.b_v[jj]
     bv = np.where(np.isfinite(bv), bv, 0.6)
+    colour_px = scenario.world.effects.lateral_colour_px
+    if colour_px != 0.0:
+        from .effects import lateral_colour_px
+        from .signal import teff_from_b_v
+
+        r_n = 0.5 * cam.n_pixels
+        y_px = s - 0.5 * (cam.n_pixels - 1) - camera.principal_point_mm[1] / p
+        shift = lateral_colour_px(cam.qe, teff_from_b_v(bv), edge_px=colour_px) * y_px / r_n
+        s = s + shift
+    line0 = np.rint(line_c).astype(np.int64) - half
+    col0 = np.rint(s).astype(np.int64) - half
     rate = star_electron_rate(cam, v_mag=v, b_v=bv)
     sdir = 1.0 if plan.rate_rad_s[1] * cam.focal_length_mm >= 0 else -1.0
     n = kk.size
@@ -295,17 +338,43 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
 class AttitudeReports:
     """The attitude a star tracker + gyro package reports: the truth times a white error.
 
-    ``R_rep(t_i) = R(t_i) exp([e_i]x)``, ``e_i ~ N(0, sigma^2 I_3)`` drawn once per
+    ``R_rep(t_i) = R(t_i - b) exp([e_i]x)``, ``e_i ~ N(0, sigma^2 I_3)`` drawn once per
     observation ``i`` (the knowledge error of the body frame; the camera misalignment is
-    *not* in it: that is what the calibration finds).
+    *not* in it: that is what the calibration finds). ``b`` is the world's time-tag bias
+    (the attitude tagged ``t`` is the one of ``t - b``: an error ``omega b`` along the body
+    rate ``omega``); ``R`` is the planned attitude, so the world's jitter is not in the
+    reports either.
     """
 
-    def __init__(self, plan: ScanPlan, sigma_rad: float, rng: np.random.Generator):
+    def __init__(self, plan: ScanPlan, sigma_rad: float, rng: np.random.Generator, time_tag_bias_s: float = 0.0):
         self.plan = plan
         self.sigma_rad = float(sigma_rad)
         self.rng = rng
+        self.time_tag_bias_s = float(time_tag_bias_s)
 
     def report(self, t_s, pass_index) -> Rotation:
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
         e = self.sigma_rad * self.rng.standard_normal((t.size, 3))
+        if self.time_tag_bias_s != 0.0:
+            t = t - self.time_tag_bias_s
         return Rotation.from_matrix(self.plan.matrices(t, pass_index) @ rodrigues(e))
+
+
+def attitude_reports(scenario: LineCamScenario, plan: ScanPlan, rng: np.random.Generator) -> AttitudeReports:
+    """The reports of a scenario: the lab's stated white knowledge error
+    (``attitude.knowledge_noise_arcsec``) and the world's time-tag bias."""
+    return AttitudeReports(plan, scenario.attitude.knowledge_noise_arcsec / ARCSEC_PER_RAD, rng,
+                           time_tag_bias_s=scenario.world.effects.time_tag_bias_ms * 1e-3)
+
+
+def world_jitter(scenario: LineCamScenario, plan: ScanPlan, rng: np.random.Generator):
+    """The world's attitude jitter over all passes (:class:`simcam.linecam.effects.Jitter`), or None
+    when both jitter magnitudes are 0 (``rng``: the effects' own stream,
+    :func:`simcam.linecam.effects.effects_generator`)."""
+    from .effects import Jitter
+
+    fx = scenario.world.effects
+    if fx.jitter_tones_arcsec == 0.0 and fx.jitter_band_arcsec == 0.0:
+        return None
+    return Jitter(fx, scenario.world.jitter_band_tau_s, rng, float(plan.t_start_s[0]) - 1.0,
+                  float(plan.t_start_s[-1]) + plan.duration_s + 1.0)

@@ -658,6 +658,19 @@ def load(path: str | Path | None = None) -> Scenario:
     return from_dict(read_toml(text=text, source=source), source=source)
 
 
+def scenario_source_text(path: str | Path | None = None) -> str | None:
+    """The TOML text of a scenario with its comments as :func:`load_scenario` reads it
+    (the embedded resource or the file), or None where there is no such text."""
+    if path is None:
+        return resources.files("simcam.data").joinpath(DEFAULT_RESOURCE).read_text()
+    if isinstance(path, str) and path.startswith("embedded:"):
+        name = path.split(":", 1)[1]
+        return resources.files("simcam.data").joinpath(EMBEDDED_SCENARIOS[name]).read_text() \
+            if name in EMBEDDED_SCENARIOS else None
+    p = Path(path)
+    return p.read_text(encoding="utf-8") if p.is_file() else None
+
+
 def default() -> Scenario:
     """The embedded seed-000 scenario."""
     return load(None)

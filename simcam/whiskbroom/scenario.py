@@ -17,8 +17,9 @@ from pydantic import Field, model_validator
 
 from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials, ValidationSettings,
                                 read_toml, validate_model)
+from simcam.effects import EffectsBase, WorldBase
 
-__all__ = ["Distribution", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
+__all__ = ["Distribution", "WhiskbroomEffects", "WhiskbroomWorld", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
            "VARIABLES", "default_text", "from_dict", "load", "default"]
 
 #: the six true-state (operating) values drawn per trial
@@ -155,6 +156,60 @@ class Validation(ValidationSettings):
     batch_trials: BatchTrials = 100
 
 
+class WhiskbroomEffects(EffectsBase):
+    """Unmodelled effects of the whiskbroom camera's world (issue 22; 0 = off). Only the
+    simulator's truth route (:mod:`simcam.whiskbroom.world`) reads them; the lab's predictions
+    (published and improved sinc) and its slanted-edge measurement never do."""
+
+    earth_flattening_scale: float = Field(
+        default=1.0, ge=0, le=1.5,
+        description="WGS 84 flattening 1/298.257223563 (NIMA TR8350.2, 2000) x this scale; the world's "
+                    "image motion is ray-traced to that ellipsoid (simcam.whiskbroom.raytrace); 0 = the "
+                    "paper's sphere through the paper's own V_P chain")
+    attitude_jitter_arcsec: float = Field(
+        default=2.4, ge=0,
+        description="roll amplitude of the dominant ZY-3 jitter tone, 0.65 Hz, 0.5-1.5 px cross-track "
+                    "= 1.2-3.6 arcsec (Tong et al., IEEE TGRS, 2015, doi:10.1109/TGRS.2014.2379435); "
+                    "the gyro tones 0.21/0.56/1.12 Hz at 0.07/0.04/0.04 arcsec (Tang et al., Sensors "
+                    "20:736, 2020, Table 1) scale with it (world.jitter_tone_weights)")
+    wheel_jitter_arcsec: float = Field(
+        default=0.03, ge=0,
+        description="roll amplitude of a reaction-wheel structural-mode tone (world.wheel_tone_hz): "
+                    "0.01-0.1 arcsec at 10-200 Hz, an engineering estimate (structural modes dominate the "
+                    "rigid-body 1e-9 rad; QuickBird's 4.3 Hz line 0.1 m, Tang et al. 2020; model form "
+                    "Masterson et al., J. Sound Vib. 249:575, 2002, doi:10.1006/jsvi.2001.3868); 0.03 the "
+                    "geometric middle")
+    mirror_rate_ripple_fraction: float = Field(
+        default=0.0022, ge=0, lt=1,
+        description="scan-mirror rate ripple a in omega(t) = omega_x [1 + a sin(2 pi omega_x t / 1 deg + phi)]: "
+                    "an inductosyn periodic error of 1.3 arcsec per 1 deg pitch after seed-001 "
+                    "compensation, 2 pi 1.3 / 3600 = 0.22 % (69 arcsec uncompensated: 12 %)")
+    pixel_crosstalk_fraction: float = Field(
+        default=0.02, ge=0, lt=0.25,
+        description="charge diffusion / crosstalk of a front-illuminated CCD, fraction X of the charge "
+                    "to each of the 4 neighbours (3x3 kernel, Nyquist MTF 1 - 4X): X = 1-3 % "
+                    "(opticks detector-MTF notes; Seib, IEEE TED 21:210, 1974, gives 0.81-0.95 at "
+                    "600 nm for L_D = 2-5 um, L0 = 20-100 um)")
+
+
+class WhiskbroomWorld(WorldBase):
+    """The world's effects and the settings of their model forms (never a switch)."""
+
+    effects: WhiskbroomEffects = WhiskbroomEffects()
+    jitter_tones_hz: list[float] = Field(default=[0.65, 0.21, 0.56, 1.12], min_length=1)
+    jitter_tone_weights: list[float] = Field(default=[1.0, 0.07 / 2.4, 0.04 / 2.4, 0.04 / 2.4], min_length=1)
+    ripple_period_deg: float = Field(default=1.0, gt=0)
+    wheel_tone_hz: float = Field(default=100.0, gt=0)
+
+    @model_validator(mode="after")
+    def _check_tones(self):
+        if len(self.jitter_tones_hz) != len(self.jitter_tone_weights):
+            raise ValueError("jitter_tone_weights: give one weight per entry of jitter_tones_hz")
+        if any(f <= 0 for f in self.jitter_tones_hz):
+            raise ValueError("jitter_tones_hz: frequencies must be > 0")
+        return self
+
+
 class WhiskbroomScenario(ScenarioBase):
     """The whole scenario (see ``data/default.toml`` for every field's meaning)."""
 
@@ -165,6 +220,7 @@ class WhiskbroomScenario(ScenarioBase):
     synthesis: Synthesis = Synthesis()
     tdi: Tdi = Tdi()
     validation: Validation = Validation()
+    world: WhiskbroomWorld = WhiskbroomWorld()
 
     @property
     def inclination_rad(self) -> float:

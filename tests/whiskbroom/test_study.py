@@ -13,7 +13,10 @@ def small():
     sc = STUDY.load_scenario()
     return sc.model_copy(update={
         "tdi": sc.tdi.model_copy(update={"columns": 20, "edge_columns": 114, "edge_time_samples_per_phase": 2}),
-        "synthesis": sc.synthesis.model_copy(update={"trials": 20, "sobol_base_samples": 16})})
+        "synthesis": sc.synthesis.model_copy(update={"trials": 20, "sobol_base_samples": 16}),
+        # the paper's (ideal) world: these tests check the identities of the model itself
+        # (tests/whiskbroom/test_world.py covers the realistic world's effects)
+        "world": sc.world.model_copy(update={"effects": sc.world.effects.ideal()})})
 
 
 def test_trial_keys_and_truths(small):
@@ -59,10 +62,13 @@ def test_synthesize_command_writes_json(tmp_path, small):
                                                  "trials = 20                   # paper")
                     .replace("sobol_base_samples = 512", "sobol_base_samples = 16"))
     out = tmp_path / "o.json"
-    main(["synthesize", str(toml), "--json", str(out), "--report", str(tmp_path / "rep")])
+    main(["synthesize", str(toml), "--json", str(out), "--report", str(tmp_path / "rep"), "--seeds", "2",
+          "--criterion-trials", "3"])
     data = json.loads(out.read_text())
     assert data["trials"] == 20 and len(data["per_mirror_rate_error"]) == 4
     assert (tmp_path / "rep" / "mtf_vs_stages.png").exists()
+    assert data["seed_distribution"]["seeds"] == [0, 1] and data["published_criterion"]["trials"] == 3
+    assert "over 2 seeds" in (tmp_path / "rep" / "report.md").read_text()
 
 
 def test_bad_scenario_is_one_error_line(tmp_path, capsys):

@@ -1,0 +1,241 @@
+"""The Python face of the lab, for notebooks and scripts (docs/api.md).
+
+::
+
+    import budget
+
+    res = budget.validate("whiskbroom", trials=40, workers=2)
+    res                      # a short summary; in a notebook, the findings and the table
+    df = res.to_dataframe()  # tidy: class, axis, variant, statistic, value, unit
+    res.to_json()            # what ``budget <study> validate --json`` writes
+
+* :func:`validate` runs a study's Monte Carlo validation (the runner,
+  :func:`budget.runner.run.run_study`) and returns its :class:`~budget.runner.run.StudyResult`;
+* :func:`robustness` runs a study's robustness cases (the world's effects) and returns them;
+* :func:`sweep` runs a design-trade sweep file into a Zarr store and returns it opened
+  (:func:`budget.sweeps.run.run_sweep`).
+
+Both work from a plain script without an ``if __name__ == "__main__":`` guard: the worker
+processes are started with ``spawn`` (numba's thread pools must not be forked) and spawn
+re-runs the main script in each worker unless told otherwise; the workers need only
+budget's own functions, so while they start, the main module is not announced to them
+(:func:`_workers_skip_main`). Where the study itself is defined in the script, the workers
+do need it: then a script without the guard gets one line saying what to do.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["robustness", "scenario_text", "studies", "sweep", "validate"]
+
+
+def studies() -> list[str]:
+    """The registered study names (``"starcam"``, ``"inductosyn"``, ...)."""
+    from budget.runner.registry import study_names
+
+    return study_names()
+
+
+def scenario_text(study) -> str:
+    """The study's embedded default scenario as TOML, with its comments (what
+    ``budget <study> scenario`` prints); ``tomllib.loads`` of it is a dict to edit and pass
+    to :func:`validate`."""
+    return _study(study).default_text()
+
+
+def _study(study):
+    from budget.runner.registry import get_study
+    from budget.runner.study import Study
+
+    if isinstance(study, Study):
+        return study
+    if isinstance(study, str):
+        return get_study(study)
+    raise TypeError(f"study: a registered name ({', '.join(studies())}) or a Study, not {type(study).__name__}")
+
+
+def _scenario(study, scenario):
+    """``None`` (the embedded default), a path, a mapping (validated like a file) or a model."""
+    if scenario is None:
+        return study.load_scenario()
+    if isinstance(scenario, (str, Path)):
+        return study.load_scenario(scenario)
+    if isinstance(scenario, dict):
+        return study.from_dict(scenario, source="scenario (dict)")
+    return scenario
+
+
+@contextlib.contextmanager
+def _workers_skip_main(*objects):
+    """While worker processes start, hide the main module's file and spec from
+    :mod:`multiprocessing`'s spawn preparation, so the workers do not re-run the user's
+    script (they unpickle budget's functions and studies by their own modules). Nothing is
+    hidden when one of ``objects`` is defined in the main module (the workers need it)."""
+    main = sys.modules.get("__main__")
+    if main is None or any(type(o).__module__ == "__main__" or getattr(o, "__module__", None) == "__main__"
+                           for o in objects):
+        yield
+        return
+    sentinel = object()
+    saved_file = main.__dict__.get("__file__", sentinel)
+    saved_spec = main.__dict__.get("__spec__", sentinel)
+    try:
+        if saved_file is not sentinel:
+            del main.__file__
+        if saved_spec is not sentinel:
+            main.__spec__ = None
+        yield
+    finally:
+        if saved_file is not sentinel:
+            main.__file__ = saved_file
+        if saved_spec is not sentinel:
+            main.__spec__ = saved_spec
+
+
+def _broken_pool_hint(exc: BaseException) -> RuntimeError | None:
+    from concurrent.futures.process import BrokenProcessPool
+
+    if isinstance(exc, BrokenProcessPool):
+        return RuntimeError("budget: the worker processes could not start (they re-ran your script, which "
+                            "defines the study): put the call under `if __name__ == \"__main__\":`, or pass workers=1")
+    return None
+
+
+def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
+             tolerance: float | None = None, progress: bool = False):
+    """The Monte Carlo validation of ``study`` on ``scenario``; returns a
+    :class:`~budget.runner.run.StudyResult`.
+
+    Parameters
+    ----------
+    study : str or Study
+        A registered name (:func:`studies`) or a :class:`~budget.runner.study.Study`.
+    scenario : None, path, dict or model
+        The embedded default (None), a TOML file, a mapping validated as a file would be, or
+        the study's scenario model.
+    trials : int, optional
+        Number of trials (default: the scenario's, or adaptive stopping where it gives a
+        tolerance); ``tolerance`` instead stops when every standard error is below it.
+    seed : int
+        Run seed; results do not depend on ``workers``.
+    workers : int, optional
+        Local worker processes (default: all cores).
+    progress : bool
+        A progress bar on stderr.
+    """
+    from budget.runner.executors import default_workers
+    from budget.runner.run import run_study
+
+    st = _study(study)
+    scn = _scenario(st, scenario)
+    if workers is None:
+        workers = default_workers()
+    with _workers_skip_main(st):
+        try:
+            return run_study(st, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
+                             progress=progress)
+        except Exception as exc:
+            hint = _broken_pool_hint(exc)
+            if hint is not None:
+                raise hint from None
+            raise
+
+
+def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
+               progress: bool = False):
+    """What each method's claim survives of the world's effects
+    (:func:`budget.runner.robustness.run_robustness`); ``study`` and ``scenario`` as for
+    :func:`validate`. Returns its ``RobustnessResult`` (``write_report(folder)``, ``to_json()``)."""
+    from budget.runner.executors import default_workers
+    from budget.runner.robustness import run_robustness
+
+    st = _study(study)
+    scn = _scenario(st, scenario)
+    with _workers_skip_main(st):
+        try:
+            return run_robustness(st, scn, trials=trials, seed=seed,
+                                  workers=default_workers() if workers is None else workers, progress=progress,
+                                  source=str(scenario) if isinstance(scenario, (str, Path)) else "")
+        except Exception as exc:
+            hint = _broken_pool_hint(exc)
+            if hint is not None:
+                raise hint from None
+            raise
+
+
+def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False):
+    """Run the design-trade sweep ``sweep_file`` (docs/sweeps.md) into the Zarr store ``out``
+    (resumed when it holds this sweep) and return the store opened as an
+    :class:`xarray.Dataset`."""
+    import xarray as xr
+
+    from budget.sweeps.run import run_sweep
+
+    with _workers_skip_main():
+        try:
+            run_sweep(sweep_file, out, workers=workers, progress=progress, echo=lambda *a, **k: None)
+        except Exception as exc:
+            hint = _broken_pool_hint(exc)
+            if hint is not None:
+                raise hint from None
+            raise
+    return xr.open_zarr(out)
+
+
+# ------------------------------------------------------------------ what a result shows
+_STATS = ("n", "truth", "truth_se", "truth_sd", "mean", "bias", "bias_percent", "se_bias", "std", "se_std",
+          "rms_error")
+
+
+def result_dataframe(result):
+    """Tidy statistics of a result: one row per (class, axis, variant, statistic) with its
+    value and unit; coverage statistics as ``coverage_within_1sigma`` etc.; the findings'
+    rule as statistic ``rule`` is not numeric and is left to :func:`budget.runner.findings.findings`."""
+    import pandas as pd
+
+    rows = []
+    for key in result.keys():
+        cls, var, ax = key
+        st = result.statistics(key)
+        unit = result.class_spec(cls).unit
+        unit = "" if unit.strip() in ("1", "-") else unit  # dimensionless
+        for name in _STATS:
+            if name in st:
+                rows.append((cls, ax, var, name, float(st[name]), unit))
+        rows.append((cls, ax, var, "bias_significant", float(bool(st["bias_significant"])), ""))
+        for name in ("within_1sigma", "within_2sigma", "se_1sigma", "sd_normalised_error", "mean_stated_sigma"):
+            if "coverage" in st and name in st["coverage"]:
+                rows.append((cls, ax, var, f"coverage_{name}", float(st["coverage"][name]),
+                             unit if name == "mean_stated_sigma" else ""))
+    return pd.DataFrame(rows, columns=["class", "axis", "variant", "statistic", "value", "unit"])
+
+
+def result_repr(result) -> str:
+    """One short paragraph: study, scenario, trials, and the recommendation."""
+    from budget.runner.findings import findings_json
+
+    f = findings_json(result)
+    name = getattr(result.scenario, "name", "") or ""
+    return (f"<StudyResult {result.study.name}: scenario {name!r}, seed {result.seed}, {result.trials} trials "
+            f"({result.stopped_by}), {len(result.keys())} keys; {f['recommendation'] or ''}>")
+
+
+def result_html(result) -> str:
+    """For notebooks: the header, the findings and the table (no figures)."""
+    import html
+
+    from budget.runner.findings import findings_json, findings_markdown
+    from budget.runner.html import markdown_to_html
+    from budget.runner.report import format_table
+
+    f = findings_json(result)
+    name = getattr(result.scenario, "name", "") or ""
+    head = (f"<p><strong>{html.escape(result.study.title)}</strong>: scenario <code>{html.escape(name)}</code>, "
+            f"seed {result.seed}, {result.trials} trials (stopped by {html.escape(result.stopped_by)})</p>")
+    return (f"<div>{head}<details open><summary>Findings</summary>"
+            f"{markdown_to_html(chr(10).join(findings_markdown(result, f)))}</details>"
+            f"<details><summary>Table</summary><pre>{html.escape(format_table(result))}</pre></details></div>")
