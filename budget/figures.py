@@ -117,5 +117,5 @@ def figure_markdown(figures) -> str:
     """Each figure's Markdown image with its caption under it (one paragraph each)."""
     out = []
     for f in figures:
-        out += [f"![{Path(f).stem}]({Path(f).name})", "", f"*{Path(f).stem}*: {getattr(f, 'caption', '')}".rstrip(), ""]
+        out += [f"![{Path(f).stem}]({Path(f).name})", "", f"**{Path(f).stem}**: {getattr(f, 'caption', '')}".rstrip(), ""]
     return "\n".join(out).rstrip()

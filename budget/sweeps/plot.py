@@ -513,11 +513,26 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
+        _write_page(ds, files, out_dir)
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
     return files
+
+
+def _write_page(ds, files, out_dir) -> None:
+    """``report.md`` (each figure with its caption under it) and its self-contained twin
+    ``report.html`` beside the figures."""
+    from budget.figures import figure_markdown
+    from budget.runner.html import write_html
+
+    md = [f"# {ds.attrs.get('title', 'Sweep')}: figures", "",
+          f"Sweep `{ds.attrs.get('kind', '')}` ({ds.attrs.get('evaluate', '')}), hash "
+          f"`{ds.attrs.get('sweep_hash', '')}`, seed {ds.attrs.get('seed', '')}.", "", figure_markdown(files), ""]
+    page = Path(out_dir) / "report.md"
+    page.write_text("\n".join(md))
+    write_html(page)
 
 
 def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
