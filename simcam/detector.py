@@ -31,6 +31,7 @@ __all__ = [
     "expose_windows",
     "prnu_map",
     "dsnu_map",
+    "apply_nonlinearity",
 ]
 
 #: Largest accepted expected signal per pixel (e-): far above any full well, and small
@@ -86,6 +87,10 @@ class DetectorParams:
         Fraction of hot pixels, in [0, 1].
     hot_pixel_dark_e : float
         Extra dark signal of a hot pixel in the exposure, e-, >= 0.
+    nonlinearity_beta : float
+        Integral non-linearity of the charge-to-signal conversion, in (-1, 1): the mean
+        charge ``s`` of a pixel becomes ``s (1 - beta min(s, FW) / FW)`` (:func:`apply_nonlinearity`);
+        0 (default) is the linear camera.
 
     Raises
     ------
@@ -103,6 +108,7 @@ class DetectorParams:
     dsnu_rms_e: float = 0.0
     hot_pixel_fraction: float = 0.0
     hot_pixel_dark_e: float = 0.0
+    nonlinearity_beta: float = 0.0
 
     def __post_init__(self):
         bits = self.adc_bits
@@ -148,6 +154,10 @@ class DetectorParams:
         if not 0.0 <= v <= 1.0:
             _fail("hot_pixel_fraction", "must be in [0, 1]", v)
         object.__setattr__(self, "hot_pixel_fraction", v)
+        v = _finite_float("nonlinearity_beta", self.nonlinearity_beta)
+        if not -1.0 < v < 1.0:
+            _fail("nonlinearity_beta", "must be in (-1, 1)", v)
+        object.__setattr__(self, "nonlinearity_beta", v)
 
     @property
     def n_chips(self) -> int:
@@ -220,6 +230,37 @@ def _keys(frame_key, detector_key):
         raise DetectorParameterError(str(err)) from None
 
 
+def apply_nonlinearity(mean_e: np.ndarray, *, col0, chip_cols: int, params: DetectorParams) -> np.ndarray:
+    """Integral non-linearity of the pixel's charge-to-signal conversion, on the mean charge.
+
+    ``s_out = s (1 - beta min(s, FW) / FW)`` per pixel, ``FW`` the full well of the pixel's
+    chip: the quadratic compression of a CMOS pixel's response (source-follower gain and
+    photodiode capacitance changing with the collected charge; J. R. Janesick, *Photon
+    Transfer*, SPIE PM170, 2007, ch. 7). Against the end-point line through 0 and FW its
+    largest deviation is ``beta FW / 4`` at ``s = FW / 2``: an integral non-linearity (INL)
+    of ``beta / 4`` of full scale (0.2 % typical for a GSENSE4040-class sensor, Gpixel data
+    sheet, so ``beta = 0.008``). The signal is clipped at FW in the factor only (a saturated
+    pixel is clipped at FW after the shot noise anyway).
+
+    Applied to the mean charge ``S g + d`` before the temporal noise is drawn (the static
+    transfer curve, which is what moves a centroid or a flux); the shot noise is then that
+    of the compressed mean, where a per-frame compression would scale it by ``(1 - 2 beta s /
+    FW)``: the noise variance differs by ``3 beta s / FW`` relative, 1.2 % for the default's
+    brightest pixel at half full well. ``mean_e`` (n, h, w) or (h, w), ``col0`` the mosaic
+    column of each window's (or the block's) first column. Returns a new array.
+    """
+    beta = params.nonlinearity_beta
+    m = np.asarray(mean_e, dtype=np.float64)
+    squeeze = m.ndim == 2
+    if squeeze:
+        m = m[None]
+    c0 = np.atleast_1d(np.asarray(col0, dtype=np.int64))
+    cols = c0[:, None] + np.arange(m.shape[-1])[None, :]             # (n, w) mosaic columns
+    fw = np.asarray(params.full_well_e, dtype=np.float64)[cols // int(chip_cols)][:, None, :]
+    out = m * (1.0 - beta * np.minimum(m, fw) / fw)
+    return out[0] if squeeze else out
+
+
 def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
            frame_key, detector_key, shot_noise=True, read_noise=True,
            quantize=True) -> np.ndarray:
@@ -274,6 +315,13 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
     mc, cc = _check_geometry(rows_hi=r0 + h, cols_lo=c0, cols_hi=c0 + w, mosaic_cols=mosaic_cols,
                              chip_cols=chip_cols, params=params)
     fk, dk = _keys(frame_key, detector_key)
+    if params.nonlinearity_beta != 0.0:
+        # the non-linear camera: the window chain's fixed pattern and non-linearity, then the
+        # same per-pixel noise and ADC kernel (pixels equal the linear route at beta = 0)
+        chain = window_chain(signal_e=sig[None], row0=[r0], col0=[c0], mosaic_cols=mc, chip_cols=cc,
+                             params=params, detector_key=dk)
+        return expose_windows_frames(chain=chain, frame_keys=[fk], shot_noise=shot_noise, read_noise=read_noise,
+                                     quantize=quantize, parallel=False)[0, 0]
     out = np.empty((h, w), dtype=params.output_dtype if quantize else np.float64)
     if sig.size:
         g, off, rn, fw = params._chip_arrays()
@@ -328,6 +376,11 @@ def expose_windows(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: Dete
                              cols_hi=int(c0.max()) + w if n else 0,
                              mosaic_cols=mosaic_cols, chip_cols=chip_cols, params=params)
     fk, dk = _keys(frame_key, detector_key)
+    if params.nonlinearity_beta != 0.0:
+        chain = window_chain(signal_e=sig, row0=r0, col0=c0, mosaic_cols=mc, chip_cols=cc, params=params,
+                             detector_key=dk)
+        return expose_windows_frames(chain=chain, frame_keys=[fk], shot_noise=shot_noise, read_noise=read_noise,
+                                     quantize=quantize, parallel=False)[0]
     out = np.empty((n, h, w), dtype=params.output_dtype if quantize else np.float64)
     if sig.size:
         g, off, rn, fw = params._chip_arrays()
@@ -477,6 +530,8 @@ def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: Detect
         _k.mean_charge_windows(sig, r0, c0, mc, float(params.prnu_rms), float(params.dark_e),
                                float(params.dsnu_rms_e), float(params.hot_pixel_fraction),
                                float(params.hot_pixel_dark_e), dk, mean)
+        if params.nonlinearity_beta != 0.0:
+            mean = apply_nonlinearity(mean, col0=c0, chip_cols=cc, params=params)
     g, off, rn, fw = params._chip_arrays()
     return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
 

@@ -23,6 +23,9 @@ NO_COLOUR = {
     "optics.lateral_colour.radial_px_per_nm": [],
     "optics.lateral_colour.uniform_x_px_per_nm": [],
     "optics.lateral_colour.uniform_y_px_per_nm": [],
+    # the ideal world (issue 22): no higher-order distortion or non-linearity beside the
+    # convention under test
+    "world.effects": default().world.effects.ideal().model_dump(),
 }
 NO_DISTORTION = {"optics.distortion.k1": 0.0, "optics.distortion.k2": 0.0}
 

@@ -23,6 +23,8 @@ SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
     "optics": {"r_norm_px": 256.0,
                "lateral_colour": {"radial_px_per_nm": [], "uniform_x_px_per_nm": [], "uniform_y_px_per_nm": []}},
+    # the ideal world (issue 22): no distortion beyond the scenario's own
+    "world": {"effects": {"distortion_r5_px_at_corner": 0.0, "distortion_r7_px_at_corner": 0.0}},
 }
 
 

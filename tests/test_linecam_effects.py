@@ -52,10 +52,14 @@ def test_effects_shape_follows_the_contract():
 
 
 # --------------------------------------------------------------------------- ideal world = before
-#: recorded from the code before the effects existed (commit 5328684, /work/main): the study's
-#: trial 0 of seed 0 on the default scenario, every estimate, truth and sigma as float.hex,
-#: sha256 of their JSON list (186 values)
-RECORDED_SHA256 = "740bda58a62829150bf6b64ff39b8424b65b3e8aae9ceb30931442c78b855fc5"
+#: recorded from the code before the effects existed (commit 5328684): the study's trial 0 of
+#: seed 0 on the default scenario, every estimate, truth and sigma as float.hex, sha256 of
+#: their JSON list (186 values: 740bda58...). Since then the study reports no sigma for the
+#: four parameters the calibration cannot separate (roll, pitch, dx0, dy0: "not determined")
+#: and adds the class of their determined combinations; the 178 values below are the
+#: recorded 186 less those 8 sigmas, element for element (checked against the recording
+#: when the two changes were merged), the new class left out.
+RECORDED_SHA256 = "368f38655835577fdb9fbb5d8ee025eff0246ea109d0e4728d1793bb1a64c446"
 RECORDED_TRIAL0 = {("los_rms", "improved", "along"): (0.04688888813054669, 0.046845122122615136),
                    ("exterior", "published", "yaw"): (20.821499333999792, 22.07867010531114),
                    ("distortion", "improved", "k1"): (2.4020981614991608, 1.6386293801142149)}
@@ -70,10 +74,11 @@ def test_ideal_world_equals_the_code_before_the_effects_bit_for_bit():
     for r in results:
         for part in ("estimates", "truths", "sigmas"):
             d = getattr(r, part)
-            out += [(part, "/".join(key), float(v).hex()) for key, v in sorted(d.items())]
+            out += [(part, "/".join(key), float(v).hex()) for key, v in sorted(d.items())
+                    if key[0] != "gauge_combination"]
     for key, (estimate, truth) in RECORDED_TRIAL0.items():
         assert results[0].estimates[key] == estimate and results[0].truths[key] == truth, key
-    assert len(out) == 186
+    assert len(out) == 178
     assert hashlib.sha256(json.dumps(out).encode()).hexdigest() == RECORDED_SHA256
 
 

@@ -12,8 +12,12 @@ from budget.runner.run import run_study
 
 SC = STUDY.load_scenario()
 #: a quicker plan for the runner test: a given strip (no sky search), two passes
+#: in the ideal world (every [world.effects] magnitude 0): these tests check the lab's
+#: calibration against its own model; what the world's effects do to it is
+#: tests/test_linecam_effects.py's and docs/linecam.md's
 SMALL = STUDY.from_dict({"stars": {"region": "manual", "ra_deg": 280.0, "dec_deg": -5.0},
-                         "observation": {"passes": 2, "shift_px": 2000.0}}, source="small")
+                         "observation": {"passes": 2, "shift_px": 2000.0},
+                         "world": {"effects": {n: 0.0 for n in SC.world.effects.names()}}}, source="small")
 
 
 def test_trial_equivalence_same_seed_same_numbers_and_complete():

@@ -28,6 +28,9 @@ SMALL = {
         "chromatic": {"frames": 3, "field_centers_px": [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]},
         "distortion": {"frames": 3},
     },
+    # the ideal world (issue 22): these tests check the simulator's lab physics against its truth
+    # tables; the world's effects have their own tests (test_world_starcam.py)
+    "world": {"effects": default().world.effects.ideal().model_dump()},
 }
 
 

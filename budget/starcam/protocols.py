@@ -218,12 +218,31 @@ def simulate(
     truths, wins = [], {}
     cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt", "field",
                                              "x", "y", "flux", "flag")}
+    # the simulated world's hexapod pose errors and target drift (issue 22): the camera draws
+    # them from the run seed (simcam.starcam.world); the plan, like a lab's, has only the
+    # commanded poses
+    motion = camera.world_motion(seed)
     for c in plan.conditions:
         layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
                   else _star_grid(scn, c.field_center_px))
         stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
-        placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
-                              filter_nm=c.filter_nm, condition=stream, label=c.label)
+        if motion is None:
+            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                                  filter_nm=c.filter_nm, condition=stream, label=c.label)
+            drift = None
+        else:
+            pdx, pdy, roll = motion.pose(plan.protocol, c.index)
+            drift = motion.drift_of(plan.protocol, c.index, c.frames)
+            # the condition's mean drift is rendered exactly (in the scene's pose), the drift
+            # about it per frame to first order (StarCamera.drift_chain)
+            d0 = (0.0, 0.0) if drift is None else tuple(float(v) for v in drift.mean(axis=0))
+            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px + pdx + d0[0],
+                                  platform_dy_px=c.platform_dy_px + pdy + d0[1], filter_nm=c.filter_nm,
+                                  condition=stream, label=c.label, platform_roll_rad=roll)
+            if drift is not None:
+                drift = (drift - np.array(d0)[None, :], Placement(
+                    layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                    filter_nm=c.filter_nm, condition=stream, label=c.label))
         scene = camera.scene(placement)
         W = scene.n_stars
         n = c.frames
@@ -235,12 +254,17 @@ def simulate(
         cc = _condition_columns(camera, scene, chain, c, threshold_sigma, plan.dark_frames)
         noise_dn = cc["noise_dn"]
         if fused:
-            x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
-                                                threshold_dn=cc["threshold_dn"])
+            if drift is None:
+                x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
+                                                    threshold_dn=cc["threshold_dn"])
+            else:
+                x, y, flux, flag = _expose_centroid_drift(camera, scene, drift, seed=seed, dark_mean=dark_mean,
+                                                          threshold_dn=cc["threshold_dn"])
             for name, v in (("x", x), ("y", y), ("flux", flux), ("flag", flag)):
                 cols[name].append(v.reshape(-1))
         else:
-            win = camera.render_windows(scene, frames=n, seed=seed)
+            win = (camera.render_windows(scene, frames=n, seed=seed) if drift is None
+                   else _render_windows_drift(camera, scene, drift, seed=seed))
             pix = win.pixels.astype(np.float64)
             if dark_mean is not None:
                 pix = pix - dark_mean[None]
@@ -328,6 +352,48 @@ def _expose_centroid(camera, chain, scene, *, frames: int, seed: int, dark_mean,
     from budget.starcam.kernels_trial import expose_centroid_chain
 
     return expose_centroid_chain(chain, keys, dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=parallel)
+
+
+def _drifted_chains(camera, scene, drift):
+    """One window chain per frame of a scene whose image drifts by ``drift[0]`` (frames, 2) px
+    about the scene's own position, with gradients at the commanded placement ``drift[1]``
+    (:meth:`simcam.starcam.render.StarCamera.drift_chain`)."""
+    from dataclasses import replace
+
+    drift, nominal = drift
+    chain, gx, gy = camera.drift_chain(scene, nominal)
+    for f in range(drift.shape[0]):
+        mean = np.maximum(chain.mean_e + drift[f, 0] * gx + drift[f, 1] * gy, 0.0)
+        yield f, replace(chain, mean_e=mean)
+
+
+def _expose_centroid_drift(camera, scene, drift, *, seed: int, dark_mean, threshold_dn):
+    """:func:`_expose_centroid` for a drifting image: each frame exposed from its own chain."""
+    from budget.starcam.kernels_trial import expose_centroid_chain
+
+    n = drift[0].shape[0]
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
+    out = [np.empty((n, scene.n_stars)) for _ in range(3)] + [np.zeros((n, scene.n_stars), dtype=np.int64)]
+    for f, ch in _drifted_chains(camera, scene, drift):
+        r = expose_centroid_chain(ch, keys[f:f + 1], dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=False)
+        for o, v in zip(out, r):
+            o[f] = v[0]
+    return tuple(out)
+
+
+def _render_windows_drift(camera, scene, drift, *, seed: int):
+    """:meth:`simcam.starcam.render.StarCamera.render_windows` for a drifting image."""
+    from simcam.detector import expose_windows_frames
+    from simcam.starcam.render import Windows
+
+    n = drift[0].shape[0]
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
+    frames = []
+    for f, ch in _drifted_chains(camera, scene, drift):
+        frames.append(expose_windows_frames(chain=ch, frame_keys=keys[f:f + 1], parallel=False)[0])
+    chain = camera.window_chain(scene)
+    return Windows(pixels=np.stack(frames), col0=chain.col0, row0=chain.row0, truth=scene.truth,
+                   frame_index=np.arange(n))
 
 
 def estimate(

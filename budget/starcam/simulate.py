@@ -11,11 +11,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-
-from simcam.cli_common import overwrite_option
+import numpy as np
 import pandas as pd
 
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
+from simcam.cli_common import overwrite_option
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
@@ -44,19 +44,40 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     cam = StarCamera(scenario)
     rows, truths = [], []
     bar = progress_bar(total=n_files, desc=f"{protocol} frames", unit="frame", enabled=progress)
+    # the world's hexapod pose errors and target drift (issue 22, simcam.starcam.world): in the
+    # frames, not in the plan or the headers (which hold what the lab commanded)
+    motion = cam.world_motion(seed)
     with io.atomic_directory(out, overwrite=overwrite) as tmp:
         for c in plan.conditions:
             lay = calibration_grid(scenario) if c.target == "calibration_grid" else star_grid(scenario, center_px=c.field_center_px)
             stream = 1000 * PROTOCOL_STREAM[protocol] + c.index
-            scene = cam.scene(Placement(layout=lay, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
-                                        filter_nm=c.filter_nm, condition=stream, label=c.label))
+            pdx, pdy, roll = (0.0, 0.0, 0.0) if motion is None else motion.pose(protocol, c.index)
+            placement = Placement(layout=lay, platform_dx_px=c.platform_dx_px + pdx, platform_dy_px=c.platform_dy_px + pdy,
+                                  filter_nm=c.filter_nm, condition=stream, label=c.label, platform_roll_rad=roll)
+            if motion is None:
+                placement = replace(placement, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px)
+            scene = cam.scene(placement)
             expected = cam.expected_frame_e(scene)
+            drift = None if motion is None else motion.drift_of(protocol, c.index, c.frames)
+            if drift is not None:
+                # first order in the (sub-0.01 px) drift, as the Monte Carlo's windows
+                # (StarCamera.drift_chain): the frame's expected charge and its gradient
+                h = 1e-3
+                grad = [(cam.expected_frame_e(cam.scene(replace(placement, platform_dx_px=placement.platform_dx_px + dx,
+                                                                platform_dy_px=placement.platform_dy_px + dy)))
+                         - cam.expected_frame_e(cam.scene(replace(placement,
+                                                                  platform_dx_px=placement.platform_dx_px - dx,
+                                                                  platform_dy_px=placement.platform_dy_px - dy))))
+                        / (2 * h) for dx, dy in ((h, 0.0), (0.0, h))]
             kw = dict(scenario=scenario, seed=seed, condition=c.index, filter_nm=c.filter_nm,
                       platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px, label=c.field or c.label)
             for dark, count, tag in ((0, c.frames, "f"), (1, plan.dark_frames, "dark")):
                 for f in range(count):
                     name = f"c{c.index:03d}_{tag}{f:04d}.fits"
-                    data = cam.render_frame(scene, frame=f, seed=seed, expected_e=expected, dark=bool(dark))
+                    exp_f = expected
+                    if drift is not None and not dark:
+                        exp_f = np.maximum(expected + drift[f, 0] * grad[0] + drift[f, 1] * grad[1], 0.0)
+                    data = cam.render_frame(scene, frame=f, seed=seed, expected_e=exp_f, dark=bool(dark))
                     io.write_frame(tmp / name, data, io.frame_header(frame=f, **kw), compress=compress)
                     bar.update(1)
                     rows.append({"file": name, "condition": c.index, "frame": f, "filter_nm": c.filter_nm,

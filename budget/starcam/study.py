@@ -53,6 +53,18 @@ class StarCameraStudy(Study):
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result")
                      for n, label, desc in _CLASSES)
 
+    def truth_depends_on_effects(self, scenario) -> set[str]:
+        """World effects whose magnitude changes a truth (issue 22; budget.starcam.truth):
+        the distortion beyond the cubic (LSFE-C1's truth is what the camera's own correction
+        leaves of the world's distortion; it also moves the TE and HSFE targets' stars a
+        little) and the detector non-linearity (a static pixel-level error: HSFE's truth, and
+        TE's through the compressed signal). The hexapod pose errors and the target drift are
+        not in any truth: they move the image, not the camera's own errors (TE's truth is the
+        centroid's temporal noise, and a drift is not temporal noise; HSFE's truth is over
+        sub-pixel phases, whatever pose reaches them), so a robustness case with only those on
+        reuses the ideal world's truths."""
+        return {"distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta"}
+
     def worker_init(self) -> None:
         from budget.starcam.validate import worker_init
 
@@ -181,7 +193,11 @@ class StarCameraStudy(Study):
         c1 = ("still displaces after its own distortion correction"
               if scn.optics.distortion_correction.kind != "none"
               else "a cubic calibration would leave (uncalibrated camera)")
+        eff = scn.world.effects
+        on = [f"{n} = {getattr(eff, n):g}" for n in eff.active()]
         text = [
+            "World effects (`[world.effects]`, what the lab's methods do not model; issue 22): "
+            + ("; ".join(on) + "." if on else "none (the ideal world)."),
             "What is compared. **Truth**: the quantity each method claims to measure, computed from the "
             "injected physics by a route that shares nothing with the estimators (budget.starcam.truth): TE, the mean "
             "temporal centroid sd; HSFE, the rms static error of the expected centroid under the lab's noise; "

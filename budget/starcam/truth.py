@@ -31,6 +31,29 @@ in px, per axis):
   sqrt(S^2 + C1^2 + C2^2), total = sqrt(TE^2 + HSFE^2 + LSFE^2). (Seed 000's eq 31 adds
   C1 and C2 linearly; the validation reports how far that is from this.)
 
+World effects (issue 22, ``[world.effects]``, :mod:`simcam.starcam.world`): each truth stays
+the quantity its method claims to measure, computed from the injected physics:
+
+* the **detector non-linearity** is part of the camera: TE's and HSFE's truths are computed
+  from the camera's own detector chain, so HSFE's truth includes the static centroid error
+  the non-linearity adds (an asymmetric image's centroid moves with the compression) and
+  TE's the compressed signal's noise;
+* the **distortion beyond the cubic** is part of the lens: LSFE-C1's truth is what the
+  camera's own cubic correction leaves of the world's whole distortion (the correction is
+  fitted, in the earlier calibration, to that distortion), so it includes the r^5 and r^7
+  residual; the small displacement of the TE and HSFE targets' stars follows too;
+* the **hexapod pose errors** are not in any truth: they move the image, they are not an
+  error of the camera. TE's truth is at the nominal pose, HSFE's over sub-pixel phases
+  whatever pose reaches them; what a pose error does to an estimate (the roll's field term
+  ``r delta`` in HSFE, a pose that is not where it was commanded) is the finding;
+* the **target drift** is not temporal noise, so it is not in TE's truth (the centroid's
+  temporal noise); the published TE estimator, an rms over frames, then shows the drift as
+  a bias, which is the finding. Nor is it in HSFE's or the LSFE truths (common to all stars,
+  it is no error of the camera).
+
+:meth:`budget.starcam.study.StarCameraStudy.truth_depends_on_effects` states this for the
+robustness runner (distortion and non-linearity change the truths; hexapod and drift do not).
+
 Every truth carries its own standard error (``se_x_px``, ``se_y_px``; 0 where nothing
 is sampled), which the validator's significance test adds to that of the estimates.
 No truth calls an estimator of :mod:`budget.starcam.estimators` or the lab's spectral model

@@ -15,7 +15,7 @@ psf_sigma_px
     Parametric PSF width over the field.
 lateral_colour_shift_px
     Chromatic lateral displacement (radial lateral colour + uniform prism-like term).
-BrownConradyDistortion, CubicDistortion, CompositeDistortion
+BrownConradyDistortion, CubicDistortion, CompositeDistortion, HigherOrderRadialDistortion
     Geometric distortion with analytic Jacobian and Newton inverse (the Brown-Conrady model,
     the shared forward/inverse machinery and the errors live in :mod:`simcam.distortion`,
     which the line camera imports too; they are re-exported here).
@@ -57,6 +57,7 @@ __all__ = [
     "BrownConradyDistortion",
     "CubicDistortion",
     "CompositeDistortion",
+    "HigherOrderRadialDistortion",
 ]
 
 #: Camera PSF kinds understood by :func:`render_stamps`.
@@ -574,3 +575,55 @@ class CompositeDistortion(_Distortion):
         bu, bv, jb = self.brown_conrady._map(u, v)
         cu, cv, jc = self.cubic._map(bu, bv)
         return cu, cv, np.matmul(jc, jb)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HigherOrderRadialDistortion(_Distortion):
+    """A distortion plus radial terms of fifth and seventh order in the field (issue 22).
+
+    The lab calibrates distortion with a cubic polynomial; a real lens has higher orders
+    too (the traced ``embedded:star_camera``: 1.47 px of ``r^5`` and 0.081 px of ``r^7`` at the
+    mosaic corner, docs/lens.md). Added to ``base``'s displacement at the same ideal point::
+
+        u' = base_u(u, v) + u g(q),   v' = base_v(u, v) + v g(q),
+        g(q) = (a5 q^2 + a7 q^3) / r_c,   q = (u^2 + v^2) / r_c^2,
+
+    i.e. a radial displacement ``a5 (r / r_c)^5 + a7 (r / r_c)^7`` px (Seidel/Buchdahl
+    expansion of distortion in odd powers of the field height, e.g. Welford, *Aberrations
+    of Optical Systems*, 1986, ch. 8), with ``a5``, ``a7`` the displacements at ``r = r_c``.
+    Jacobian: ``J_base + g I + 2 g'(q) / r_c^2 [u; v][u, v]`` with ``g' = (2 a5 q + 3 a7 q^2) / r_c``.
+
+    Parameters
+    ----------
+    base : _Distortion
+        The scenario's distortion (:class:`CompositeDistortion`).
+    a5_px, a7_px : float
+        Radial displacement of each term at ``r_corner_px``, px (signed: > 0 outward).
+    r_corner_px : float
+        Reference radius (> 0): the mosaic's half diagonal.
+    """
+
+    base: _Distortion = field(default_factory=CompositeDistortion)
+    a5_px: float = 0.0
+    a7_px: float = 0.0
+    r_corner_px: float = 2048.0
+
+    def __post_init__(self):
+        if not isinstance(self.base, _Distortion):
+            raise OpticsError("base: expected a distortion object")
+        for name in ("a5_px", "a7_px"):
+            object.__setattr__(self, name, _finite_float(name, getattr(self, name)))
+        object.__setattr__(self, "r_corner_px", _positive_float("r_corner_px", self.r_corner_px))
+
+    def _map(self, u, v):
+        bu, bv, jb = self.base._map(u, v)
+        rc = self.r_corner_px
+        q = (u * u + v * v) / (rc * rc)
+        g = (self.a5_px * q * q + self.a7_px * q * q * q) / rc
+        gp = (2.0 * self.a5_px * q + 3.0 * self.a7_px * q * q) / rc * 2.0 / (rc * rc)
+        jac = jb.copy()
+        jac[..., 0, 0] += g + gp * u * u
+        jac[..., 0, 1] += gp * u * v
+        jac[..., 1, 0] += gp * u * v
+        jac[..., 1, 1] += g + gp * v * v
+        return bu + u * g, bv + v * g, jac

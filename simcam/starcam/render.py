@@ -42,6 +42,13 @@ STREAM_FRAMES = 301  # run seed -> temporal noise of each frame
 STREAM_DARK_FRAMES = 302  # run seed -> temporal noise of each star-free (lamp-off) frame
 
 
+def mosaic_corner_radius_px(scenario: Scenario) -> float:
+    """Half diagonal of the nominal mosaic in the focal plane, px (the field's corner radius)."""
+    det = scenario.detector
+    width = det.n_chips * det.chip_cols + (det.n_chips - 1) * det.gap_px
+    return float(np.hypot(width / 2.0, det.chip_rows / 2.0))
+
+
 class RenderError(ScenarioError):
     """A placement cannot be rendered (a star off the detector, in the gap, ...)."""
 
@@ -60,6 +67,9 @@ class Placement:
     filter_nm: float | None = None
     condition: int = 0
     label: str = ""
+    #: roll of the camera about its optical axis (rad, from +u toward +v), a hexapod pose
+    #: error (simcam.starcam.world): the star at ideal (u, v) moves by roll (-v, u)
+    platform_roll_rad: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -131,6 +141,14 @@ class StarCamera:
                 r_norm_px=o.r_norm_px,
             ),
         )
+        eff = scenario.world.effects
+        if o.lens is None and (eff.distortion_r5_px_at_corner != 0.0 or eff.distortion_r7_px_at_corner != 0.0):
+            # the world's lens distortion beyond the scenario's (issue 22): fifth and seventh
+            # order radial terms, sized at the mosaic's corner. A traced lens (optics.lens)
+            # already carries its own higher orders (fitted up to r^5): nothing is added to it
+            self.distortion = optics.HigherOrderRadialDistortion(
+                base=self.distortion, a5_px=eff.distortion_r5_px_at_corner, a7_px=eff.distortion_r7_px_at_corner,
+                r_corner_px=mosaic_corner_radius_px(scenario))
         det = scenario.detector
         self.detector_params = DetectorParams(
             gain_e_per_dn=tuple(c.gain_e_per_dn for c in det.chips),
@@ -141,10 +159,67 @@ class StarCamera:
             prnu_rms=det.prnu_rms,
             dark_e=det.dark_current_e_per_s * scenario.camera.exposure_s,
             dsnu_rms_e=det.dsnu_rms_e,
+            nonlinearity_beta=eff.nonlinearity_beta,
         )
         seed = scenario.seed if detector_seed is None else detector_seed
         self.detector_key = key_from_seed(seed, STREAM_DETECTOR)
         self.background_e = det.background_e_per_s * scenario.camera.exposure_s
+
+    def world_motion(self, seed: int):
+        """The world's hexapod pose errors and target drift for run seed ``seed``
+        (:func:`simcam.starcam.world.world_motion`; None when those effects are off). The
+        last seed's is kept."""
+        from simcam.starcam.world import world_motion
+
+        hit = self.__dict__.get("_world_motion")
+        if hit is None or hit[0] != seed:
+            hit = (seed, world_motion(self.scenario, seed))
+            self.__dict__["_world_motion"] = hit
+        return hit[1]
+
+    def drift_chain(self, scene: Scene, nominal: Placement | None = None, *, step_px: float = 1e-3):
+        """The window chain of ``scene`` and the gradient of its mean charge with respect to a
+        common image displacement (u and v, e- per px), for a drift within the condition:
+        frame ``f`` of a drift ``d_f`` about the scene's own position has the mean charge
+        ``mean + d_f,u G_u + d_f,v G_v`` (first order in ``d_f``; the simulation puts the
+        condition's mean drift into the scene itself, so ``d_f`` stays below 1e-3 px at the
+        sourced magnitudes and the neglected ``d^2`` term below 1e-6 of a pixel's charge).
+
+        ``G`` is the central difference over ``+-step_px`` displacements of the ``nominal``
+        placement (the commanded pose: default the scene's own), evaluated at the scene's window
+        origins. At the commanded pose the gradients are computed once for every trial (cached):
+        they differ from those at the scene's pose (a hexapod error away, ~0.2 px) by about
+        that fraction of a PSF width, i.e. by ~25 % of a within-condition drift of < 1e-3 px.
+        Returns ``(chain, G_u, G_v)``.
+        """
+        chain = self.window_chain(scene)
+        p = scene.placement if nominal is None else nominal
+        key = (p.layout.u_px.tobytes(), p.layout.v_px.tobytes(), p.layout.pinhole_radius_px, p.platform_dx_px,
+               p.platform_dy_px, p.platform_roll_rad, p.filter_nm, chain.col0.tobytes(), chain.row0.tobytes(),
+               float(step_px))
+        cache = self.__dict__.setdefault("_drift_grads", {})
+        grads = cache.get(key)
+        if grads is None:
+            scenes = self.__dict__.setdefault("_drift_scenes", {})
+            out = []
+            for dx, dy in ((step_px, 0.0), (-step_px, 0.0), (0.0, step_px), (0.0, -step_px)):
+                sk = key[:7] + (dx, dy)
+                sc = scenes.get(sk)
+                if sc is None:
+                    if len(scenes) > 1024:
+                        scenes.clear()
+                    sc = scenes[sk] = self._scene(dataclasses.replace(
+                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy))
+                sig = _expected_windows_at(self, sc, chain.col0, chain.row0)
+                _, cols = self.mosaic.shape
+                out.append(window_chain(signal_e=sig, row0=chain.row0, col0=chain.col0, mosaic_cols=cols,
+                                        chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                                        detector_key=self.detector_key).mean_e)
+            grads = ((out[0] - out[1]) / (2 * step_px), (out[2] - out[3]) / (2 * step_px))
+            if len(cache) > 1024:
+                cache.clear()
+            cache[key] = grads
+        return chain, grads[0], grads[1]
 
     @property
     def onboard_correction(self):
@@ -180,6 +255,7 @@ class StarCamera:
         key = (
             lay.u_px.tobytes(), lay.v_px.tobytes(), lay.pinhole_radius_px, placement.platform_dx_px,
             placement.platform_dy_px, placement.filter_nm, placement.condition, placement.label,
+            placement.platform_roll_rad,
         )
         cache = self.__dict__.setdefault("_scene_cache", {})
         hit = cache.get(key)
@@ -206,6 +282,10 @@ class StarCamera:
         lay = placement.layout
         u0 = lay.u_px + placement.platform_dx_px
         v0 = lay.v_px + placement.platform_dy_px
+        if placement.platform_roll_rad != 0.0:
+            # a small rotation about the optical axis (first order in the roll)
+            u0 = u0 - placement.platform_roll_rad * lay.v_px
+            v0 = v0 + placement.platform_roll_rad * lay.u_px
         ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
         wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=placement.filter_nm)
         weights_1d = self.spectra.weights(e_rate)
@@ -436,3 +516,14 @@ class StarCamera:
             params=self.detector_params, frame_key=key, detector_key=self.detector_key,
             shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
         )
+
+
+def _expected_windows_at(camera: StarCamera, scene: Scene, col0, row0) -> np.ndarray:
+    """Noise-free photo-electrons of ``scene`` in windows at given mosaic origins."""
+    w = camera.scenario.render.window_px
+    sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
+    cc = camera.mosaic.chip_cols
+    for j in range(scene.n_stars):
+        k = int(scene.chip[j])
+        camera._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+    return sig

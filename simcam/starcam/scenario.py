@@ -27,6 +27,7 @@ import tomli_w
 from pydantic import ConfigDict, Field, model_validator
 
 from simcam.config_base import ScenarioBase, ScenarioError, StrictModel, ValidationSettings, model_hash, read_toml, validate_model
+from simcam.effects import EffectsBase, WorldBase
 
 #: arcsec per radian (exact: 180 * 3600 / pi)
 ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
@@ -537,6 +538,71 @@ class ValidationModel(ValidationSettings):
         return self
 
 
+# --------------------------------------------------------------------------- world (issue 22)
+class StarCameraEffects(EffectsBase):
+    """What the simulated star camera and lab have and the seed-000 lab methods do not model.
+
+    Each field is one effect's magnitude (0 = off); the default is the sourced realistic
+    value, so the default scenario is the realistic world and ``budget validate`` answers the
+    real question. The model forms are in :mod:`simcam.starcam.world` (hexapod, drift),
+    :class:`simcam.starcam.optics.HigherOrderRadialDistortion` (distortion beyond the cubic)
+    and :mod:`simcam.detector` (non-linearity). Sources: Janesick, *Photon Transfer*,
+    SPIE PM170 (2007), ch. 7; Gpixel GSENSE4040 data sheet; Andor sCMOS architecture notes;
+    the project's traced lens ``embedded:star_camera`` (docs/lens.md).
+    """
+
+    distortion_r5_px_at_corner: float = Field(
+        1.47, description="traced embedded lens (embedded:star_camera): fifth-order radial distortion 1.47 px at "
+        "the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights, which no cubic removes "
+        "(sized at the corner of the scenario's mosaic; not added when optics.lens traces a lens, which has its own)")
+    distortion_r7_px_at_corner: float = Field(
+        0.081, description="traced embedded lens (embedded:star_camera): seventh-order radial distortion 0.081 px "
+        "at the mosaic corner in the same fit")
+    nonlinearity_beta: float = Field(
+        0.008, description="CMOS integral non-linearity 0.2 % of full scale typical (Gpixel GSENSE4040 data "
+        "sheet; Janesick, Photon Transfer, ch. 7): s_out = s (1 - beta s / FW), INL = beta / 4, so beta = 0.008")
+    hexapod_repeatability_arcsec: float = Field(
+        0.5, description="hexapod rotation repeatability per move, 1 sigma per axis (PI H-840 class: 2-5 urad, "
+        "0.4-1 arcsec; engineering estimate, data sheet not retrieved)")
+    hexapod_backlash_arcsec: float = Field(
+        1.0, description="hexapod rotation backlash b (error b sign(move) per commanded axis): about 1 um of "
+        "strut lost motion over a 0.2 m joint separation, 5 urad (engineering estimate)")
+    drift_rate_arcsec_per_h: float = Field(
+        0.05, description="collimator/target thermal drift ramp, 0.02-0.2 arcsec/h at 20 +- 1 C (an Al mount, "
+        "50 mm lever, 0.1 K/h in a 1 m collimator gives 0.024 arcsec/h; engineering estimate)")
+    drift_random_arcsec: float = Field(
+        0.03, description="collimator/target drift, first-order Gauss-Markov part: stationary sigma per axis "
+        "(same thermal budget as the ramp, wandering over world.drift_time_constant_s; engineering estimate)")
+
+    @model_validator(mode="after")
+    def _beta(self) -> StarCameraEffects:
+        if not -1.0 < self.nonlinearity_beta < 1.0:
+            raise ValueError(f"nonlinearity_beta: must be in (-1, 1) (s_out = s (1 - beta s / FW)), "
+                             f"got {self.nonlinearity_beta!r}")
+        return self
+
+
+class StarCameraWorld(WorldBase):
+    """The star camera's world beyond the lab's model (issue 22): ``effects`` (magnitudes,
+    :class:`StarCameraEffects`) and the settings of their model forms. The lab side (the
+    protocols' plans and the estimators) never reads it; the simulator and the truths do.
+
+    * ``drift_time_constant_s``: correlation time of the drift's Gauss-Markov part (0.5-2 h);
+    * the frame timeline of a lab run, from which each frame's time follows (the drift is a
+      function of time): a frame takes ``camera.exposure_s + frame_overhead_s`` (readout);
+      each condition starts ``settle_s`` after the previous one ends (a hexapod move or a
+      filter change and the wait for it to settle); each protocol ``setup_s`` after the
+      previous protocol (target change, alignment). The protocols run in the order TE, HSFE,
+      chromatic, distortion (:data:`budget.starcam.protocols.PROTOCOLS`).
+    """
+
+    effects: StarCameraEffects = StarCameraEffects()
+    drift_time_constant_s: Pos = 3600.0
+    frame_overhead_s: NonNeg = 0.05
+    settle_s: NonNeg = 10.0
+    setup_s: NonNeg = 300.0
+
+
 class Scenario(ScenarioBase):
     """A complete star-camera + lab scenario (see module docstring)."""
 
@@ -549,6 +615,7 @@ class Scenario(ScenarioBase):
     render: RenderModel = RenderModel()
     protocols: ProtocolsModel = ProtocolsModel()
     validation: ValidationModel = ValidationModel()
+    world: StarCameraWorld = StarCameraWorld()
 
     @model_validator(mode="before")
     @classmethod
@@ -571,6 +638,17 @@ class Scenario(ScenarioBase):
                 f"protocols.chromatic.reference_filter_nm = {self.protocols.chromatic.reference_filter_nm} "
                 f"is not one of lab.filters centres {refs}"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _world_hexapod_once(self) -> Scenario:
+        # lab.platform.positioning_noise_px and the world's hexapod repeatability describe the
+        # same tip/tilt pose error: give it once (docs/validation.md, "World effects")
+        if self.lab.platform.positioning_noise_px > 0 and self.world.effects.hexapod_repeatability_arcsec != 0:
+            raise ValueError(
+                "lab.platform.positioning_noise_px and world.effects.hexapod_repeatability_arcsec both describe "
+                "the hexapod's pose error: set one of them to 0 (the world effect also has the rotation about "
+                "the optical axis, backlash and an error on every move)")
         return self
 
     @cached_property
@@ -634,7 +712,8 @@ def _check_derived_finite(scn: "Scenario", *, source: str | None) -> None:
 
 
 #: embedded scenarios selectable as ``embedded:NAME`` (resources of simcam.data)
-EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noisy.toml"}
+EMBEDDED_SCENARIOS = {"default": DEFAULT_RESOURCE, "seed000_noisy": "seed000_noisy.toml",
+                      "seed000_ideal": "seed000_ideal.toml"}
 
 
 def load(path: str | Path | None = None) -> Scenario:
