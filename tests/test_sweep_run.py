@@ -300,7 +300,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
                                          "parameter": "calibration.autocollimator.noise_arcsec"})))
     from budget.sweeps.plot import plot_store
 
-    files = plot_store(tmp_path / "i", tmp_path / "plots")
+    files = plot_store(tmp_path / "i", tmp_path / "plots", axis="angle")
     assert {f.name for f in files} == {"classes_vs_calibration.short_polygon.faces__angle.png",
                                        "relative_spread_vs_calibration.short_polygon.faces__angle.png",
                                        "sobol__angle.png"}
@@ -342,7 +342,7 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
     assert smp.X.shape == (32, 2) and bool(smp.done.all())
     from budget.sweeps.plot import plot_store
 
-    files = plot_store(tmp_path / "sob", tmp_path / "plots")
+    files = plot_store(tmp_path / "sob", tmp_path / "plots", axis="x")
     assert [f.name for f in files] == ["sobol__x.png"] and files[0].stat().st_size > 20_000
 
 
@@ -352,8 +352,9 @@ def test_plots_of_grids_and_zips(grid, zipped, tmp_path):
 
     files = plot_store(grid["store"], tmp_path / "g")
     names = {f.name for f in files}
-    assert names == {"classes_vs_lab.source.match_v_mag__x.png", "classes_vs_optics.psf.sigma0_px__x.png",
-                     "heatmap_truth__x.png"}
+    # every axis by default
+    assert names == {f"{n}__{a}.png" for a in ("x", "y") for n in (
+        "classes_vs_lab.source.match_v_mag", "classes_vs_optics.psf.sigma0_px", "heatmap_truth")}
     assert all(f.stat().st_size > 20_000 for f in files)
     files = plot_store(zipped["store"], tmp_path / "zp", axis="y", precision=0.1)
     assert {f.name for f in files} == {"classes_vs_protocols.te.frames__y.png",
@@ -384,3 +385,25 @@ def test_cli_bad_input_is_one_error_line_exit_2_and_no_store(tmp_path, capsys):
     with pytest.raises(SystemExit) as ei:
         main(["plot", str(tmp_path / "never")])
     assert ei.value.code == 2 and "not a sweep store" in capsys.readouterr().err
+
+
+def test_every_class_and_axis_of_a_store_is_plotted_with_its_label_and_unit(grid, tmp_path):
+    """Default ``budget plot``: one line figure per swept parameter for every axis of the
+    store; each class with values on an axis is named by its label in that figure's caption,
+    either with its change along the sweep or among the flat ones (issue 23 item 4)."""
+    from budget.runner.registry import get_study
+    from budget.sweeps.plot import _classes_on, plot_store
+
+    ds = grid["ds"]
+    study = get_study("starcam")
+    labels = {c.name: c.label for c in study.classes(study.load_scenario())}
+    files = plot_store(grid["store"], tmp_path / "every")
+    by_name = {f.name: f for f in files}
+    for axis in ds["axis"].values:
+        for xname in ds.attrs["parameters"]:
+            f = by_name[f"classes_vs_{xname}__{axis}.png"]
+            classes = [str(c) for c in _classes_on(ds.sel(axis=axis))]
+            assert classes
+            for c in classes:
+                assert labels[c] in f.caption, (c, f.name)
+            assert ("Flat over this range" in f.caption) or ("No class is flat" in f.caption)

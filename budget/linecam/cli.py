@@ -62,7 +62,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
 
     from budget.runner.study import trial_seed_sequence
 
-    from .report import plot_coverage, plot_los_error, plot_residuals, plot_tracks
+    from .report import figure_markdown, plot_coverage, plot_los_error, plot_residuals, plot_tracks
     from .study import trial_extra
     from .trial import PARAM_UNITS, simulate, to_report_units
 
@@ -137,7 +137,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
             figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
                     plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
             (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
-                                           + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+                                           + figure_markdown(figs) + "\n")
             from budget.runner.html import write_html  # its self-contained twin, simulate.html
 
             write_html(d / "simulate.md")
@@ -468,7 +468,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         if json_out:
             write_json_atomic(staged.file(json_out), payload)
         if report_dir:
-            from .report import plot_coverage, plot_los_field, plot_residuals, plot_tracks
+            from .report import figure_markdown, plot_coverage, plot_los_field, plot_residuals, plot_tracks
 
             d = staged.folder(report_dir)
             d.mkdir(parents=True, exist_ok=True)
@@ -491,7 +491,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
                         pm.get("not_determined") for pm in payload["methods"].values()) else "")
             (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
                                             + (note + "\n\n" if note else "")
-                                            + "\n".join(f"![{f.stem}]({f.name})" for f in figs) + "\n")
+                                            + figure_markdown(figs) + "\n")
             from budget.runner.html import write_html  # its self-contained twin, calibrate.html
 
             write_html(d / "calibrate.md")

@@ -79,7 +79,9 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
                          f"{r['lat_rms_deg']:.5f} | {r['lon_rms_deg']:.5f} |")
     lines += ["", "Scan 1 has no deviation estimate yet: its `published`/`improved` rows compensate with "
               "dtau = 0, as the paper does.", ""]
-    lines += [f"![{f.stem}]({f.name})" for f in figs]
+    from budget.figures import figure_markdown
+
+    lines += [figure_markdown(figs)]  # each figure with its caption under it
     (d / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     from budget.runner.html import write_html  # its self-contained twin, report.html
 

@@ -142,7 +142,10 @@ class ScanMirrorStudy(Study):
             figs.append(plot_trial_ground_errors(result.study, result.scenario, result.example.extra,
                                                  out_dir / "scanmirror_ground_errors_trial0.png"))
             md.append("Trial 0: ground errors over the last area scan, uncompensated and after each compensation.")
-        return [ReportSection("Scan mirror: deviation estimates and ground errors", "\n\n".join(md), figs)]
+        from budget.figures import figure_markdown
+
+        md.append(figure_markdown(figs))  # each figure with its caption under it
+        return [ReportSection("Scan mirror: deviation estimates and ground errors", "\n\n".join(md), [])]
 
     def commands(self) -> list:
         from budget.scanmirror.cli import simulate_command

@@ -20,32 +20,46 @@ import numpy as np
 
 
 def _plt():
-    import matplotlib
+    from budget.figures import plt
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return plt()
 
 
-def plot_hsfe_residuals(est, path: Path) -> None:
-    """HSFE residuals delta_j(k) of one trial (seed 000 fig. 6)."""
+def _rms(x) -> float:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+
+
+def plot_hsfe_residuals(est, path: Path, *, finding: str = ""):
+    """HSFE residuals delta_j(k) of one trial (seed 000 fig. 6); the caption gives their rms per
+    axis (from the residuals drawn) and ``finding`` (the run's verdict on the class)."""
+    from budget.figures import save
+
     plt = _plt()
     r = est.residuals
     fig, axs = plt.subplots(1, 2, figsize=(10, 3.5), sharey=True)
+    rms = {}
     for a, ax in zip(axs, ("x", "y")):
         for star, g in r.groupby("star"):
             a.plot(g["k"], g[f"delta_{ax}_px"], ".-", lw=0.6, ms=3)
+        rms[ax] = _rms(r[f"delta_{ax}_px"])
+        a.axhline(rms[ax], color="k", ls="--", lw=0.8)
+        a.axhline(-rms[ax], color="k", ls="--", lw=0.8)
         a.set_xlabel("condition step k")
-        a.set_title(f"HSFE residual delta_{ax} (px), {r['star'].nunique()} stars")
+        a.set_title(f"HSFE residual delta_{ax} (px), {r['star'].nunique()} stars; dashed: +-rms", fontsize=10)
     axs[0].set_ylabel("px")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    caption = (f"Trial 0: residual of each star's centroid against its smooth motion over the "
+               f"{r['k'].nunique()} condition steps; rms {rms['x']:.4f} px (x), {rms['y']:.4f} px (y). "
+               + finding).rstrip()
+    return save(fig, path, caption, dpi=90)
 
 
-def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float) -> None:
-    """Per-star colour differences per corner field, one trial (seed 000 fig. 7)."""
+def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float):
+    """Per-star colour differences per corner field, one trial (seed 000 fig. 7); the caption
+    gives the mean shift of each filter against the reference (from the points drawn)."""
+    from budget.figures import save
+
     plt = _plt()
     good = centroids[centroids["flag"] == 0]
     m = good.groupby(["field", "filter_nm", "star"])[["x", "y"]].mean()
@@ -53,12 +67,14 @@ def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float) 
     fields = list(dict.fromkeys(good["field"]))
     fig, axs = plt.subplots(1, len(fields), figsize=(3.2 * len(fields), 3.2), sharex=True, sharey=True)
     axs = np.atleast_1d(axs)
+    shifts: dict = {}
     for a, fld in zip(axs, fields):
         ref = m.loc[(fld, reference_filter_nm)]
         for fnm in filters:
             if fnm == reference_filter_nm:
                 continue
             d = m.loc[(fld, fnm)] - ref
+            shifts.setdefault(fnm, []).append(d)
             a.plot(d["x"], d["y"], "o", ms=3, label=f"{fnm:g} - {reference_filter_nm:g} nm")
         a.axhline(0, color="0.7", lw=0.5)
         a.axvline(0, color="0.7", lw=0.5)
@@ -66,30 +82,47 @@ def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float) 
         a.set_xlabel("dx (px)")
     axs[0].set_ylabel("dy (px)")
     axs[0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    parts = []
+    for fnm, ds in shifts.items():
+        import pandas as pd
+
+        d = pd.concat(ds)
+        parts.append(f"{fnm:g} nm: mean ({d['x'].mean():+.3f}, {d['y'].mean():+.3f}) px, star-to-star rms "
+                     f"({d['x'].std():.3f}, {d['y'].std():.3f}) px")
+    caption = (f"Trial 0: each star's centroid in a filter minus its centroid in {reference_filter_nm:g} nm, "
+               f"over the {len(fields)} corner fields; " + "; ".join(parts) + ".")
+    return save(fig, path, caption, dpi=90)
 
 
-def plot_distortion_residuals(est, path: Path) -> None:
-    """Residual vectors at the grid points before and after the cubic fit (seed 000 fig. 8)."""
+def plot_distortion_residuals(est, path: Path):
+    """Residual vectors at the grid points before and after the cubic fit (seed 000 fig. 8),
+    both panels on one arrow scale; the caption gives the rms before and after."""
+    from budget.figures import save
+
     plt = _plt()
     r = est.residuals
-    fig, axs = plt.subplots(1, 2, figsize=(11, 3.6))
-    for a, (u, v, title) in zip(axs, (("dx_px", "dy_px", "measured - reference (eqs 19-20)"),
-                                      ("ddx_px", "ddy_px", "after the cubic fit (eqs 25-26)"))):
-        longest = float(np.nanmax(np.hypot(r[u], r[v]))) or 1.0
-        extent = float(max(np.ptp(r["x_ref"]), np.ptp(r["y_ref"]), 1.0))
-        # the longest arrow drawn as 8 % of the grid's extent, and margins that hold it
+    fig, axs = plt.subplots(1, 2, figsize=(11, 3.8))
+    pairs = (("dx_px", "dy_px", "measured - reference (eqs 19-20)"),
+             ("ddx_px", "ddy_px", "after the cubic fit (eqs 25-26)"))
+    # one scale for both panels (they are compared): the longest arrow of either is 8 % of
+    # the grid's extent
+    longest = float(max(np.nanmax(np.hypot(r[u], r[v])) for u, v, _ in pairs)) or 1.0
+    extent = float(max(np.ptp(r["x_ref"]), np.ptp(r["y_ref"]), 1.0))
+    rms = {}
+    for a, (u, v, title) in zip(axs, pairs):
         q = a.quiver(r["x_ref"], r["y_ref"], r[u], r[v], angles="xy", scale_units="xy",
                      scale=longest / (0.08 * extent))
-        a.quiverkey(q, 0.80, 1.12, longest, f"{longest:.3f} px", labelpos="E", fontproperties={"size": 7})
+        a.quiverkey(q, 0.80, 1.08, longest, f"{longest:.3f} px", labelpos="E", fontproperties={"size": 7})
         a.set_xlim(r["x_ref"].min() - 0.12 * extent, r["x_ref"].max() + 0.12 * extent)
         a.set_ylim(r["y_ref"].min() - 0.12 * extent, r["y_ref"].max() + 0.12 * extent)
-        a.set_title(title, fontsize=9, loc="left")
+        rms[u] = float(np.sqrt(np.nanmean(r[u] ** 2 + r[v] ** 2)))
+        a.set_title(f"{title}: rms {rms[u]:.3f} px", fontsize=9, loc="left")
         a.set_xlabel("x (px)")
         a.set_aspect("equal")
     axs[0].set_ylabel("y (px)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    before, after = rms["dx_px"], rms["ddx_px"]
+    change = (f"the cubic fit takes out {100 * (1 - after / before):.0f} % of it" if after < before
+              else "the cubic fit does not reduce it")
+    caption = (f"Trial 0: residual vectors at the grid points, one arrow scale for both panels; rms length "
+               f"{before:.3f} px before, {after:.3f} px after: {change}.")
+    return save(fig, path, caption, dpi=90)

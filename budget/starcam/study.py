@@ -174,18 +174,19 @@ class StarCameraStudy(Study):
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
 
+        from budget.figures import figure_markdown
+
         ex = (result.example.extra.get("kept", {}) if result.example else {})
         figs = []
         if "hsfe" in ex:
-            plot_hsfe_residuals(ex["hsfe"]["estimates"]["published"], out_dir / "hsfe_residuals.png")
-            figs.append(out_dir / "hsfe_residuals.png")
+            figs.append(plot_hsfe_residuals(ex["hsfe"]["estimates"]["published"], out_dir / "hsfe_residuals.png",
+                                            finding=self._hsfe_finding(result)))
         if "chromatic" in ex:
-            plot_chromatic_residuals(ex["chromatic"]["data"].centroids, out_dir / "chromatic_residuals.png",
-                                     result.scenario.protocols.chromatic.reference_filter_nm)
-            figs.append(out_dir / "chromatic_residuals.png")
+            figs.append(plot_chromatic_residuals(ex["chromatic"]["data"].centroids, out_dir / "chromatic_residuals.png",
+                                                 result.scenario.protocols.chromatic.reference_filter_nm))
         if "distortion" in ex:
-            plot_distortion_residuals(ex["distortion"]["estimates"]["published"], out_dir / "distortion_residuals.png")
-            figs.append(out_dir / "distortion_residuals.png")
+            figs.append(plot_distortion_residuals(ex["distortion"]["estimates"]["published"],
+                                                  out_dir / "distortion_residuals.png"))
         te = result.truths.get(("te", "x"))
         f = self._factor(result.scenario)
         scn = result.scenario
@@ -215,7 +216,32 @@ class StarCameraStudy(Study):
         text.append("Figures from trial 0: HSFE residuals per star and step (seed 000 fig. 6), colour "
                     "differences per corner field (fig. 7), distortion residuals before and after the cubic "
                     "fit (fig. 8).")
-        return [ReportSection("Seed-000 details", "\n\n".join(text), figs)]
+        if figs:
+            text.append(figure_markdown(figs))
+        # the figures are placed in the text, each with its caption under it
+        return [ReportSection("Seed-000 details", "\n\n".join(text), [])]
+
+    @staticmethod
+    def _hsfe_finding(result) -> str:
+        """Where each variant's HSFE estimate sits against its truth over the run (from the
+        run's statistics; a percentage only where the truth is far from zero against its
+        standard error)."""
+        parts = []
+        for v in result.study.variants:
+            for ax in ("x", "y"):
+                key = ("hsfe", v, ax)
+                if key not in result.samples:
+                    continue
+                st = result.statistics(key)
+                t, b = st["truth"], st["bias"]
+                if not (abs(t) > 3 * max(st.get("truth_se", 0.0) or 0.0, 1e-300)):
+                    continue
+                where = "above" if b > 0 else "below"
+                parts.append(f"{v} {abs(100 * b / t):.0f} % {where} ({ax}: {t + b:.4f} vs {t:.4f} arcsec)")
+        if not parts:
+            return ""
+        return (f"Over the {result.trials} trials the HSFE estimates sit against their truth: "
+                + "; ".join(parts) + ".")
 
     def commands(self) -> list:
         """``budget starcam simulate|measure|combine`` beside ``validate``: the lab's data."""

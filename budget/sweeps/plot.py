@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -93,8 +94,8 @@ def _zip_note(ds) -> str:
     return ""
 
 
-def _truth_band(ax, x, t, se, color, label):
-    ax.plot(x, t, "-", color=color, lw=1.3, label=label)
+def _truth_band(ax, x, t, se, color, label, ls="-"):
+    ax.plot(x, t, ls, color=color, lw=1.3, label=label)
     if se is not None and np.any(np.nan_to_num(se) > 0):
         ax.fill_between(x, t - 2 * se, t + 2 * se, color=color, alpha=0.15, lw=0)
 
@@ -115,8 +116,70 @@ def _unit(ds, cls) -> str:
     return str(ds.attrs.get("class_units", {}).get(str(cls), ds.attrs.get("units", "")))
 
 
+def _class_label(ds, cls) -> str:
+    """The class's label as its study names it (e.g. "temporal error (TE)"); its name where the
+    store's kind is not a registered study."""
+    return _labels(str(ds.attrs.get("kind", ""))).get(str(cls), str(cls))
+
+
+@functools.lru_cache(maxsize=None)
+def _labels(kind: str) -> dict:
+    """Class name -> label of the study ``kind`` (empty where it is not a registered study)."""
+    try:
+        from budget.sweeps.evaluate import study_for_kind
+
+        study = study_for_kind(kind)
+        return {c.name: c.label or c.name for c in study.classes(study.load_scenario())}
+    except Exception:  # noqa: BLE001 - a label is a courtesy: the name stands in
+        return {}
+
+
+def _panel_title(ds, cls, axis=None) -> str:
+    """A panel's title: the class's label, its axis and its unit."""
+    ax = f", axis {axis}" if axis is not None else ""
+    return f"{_class_label(ds, cls)}{ax} ({_unit(ds, cls)})"
+
+
+def _pair(a: float, b: float) -> tuple[str, str]:
+    """Two values with enough significant digits to tell them apart (up to 6)."""
+    for n in (3, 4, 5, 6):
+        sa, sb = f"{a:.{n}g}", f"{b:.{n}g}"
+        if sa != sb:
+            break
+    return sa, sb
+
+
+def _flat(series: list, ses: list) -> tuple[bool, float]:
+    """Whether every drawn series of a panel is flat over the sweep: its range (max - min)
+    within 2 Monte Carlo standard errors of the values (or exactly constant); and the
+    largest range. ``series``: arrays along x; ``ses``: their standard errors (or None)."""
+    rng, ok = 0.0, True
+    for y, se in zip(series, ses):
+        y = np.asarray(y, dtype=float)
+        f = np.isfinite(y)
+        if f.sum() < 2:
+            continue
+        r = float(np.ptp(y[f]))
+        rng = max(rng, r)
+        tol = 2 * float(np.nanmax(np.asarray(se, dtype=float)[f])) if se is not None else 0.0
+        # a constant to rounding (relative 1e-9 of the values) counts as flat
+        if r > max(tol, 1e-9 * float(np.max(np.abs(y[f])))):
+            ok = False
+    return ok, rng
+
+
+def _mark_flat(ax, flat: bool, rng: float, unit: str) -> bool:
+    if flat:
+        ax.text(0.5, 0.92, f"flat: varies by {rng:.2g}\n(within +-2 MC s.e.)",
+                ha="center", va="top", fontsize=6, transform=ax.transAxes,
+                bbox=dict(boxstyle="round", fc="w", ec="0.6", alpha=0.9))
+    return flat
+
+
 def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     import matplotlib.pyplot as plt
+
+    from budget.figures import save
 
     others = [d for d in ds.attrs.get("point_dims", []) if d not in (xdim,) and ds.sizes.get(d, 1) > 1]
     series = others[0] if others and xdim != "point" else None
@@ -127,16 +190,23 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     x = d[xname].values
     has_mean = "mean" in d
     tv = "variant" in d["truth"].dims
+    flat_classes, changes = [], []
     for ax, cls in zip(axes, classes):
         c = d.sel({"class": cls})
+        drawn, drawn_se = [], []
         if series is None:
             if tv:
-                for v in c["variant"].values:
+                for k, v in enumerate(c["variant"].values):
                     col = VARIANT_STYLE.get(str(v), ("k", "o"))[0]
-                    _truth_band(ax, x, c.truth.sel(variant=v).values, c.truth_se.sel(variant=v).values,
-                                col, f"truth ({v})")
+                    t, tse = c.truth.sel(variant=v).values, c.truth_se.sel(variant=v).values
+                    # line styles differ: truths that coincide stay visible
+                    _truth_band(ax, x, t, tse, col, f"truth ({v})", ls=("-", "--", ":")[k % 3])
+                    drawn.append(t)
+                    drawn_se.append(tse)
             else:
                 _truth_band(ax, x, c.truth.values, c.truth_se.values, "k", "truth")
+                drawn.append(c.truth.values)
+                drawn_se.append(c.truth_se.values)
             if has_mean:
                 for v in c["variant"].values:
                     m = c["mean"].sel(variant=v).values
@@ -146,7 +216,9 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
                     s = c["spread"].sel(variant=v).values
                     ax.fill_between(x, m - s, m + s, color=col, alpha=0.12, lw=0)
                     ax.errorbar(x, m, yerr=2 * c["se_bias"].sel(variant=v).values, fmt=mk, ms=4, color=col,
-                                capsize=2, lw=1, label=f"{v} mean")
+                                capsize=2, lw=1, label=f"{v} mean", mfc="none" if mk == "s" else None)
+                    drawn.append(m)
+                    drawn_se.append(c["se_bias"].sel(variant=v).values)
         else:
             sv = d[series].values
             cmap = plt.get_cmap("viridis")
@@ -156,16 +228,29 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
                 t = ci.truth.sel(variant=variant) if tv else ci.truth
                 se = ci.truth_se.sel(variant=variant) if tv else ci.truth_se
                 _truth_band(ax, x, t.values, se.values, col, f"{val:g}" if isinstance(val, (float, np.floating))
-                            else str(val))
+                            else str(val), ls=("-", "--", ":", "-.")[i % 4])  # coinciding lines stay visible
+                drawn.append(t.values)
+                drawn_se.append(se.values)
                 if has_mean:
                     m = ci["mean"].sel(variant=variant).values
                     if np.any(np.isfinite(m)):
                         ax.errorbar(x, m, yerr=2 * ci["se_bias"].sel(variant=variant).values, fmt="o", ms=3.5,
                                     color=col, capsize=2, lw=0.8)
-        ax.set_title(str(cls))
+        flat, rng = _flat(drawn, drawn_se)
+        if _mark_flat(ax, flat, rng, _unit(ds, cls)):
+            flat_classes.append(_class_label(ds, cls))
+        else:
+            t0 = np.asarray(drawn[0], dtype=float)
+            f = np.isfinite(t0)
+            if f.sum() >= 2:
+                a_, b_ = _pair(t0[f][0], t0[f][-1])
+                changes.append(f"{_class_label(ds, cls)} from {a_} to {b_} {_unit(ds, cls)}")
+        ax.set_title(_panel_title(ds, cls), fontsize=8)
         ax.set_xlabel(_label(ds, xname), fontsize=7)
-        ax.set_ylabel(f"{axis}, {_unit(ds, cls)}", fontsize=7)
+        ax.set_ylabel(f"axis {axis} ({_unit(ds, cls)})", fontsize=7)
         ax.tick_params(labelsize=7)
+        if np.issubdtype(np.asarray(x).dtype, np.number):
+            ax.locator_params(axis="x", nbins=5)  # tick labels that do not run into each other
     _legend_first(axes, fontsize=6, title=(series if series else None), title_fontsize=6)
     head = f"{ds.attrs.get('title', '')}: axis {axis}"
     if series and has_mean:
@@ -175,15 +260,17 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     if note:
         head += f"\n({note})"
     _suptitle(fig, head + _zip_note(ds))
-    fig.tight_layout()
+    what = "the truth" + (f" (at {series} = {d[series].values[0]})" if series else "")
+    caption = (f"Each class against {_label(ds, xname)}, axis {axis}, over {x[0]} to {x[-1]}. "
+               + (f"Along the sweep {what} goes " + "; ".join(changes) + ". " if changes else "")
+               + ("Flat over this range (within +-2 Monte Carlo standard errors): "
+                  + ", ".join(flat_classes) + "." if flat_classes else "No class is flat over this range."))
     path = Path(out_dir) / f"classes_vs_{_safe(xname)}__{axis}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save(fig, path, caption)
 
 
 def _heatmaps(ds, axis, variant, out_dir):
-    import matplotlib.pyplot as plt
+    from budget.figures import save
 
     dims = [d for d in ds.attrs.get("point_dims", []) if d != "point" and ds.sizes[d] > 1]
     if len(dims) < 2:
@@ -197,12 +284,27 @@ def _heatmaps(ds, axis, variant, out_dir):
         quantities.append(("bias", f"bias of the {variant} estimate"))
     for q, title in quantities:
         classes = _classes_on(d)
+        if not classes:
+            continue
         fig, axes = _panels(len(classes))
+        found = []
         for ax, cls in zip(axes, classes):
             a = d[q].sel({"class": cls})
             if "variant" in a.dims:
                 a = a.sel(variant=variant)
             z = a.transpose(d1, d0).values
+            if np.any(np.isfinite(z)):
+                iy, ix = np.unravel_index(np.nanargmax(np.abs(z)), z.shape)
+                lo_, hi_ = float(np.nanmin(z)), float(np.nanmax(z))
+                a_, b_ = _pair(lo_, hi_)
+                is_flat = hi_ - lo_ <= 1e-9 * max(abs(hi_), abs(lo_), 1e-300)
+                if is_flat:
+                    ax.text(0.5, 0.97, "flat over the grid", ha="center", va="top", fontsize=7,
+                            transform=ax.transAxes, bbox=dict(boxstyle="round", fc="w", ec="0.6", alpha=0.9))
+                fl = (f"flat at {lo_:.3g} {_unit(ds, cls)}" if is_flat
+                      else f"{a_} to {b_} {_unit(ds, cls)} (largest |value| at {d0} = {d[d0].values[ix]}, "
+                           f"{d1} = {d[d1].values[iy]})")
+                found.append(f"{_class_label(ds, cls)} {fl}")
             if q == "bias":
                 lim = np.nanmax(np.abs(z)) if np.any(np.isfinite(z)) else 1.0
                 im = ax.imshow(z, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-lim, vmax=lim)
@@ -221,15 +323,13 @@ def _heatmaps(ds, axis, variant, out_dir):
                         light = q == "truth" and hi > lo and (val - lo) / (hi - lo) > 0.6
                         ax.text(ix, iy, f"{val:.2g}", ha="center", va="center", fontsize=5,
                                 color="k" if (light or q == "bias") else "w")
-            ax.set_title(f"{cls} ({_unit(ds, cls)})", fontsize=9)
+            ax.set_title(_panel_title(ds, cls), fontsize=8)
             ax.set_xlabel(d0, fontsize=7)
             ax.set_ylabel(d1, fontsize=7)
         _suptitle(fig, f"{ds.attrs.get('title', '')}: {title}, axis {axis}" + (f"\n({note})" if note else ""))
-        fig.tight_layout()
         path = Path(out_dir) / f"heatmap_{q}{'_' + variant if q == 'bias' else ''}__{axis}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        out.append(path)
+        out.append(save(fig, path, f"{title[0].upper() + title[1:]} over {d0} and {d1}, axis {axis}: "
+                        + "; ".join(found) + "."))
     return out
 
 
@@ -269,7 +369,7 @@ def precision_table(ds, *, axis: str, precision: float) -> list[dict]:
 
 
 def _relative_spread_figure(ds, axis, precision, out_dir):
-    import matplotlib.pyplot as plt
+    from budget.figures import save
 
     if "spread" not in ds:
         return None
@@ -280,7 +380,10 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
     d = ds.sel(axis=axis)
     x = d[xname].values
     classes = _classes_on(d)
+    if not classes:
+        return None
     fig, axes = _panels(len(classes))
+    found = []
     for ax, cls in zip(axes, classes):
         for v in d["variant"].values:
             col, mk = VARIANT_STYLE.get(str(v), ("C2", "^"))
@@ -292,7 +395,9 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
                 rel_se = np.where(np.abs(m) > 0, se / np.abs(m), np.nan)
             if np.any(np.isfinite(rel) & (rel > 0)):
                 ax.errorbar(x, 100 * rel, yerr=200 * rel_se, fmt=mk + "-", ms=4, color=col, capsize=2, lw=1,
-                            label=str(v))
+                            label=str(v), mfc="none" if mk == "s" else None)
+                f = np.isfinite(rel)
+                found.append(f"{_class_label(ds, cls)} ({v}) {100 * rel[f][0]:.3g} % to {100 * rel[f][-1]:.3g} %")
             elif np.all(np.isnan(m)):
                 ax.text(0.5, 0.5, "no lab estimate (truth only)", ha="center", va="center",
                         fontsize=7, transform=ax.transAxes)
@@ -302,7 +407,7 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
         if precision is not None:
             ax.axhline(100 * precision, color="k", lw=0.8, ls="--")
         ax.set_yscale("log")
-        ax.set_title(str(cls))
+        ax.set_title(_panel_title(ds, cls), fontsize=8)
         ax.set_xlabel(_label(ds, xname), fontsize=7)
         ax.set_ylabel("spread / |mean| (%)", fontsize=7)
         ax.tick_params(labelsize=7)
@@ -310,28 +415,36 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
     _suptitle(fig, f"{ds.attrs.get('title', '')}: precision of one measurement, axis {axis} "
               "(error bars +-2 MC s.e.)" + (f"; dashed: {100 * precision:g} %" if precision else "")
               + _zip_note(ds))
-    fig.tight_layout()
     path = Path(out_dir) / f"relative_spread_vs_{_safe(xname)}__{axis}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    caption = (f"Spread of one measurement relative to its mean, axis {axis}, from {xname} = {x[0]} to {x[-1]}: "
+               + ("; ".join(found) if found else "no class has a spread") + "."
+               + (f" Dashed: the {100 * precision:g} % precision asked for." if precision else ""))
+    return save(fig, path, caption)
 
 
-def _sobol_figure(sob, title, axis, out_dir):
-    import matplotlib.pyplot as plt
+def _sobol_figure(sob, title, axis, out_dir, ds=None):
+    from budget.figures import save
 
     s = sob.sel(axis=axis) if "axis" in sob.dims else sob
     extra = [dd for dd in s.S1.dims if dd not in ("class", "parameter")]
-    panels = [(str(c), {"class": c}) for c in s["class"].values]
+    lab = (lambda c: _class_label(ds, c)) if ds is not None else str
+    panels = [(lab(c), {"class": c}) for c in s["class"].values]
     if extra:
-        panels = [(f"{c} ({extra[0]} {v})", {"class": c, extra[0]: v})
+        panels = [(f"{lab(c)} ({extra[0]} {v})", {"class": c, extra[0]: v})
                   for c in s["class"].values for v in s[extra[0]].values]
     fig, axes = _panels(len(panels))
     params = list(s.parameter.values)
     xi = np.arange(len(params))
     legend = False
+    found = []
     for ax, (name, sel) in zip(axes, panels):
         r = s.sel(sel)
+        st = np.asarray(r.ST.values, dtype=float)
+        if not str(r["note"].values) and np.any(np.isfinite(st)):
+            j = int(np.nanargmax(st))
+            found.append(f"{name}: {params[j]} (ST {st[j]:.2f})")
+        elif str(r["note"].values):
+            found.append(f"{name}: {r['note'].values}")
         if str(r["note"].values):
             ax.text(0.5, 0.5, str(r["note"].values), ha="center", va="center", fontsize=7, wrap=True,
                     transform=ax.transAxes)
@@ -357,11 +470,9 @@ def _sobol_figure(sob, title, axis, out_dir):
     _suptitle(fig, f"{title}: Sobol indices of the {sob.attrs.get('output', 'truth')} (axis {axis}), "
               f"{int(100 * sob.attrs.get('conf_level', 0.95))} % intervals, "
               f"{sob.attrs.get('evaluations', '?')} evaluations")
-    fig.tight_layout()
     path = Path(out_dir) / f"sobol__{axis}.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save(fig, path, f"The parameter with the largest total Sobol index of each class (axis {axis}): "
+                + "; ".join(found) + ".")
 
 
 def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "improved",
@@ -387,9 +498,10 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     sob = open_sobol(store)
     if not axes_all and sob is not None and "axis" in sob.coords:
         axes_all = list(sob["axis"].values)
-    ax_name = axis if axis is not None else (axes_all[0] if axes_all else None)
-    if axes_all and ax_name not in axes_all:
+    if axis is not None and axes_all and axis not in axes_all:
         raise UserInputError(f"--axis {axis}: this store has axes {', '.join(map(str, axes_all))}")
+    # every axis unless one is asked for
+    ax_names = [axis] if axis is not None else (axes_all or [None])
     if "variant" in ds.coords and variant not in ds["variant"].values:
         raise UserInputError(f"--variant {variant}: this store has {', '.join(map(str, ds['variant'].values))}")
     if ds.attrs.get("point_dims") and "done" in ds and not bool(ds["done"].any()) and sob is None:
@@ -400,7 +512,8 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        files = _draw(ds, sob, ax_name, variant, precision, out_dir)
+        files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
+        _write_page(ds, files, out_dir)
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)
@@ -408,9 +521,25 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     return files
 
 
+def _write_page(ds, files, out_dir) -> None:
+    """``report.md`` (each figure with its caption under it) and its self-contained twin
+    ``report.html`` beside the figures."""
+    from budget.figures import figure_markdown
+    from budget.runner.html import write_html
+
+    md = [f"# {ds.attrs.get('title', 'Sweep')}: figures", "",
+          f"Sweep `{ds.attrs.get('kind', '')}` ({ds.attrs.get('evaluate', '')}), hash "
+          f"`{ds.attrs.get('sweep_hash', '')}`, seed {ds.attrs.get('seed', '')}.", "", figure_markdown(files), ""]
+    page = Path(out_dir) / "report.md"
+    page.write_text("\n".join(md))
+    write_html(page)
+
+
 def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
     files: list[Path] = []
     if ds.attrs.get("point_dims"):
+        if ax_name is not None and "axis" in ds.coords and not _classes_on(ds.sel(axis=ax_name)):
+            return files  # no class has this axis at the drawn points
         for xdim, xname in _x_axes(ds):
             files.append(_line_figure(ds, xdim, xname, ax_name, variant, out_dir))
         files += _heatmaps(ds, ax_name, variant, out_dir)
@@ -418,7 +547,7 @@ def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
         if rs is not None:
             files.append(rs)
     if sob is not None:
-        files.append(_sobol_figure(sob, ds.attrs.get("title", ""), ax_name, out_dir))
+        files.append(_sobol_figure(sob, ds.attrs.get("title", ""), ax_name, out_dir, ds))
     return files
 
 
@@ -427,7 +556,7 @@ def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Folder of the PNG files (default: STORE_plots beside the store).")
 @click.option("--axis", default=None,
-              help="Axis to draw (one of the store's axis labels, e.g. x or y; default the first).")
+              help="Axis to draw (one of the store's axis labels, e.g. x or y; default every axis).")
 @click.option("--variant", default="improved", show_default=True,
               help="Variant drawn in 2-D line plots and bias heatmaps.")
 @click.option("--precision", type=click.FloatRange(min=0, min_open=True), default=None,
@@ -446,6 +575,8 @@ def plot_command(store, out_dir, axis, variant, precision, overwrite) -> None:
                    "(run the sweep again to complete them)")
     for f in files:
         click.echo(str(f))
+        if getattr(f, "caption", ""):
+            click.echo(f"  {f.caption}")
     if precision is not None:
         rows = precision_table(ds, axis=axis or str(ds["axis"].values[0]), precision=precision)
         if not rows:

@@ -119,7 +119,7 @@ def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, rep
         md += [f"| {n} | {a:.4f} | {b:.4f} |" for n, a, b in zip(sob["names"], sob["S1"], sob["ST"])]
         if claim_md:
             md += ["", "## The paper's claims as distributions over seeds", ""] + claim_md
-        md += [""] + [f"![{f.stem}]({f.name})" for f in figs]
+        md += ["", plots.figure_markdown(figs)]  # each figure with its caption under it
         (out / "report.md").write_text("\n".join(md) + "\n")
         from budget.runner.html import write_html  # its self-contained twin, report.html
 

@@ -287,7 +287,8 @@ class WhiskbroomStudy(Study):
               f"is the slanted-edge measurement of a noisy simulated TDI edge image (`budget whiskbroom "
               f"synthesize` judges the published sinc by its own criterion and gives the paper's headline "
               f"figures over 20 seeds).")
-        return [ReportSection("Whiskbroom TDI MTF", md, figs)]
+        # the figures are placed in the text, each with its caption under it
+        return [ReportSection("Whiskbroom TDI MTF", md + ("\n\n" + plots.figure_markdown(figs) if figs else ""), [])]
 
     def commands(self) -> list:
         from budget.whiskbroom.cli import synthesize_command
