@@ -233,7 +233,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
     of the truths' work (raise ``validation.hsfe_truth_frames`` / ``te_truth_frames`` to
     let a long run have more precise truths: on the embedded default, 200 trials already
-    ask for more than the ceiling, docs/validation.md). The truths then report their
+    ask for more than the ceiling, docs/architecture.md). The truths then report their
     actual standard error, and the JSON their target beside it.
     """
     from budget.starcam.truth import hsfe_phase_cell
