@@ -147,3 +147,31 @@ def test_star_camera_truths_blind_to_the_fields_it_says():
     s = scn(optics__psf__sigma0_px=1.2)
     assert truth_identity(STUDY, s) != truth_identity(STUDY, ref)
     assert STUDY.truths(s, 3)[("hsfe", "x")].value != t0[("hsfe", "x")].value
+
+
+def test_cli_truth_size_fixed_gives_the_scenarios_truths(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from budget.cli import cli
+    from budget.starcam.study import STUDY
+    from tiny_camera import TINY
+
+    (tmp_path / "tiny.toml").write_text(TINY)
+    out = {}
+    for mode in ("fixed", "adaptive"):
+        r = CliRunner().invoke(cli, ["starcam", "validate", str(tmp_path / "tiny.toml"), "--trials", "2",
+                                     "--workers", "1", "--truth-size", mode, "--json",
+                                     str(tmp_path / f"{mode}.json"), "--no-progress"])
+        assert r.exit_code == 0, r.output
+        out[mode] = json.loads((tmp_path / f"{mode}.json").read_text())
+    assert out["fixed"]["truth_size"] == "fixed" and out["adaptive"]["truth_size"] == "adaptive"
+    want = STUDY.truths(STUDY.load_scenario(tmp_path / "tiny.toml"), 0)
+    for (c, a), t in want.items():
+        got = out["fixed"]["truths"][f"{c}.{a}"]
+        assert (got["value"], got["se"]) == (t.value, t.se)
+        assert "target_se" not in got
+    assert out["adaptive"]["truths"]["hsfe.x"]["se"] > 0 and "target_se" in out["adaptive"]["truths"]["hsfe.x"]
+    r = CliRunner().invoke(cli, ["starcam", "validate", "--truth-size", "small"])
+    assert r.exit_code == 2 and "--truth-size" in r.output
