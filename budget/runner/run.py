@@ -210,8 +210,10 @@ def sized_truths_scenario(study: Study, scenario: Any, seed: int, targets: dict)
 
 
 def with_targets(truths: dict, targets: dict) -> dict:
-    """The truths with their target standard error (``target_se``) among their details (the JSON shows it)."""
-    return {k: (Truth(t.value, t.se, {**t.details, "target_se": float(targets[k])}) if k in targets else t)
+    """The sampled truths (``se > 0``) with their target standard error (``target_se``) among
+    their details (the JSON shows it); an exact truth needs none and is left as it is."""
+    return {k: (Truth(t.value, t.se, {**t.details, "target_se": float(targets[k])}) if k in targets and t.se > 0
+                else t)
             for k, t in truths.items()}
 
 
