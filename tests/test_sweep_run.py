@@ -145,17 +145,21 @@ def zipped(tmp_path_factory):
 
 
 def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path):
-    """A validation sweep's point holds validate(scenario, trials, seed).summary(); its
-    truth equals the truth mode's for the same point."""
+    """A validation sweep's point holds validate(scenario, trials, seed).summary() with the
+    truths of its truth seed (the protocols' frame counts cannot change the truths, so both
+    points share one: the point seed of no swept value); its truth equals the truth mode's
+    for the same point."""
     from budget.runner.run import run_study
     from budget.starcam.study import STUDY
     from budget.starcam.validate import AXES, CLASSES, VARIANTS
+    from budget.sweeps.values import point_seed
 
     ds = zipped["ds"]
     assert ds.truth.dims == ("point", "class", "axis") and ds["mean"].dims == ("point", "class", "axis", "variant")
     assert list(ds["protocols.te.frames"].values) == [6, 12]
     p = load_sweep(zipped["path"]).points[1]
-    s = run_study(STUDY, p.scenario, trials=3, seed=p.seed, workers=1).summary()
+    truths = STUDY.truths(p.scenario, point_seed(4, {}))
+    s = run_study(STUDY, p.scenario, trials=3, seed=p.seed, workers=1, truths=truths).summary()
     d = ds.isel(point=1)
     for c in CLASSES:
         for a in AXES:
@@ -168,6 +172,7 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
                 assert [float(e.ci95_low), float(e.ci95_high)] == r["interval_95"]
                 assert float(e.truth) == r["truth"]
     assert int(d.trials) == 3 and int(d.stopped_by) == 0
+    np.testing.assert_array_equal(ds.truth.values[0], ds.truth.values[1])  # one truth, shared
     # the truth mode gives the same truths for the same point and seed
     t = _write(tmp_path, ZIP.replace("trials = 3", 'evaluate = "truth"'), "truth.toml")
     run_sweep(t, tmp_path / "t", inline=True)
@@ -390,7 +395,7 @@ def test_cli_bad_input_is_one_error_line_exit_2_and_no_store(tmp_path, capsys):
 def test_every_class_and_axis_of_a_store_is_plotted_with_its_label_and_unit(grid, tmp_path):
     """Default ``budget plot``: one line figure per swept parameter for every axis of the
     store; each class with values on an axis is named by its label in that figure's caption,
-    either with its change along the sweep or among the flat ones (issue 23 item 4)."""
+    either with its change along the sweep or among the flat ones."""
     from budget.runner.registry import get_study
     from budget.sweeps.plot import _classes_on, plot_store
 
@@ -407,3 +412,32 @@ def test_every_class_and_axis_of_a_store_is_plotted_with_its_label_and_unit(grid
             for c in classes:
                 assert labels[c] in f.caption, (c, f.name)
             assert ("Flat over this range" in f.caption) or ("No class is flat" in f.caption)
+
+
+# --------------------------------------------------------------------------- shared truths
+SHARED = """
+    name = "tiny shared truths"
+    base = "tiny.toml"
+    kind = "starcam"
+    seed = 9
+    trials = 2
+    [parameters]
+    "lab.knowledge.qe_peak_nm_error" = [0.0, 40.0]
+    "optics.psf.sigma0_px" = [0.8, 1.1]
+"""
+
+
+def test_truths_shared_across_points_equal_truths_computed_per_point(tmp_path):
+    """Four points, two PSF widths: the lab's QE knowledge cannot change the truths, so two
+    truths serve the four points; the store is bit-identical to one computed with a truth
+    per point, and the points of one width hold one truth."""
+    path = _write(tmp_path, SHARED)
+    shared = run_sweep(path, tmp_path / "shared", inline=True)
+    alone = run_sweep(path, tmp_path / "alone", inline=True, truths_shared=False)
+    assert (shared.truths_computed, alone.truths_computed) == (2, 4)
+    a, b = open_sweep(tmp_path / "shared"), open_sweep(tmp_path / "alone")
+    _assert_same(a, b)
+    t = a.truth
+    np.testing.assert_array_equal(t.isel({"lab.knowledge.qe_peak_nm_error": 0}).values,
+                                  t.isel({"lab.knowledge.qe_peak_nm_error": 1}).values)
+    assert not np.array_equal(t.isel({"optics.psf.sigma0_px": 0}).values, t.isel({"optics.psf.sigma0_px": 1}).values)

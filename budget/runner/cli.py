@@ -11,13 +11,15 @@ __all__ = ["run_and_write", "study_group", "validate_command_for"]
 
 def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
                   dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
-                  overwrite=False):
+                  overwrite=False, truth_size="adaptive"):
     """What ``validate`` does once its options are read: run the study through the runner,
     print the header and the table (then ``more_lines(result)``, if given: a study's own
     summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
 
     ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal;
-    ``overwrite`` lets the report replace a folder that is not an earlier report.
+    ``overwrite`` lets the report replace a folder that is not an earlier report;
+    ``truth_size``: ``adaptive`` (truths sized to the run, :func:`budget.runner.run.run_study`)
+    or ``fixed`` (the scenario's own truth sizes).
     """
     import sys
     from pathlib import Path
@@ -36,7 +38,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
 
         workers = default_workers()
     res = run_study(study, scenario, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
-                    scheduler=scheduler, dask_local=dask_local, progress=progress)
+                    scheduler=scheduler, dask_local=dask_local, progress=progress, truth_size=truth_size)
     click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
@@ -91,6 +93,10 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.option("--tolerance", type=click.FloatRange(min=0, min_open=True), default=None,
                   help="Stop when every Monte Carlo standard error is below this (in the classes' unit).")
     @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+    @click.option("--truth-size", "truth_size", type=click.Choice(["adaptive", "fixed"]), default="adaptive",
+                  show_default=True,
+                  help="adaptive: each sampled truth's standard error about a quarter of what the trials "
+                       "resolve (the scenario's truth sizes the most); fixed: the scenario's truth sizes.")
     @click.option("--workers", type=click.IntRange(min=1), default=None,
                   help="Local worker processes (default: all cores). Results do not depend on it.")
     @click.option("--scheduler", default=None, help="Run the trials on a Dask cluster (tcp://HOST:PORT).")
@@ -102,8 +108,8 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
                   help="Turn every [world.effects] magnitude to 0: the world the lab's model assumes "
                        "(default: the scenario's world, realistic in the embedded defaults).")
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
-    def validate(scenario, trials, tolerance, seed, workers, scheduler, dask_local, json_out, report_dir, overwrite,
-                 ideal_world, progress):
+    def validate(scenario, trials, tolerance, seed, truth_size, workers, scheduler, dask_local, json_out, report_dir,
+                 overwrite, ideal_world, progress):
         from budget.runner.registry import get_study
 
         study = get_study(study_name)
@@ -112,7 +118,8 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
             scn = ideal_world_scenario(study, scn, source=str(scenario or f"embedded {study_name} default"))
         run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
-                      report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite)
+                      report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
+                      truth_size=truth_size)
 
     return validate
 

@@ -15,9 +15,10 @@ set, :meth:`Study.from_dict`. Every case runs the same trials with the same seed
 ``k`` of every case draws from ``SeedSequence(seed, spawn_key=(k,))`` (common random
 numbers): a difference between two cases is the effect's, not sampling noise, and its
 standard error (``se_shift``) is that of the paired per-trial differences. All cases run in
-one executor (one pool of workers, started once); the truths (:meth:`Study.truths`) are
-computed for the ideal case and reused by every case whose active effects are outside
-:meth:`Study.truth_depends_on_effects`, computed anew otherwise.
+one executor (one pool of workers, started once); the truths (:meth:`Study.truths`, the
+scenario's own truth sizes) are computed for the ideal case and reused by every case whose
+active effects are outside :meth:`Study.truth_depends_on_effects` or that equals the ideal
+case on every field of :meth:`Study.truth_fields`, computed anew otherwise.
 
 Statistics per case and key are the runner's (:func:`budget.runner.stats.key_statistics`).
 Classes of role ``"input"`` are left out (taken as given, nothing to validate).
@@ -145,20 +146,26 @@ def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
         raise UserInputError(f"{where}: the {study.name} study's scenario has no [world.effects]: "
                              "nothing for robustness to vary")
     depends = study.truth_depends_on_effects(scenario)
-
-    def shares(active: tuple[str, ...]) -> bool:
-        return depends is not None and not (set(active) & set(depends))
-
     ideal = effects.ideal().magnitudes()
-    cases = [Case(IDEAL, scenario_with_effects(study, scenario, ideal, source=f"{where}, case {IDEAL}"),
-                  (), ideal, False)]
+    ideal_scn = scenario_with_effects(study, scenario, ideal, source=f"{where}, case {IDEAL}")
+
+    def shares(active: tuple[str, ...], scn: Any) -> bool:
+        # outside the effects the truths depend on, or equal on every field they depend on
+        # (Study.truth_fields: the hook sweeps share truths by)
+        if depends is not None and not (set(active) & set(depends)):
+            return True
+        from budget.runner.study import truth_identity
+
+        return study.truth_fields(scn) is not None and truth_identity(study, scn) == truth_identity(study, ideal_scn)
+
+    cases = [Case(IDEAL, ideal_scn, (), ideal, False)]
     active = effects.active()
     for name in active:
         mags = effects.only(name).magnitudes()
-        cases.append(Case(name, scenario_with_effects(study, scenario, mags, source=f"{where}, case {name}"),
-                          (name,), mags, shares((name,))))
+        scn = scenario_with_effects(study, scenario, mags, source=f"{where}, case {name}")
+        cases.append(Case(name, scn, (name,), mags, shares((name,), scn)))
     if len(active) >= 2:
-        cases.append(Case(ALL, scenario, active, effects.magnitudes(), shares(active)))
+        cases.append(Case(ALL, scenario, active, effects.magnitudes(), shares(active, scenario)))
     return cases
 
 

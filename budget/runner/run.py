@@ -5,8 +5,17 @@
 1. starts the executor (its worker processes import while this process works);
 2. computes the study's truths (:meth:`Study.truths`, seeded by
    ``SeedSequence(seed, spawn_key=(2**31,))``): in this process with one worker, otherwise
-   piece by piece (:meth:`Study.truth_parts`) as tasks beside the first trials, so that the
-   truths' work is spread over the workers too;
+   piece by piece (:meth:`Study.truth_parts`) as tasks beside the trials, so that the
+   truths' work is spread over the workers too. Their precision follows the question
+   (``truth_size="adaptive"``, the default): each sampled truth is sized
+   (:meth:`Study.truth_size_for`) to a standard error of :data:`TRUTH_SE_FRACTION` (a
+   quarter) of the bias standard error the run will give (:func:`truth_targets`): with a
+   tolerance, of the tolerance; with a number of trials ``n``, of ``s / sqrt(n)`` with
+   ``s`` the spread of the first :data:`PILOT_TRIALS` trials (the run's own trials 0, 1,
+   ..., so nothing is computed twice and the size does not depend on the workers). A
+   truth's standard error then adds at most ``sqrt(1 + 1/16) - 1 = 3 %`` to a bias's.
+   ``truth_size="fixed"`` keeps the scenario's own sizes; ``truths=`` gives truths
+   computed before (a sweep's truth shared by points);
 3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
    ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
    when; trial 0's ``extra`` is kept for the report;
@@ -31,9 +40,17 @@ import numpy as np
 from budget.runner.stats import converged, key_statistics
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth
 
-__all__ = ["SCHEMA", "StudyResult", "run_study"]
+__all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
+           "sized_truths_scenario", "truth_targets", "with_targets"]
 
 SCHEMA = "budget.study-result/1"
+#: a sampled truth's target standard error, as a fraction of the bias standard error the
+#: trials give (or of the tolerance): its share of the bias's variance is 1/16
+TRUTH_SE_FRACTION = 0.25
+#: trials whose spread sizes the truths of a run with a fixed number of trials
+PILOT_TRIALS = 20
+#: the ways truths are sized (:func:`run_study`'s ``truth_size``)
+TRUTH_SIZES = ("adaptive", "fixed")
 #: cap of adaptive runs whatever the study says (each trial's values are kept)
 MAX_TRIALS = 10_000_000
 
@@ -80,6 +97,8 @@ class StudyResult:
     executor: str = ""
     #: per-trial scalars of :attr:`TrialResult.aux`, in trial order
     aux: dict[str, np.ndarray] = field(default_factory=dict)
+    #: how the truths were sized: "adaptive", "fixed" or "given" (computed before the run)
+    truth_size: str = "fixed"
     _details: dict | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
@@ -158,6 +177,7 @@ class StudyResult:
             "scenario_hash": self.study.scenario_hash(self.scenario),
             "scenario_toml": self.study.scenario_text(self.scenario),
             "seed": self.seed, "trials": self.trials, "stopped_by": self.stopped_by,
+            "truth_size": self.truth_size,
             "variants": list(self.study.variants),
             "truths": {f"{c}.{a}": {"value": t.value, "se": t.se,
                                     **{k: v for k, v in t.details.items() if isinstance(v, (int, float, str, bool))}}
@@ -197,9 +217,46 @@ def _effects_on(scenario) -> list[str] | None:
     return None if effects is None else list(effects.active())
 
 
+def truth_targets(classes, *, tolerance: float | None = None, samples: dict | None = None,
+                  trial_truths: dict | None = None, trials: int | None = None) -> dict[tuple[str, str], float]:
+    """Target standard error of each fixed truth ``(class, axis)``, in the class's unit:
+    :data:`TRUTH_SE_FRACTION` of the tolerance, or of the smallest over the variants of
+    ``s / sqrt(trials)`` with ``s`` the sample sd of ``samples`` (a pilot's estimates).
+    Classes with per-trial truths or of role ``input`` have none; nor has a key whose
+    estimates do not scatter (a deterministic estimator: its truth must be exact or as
+    the scenario sizes it)."""
+    keep = {c.name for c in classes if not c.per_trial_truth and c.role != "input"}
+    out: dict[tuple[str, str], float] = {}
+    if tolerance is not None:
+        return {(c.name, a): TRUTH_SE_FRACTION * float(tolerance) for c in classes if c.name in keep for a in c.axes}
+    for (cls, _var, ax), x in (samples or {}).items():
+        if cls not in keep or (trial_truths and (cls, _var, ax) in trial_truths) or len(x) < 2:
+            continue
+        sd = float(np.std(np.asarray(x, dtype=float), ddof=1))
+        if not (math.isfinite(sd) and sd > 0):
+            continue
+        t = TRUTH_SE_FRACTION * sd / math.sqrt(trials)
+        out[(cls, ax)] = min(out.get((cls, ax), math.inf), t)
+    return out
+
+
+def sized_truths_scenario(study: Study, scenario: Any, seed: int, targets: dict) -> Any:
+    """The scenario the truths are computed on: :meth:`Study.truth_size_for` (no targets: as given)."""
+    return study.truth_size_for(scenario, seed, targets) if targets else scenario
+
+
+def with_targets(truths: dict, targets: dict) -> dict:
+    """The sampled truths (``se > 0``) with their target standard error (``target_se``) among
+    their details (the JSON shows it); an exact truth needs none and is left as it is."""
+    return {k: (Truth(t.value, t.se, {**t.details, "target_se": float(targets[k])}) if k in targets and t.se > 0
+                else t)
+            for k, t in truths.items()}
+
+
 def run_study(study: Study, scenario: Any, *, trials: int | None = None, tolerance: float | None = None,
               seed: int = 0, workers: int | None = 1, scheduler: str | None = None,
-              dask_local: int | None = None, progress: bool = False, prewarm: bool = True) -> StudyResult:
+              dask_local: int | None = None, progress: bool = False, prewarm: bool = True,
+              truth_size: str = "adaptive", truths: dict | None = None) -> StudyResult:
     """Run ``study`` on ``scenario`` (see the module docstring).
 
     Parameters
@@ -219,12 +276,20 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         Let the study compile its kernels on this machine's cores first on a cold numba
         cache (:meth:`Study.prewarm`; never with ``scheduler``). A caller that runs many
         studies (a sweep) does it once itself and passes False.
+    truth_size : {"adaptive", "fixed"}
+        ``adaptive``: the truths sized to the run's precision (module docstring);
+        ``fixed``: the scenario's own truth sizes.
+    truths : dict, optional
+        The truths, computed before (with this seed, by :meth:`Study.truths`): nothing is
+        computed for them here (a sweep shares one truth among points).
     """
     import time
 
     from budget.runner.executors import make_executor
 
     _check_trials(trials, tolerance)
+    if truth_size not in TRUTH_SIZES:
+        raise ValueError(f"truth_size must be one of {TRUTH_SIZES}, got {truth_size!r}")
     t0 = time.perf_counter()
     if trials is None and tolerance is None:
         tolerance = study.default_tolerance(scenario)
@@ -252,14 +317,21 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
-    truths = None
-    parts = study.truth_parts(scenario, seed)
+    given = truths is not None
+    targets: dict = {}
+    # the scenario the truths are computed on, once their size is known (None: after the pilot)
+    truth_scn = None
+    if not given:
+        if truth_size == "fixed":
+            truth_scn = scenario
+        elif tolerance is not None:
+            targets = truth_targets(classes, tolerance=tolerance)
+            truth_scn = sized_truths_scenario(study, scenario, seed, targets)
+    pilot = min(trials, PILOT_TRIALS) if trials is not None else 0
+    parts: list = []
     part_results: dict[int, Any] = {}
+    started = given
     with executor:
-        if executor.workers <= 1:
-            truths = study.truths(scenario, seed)
-        # otherwise the pieces of the truths are tasks, spread over the workers beside the
-        # first trials (the same numbers: each piece draws its own streams)
         if progress:
             from tqdm import tqdm
 
@@ -268,25 +340,40 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             while True:
                 done = len(results)
                 want = (trials - done) if tolerance is None else min(batch, cap - done)
-                if want <= 0:
+                if truth_scn is None and not started:
+                    want = min(want, pilot)  # the pilot's spread sizes the truths
+                if not started and truth_scn is not None and executor.workers <= 1:
+                    truths = study.truths(truth_scn, seed)
+                    started = True
+                if want <= 0 and started:
                     break
-                ks = list(range(done, done + want))
+                ks = list(range(done, done + max(want, 0)))
                 size = max(1, min(study.chunk_trials(scenario), len(ks) // (2 * max(executor.workers, 1))))
                 chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
                 tasks = [(study, scenario, seed, c) for c in chunks]
-                if truths is None and done == 0:
-                    tasks[:0] = [(study, scenario, seed, ("truth", i, p)) for i, p in enumerate(parts)]
+                if not started and truth_scn is not None:
+                    # the pieces of the truths are tasks, spread over the workers beside the
+                    # trials (the same numbers: each piece draws its own streams)
+                    parts = study.truth_parts(truth_scn, seed)
+                    tasks[:0] = [(study, truth_scn, seed, ("truth", i, p)) for i, p in enumerate(parts)]
+                    started = True
                 for _, part in executor.map_unordered(_run_task, tasks):
                     if isinstance(part, _TruthPart):
                         part_results[part.index] = part.value
                         if len(part_results) == len(parts):
-                            truths = study.truths_from_parts(scenario, seed,
+                            truths = study.truths_from_parts(truth_scn, seed,
                                                              [part_results[i] for i in range(len(parts))])
                         continue
                     for k, r in part:
                         results[k] = r
                     if bar is not None:
                         bar.update(len(part))
+                if truth_scn is None and not started:
+                    # the pilot is done: the truths' target from its spread
+                    samples, tt, _ = _collect(results)
+                    targets = truth_targets(classes, samples=samples, trial_truths=tt, trials=trials)
+                    truth_scn = sized_truths_scenario(study, scenario, seed, targets)
+                    continue
                 if tolerance is not None:
                     samples, tt, _ = _collect(results)
                     if converged(samples, tt, tolerance) and _truths_within(samples, tt, truths, tolerance):
@@ -298,13 +385,16 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         finally:
             if bar is not None:
                 bar.close()
+    if targets:
+        truths = with_targets(truths, targets)
     samples, trial_truths, sigmas = _collect(results)
     ks = sorted(results)
     aux = {name: np.array([results[k].aux[name] for k in ks], dtype=float) for name in results[ks[0]].aux}
     return StudyResult(study=study, scenario=scenario, seed=seed, trials=len(results), stopped_by=stopped_by,
                        classes=classes, truths=truths, samples=samples, trial_truths=trial_truths,
                        sigmas=sigmas, example=results.get(0), elapsed_s=time.perf_counter() - t0,
-                       executor=executor.description, aux=aux)
+                       executor=executor.description, aux=aux,
+                       truth_size="given" if given else truth_size)
 
 
 def _truths_within(samples: dict, trial_truths: dict, truths: dict | None, tolerance: float) -> bool:

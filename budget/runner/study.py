@@ -59,6 +59,24 @@ Truth distribution (a heavy truth spread over the workers): :meth:`Study.truth_p
 :meth:`Study.truth_part`, :meth:`Study.truths_from_parts` (default: one part, the whole of
 :meth:`Study.truths`; the result must equal it).
 
+Truth sizing and sharing (what a truth costs follows the question):
+
+* :meth:`Study.truth_size_for` ``(scenario, seed, target_se) -> scenario``: the scenario with its
+  truth sampling sized so that each sampled truth's standard error is about
+  ``target_se[(class, axis)]`` (in the class's unit) or below. The runner asks for a
+  stated fraction (:data:`budget.runner.run.TRUTH_SE_FRACTION`, a quarter) of the bias
+  standard error the run's trials will give (from a pilot of its first trials), or of the
+  tolerance when it stops adaptively; ``--truth-size fixed`` keeps the scenario's own
+  sizes. The result must change nothing but the truths' sampling sizes (same seeds, the
+  trials untouched); the truths then report their actual standard error, which the
+  significance test uses. Default: the scenario unchanged (exact or cheap truths).
+* :meth:`Study.truth_fields` ``(scenario) -> tuple of dotted prefixes | None``: the scenario
+  fields the truths depend on (``"camera"``, ``"validation.threshold_sigma"``); a sweep
+  computes one truth per distinct set of their values and reuses it for every point
+  that has them (:mod:`budget.sweeps.run`). None (the default): every field. It must
+  agree with :meth:`Study.truth_depends_on_effects` (an effect outside that set is not
+  among these fields).
+
 World effects (``budget <study> robustness``, :mod:`budget.runner.robustness`):
 :meth:`Study.truth_depends_on_effects` (the effects whose change changes the truths; default
 all) and :meth:`Study.claim` (the accuracy a method claims for a class; default: unbiased).
@@ -84,7 +102,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["CLASS_ROLES", "ClassSpec", "Key", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
-           "Truth", "trial_seed_sequence", "truth_seed_sequence"]
+           "Truth", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
 
 #: spawn key of the truths' seed sequence (trials use 0, 1, 2, ...)
 TRUTH_SPAWN_KEY = 2**31
@@ -104,6 +122,28 @@ def trial_seed_sequence(seed: int, k: int) -> np.random.SeedSequence:
 def truth_seed_sequence(seed: int) -> np.random.SeedSequence:
     """The seed sequence of the truths: ``SeedSequence(seed, spawn_key=(2**31,))``."""
     return np.random.SeedSequence(seed, spawn_key=(TRUTH_SPAWN_KEY,))
+
+
+def truth_identity(study: "Study", scenario: Any) -> str:
+    """Hash (16 hex digits) of what :meth:`Study.truths` depends on besides the seed: the values
+    of the fields :meth:`Study.truth_fields` names (every field when it names none). Two
+    scenarios with the same identity have the same truths with the same seed."""
+    import hashlib
+    import json
+
+    data = scenario.model_dump(mode="json", exclude_none=True)
+    data.pop("name", None)
+    fields = study.truth_fields(scenario)
+    if fields is not None:
+        picked = {}
+        for f in sorted(set(fields)):
+            node: Any = data
+            for part in f.split("."):
+                node = node.get(part) if isinstance(node, dict) else None
+            picked[f] = node
+        data = picked
+    payload = json.dumps({"study": study.name, "fields": data}, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)
@@ -333,6 +373,20 @@ class Study(ABC):
     def truths_from_parts(self, scenario: Any, seed: int, results: list) -> dict[tuple[str, str], Truth]:
         """:meth:`truths` from its pieces' results, in :meth:`truth_parts` order; must equal it."""
         return results[0]
+
+    # ------------------------------------------------------------ truth sizing and sharing
+    def truth_size_for(self, scenario: Any, seed: int, target_se: dict[tuple[str, str], float]) -> Any:
+        """``scenario`` with its truth sampling sized so that the standard error of each sampled
+        truth ``(class, axis)`` is about ``target_se[(class, axis)]`` (class unit) or below; keys
+        may be missing (no requirement). Only the truths' sampling sizes may change; any pilot
+        it draws comes from the truths' seed sequence of ``seed`` (not from a truth's own
+        streams), so the size is reproducible. Default: ``scenario`` unchanged."""
+        return scenario
+
+    def truth_fields(self, scenario: Any) -> tuple[str, ...] | None:
+        """Dotted prefixes of the scenario fields :meth:`truths` depends on (with the truth
+        seed); two scenarios equal on them have the same truths. None (the default): all."""
+        return None
 
     # ------------------------------------------------------------ world effects (robustness)
     def truth_depends_on_effects(self, scenario: Any) -> set[str] | None:

@@ -28,6 +28,30 @@ _CLASSES = (
 )
 
 
+#: scenario fields no truth of :mod:`budget.starcam.truth` reads (the truth seed aside): the
+#: run settings, what only the trials draw (new markers), the lab's own imperfect
+#: knowledge (the improved estimators' models; tests/test_truth_routes.py), the frames of
+#: the lab's protocols (the truths take their own), the chromatic and distortion
+#: protocols (their truths read the optics, the population and the calibration grid)
+TRUTH_BLIND_FIELDS = (
+    "name", "validation.trials", "validation.tolerance", "validation.max_trials", "validation.batch_trials",
+    "validation.new_markers_per_trial", "lab.knowledge", "protocols.te.frames", "protocols.hsfe.frames",
+    "protocols.chromatic", "protocols.distortion",
+)
+
+
+def _paths(prefix: str, node: dict) -> list[str]:
+    """Dotted prefixes of the second level (``camera.exposure_s``; a blind field may sit deeper)."""
+    out = []
+    for k, v in node.items():
+        p = f"{prefix}.{k}"
+        if isinstance(v, dict) and any(b.startswith(p + ".") for b in TRUTH_BLIND_FIELDS):
+            out += _paths(p, v)
+        else:
+            out.append(p)
+    return out
+
+
 class StarCameraStudy(Study):
     """Seed 000: a star camera's TE, HSFE and LSFE lab methods."""
 
@@ -86,6 +110,38 @@ class StarCameraStudy(Study):
         f = self._factor(scenario)
         est = {key: v * f for key, v in r["values"].items()}
         return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
+
+    def truth_size_for(self, scenario, seed: int, target_se: dict):
+        """HSFE and TE truth frames sized to ``target_se`` (arcsec, 3 sigma; converted to px, 1 sigma):
+        :func:`budget.starcam.validate.truth_size_for`. The other truths are exact."""
+        from budget.starcam.validate import truth_size_for
+
+        f = self._factor(scenario)
+        return truth_size_for(scenario, seed=seed, target_px={k: v / f for k, v in target_se.items()})
+
+    def truth_fields(self, scenario) -> tuple[str, ...]:
+        """Every scenario field but those the truths cannot see (:data:`TRUTH_BLIND_FIELDS`),
+        with ``world`` narrowed to the effects of :meth:`truth_depends_on_effects` (and the
+        world's settings), so the two hooks agree."""
+        data = scenario.model_dump(mode="json", exclude_none=True)
+        out = []
+        for top, sub in data.items():
+            if top in TRUTH_BLIND_FIELDS:
+                continue
+            if top == "world" and isinstance(sub, dict):
+                depends = self.truth_depends_on_effects(scenario)
+                for k, v in sub.items():
+                    if k == "effects" and depends is not None and isinstance(v, dict):
+                        out += [f"world.effects.{e}" for e in v if e in depends]
+                    else:
+                        out.append(f"world.{k}")
+                continue
+            if isinstance(sub, dict):
+                out += [_leaf for _leaf in _paths(top, sub) if _leaf not in TRUTH_BLIND_FIELDS
+                        and not any(_leaf.startswith(b + ".") for b in TRUTH_BLIND_FIELDS)]
+            else:
+                out.append(top)
+        return tuple(out)
 
     def truth_parts(self, scenario, seed: int) -> list:
         from budget.starcam.validate import truth_parts

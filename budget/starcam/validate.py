@@ -55,10 +55,22 @@ def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
     return int(s[0]), int(s[1]), int(s[2])
 
 
+#: validation fields that only size the truths' sampling (:func:`truth_size_for`): a camera
+#: built for one size serves every size (the truths take their sizes as arguments)
+TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
+
+
+def _camera_key(scenario) -> str:
+    from simcam.config_base import model_hash
+
+    fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
+    return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
+
+
 def _camera(scenario, detector_seed=None):
     from simcam.starcam.render import StarCamera
 
-    key = (scenario.hash, detector_seed)
+    key = (_camera_key(scenario), detector_seed)
     cam = _CACHE.get(key)
     if cam is None:
         if len(_CACHE) > 4:
@@ -188,6 +200,71 @@ def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
         out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
                                  se_x_px=vals["x"][1], se_y_px=vals["y"][1])
     return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
+
+
+#: noisy frames of the pilot that measures the centroid scatter the truth sizes follow
+SIZE_PILOT_FRAMES = 64
+#: fewest frames a sized truth takes: HSFE per phase (two halves), TE
+MIN_HSFE_TRUTH_FRAMES = 20
+MIN_TE_TRUTH_FRAMES = 50
+
+
+def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
+    """``scenario`` with ``validation.hsfe_truth_frames`` and ``te_truth_frames`` sized so that
+    the HSFE and TE truths' standard errors are about ``target_px[(class, axis)]`` (px, 1
+    sigma) or below; a class without a target keeps the scenario's size.
+
+    The sizes follow the truths' own standard-error formulas (:mod:`budget.starcam.truth`)
+    with the per-frame centroid scatter ``v`` (px^2, per star and axis, common motion
+    removed) of a pilot of :data:`SIZE_PILOT_FRAMES` noisy frames of the HSFE target at its
+    first phase (its own stream, ``SeedSequence(truth seed, spawn_key=(5,))``, so the
+    truths' streams are untouched):
+
+    * HSFE, ``P`` phases x ``W`` stars (:func:`budget.starcam.truth.hsfe_from_cells`): to
+      first order ``se = sqrt(mean v / (F P W))``, and the split-half product's second-order
+      term ``mean v / (F sqrt(P W T))`` (``T`` the pilot's mean square error, when positive),
+      so ``F`` is the larger of ``mean v / (P W t^2)`` and ``2 mean v / (t sqrt(P W T))``;
+    * TE (:func:`budget.starcam.truth._se_mean_of_sd`): ``se = sd / sqrt(2 (F - 1) W)`` with
+      ``sd^2 = mean v W / (W - 1)`` (the scatter before the common motion was removed), so
+      ``F = sd^2 / (2 W t^2) + 1``, and at least ``sd / (2 t)`` so that the sample sd's own
+      bias (``sd / (4 F)``, normal theory) stays below half the target.
+
+    Each is rounded up (HSFE to even), at least :data:`MIN_HSFE_TRUTH_FRAMES` /
+    :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
+    of the truths' work (raise ``validation.hsfe_truth_frames`` / ``te_truth_frames`` to
+    let a long run have more precise truths: on the embedded default, 200 trials already
+    ask for more than the ceiling, docs/architecture.md). The truths then report their
+    actual standard error, and the JSON their target beside it.
+    """
+    from budget.starcam.truth import hsfe_phase_cell
+
+    val = scenario.validation
+    want = {c: [target_px[(c, a)] for a in AXES if (c, a) in target_px and target_px[(c, a)] > 0]
+            for c in ("hsfe", "te")}
+    if not want["hsfe"] and not want["te"]:
+        return scenario
+    ts = _truth_seed(seed)
+    ps = int(np.random.SeedSequence(ts, spawn_key=(5,)).generate_state(1)[0])
+    ma, mb, va, vb = hsfe_phase_cell(_camera(scenario), frames=SIZE_PILOT_FRAMES, seed=ps, phase=0)
+    v = va * (SIZE_PILOT_FRAMES // 2)               # (2, W): per-frame variance per axis and star
+    w = v.shape[1]
+    upd = {}
+    if want["hsfe"]:
+        t = min(want["hsfe"])
+        ncell = val.hsfe_phase_grid**2 * w
+        vm = float(np.max(v.mean(axis=1)))
+        f = vm / (ncell * t * t)
+        t2 = float(np.max(np.mean(ma * mb, axis=1)))
+        if t2 > 0:
+            f = max(f, 2.0 * vm / (t * math.sqrt(ncell * t2)))
+        f = min(max(MIN_HSFE_TRUTH_FRAMES, math.ceil(f)), val.hsfe_truth_frames)
+        upd["hsfe_truth_frames"] = int(f + (f % 2))
+    if want["te"]:
+        t = min(want["te"])
+        sd2 = float(np.max(v.mean(axis=1))) * w / max(w - 1, 1)
+        f = max(sd2 / (2 * w * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
+        upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
+    return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
 
 def truths(scenario, *, seed: int) -> dict:

@@ -16,6 +16,17 @@ another:
   has, not what the lab would measure. Only for studies whose truths are all properties
   of the scenario (not drawn per trial).
 
+Truths shared among points: a point's truths depend on the fields its study names
+(:meth:`Study.truth_fields`) and on its *truth seed* (:func:`truth_seed_of`: the point
+seed of its truth-relevant swept values only, so points that differ only in fields the
+truths cannot see have one truth seed; the point seed itself when every swept field is
+truth-relevant). The sweep engine (:mod:`budget.sweeps.run`) computes each distinct truth
+once, piece by piece (:class:`TruthPartTask`, :func:`evaluate_truth_part`), and hands it to
+every point that has it (``PointTask.truths``); a point given no truths computes its own
+with its truth seed, the same numbers. A sweep's truths have the scenario's own sizes
+(``truth_size = "fixed"``), or, when its points stop at a tolerance, sizes for a quarter of
+it (:func:`budget.runner.run.truth_targets`).
+
 The truth has a ``variant`` dimension when a class of the study carries per-trial truths
 (each variant's compensation leaves its own error); otherwise it is per class and axis.
 """
@@ -34,7 +45,11 @@ __all__ = [
     "STOPPED_BY",
     "PointResult",
     "PointTask",
+    "TruthPartTask",
     "evaluate_point",
+    "evaluate_truth_part",
+    "truth_seed_of",
+    "truths_scenario",
     "labels",
     "schema",
     "class_units",
@@ -121,6 +136,65 @@ class PointTask:
     seed: int
     trials: int | None = None
     tolerance: float | None = None  # in the unit of the study's classes
+    #: seed of the point's truths (None: the point's seed; :func:`truth_seed_of`)
+    truth_seed: int | None = None
+    #: the point's truths, computed before (shared with other points); None: computed here
+    truths: dict | None = None
+
+
+@dataclass(frozen=True)
+class TruthPartTask:
+    """One piece (:meth:`Study.truth_parts`) of a truth shared by sweep points."""
+
+    group: int
+    index: int
+    kind: str
+    scenario: Any  # the truths' scenario (sized: :func:`truths_scenario`)
+    truth_seed: int
+    part: Any
+
+
+def truth_relevant(fields: tuple[str, ...] | None, key: str) -> bool:
+    """Whether the dotted ``key`` can change truths that depend on ``fields`` (None: all)."""
+    if fields is None:
+        return True
+    return any(key == f or key.startswith(f + ".") or f.startswith(key + ".") for f in fields)
+
+
+def truth_seed_of(study, scenario, sweep_seed: int, values: dict, point_seed: int, *, common: bool) -> int:
+    """The truth seed of a point with swept ``values``: the common seed of the Sobol samples
+    (``common``), else :func:`budget.sweeps.values.point_seed` of its truth-relevant values
+    (``point_seed`` itself when they are all of them)."""
+    if common:
+        return point_seed
+    from budget.sweeps.values import point_seed as seed_of
+
+    fields = study.truth_fields(scenario)
+    rel = {k: v for k, v in values.items() if truth_relevant(fields, k)}
+    return point_seed if len(rel) == len(values) else seed_of(sweep_seed, rel)
+
+
+def _truth_size(task) -> str:
+    return "adaptive" if task.evaluate == "validate" and task.tolerance is not None else "fixed"
+
+
+def truths_scenario(study, task) -> tuple[Any, dict]:
+    """The scenario a point's truths are computed on and their targets (module docstring)."""
+    from budget.runner.run import sized_truths_scenario, truth_targets
+
+    if _truth_size(task) == "fixed":
+        return task.scenario, {}
+    targets = truth_targets(study.classes(task.scenario), tolerance=task.tolerance)
+    ts = task.seed if task.truth_seed is None else task.truth_seed
+    return sized_truths_scenario(study, task.scenario, ts, targets), targets
+
+
+def evaluate_truth_part(task: TruthPartTask) -> TruthPartTask:
+    """One piece of a shared truth: the task with ``part`` replaced by its result."""
+    from dataclasses import replace
+
+    study = study_for_kind(task.kind)
+    return replace(task, part=study.truth_part(task.scenario, task.truth_seed, task.part))
 
 
 @dataclass
@@ -154,13 +228,20 @@ def _evaluate(task: PointTask) -> dict:
         idx = (cls_i[c], ax_i[a], var_i[v]) if tv else (cls_i[c], ax_i[a])
         truth[idx], truth_se[idx] = value, se
 
+    given = task.truths
+    if given is None and task.truth_seed not in (None, task.seed):
+        from budget.runner.run import with_targets
+
+        tscn, targets = truths_scenario(study, task)
+        given = with_targets(study.truths(tscn, task.truth_seed), targets)
     if task.evaluate == "truth":
-        for (c, a), t in study.truths(task.scenario, task.seed).items():
+        for (c, a), t in (given if given is not None else study.truths(task.scenario, task.seed)).items():
             for v in lab["variant"]:
                 put_truth(c, a, v, t.value, t.se)
         return {"truth": truth, "truth_se": truth_se}
     res = run_study(study, task.scenario, trials=task.trials, tolerance=task.tolerance,
-                    seed=task.seed, workers=1, progress=False, prewarm=False)
+                    seed=task.seed, workers=1, progress=False, prewarm=False, truth_size=_truth_size(task),
+                    truths=given)
     out = {k: np.full(shape, np.nan) for k in ("mean", "bias", "spread", "se_bias", "se_spread",
                                               "ci95_low", "ci95_high")}
     for (c, a), t in res.truths.items():

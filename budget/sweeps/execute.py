@@ -25,8 +25,10 @@ def _init_for_kind(kind: str) -> None:
 
 
 def _evaluate(task):
-    from budget.sweeps.evaluate import evaluate_point
+    from budget.sweeps.evaluate import TruthPartTask, evaluate_point, evaluate_truth_part
 
+    if isinstance(task, TruthPartTask):  # a piece of a truth shared by points
+        return evaluate_truth_part(task)
     return evaluate_point(task)
 
 
@@ -52,7 +54,8 @@ class SweepRunner:
         self.executor.__exit__(*exc)
 
     def run(self, tasks: list) -> Iterator:
-        """Yield a :class:`PointResult` per task, in the order they finish."""
+        """Yield a :class:`PointResult` per task (a :class:`TruthPartTask` with its result for
+        a piece of a shared truth), in the order they finish."""
         for _, res in self.executor.map_unordered(_evaluate, tasks):
             yield res
 

@@ -39,6 +39,7 @@ __all__ = [
     "open_sweep",
     "plan_tasks",
     "run_sweep",
+    "share_truths",
     "sweep_command",
 ]
 
@@ -57,6 +58,7 @@ class SweepReport:
     samples_already_done: int = 0
     samples_computed: int = 0
     sobol: bool = False
+    truths_computed: int = 0  # distinct truths computed for the points of this run (shared)
     wall_s: float = 0.0
     compute_s: list = field(default_factory=list)
     cpu_s: list = field(default_factory=list)
@@ -69,24 +71,67 @@ class SweepReport:
 
 
 def plan_tasks(sweep: Sweep) -> tuple[list, list]:
-    """Point tasks of the grid and of the Sobol samples."""
-    from budget.sweeps.evaluate import PointTask
+    """Point tasks of the grid and of the Sobol samples, each with its truth seed
+    (:func:`budget.sweeps.evaluate.truth_seed_of`)."""
+    from budget.sweeps.evaluate import PointTask, study_for_kind, truth_seed_of
 
     s = sweep.spec
-    grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials,
-                      s.tolerance) for p in sweep.points]
+    study = study_for_kind(s.kind)
+    grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials, s.tolerance,
+                      truth_seed_of(study, p.scenario, s.seed, p.values, p.seed, common=False))
+            for p in sweep.points]
     sens = []
     if s.sensitivity is not None:
         t = s.sensitivity
         sens = [PointTask("sensitivity", p.index, s.kind, t.evaluate, p.scenario, p.seed, t.trials,
-                          t.tolerance) for p in sweep.sample_points]
+                          t.tolerance, p.seed) for p in sweep.sample_points]
     return grid, sens
+
+
+def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]:
+    """The tasks with their truths (``PointTask.truths``), each distinct truth computed once.
+
+    Points whose truth-relevant fields (:func:`budget.runner.study.truth_identity`), truth
+    seed and truth sizing are equal share one truth; its pieces (:meth:`Study.truth_parts`)
+    run as tasks on ``runner``'s workers. ``share=False`` computes one per point (the same
+    numbers: tests). Returns the tasks and the number of truths computed.
+    """
+    from dataclasses import replace
+
+    from budget.runner.run import with_targets
+    from budget.runner.study import truth_identity
+    from budget.sweeps.evaluate import TruthPartTask, study_for_kind, truths_scenario
+
+    if not tasks:
+        return tasks, 0
+    study = study_for_kind(tasks[0].kind)
+    groups: dict = {}
+    keys = []
+    for t in tasks:
+        size = t.tolerance if t.evaluate == "validate" else None
+        key = (truth_identity(study, t.scenario), t.truth_seed, size)
+        if not share:
+            key += (t.group, t.index)
+        if key not in groups:
+            scn, targets = truths_scenario(study, t)
+            groups[key] = (len(groups), scn, targets, study.truth_parts(scn, t.truth_seed), t.truth_seed)
+        keys.append(key)
+    part_tasks = [TruthPartTask(g, j, tasks[0].kind, scn, seed, p)
+                  for g, scn, _, parts, seed in groups.values() for j, p in enumerate(parts)]
+    got: dict = {}
+    for res in runner.run(part_tasks):
+        got.setdefault(res.group, {})[res.index] = res.part
+    truths = {}
+    for key, (g, scn, targets, parts, seed) in groups.items():
+        t = study.truths_from_parts(scn, seed, [got[g][j] for j in range(len(parts))])
+        truths[key] = with_targets(t, targets) if targets else t
+    return [replace(t, truths=truths[k]) for t, k in zip(tasks, keys)], len(groups)
 
 
 def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, dask_local: int | None = None, inline: bool = False,
               progress: bool = False, on_point: Callable | None = None,
-              echo: Callable[[str], None] | None = None) -> SweepReport:
+              echo: Callable[[str], None] | None = None, truths_shared: bool = True) -> SweepReport:
     """Run (or resume) a sweep into the store ``out``.
 
     Parameters
@@ -100,6 +145,8 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     progress : show a progress bar (stderr)
     on_point : called as ``on_point(group, index)`` after each point is written (hook)
     echo : where to print one-line messages (default: nowhere)
+    truths_shared : compute each distinct truth once for the points that share it
+        (:func:`share_truths`); False: one per point (the same numbers, more work)
 
     Raises
     ------
@@ -146,6 +193,11 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
             from budget.sweeps.evaluate import study_for_kind
 
             study_for_kind(sw.spec.kind).prewarm((todo_grid or todo_sens)[0].scenario)
+        todo = todo_grid + todo_sens
+        todo, report.truths_computed = share_truths(runner, todo, share=truths_shared)
+        todo_grid, todo_sens = todo[:len(todo_grid)], todo[len(todo_grid):]
+        if report.truths_computed < len(todo):
+            say(f"truths shared: {report.truths_computed} distinct truth(s) for {len(todo)} point(s)")
         for label, tasks in (("points", todo_grid), ("Sobol samples", todo_sens)):
             if not tasks:
                 continue

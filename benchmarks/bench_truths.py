@@ -1,0 +1,111 @@
+"""Cost of the truths when their precision follows the question, and of a sweep point.
+
+* **truths at the main job's precision**: the embedded default's truths sized for 200 trials
+  (the runner's pilot of the first 20 trials gives the trials' spread; the truths' target
+  is a quarter of the bias standard error, :func:`budget.runner.run.truth_targets`), in
+  this process on one core: the sizing (its 64-frame pilot) and the truths, wall and CPU;
+  beside them the fixed-size truths (the scenario's 2000 HSFE frames per phase);
+* **budget validate --trials 2, warm**: end to end in a new process (numba cache warm),
+  wall and CPU of the child;
+* **a camera sweep point**: one ``validate`` point of the default (``--trials``, 200) as a
+  sweep runs it (:func:`budget.sweeps.evaluate.evaluate_point`, one core), with its own
+  truths and with a truth shared from another point (what each further point of a group
+  costs, :func:`budget.sweeps.run.share_truths`): CPU time.
+
+The machine may be shared: CPU times are the figures to compare, wall times are given too.
+The last line is ``RESULT {json}`` (read by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_truths.py [--trials 200] [--quick]``
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import time
+import warnings
+
+if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks._common import bench_parser, emit_result, figure, format_table, print_machine  # noqa: E402
+
+
+def _timed(fn):
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t0, time.process_time() - c0
+
+
+def _validate_small() -> tuple[float, float]:
+    """(wall, CPU of the child) of ``budget validate --trials 2 --workers 1``."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "budget.cli", "validate", "--trials", "2", "--workers", "1",
+                    "--no-progress"], check=True, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
+
+def main() -> None:
+    ap = bench_parser(__doc__)
+    ap.add_argument("--trials", type=int, default=200)
+    args = ap.parse_args()
+    if args.quick:
+        args.trials = 20
+    print_machine()
+    import numba
+
+    from budget.runner.registry import get_study
+    from budget.runner.run import PILOT_TRIALS, _collect, truth_targets
+    from budget.sweeps.evaluate import PointTask, evaluate_point
+
+    numba.set_num_threads(1)
+    warnings.simplefilter("ignore")
+    _validate_small()  # numba's cache warm, the scenes' code imported
+    small = min((_validate_small() for _ in range(2)), key=lambda x: x[0])
+    study = get_study("starcam")
+    scn = study.load_scenario()
+    pilot = {k: study.trial(scn, 0, k) for k in range(min(PILOT_TRIALS, args.trials))}
+    samples, tt, _ = _collect(pilot)
+    targets = truth_targets(study.classes(scn), samples=samples, trial_truths=tt, trials=args.trials)
+    sized, size_wall, size_cpu = _timed(lambda: study.truth_size_for(scn, 0, targets))
+    _, ada_wall, ada_cpu = _timed(lambda: study.truths(sized, 0))
+    _, fix_wall, fix_cpu = _timed(lambda: study.truths(scn, 1))  # another seed: no scene cached twice
+    task = PointTask("grid", 0, "starcam", "validate", scn, 7, args.trials, None, 7)
+    _, own_wall, own_cpu = _timed(lambda: evaluate_point(task))
+    from dataclasses import replace
+
+    shared = study.truths(scn, 8)
+    _, sh_wall, sh_cpu = _timed(lambda: evaluate_point(replace(task, seed=9, truth_seed=8, truths=shared)))
+    v = sized.validation
+    print(format_table(["what", "wall s", "CPU s"], [
+        [f"sizing for {args.trials} trials (64-frame pilot): HSFE {v.hsfe_truth_frames} frames/phase, "
+         f"TE {v.te_truth_frames}", f"{size_wall:.2f}", f"{size_cpu:.2f}"],
+        ["the default's truths, sized (one core)", f"{ada_wall:.2f}", f"{ada_cpu:.2f}"],
+        ["the default's truths, fixed sizes (one core)", f"{fix_wall:.2f}", f"{fix_cpu:.2f}"],
+        ["budget validate --trials 2 --workers 1, warm, end to end", f"{small[0]:.2f}", f"{small[1]:.2f}"],
+        [f"sweep point, {args.trials} trials, its own truths", f"{own_wall:.1f}", f"{own_cpu:.1f}"],
+        [f"sweep point, {args.trials} trials, a shared truth", f"{sh_wall:.1f}", f"{sh_cpu:.1f}"],
+    ]))
+    emit_result("truths", [
+        figure("truths_sized_cpu_s", f"default's truths at the precision of {args.trials} trials, sizing "
+               "included, one core (CPU s)", size_cpu + ada_cpu, "s", target=1.0, target_source="issue 25"),
+        figure("truths_fixed_cpu_s", "default's truths, fixed sizes, one core (CPU s)", fix_cpu, "s"),
+        figure("validate_trials2_s", "budget validate --trials 2, warm, end to end (wall s)", small[0], "s",
+               target=2.0, target_source="issue 25"),
+        figure("validate_trials2_cpu_s", "budget validate --trials 2, warm, end to end (CPU s)", small[1], "s"),
+        figure("sweep_point_cpu_s", f"camera sweep point, {args.trials} trials, with its truths (CPU s)",
+               own_cpu, "s", target=7.0 if args.trials == 200 else None,
+               target_source="issue 25" if args.trials == 200 else None),
+        figure("sweep_point_shared_cpu_s", f"camera sweep point, {args.trials} trials, truth shared (CPU s)",
+               sh_cpu, "s"),
+    ], quick=args.quick, trials=args.trials, hsfe_truth_frames=v.hsfe_truth_frames,
+        te_truth_frames=v.te_truth_frames)
+
+
+if __name__ == "__main__":
+    main()
