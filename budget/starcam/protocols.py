@@ -369,16 +369,14 @@ def _drifted_chains(camera, scene, drift):
 
 def _expose_centroid_drift(camera, scene, drift, *, seed: int, dark_mean, threshold_dn):
     """:func:`_expose_centroid` for a drifting image: each frame exposed from its own chain."""
-    from budget.starcam.kernels_trial import expose_centroid_chain
+    from budget.starcam.kernels_trial import expose_centroid_drift_chain
 
-    n = drift[0].shape[0]
-    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
-    out = [np.empty((n, scene.n_stars)) for _ in range(3)] + [np.zeros((n, scene.n_stars), dtype=np.int64)]
-    for f, ch in _drifted_chains(camera, scene, drift):
-        r = expose_centroid_chain(ch, keys[f:f + 1], dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=False)
-        for o, v in zip(out, r):
-            o[f] = v[0]
-    return tuple(out)
+    d, nominal = drift
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=d.shape[0])
+    chain, gx, gy = camera.drift_chain(scene, nominal)
+    # one kernel call for every frame, each from its own drifted mean (the same values as
+    # _drifted_chains and one expose_centroid_chain call per frame, bit for bit)
+    return expose_centroid_drift_chain(chain, gx, gy, d, keys, dark_mean=dark_mean, threshold_dn=threshold_dn)
 
 
 def _render_windows_drift(camera, scene, drift, *, seed: int):

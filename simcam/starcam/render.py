@@ -420,12 +420,7 @@ class StarCamera:
     def _expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w = self.scenario.render.window_px
         col0, row0 = self.window_origins(scene)
-        sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
-        cc = self.mosaic.chip_cols
-        for j in range(scene.n_stars):
-            k = int(scene.chip[j])
-            self._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
-        return sig, col0, row0
+        return _expected_windows_at(self, scene, col0, row0), col0, row0
 
     # ------------------------------------------------------------------ noise
     def window_chain(self, scene: Scene, *, dark: bool = False):
@@ -520,10 +515,18 @@ class StarCamera:
 
 def _expected_windows_at(camera: StarCamera, scene: Scene, col0, row0) -> np.ndarray:
     """Noise-free photo-electrons of ``scene`` in windows at given mosaic origins."""
+    from simcam.starcam.kernels.windows import add_stamps_windows
+
     w = camera.scenario.render.window_px
     sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
     cc = camera.mosaic.chip_cols
-    for j in range(scene.n_stars):
-        k = int(scene.chip[j])
-        camera._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+    chip = np.asarray(scene.chip, dtype=np.int64)
+    # one numba pass over (window, star), the same sums in the same order as
+    # StarCamera._add_stamps per window (simcam.starcam.kernels.windows); arguments of one
+    # type whatever the caller (numba compiles it once)
+    add_stamps_windows(sig, np.ascontiguousarray(scene.stamps, dtype=np.float64),
+                       np.ascontiguousarray(scene.electrons, dtype=np.float64), chip,
+                       np.asarray(scene.stamp_row0, dtype=np.int64), np.asarray(scene.stamp_col0, dtype=np.int64),
+                       chip, np.asarray(row0, dtype=np.int64), np.asarray(col0, dtype=np.int64) - chip * cc,
+                       int(camera.mosaic.chip_rows), int(cc))
     return sig
