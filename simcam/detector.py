@@ -254,10 +254,13 @@ def apply_nonlinearity(mean_e: np.ndarray, *, col0, chip_cols: int, params: Dete
     squeeze = m.ndim == 2
     if squeeze:
         m = m[None]
-    c0 = np.atleast_1d(np.asarray(col0, dtype=np.int64))
-    cols = c0[:, None] + np.arange(m.shape[-1])[None, :]             # (n, w) mosaic columns
-    fw = np.asarray(params.full_well_e, dtype=np.float64)[cols // int(chip_cols)][:, None, :]
-    out = m * (1.0 - beta * np.minimum(m, fw) / fw)
+    c0 = np.ascontiguousarray(np.atleast_1d(np.asarray(col0, dtype=np.int64)))
+    m = np.ascontiguousarray(m)
+    out = np.empty_like(m)
+    # one numba pass, the numpy expression's operations in its order (same values):
+    # m * (1 - beta * minimum(m, fw) / fw), fw the full well of each column's chip
+    _k.nonlinearity_windows(m, c0, int(chip_cols), np.asarray(params.full_well_e, dtype=np.float64),
+                            float(beta), out)
     return out[0] if squeeze else out
 
 

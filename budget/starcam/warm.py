@@ -23,6 +23,7 @@ targets a trial and the truths compile nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -66,6 +67,8 @@ def compile_support(arg: str) -> None:
     h = w = 5
     params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
                             adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w,
+                 params=dataclasses.replace(params, nonlinearity_beta=0.008), detector_key=np.uint64(1))
     window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
                  detector_key=np.uint64(1))
     # a scene's windows from its stamps, with the types simcam.starcam.render passes
