@@ -160,7 +160,7 @@ def test_nonlinearity_kernel_equals_its_formula():
                        full_well_e=(4e4, 5e4), adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5,
                        nonlinearity_beta=0.008)
     m = np.random.default_rng(1).uniform(0.0, 6e4, (3, 7, 9))  # fixed seed; above and below FW
-    c0 = np.array([0, 5, 12])  # windows astride the chip boundary at column 10
+    c0 = np.array([0, 5, 11])  # windows astride the chip boundary at column 10
     fw = np.array([4e4, 5e4])[(c0[:, None] + np.arange(9)[None, :]) // 10][:, None, :]
     ref = m * (1.0 - 0.008 * np.minimum(m, fw) / fw)
     assert np.array_equal(apply_nonlinearity(m, col0=c0, chip_cols=10, params=p), ref)
