@@ -272,7 +272,7 @@ class StarCamera:
         truth["x_reference"] = x_refm
         truth["y_reference"] = y_refm
         derived = dataclasses.replace(hit, placement=placement, truth=truth)
-        for name in ("_windows_e", "_chain", "_chain_dark"):  # do not depend on the reference
+        for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
@@ -359,11 +359,15 @@ class StarCamera:
                 "condition": np.full(W, placement.condition),
             }
         )
-        return Scene(
+        scene = Scene(
             placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
             electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
             truth=truth, background_e=self.background_e,
         )
+        # the true positions as arrays beside the table (a fresh DataFrame's first column
+        # reads cost about a millisecond; window_origins reads them once per scene)
+        object.__setattr__(scene, "_true_xy", (x_true, yc))
+        return scene
 
     # ------------------------------------------------------------------ signal
     def _add_stamps(self, signal: np.ndarray, scene: Scene, *, chip: int, row0: int, col0: int) -> None:
@@ -401,9 +405,11 @@ class StarCamera:
     def window_origins(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         """Mosaic (col0, row0) of each star's window, centred on its true position's pixel."""
         half = self.scenario.render.window_px // 2
-        xc = scene.truth["x_true"].to_numpy() - scene.chip * self.mosaic.chip_cols
+        xy = scene.__dict__.get("_true_xy")
+        x_true, y_true = xy if xy is not None else (scene.truth["x_true"].to_numpy(), scene.truth["y_true"].to_numpy())
+        xc = x_true - scene.chip * self.mosaic.chip_cols
         col0_chip = np.floor(xc + 0.5).astype(np.int64) - half
-        row0 = np.floor(scene.truth["y_true"].to_numpy() + 0.5).astype(np.int64) - half
+        row0 = np.floor(y_true + 0.5).astype(np.int64) - half
         return col0_chip + scene.chip * self.mosaic.chip_cols, row0
 
     def expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
