@@ -311,12 +311,17 @@ _LAYOUTS: dict = {}
 
 def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
     """The per-row columns of a condition's centroid table (window origins, star, frame,
-    condition, filter, field) and its windows' noise and threshold (DN): fixed for a scene
-    and condition, so kept on the scene (read-only) for the next trial."""
-    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames)
-    store = scene.__dict__.setdefault("_protocol_columns", {})
+    condition, filter, field) and its windows' noise and threshold (DN): fixed for a
+    condition and its window origins, so kept on the camera (read-only) for the next trial,
+    also when a new pose error (the world's hexapod, drift) makes the scene new but leaves
+    the windows where they were."""
+    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames,
+           scene.n_stars, chain.col0.tobytes(), chain.row0.tobytes())
+    store = camera.__dict__.setdefault("_protocol_columns", {})
     cc = store.get(key)
     if cc is None:
+        if len(store) > 512:
+            store.clear()
         W, n = scene.n_stars, c.frames
         noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=dark_frames)["noise_dn"]
         cc = {"noise_dn": noise_dn, "threshold_dn": float(threshold_sigma) * noise_dn,
