@@ -534,7 +534,10 @@ def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: Detect
                                float(params.dsnu_rms_e), float(params.hot_pixel_fraction),
                                float(params.hot_pixel_dark_e), dk, mean)
         if params.nonlinearity_beta != 0.0:
-            mean = apply_nonlinearity(mean, col0=c0, chip_cols=cc, params=params)
+            # apply_nonlinearity in place (the kernel reads each pixel before writing it):
+            # no second full-size array for a full frame
+            _k.nonlinearity_windows(mean, c0, int(cc), np.asarray(params.full_well_e, dtype=np.float64),
+                                    float(params.nonlinearity_beta), mean)
     g, off, rn, fw = params._chip_arrays()
     return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
 
