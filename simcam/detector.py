@@ -254,10 +254,13 @@ def apply_nonlinearity(mean_e: np.ndarray, *, col0, chip_cols: int, params: Dete
     squeeze = m.ndim == 2
     if squeeze:
         m = m[None]
-    c0 = np.atleast_1d(np.asarray(col0, dtype=np.int64))
-    cols = c0[:, None] + np.arange(m.shape[-1])[None, :]             # (n, w) mosaic columns
-    fw = np.asarray(params.full_well_e, dtype=np.float64)[cols // int(chip_cols)][:, None, :]
-    out = m * (1.0 - beta * np.minimum(m, fw) / fw)
+    c0 = np.ascontiguousarray(np.atleast_1d(np.asarray(col0, dtype=np.int64)))
+    m = np.ascontiguousarray(m)
+    out = np.empty_like(m)
+    # one numba pass, the numpy expression's operations in its order (same values):
+    # m * (1 - beta * minimum(m, fw) / fw), fw the full well of each column's chip
+    _k.nonlinearity_windows(m, c0, int(chip_cols), np.asarray(params.full_well_e, dtype=np.float64),
+                            float(beta), out)
     return out[0] if squeeze else out
 
 
@@ -531,7 +534,10 @@ def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: Detect
                                float(params.dsnu_rms_e), float(params.hot_pixel_fraction),
                                float(params.hot_pixel_dark_e), dk, mean)
         if params.nonlinearity_beta != 0.0:
-            mean = apply_nonlinearity(mean, col0=c0, chip_cols=cc, params=params)
+            # apply_nonlinearity in place (the kernel reads each pixel before writing it):
+            # no second full-size array for a full frame
+            _k.nonlinearity_windows(mean, c0, int(cc), np.asarray(params.full_well_e, dtype=np.float64),
+                                    float(params.nonlinearity_beta), mean)
     g, off, rn, fw = params._chip_arrays()
     return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
 

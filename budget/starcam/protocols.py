@@ -311,12 +311,17 @@ _LAYOUTS: dict = {}
 
 def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
     """The per-row columns of a condition's centroid table (window origins, star, frame,
-    condition, filter, field) and its windows' noise and threshold (DN): fixed for a scene
-    and condition, so kept on the scene (read-only) for the next trial."""
-    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames)
-    store = scene.__dict__.setdefault("_protocol_columns", {})
+    condition, filter, field) and its windows' noise and threshold (DN): fixed for a
+    condition and its window origins, so kept on the camera (read-only) for the next trial,
+    also when a new pose error (the world's hexapod, drift) makes the scene new but leaves
+    the windows where they were."""
+    key = ("_columns", c.index, c.frames, c.filter_nm, c.field, float(threshold_sigma), dark_frames,
+           scene.n_stars, chain.col0.tobytes(), chain.row0.tobytes())
+    store = camera.__dict__.setdefault("_protocol_columns", {})
     cc = store.get(key)
     if cc is None:
+        if len(store) > 512:
+            store.clear()
         W, n = scene.n_stars, c.frames
         noise_dn = centroid_options(camera, chain.col0, threshold_sigma, dark_frames=dark_frames)["noise_dn"]
         cc = {"noise_dn": noise_dn, "threshold_dn": float(threshold_sigma) * noise_dn,
@@ -369,16 +374,14 @@ def _drifted_chains(camera, scene, drift):
 
 def _expose_centroid_drift(camera, scene, drift, *, seed: int, dark_mean, threshold_dn):
     """:func:`_expose_centroid` for a drifting image: each frame exposed from its own chain."""
-    from budget.starcam.kernels_trial import expose_centroid_chain
+    from budget.starcam.kernels_trial import expose_centroid_drift_chain
 
-    n = drift[0].shape[0]
-    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=n)
-    out = [np.empty((n, scene.n_stars)) for _ in range(3)] + [np.zeros((n, scene.n_stars), dtype=np.int64)]
-    for f, ch in _drifted_chains(camera, scene, drift):
-        r = expose_centroid_chain(ch, keys[f:f + 1], dark_mean=dark_mean, threshold_dn=threshold_dn, parallel=False)
-        for o, v in zip(out, r):
-            o[f] = v[0]
-    return tuple(out)
+    d, nominal = drift
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=d.shape[0])
+    chain, gx, gy = camera.drift_chain(scene, nominal)
+    # one kernel call for every frame, each from its own drifted mean (the same values as
+    # _drifted_chains and one expose_centroid_chain call per frame, bit for bit)
+    return expose_centroid_drift_chain(chain, gx, gy, d, keys, dark_mean=dark_mean, threshold_dn=threshold_dn)
 
 
 def _render_windows_drift(camera, scene, drift, *, seed: int):

@@ -1,7 +1,8 @@
 """A star-camera validation's first-run compilation, in two processes.
 
 A trial needs three groups of numba kernels: the PSF stamps
-(:mod:`simcam.starcam.kernels.psf`), the detector's fixed pattern
+(:mod:`simcam.starcam.kernels.psf`, and the windows summed from them,
+:mod:`simcam.starcam.kernels.windows`), the detector's fixed pattern
 (:func:`simcam.kernels.detector.mean_charge_windows`) and the fused
 expose-and-centroid kernel (:mod:`budget.starcam.kernels_trial`, with the noise, random
 number and centroid kernels it calls). On a fresh install numba compiles them one after
@@ -22,6 +23,7 @@ targets a trial and the truths compile nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -40,8 +42,10 @@ def prewarm(scenario) -> None:
     fused = val.centroid_method == "cog"
     windows = int(val.dark_frames) > 0 or not fused
     opts = json.dumps({"fused": fused, "windows": windows})
-    check = [kp.folded_stamp_spectra]
-    check += [kt.expose_centroid_frames_serial] if fused else []
+    from simcam.starcam.kernels import windows as kw
+
+    check = [kp.folded_stamp_spectra, kw.add_stamps_windows]
+    check += [kt.expose_centroid_frames_serial, kt.expose_centroid_drift_serial] if fused else []
     check += [kd.expose_windows_frames_serial] if windows else []
     with compiling_in_parallel([("budget.starcam.warm:compile_support", opts)], check=check) as cold:
         if cold:
@@ -56,14 +60,20 @@ def compile_support(arg: str) -> None:
     from budget.centroid.kernels import border_one, cog_one
     from simcam.rng import poisson_prepared, std_normal
     from simcam.detector import DetectorParams, window_chain
+    from simcam.starcam.kernels.windows import add_stamps_windows
 
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
     std_normal(np.uint64(1), np.uint64(2))
     h = w = 5
     params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
                             adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w,
+                 params=dataclasses.replace(params, nonlinearity_beta=0.008), detector_key=np.uint64(1))
     window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
                  detector_key=np.uint64(1))
+    # a scene's windows from its stamps, with the types simcam.starcam.render passes
+    i1 = np.zeros(1, dtype=np.int64)
+    add_stamps_windows(np.zeros((1, h, w)), np.zeros((1, 4, 4)), np.ones(1), i1, i1, i1, i1, i1, i1, 5, 5)
     win = np.zeros((h, w))
     border_one(win, np.empty(16), np.bool_(False))
     cog_one(win, 0.0, 0.0, 0.0, 1.0, False, np.inf)
@@ -76,7 +86,7 @@ def compile_stamps_and_exposure(arg: str) -> None:
     ``windows``: dark frames, or a method other than the centre of gravity), through
     :func:`budget.starcam.kernels_trial.expose_centroid_chain` and
     :func:`simcam.detector.expose_windows_frames`. ``arg``: JSON options."""
-    from budget.starcam.kernels_trial import expose_centroid_chain
+    from budget.starcam.kernels_trial import expose_centroid_chain, expose_centroid_drift_chain
     from simcam.rng import child_keys
     from simcam.detector import WindowChain, expose_windows_frames
     from simcam.starcam.optics import render_stamps
@@ -95,5 +105,9 @@ def compile_stamps_and_exposure(arg: str) -> None:
     keys = child_keys(np.uint64(1), 2)
     if opts.get("fused", True):
         expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
+        # a drifting condition (the world's target drift, simcam.starcam.world)
+        g = np.zeros((1, h, w))
+        expose_centroid_drift_chain(chain, g, g, np.zeros((2, 2)), keys, dark_mean=None,
+                                    threshold_dn=np.full(1, 3.0))
     if opts.get("windows", True):
         expose_windows_frames(frame_keys=keys, chain=chain, parallel=False)

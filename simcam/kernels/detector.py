@@ -193,6 +193,26 @@ def mean_charge_windows(signal_e, row0, col0, mosaic_cols, prnu_rms, dark_e, dsn
                                               hot_fraction, hot_dark_e))
 
 
+@njit(cache=True)
+def nonlinearity_windows(mean, col0, chip_cols, full_well_e, beta, out):
+    """Integral non-linearity ``s (1 - beta min(s, FW) / FW)`` of ``n`` windows' mean charge
+    ``mean[n, h, w]`` (window ``k`` starting at mosaic column ``col0[k]``, ``FW`` the full well of
+    each column's chip) into ``out`` (:func:`simcam.detector.apply_nonlinearity`): the same
+    operations in the same order as its numpy expression, so the same values, in one pass
+    without temporaries (an 8-Mpx frame: five 64-MB passes fewer; issue 25)."""
+    n, h, w = mean.shape
+    fwc = np.empty(w)
+    for k in range(n):
+        for j in range(w):
+            fwc[j] = full_well_e[(col0[k] + j) // chip_cols]
+        for i in range(h):
+            for j in range(w):
+                s = mean[k, i, j]
+                fw = fwc[j]
+                mn = s if s <= fw else fw
+                out[k, i, j] = s * (1.0 - beta * mn / fw)
+
+
 @njit(cache=True, inline="always")
 def _noise_adc_pixel(v, pixel, g, off, rn, fw, frame_key, shot_noise, read_noise, quantize, max_dn):
     """Temporal noise and ADC of one pixel of mean charge ``v`` (e-): Poisson, full well,

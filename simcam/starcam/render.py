@@ -272,7 +272,7 @@ class StarCamera:
         truth["x_reference"] = x_refm
         truth["y_reference"] = y_refm
         derived = dataclasses.replace(hit, placement=placement, truth=truth)
-        for name in ("_windows_e", "_chain", "_chain_dark"):  # do not depend on the reference
+        for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
@@ -359,11 +359,15 @@ class StarCamera:
                 "condition": np.full(W, placement.condition),
             }
         )
-        return Scene(
+        scene = Scene(
             placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
             electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
             truth=truth, background_e=self.background_e,
         )
+        # the true positions as arrays beside the table (a fresh DataFrame's first column
+        # reads cost about a millisecond; window_origins reads them once per scene)
+        object.__setattr__(scene, "_true_xy", (x_true, yc))
+        return scene
 
     # ------------------------------------------------------------------ signal
     def _add_stamps(self, signal: np.ndarray, scene: Scene, *, chip: int, row0: int, col0: int) -> None:
@@ -401,9 +405,11 @@ class StarCamera:
     def window_origins(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         """Mosaic (col0, row0) of each star's window, centred on its true position's pixel."""
         half = self.scenario.render.window_px // 2
-        xc = scene.truth["x_true"].to_numpy() - scene.chip * self.mosaic.chip_cols
+        xy = scene.__dict__.get("_true_xy")
+        x_true, y_true = xy if xy is not None else (scene.truth["x_true"].to_numpy(), scene.truth["y_true"].to_numpy())
+        xc = x_true - scene.chip * self.mosaic.chip_cols
         col0_chip = np.floor(xc + 0.5).astype(np.int64) - half
-        row0 = np.floor(scene.truth["y_true"].to_numpy() + 0.5).astype(np.int64) - half
+        row0 = np.floor(y_true + 0.5).astype(np.int64) - half
         return col0_chip + scene.chip * self.mosaic.chip_cols, row0
 
     def expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -420,12 +426,7 @@ class StarCamera:
     def _expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w = self.scenario.render.window_px
         col0, row0 = self.window_origins(scene)
-        sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
-        cc = self.mosaic.chip_cols
-        for j in range(scene.n_stars):
-            k = int(scene.chip[j])
-            self._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
-        return sig, col0, row0
+        return _expected_windows_at(self, scene, col0, row0), col0, row0
 
     # ------------------------------------------------------------------ noise
     def window_chain(self, scene: Scene, *, dark: bool = False):
@@ -520,10 +521,18 @@ class StarCamera:
 
 def _expected_windows_at(camera: StarCamera, scene: Scene, col0, row0) -> np.ndarray:
     """Noise-free photo-electrons of ``scene`` in windows at given mosaic origins."""
+    from simcam.starcam.kernels.windows import add_stamps_windows
+
     w = camera.scenario.render.window_px
     sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
     cc = camera.mosaic.chip_cols
-    for j in range(scene.n_stars):
-        k = int(scene.chip[j])
-        camera._add_stamps(sig[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
+    chip = np.asarray(scene.chip, dtype=np.int64)
+    # one numba pass over (window, star), the same sums in the same order as
+    # StarCamera._add_stamps per window (simcam.starcam.kernels.windows); arguments of one
+    # type whatever the caller (numba compiles it once)
+    add_stamps_windows(sig, np.ascontiguousarray(scene.stamps, dtype=np.float64),
+                       np.ascontiguousarray(scene.electrons, dtype=np.float64), chip,
+                       np.asarray(scene.stamp_row0, dtype=np.int64), np.asarray(scene.stamp_col0, dtype=np.int64),
+                       chip, np.asarray(row0, dtype=np.int64), np.asarray(col0, dtype=np.int64) - chip * cc,
+                       int(camera.mosaic.chip_rows), int(cc))
     return sig

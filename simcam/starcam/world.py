@@ -147,20 +147,27 @@ def drift_px(scn: Scenario, seed: int) -> dict:
         return None
     scale = scn.camera.scale_arcsec_per_px
     keys, times = [], []
+    tl = timeline(scn)  # once (frame_times_s rebuilds it per condition)
     for pr, i, _, _ in _conditions(scn):
         keys.append((pr, i))
-        times.append(frame_times_s(scn, pr, i))
+        t0, period, n = tl[(pr, i)]
+        times.append(t0 + np.arange(n) * period + 0.5 * scn.camera.exposure_s)  # as frame_times_s
     t = np.concatenate(times)
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM_DRIFT,)))
     phi = rng.uniform(0.0, 2.0 * math.pi)
     z = rng.normal(0.0, 1.0, (t.size, 2))
     ramp = (rate / 3600.0) * t[:, None] * np.array([math.cos(phi), math.sin(phi)])[None, :]
-    gm = np.empty((t.size, 2))
     tau = scn.world.drift_time_constant_s
-    gm[0] = sig * z[0]
+    # the recursion on Python floats (the same IEEE operations in the same order as on
+    # numpy rows, a microsecond less per frame: issue 25)
+    tl, zu, zv = t.tolist(), z[:, 0].tolist(), z[:, 1].tolist()
+    gu, gv = [sig * zu[0]], [sig * zv[0]]
     for k in range(1, t.size):
-        a = math.exp(-(t[k] - t[k - 1]) / tau)
-        gm[k] = a * gm[k - 1] + sig * math.sqrt(max(0.0, 1.0 - a * a)) * z[k]
+        a = math.exp(-(tl[k] - tl[k - 1]) / tau)
+        b = sig * math.sqrt(max(0.0, 1.0 - a * a))
+        gu.append(a * gu[-1] + b * zu[k])
+        gv.append(a * gv[-1] + b * zv[k])
+    gm = np.column_stack([gu, gv])
     d = (ramp + gm) / scale
     out = {}
     start = 0
