@@ -195,6 +195,16 @@ def test_json_schema_claims_residuals_and_report(tmp_path):
     assert len({c["scenario_hash"] for c in payload["cases"].values()}) == len(payload["cases"])
     assert payload["effects"]["offset_units"]["source"] == "a constant offset"
     assert "a residual, no claim" in payload["breaks"]["variance.improved"]["sentence"]
+    # the residual's sentence names the effect alone that moves it most, not the case "all":
+    # AR(1) noise biases the ddof-1 variance by -sigma^2 (2/(m-1)) sum_k (1 - k/m) rho^k
+    # = -0.40 (sigma 2, m 8, rho 0.3), against +0.08 for the 1 % gain error (4 ((1.01)^2 - 1)),
+    # about +0.08 for the non-linearity (slope 1 + 2 beta x = 1.01 at x ~ 5), 6e-4 for the
+    # drift (d^2 var(i)), 0 for the offset and in expectation for the extra noise (its truth
+    # moves with it); the paired shifts' standard errors at 40 trials are <= 0.13, so the
+    # gap of 0.48 is over 3 of them (fixed seed)
+    var_break = payload["breaks"]["variance.improved"]
+    assert var_break["effect"] == "correlation_rho"
+    assert "correlation_rho changes it most" in var_break["sentence"] and "all together" in var_break["sentence"]
     rep = res.write_report(tmp_path / "rob")
     text = rep.read_text()
     assert "| case |" in text and "What breaks each claim" in text and "`offset_units` = 0.1" in text

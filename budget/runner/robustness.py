@@ -402,12 +402,17 @@ class RobustnessResult:
             return s + (f" on axis {k[2]}" if len(keys) > 1 else "")
 
         if spec.role == "residual":
-            others = [cn for cn in singles + [ALL] if cn in cells]
-            if not others:
-                return {"effect": None, "axis": None, "sentence": f"{head}: a residual, no claim to test."}
-            big = max(((cn, k) for cn in others for k in keys), key=lambda ck: abs(cells[ck[0]][ck[1]]["shift"]))
-            return {"effect": None, "axis": None,
-                    "sentence": f"{head}: a residual, no claim to test; {big[0]} changes it most: {said(*big)}."}
+            # no verdict; which effect alone moves it most (the case "all" always would, or
+            # nearly: naming it would say nothing), then all together
+            s, effect, axis = f"{head}: a residual, no claim to test", None, None
+            if singles:
+                big = max(((cn, k) for cn in singles for k in keys), key=lambda ck: abs(cells[ck[0]][ck[1]]["shift"]))
+                s += f"; of the effects alone {big[0]} changes it most: {said(*big)}"
+                effect, axis = big[0], big[1][2]
+            if ALL in cells:
+                ka = max(keys, key=lambda k: abs(cells[ALL][k]["shift"]))
+                s += f"; all together: {said(ALL, ka)}"
+            return {"effect": effect, "axis": axis, "sentence": s + "."}
         w0 = worst([IDEAL])
         if w0 is not None:
             s = f"{head}: its claim fails already in the ideal world: {said(IDEAL, w0[2])}"
