@@ -374,7 +374,7 @@ class RobustnessResult:
         return out
 
     def _verdict(self, spec: ClassSpec, var: str, keys, cells, singles) -> dict:
-        unit = spec.unit
+        unit = "" if spec.unit in ("", "1") else f" {spec.unit}"  # a ratio's unit "1" is not written
         head = f"{spec.label}, {var}"
 
         def worst(case_names, failing_only=True):
@@ -391,7 +391,7 @@ class RobustnessResult:
 
         def said(cn, k) -> str:
             c = cells[cn][k]
-            s = f"bias {_fmt(c['bias'])} +- {abs(c['se_bias']):.2g} {unit}"
+            s = f"bias {_fmt(c['bias'])} +- {abs(c['se_bias']):.2g}{unit}"
             if cn != IDEAL:
                 s += f" (a shift of {_fmt(c['shift'])} +- {abs(c['se_shift']):.2g} from the ideal world)"
             if c["claim"] is not None:
