@@ -172,6 +172,29 @@ class _ResidualToy(ToyWorldStudy):
         return mean, ClassSpec(var.name, var.label, var.unit, var.axes, var.description, role="residual")
 
 
+class _UndeterminedToy(ToyWorldStudy):
+    """The toy with its variance's axis declared a gauge freedom (not determined)."""
+
+    def classes(self, scenario):
+        mean, var = super().classes(scenario)
+        return mean, ClassSpec(var.name, var.label, var.unit, var.axes, var.description, undetermined=var.axes)
+
+
+def test_an_undetermined_axis_has_no_claim():
+    """A gauge freedom's estimate is a convention: no verdict (as the findings' "not
+    determined"), never "ok" nor "FAIL", and no sentence says an effect breaks it."""
+    study = _UndeterminedToy()
+    res = run_robustness(study, study.load_scenario(), trials=20, seed=3)
+    payload = res.to_json()
+    for case in payload["cases"].values():
+        for cell in case["classes"]["variance"]["a"].values():
+            assert cell["claim_holds"] is None and cell["claim"] is None
+        assert isinstance(case["classes"]["mean"]["a"]["published"]["claim_holds"], bool)
+    for var in study.variants:
+        b = payload["breaks"][f"variance.{var}"]
+        assert b["effect"] is None and "not determined" in b["sentence"]
+
+
 def test_json_schema_claims_residuals_and_report(tmp_path):
     study = _ResidualToy(claims={("mean", "published"): 0.5})
     res = run_robustness(study, study.load_scenario(), trials=40, seed=2)

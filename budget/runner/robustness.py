@@ -35,7 +35,8 @@ trials whose error is within it:
 * the coverage part, where a sigma is stated: ``|c - 0.6827| <= 3 sqrt(0.6827 * 0.3173 / m)``
   (the binomial 3-standard-error band for ``m`` trials);
 * ``claim_holds`` = both parts; ``null`` for a class of role ``"residual"`` (what a
-  compensation leaves: no claim to test).
+  compensation leaves: no claim to test) and for an axis the data cannot determine
+  (:attr:`ClassSpec.undetermined`, a gauge freedom: its estimate is a convention).
 
 The result, :class:`RobustnessResult`, gives the JSON (schema ``budget.robustness/1``:
 ``cases[name].classes[class][axis][variant]`` with ``bias``, ``se_bias``, ``std``,
@@ -324,13 +325,17 @@ class RobustnessResult:
                 spec = res.class_spec(cls)
                 st = res.statistics(key)
                 cov = st.get("coverage")
-                claim = None if spec.role == "residual" else self.study.claim(case.scenario, cls, var)
+                # no claim: a residual, or an axis the data cannot determine (a gauge freedom,
+                # ClassSpec.undetermined: its estimate is a convention, no sigma is stated)
+                no_claim = spec.role == "residual" or st.get("determined") is False
+                claim = None if no_claim else self.study.claim(case.scenario, cls, var)
                 cell = {"bias": st["bias"], "se_bias": st["se_bias"], "std": st["std"], "mean": st["mean"],
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
                         "se_coverage_1sigma": cov["se_1sigma"] if cov else None,
                         "coverage_n": cov["n"] if cov else 0, "claim": claim,
                         "scale": max(abs(st["truth"]), abs(st["mean"]))}
-                cell["claim_holds"] = None if spec.role == "residual" else claim_holds(
+                cell["determined"] = st.get("determined") is not False
+                cell["claim_holds"] = None if no_claim else claim_holds(
                     bias=cell["bias"], se_bias=cell["se_bias"], claim=claim, coverage_1sigma=cell["coverage_1sigma"],
                     coverage_n=cell["coverage_n"], scale=cell["scale"])
                 cell["shift"], cell["se_shift"] = self._shift(key, res, ideal, case)
@@ -370,6 +375,13 @@ class RobustnessResult:
                 keys = [k for k in self.columns() if k[0] == spec.name and k[1] == var]
                 if not keys:
                     continue
+                determined = [k for k in keys if cells[IDEAL][k]["determined"]]
+                if not determined:
+                    out[(spec.name, var)] = {"effect": None, "axis": None, "sentence": (
+                        f"{spec.label}, {var}: not determined (a gauge freedom: the data cannot separate "
+                        "it from another parameter), no claim to test.")}
+                    continue
+                keys = determined
                 out[(spec.name, var)] = self._verdict(spec, var, keys, cells, singles)
         return out
 
