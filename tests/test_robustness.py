@@ -20,6 +20,7 @@ from budget.runner.robustness import (
     claim_holds,
     coverage_consistent,
     run_robustness,
+    summary_cell,
 )
 from budget.runner.study import ClassSpec
 from simcam.cli_common import UserInputError
@@ -193,6 +194,27 @@ def test_an_undetermined_axis_has_no_claim():
     for var in study.variants:
         b = payload["breaks"][f"variance.{var}"]
         assert b["effect"] is None and "not determined" in b["sentence"]
+
+
+def test_a_table_cell_sums_up_the_axes_of_a_class_and_variant():
+    def cell(bias, se, holds, claim=None, cov=None):
+        return {"bias": bias, "se_bias": se, "claim": claim, "claim_holds": holds, "coverage_1sigma": cov,
+                "coverage_n": 100 if cov is not None else 0, "scale": 1.0}
+
+    # one axis: its verdict and bias, no axis named
+    assert summary_cell([("x", cell(0.5, 0.1, False))]) == "FAIL +0.5"
+    assert summary_cell([("x", cell(0.5, 0.1, False))], markdown=True) == "**FAIL** +0.5"
+    # two of three fail: the one farthest past its claim (|bias| / 3 se: 3.0 for b, 1.7 for a;
+    # c's coverage is 0.12 of its 3-se band, 0.14 at 100 trials)
+    axes = [("a", cell(0.5, 0.1, False)), ("b", cell(-0.9, 0.1, False)), ("c", cell(0.0, 0.1, True, cov=0.70))]
+    assert summary_cell(axes) == "FAIL 2/3 -0.9 (b)"
+    # all hold: the worst is a's coverage 0.55, 0.95 of its 3-se band (0.14 at 100 trials),
+    # against b's bias at 0.67 of 3 se
+    axes = [("a", cell(0.1, 0.1, True, cov=0.55)), ("b", cell(0.2, 0.1, True))]
+    assert summary_cell(axes) == "ok +0.1 (a)"
+    # an undetermined axis (claim_holds None) is not counted; none judged: "--" and the largest |bias|
+    assert summary_cell([("a", cell(9.0, 0.1, None)), ("b", cell(0.2, 0.1, True))]) == "ok +0.2"
+    assert summary_cell([("a", cell(0.3, 0.1, None)), ("b", cell(-0.4, 0.1, None))]) == "-- -0.4 (b)"
 
 
 def test_json_schema_claims_residuals_and_report(tmp_path):

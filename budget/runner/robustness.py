@@ -62,7 +62,8 @@ from budget.runner.study import ClassSpec, Study, TrialResult
 from simcam.effects import scenario_effects
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
-           "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects"]
+           "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects",
+           "summary_cell"]
 
 SCHEMA = "budget.robustness/1"
 #: names of the cases with every effect off and every effect on
@@ -113,6 +114,28 @@ def _severity(cell: dict) -> float:
         band = 3 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / cell["coverage_n"])
         r = max(r, abs(cell["coverage_1sigma"] - EXPECTED_1SIGMA) / band)
     return r
+
+
+def summary_cell(axes: list[tuple[str, dict]], *, markdown: bool = False) -> str:
+    """One table cell for a class and variant over its axes ``[(axis, cell), ...]``: the
+    verdict (``ok`` when every determined axis holds; ``FAIL k/n`` when k of the n
+    determined axes fail, ``FAIL`` for one axis; ``--`` without a claim) and the bias of the
+    axis farthest past its claim (:func:`_severity`; the largest |bias| without a claim),
+    named when there are several."""
+    judged = [(a, c) for a, c in axes if c["claim_holds"] is not None]
+    if judged:
+        failing = [(a, c) for a, c in judged if c["claim_holds"] is False]
+        a, c = max(judged, key=lambda ac: _severity(ac[1]))
+        if failing:
+            v = "FAIL" if len(judged) == 1 else f"FAIL {len(failing)}/{len(judged)}"
+            v = f"**{v}**" if markdown else v
+        else:
+            v = "ok"
+        n = len(judged)
+    else:
+        a, c = max(axes, key=lambda ac: abs(ac[1]["bias"]) if math.isfinite(ac[1]["bias"]) else math.inf)
+        v, n = "--", len(axes)
+    return f"{v} {_fmt(c['bias'])}" + (f" ({a})" if n > 1 else "")
 
 
 # ---------------------------------------------------------------------- the cases
@@ -491,25 +514,23 @@ class RobustnessResult:
         }
 
     def table_rows(self, *, markdown: bool = False) -> list[list[str]]:
-        """Header and one row per case: each cell the verdict and the bias in the class's unit."""
-        cols = self.columns()
+        """Header and one row per case, one column per class and variant (the variant's axes
+        summed up in one cell, :func:`summary_cell`: a table read at a glance, also for a
+        study of ten classes and thirty axes)."""
+        groups: dict[tuple[str, str], list[str]] = {}
+        for c, v, a in self.columns():
+            groups.setdefault((c, v), []).append(a)
         units = {c.name: c.unit for c in self.classes()}
-        head = ["case"] + [f"{v} {c}/{a} ({units[c]})" if markdown else f"{v} {c}/{a}" for c, v, a in cols]
+        head = ["case"] + [f"{v} {c} ({units[c]})" if markdown else f"{v} {c}" for c, v in groups]
         rows = [head]
         cells = self.cells()
         for case in self.cases:
-            row = [case.name]
-            for k in cols:
-                c = cells[case.name][k]
-                v = {True: "ok", False: "FAIL", None: "--"}[c["claim_holds"]]
-                if markdown and c["claim_holds"] is False:
-                    v = "**FAIL**"
-                row.append(f"{v} {_fmt(c['bias'])}")
-            rows.append(row)
+            rows.append([case.name] + [summary_cell([(a, cells[case.name][(c, v, a)]) for a in axes],
+                                                    markdown=markdown) for (c, v), axes in groups.items()])
         return rows
 
     def format_table(self) -> str:
-        """The table for a terminal: rows cases, columns variant x class/axis."""
+        """The table for a terminal: rows cases, columns variant x class."""
         rows = self.table_rows()
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
@@ -565,8 +586,10 @@ class RobustnessResult:
                                     "the ideal case's, reused by every case whose effects leave them unchanged "
                                     f"(they depend on {', '.join(sorted(depends)) or 'no effect'})."),
                       "", "## Verdicts", "", self.markdown_table(), "",
-                      "Each cell: `ok` when the claim holds, `FAIL` when it does not (`--`: a residual, no claim), "
-                      "then the bias in the class's unit. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
+                      "Each cell, one class and variant: `ok` when its claim holds on every axis, `FAIL k/n` "
+                      "when it fails on k of its n axes (`--`: a residual or an undetermined axis, no claim), "
+                      "then the bias in the class's unit of the axis farthest past its claim (named in "
+                      "brackets); every axis is in `robustness.json`. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
             lines += [f"* {s}" for s in self.sentences()]
             scenario_toml = st.scenario_text(self.scenario)
             lines += ["", "## Scenario", "", "```toml", scenario_toml.rstrip(), "```", ""]
