@@ -158,6 +158,22 @@ through astropy/ERFA) and identification of one pass of a 10 deg strip (target a
 observations, published and improved (target at most 20 ms), beside scipy
 `least_squares` on the same residuals; and 1000 validation trials on 2 cores (target at
 most 60 s). More in [linecam.md](linecam.md)."""),
+    "robustness": ("Robustness against validate", """\
+Issue 22's check: `budget <study> robustness` (the ideal world, each world effect alone and
+all together, common random numbers, all cases in one worker pool, the truths shared
+between cases whose effects leave them unchanged) costs at most 8 times the study's plain
+`validate`. Measured on a real study with six or more effects (default the scan mirror,
+seed 003: seven effects, nine cases, truths independent of every effect), on its embedded
+default scenario, beside its plain `validate` of the same trials (200), seed and workers
+(2), in one run, after an untimed warm-up. The primary figure is the CPU time of all
+processes (this one and its joined workers); the wall time, what a user waits, is printed
+with the load average before and after, since on a shared machine it measures the other
+jobs as much as the code. With `c` cases every case still runs its own trials, so the
+ratio's floor is about `c` times a validate's per-trial share; what one pool and shared
+truths save is the fixed cost (worker start-up, world construction, truths) paid once
+instead of `c` times. `--study toy` measures the toy world study of the tests instead,
+with the cases also run as separate validates. More in
+[architecture.md](architecture.md) (Robustness)."""),
 }
 
 INTRO = """\

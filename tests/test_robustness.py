@@ -20,6 +20,7 @@ from budget.runner.robustness import (
     claim_holds,
     coverage_consistent,
     run_robustness,
+    summary_cell,
 )
 from budget.runner.study import ClassSpec
 from simcam.cli_common import UserInputError
@@ -172,6 +173,50 @@ class _ResidualToy(ToyWorldStudy):
         return mean, ClassSpec(var.name, var.label, var.unit, var.axes, var.description, role="residual")
 
 
+class _UndeterminedToy(ToyWorldStudy):
+    """The toy with its variance's axis declared a gauge freedom (not determined)."""
+
+    def classes(self, scenario):
+        mean, var = super().classes(scenario)
+        return mean, ClassSpec(var.name, var.label, var.unit, var.axes, var.description, undetermined=var.axes)
+
+
+def test_an_undetermined_axis_has_no_claim():
+    """A gauge freedom's estimate is a convention: no verdict (as the findings' "not
+    determined"), never "ok" nor "FAIL", and no sentence says an effect breaks it."""
+    study = _UndeterminedToy()
+    res = run_robustness(study, study.load_scenario(), trials=20, seed=3)
+    payload = res.to_json()
+    for case in payload["cases"].values():
+        for cell in case["classes"]["variance"]["a"].values():
+            assert cell["claim_holds"] is None and cell["claim"] is None
+        assert isinstance(case["classes"]["mean"]["a"]["published"]["claim_holds"], bool)
+    for var in study.variants:
+        b = payload["breaks"][f"variance.{var}"]
+        assert b["effect"] is None and "not determined" in b["sentence"]
+
+
+def test_a_table_cell_sums_up_the_axes_of_a_class_and_variant():
+    def cell(bias, se, holds, claim=None, cov=None):
+        return {"bias": bias, "se_bias": se, "claim": claim, "claim_holds": holds, "coverage_1sigma": cov,
+                "coverage_n": 100 if cov is not None else 0, "scale": 1.0}
+
+    # one axis: its verdict and bias, no axis named
+    assert summary_cell([("x", cell(0.5, 0.1, False))]) == "FAIL +0.5"
+    assert summary_cell([("x", cell(0.5, 0.1, False))], markdown=True) == "**FAIL** +0.5"
+    # two of three fail: the one farthest past its claim (|bias| / 3 se: 3.0 for b, 1.7 for a;
+    # c's coverage is 0.12 of its 3-se band, 0.14 at 100 trials)
+    axes = [("a", cell(0.5, 0.1, False)), ("b", cell(-0.9, 0.1, False)), ("c", cell(0.0, 0.1, True, cov=0.70))]
+    assert summary_cell(axes) == "FAIL 2/3 -0.9 (b)"
+    # all hold: the worst is a's coverage 0.55, 0.95 of its 3-se band (0.14 at 100 trials),
+    # against b's bias at 0.67 of 3 se
+    axes = [("a", cell(0.1, 0.1, True, cov=0.55)), ("b", cell(0.2, 0.1, True))]
+    assert summary_cell(axes) == "ok +0.1 (a)"
+    # an undetermined axis (claim_holds None) is not counted; none judged: "--" and the largest |bias|
+    assert summary_cell([("a", cell(9.0, 0.1, None)), ("b", cell(0.2, 0.1, True))]) == "ok +0.2"
+    assert summary_cell([("a", cell(0.3, 0.1, None)), ("b", cell(-0.4, 0.1, None))]) == "-- -0.4 (b)"
+
+
 def test_json_schema_claims_residuals_and_report(tmp_path):
     study = _ResidualToy(claims={("mean", "published"): 0.5})
     res = run_robustness(study, study.load_scenario(), trials=40, seed=2)
@@ -195,6 +240,16 @@ def test_json_schema_claims_residuals_and_report(tmp_path):
     assert len({c["scenario_hash"] for c in payload["cases"].values()}) == len(payload["cases"])
     assert payload["effects"]["offset_units"]["source"] == "a constant offset"
     assert "a residual, no claim" in payload["breaks"]["variance.improved"]["sentence"]
+    # the residual's sentence names the effect alone that moves it most, not the case "all":
+    # AR(1) noise biases the ddof-1 variance by -sigma^2 (2/(m-1)) sum_k (1 - k/m) rho^k
+    # = -0.40 (sigma 2, m 8, rho 0.3), against +0.08 for the 1 % gain error (4 ((1.01)^2 - 1)),
+    # about +0.08 for the non-linearity (slope 1 + 2 beta x = 1.01 at x ~ 5), 6e-4 for the
+    # drift (d^2 var(i)), 0 for the offset and in expectation for the extra noise (its truth
+    # moves with it); the paired shifts' standard errors at 40 trials are <= 0.13, so the
+    # gap of 0.48 is over 3 of them (fixed seed)
+    var_break = payload["breaks"]["variance.improved"]
+    assert var_break["effect"] == "correlation_rho"
+    assert "correlation_rho changes it most" in var_break["sentence"] and "all together" in var_break["sentence"]
     rep = res.write_report(tmp_path / "rob")
     text = rep.read_text()
     assert "| case |" in text and "What breaks each claim" in text and "`offset_units` = 0.1" in text

@@ -36,7 +36,8 @@ trials whose error is within it:
 * the coverage part, where a sigma is stated: ``|c - 0.6827| <= 3 sqrt(0.6827 * 0.3173 / m)``
   (the binomial 3-standard-error band for ``m`` trials);
 * ``claim_holds`` = both parts; ``null`` for a class of role ``"residual"`` (what a
-  compensation leaves: no claim to test).
+  compensation leaves: no claim to test) and for an axis the data cannot determine
+  (:attr:`ClassSpec.undetermined`, a gauge freedom: its estimate is a convention).
 
 The result, :class:`RobustnessResult`, gives the JSON (schema ``budget.robustness/1``:
 ``cases[name].classes[class][axis][variant]`` with ``bias``, ``se_bias``, ``std``,
@@ -62,7 +63,8 @@ from budget.runner.study import ClassSpec, Study, TrialResult
 from simcam.effects import scenario_effects
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
-           "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects"]
+           "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects",
+           "summary_cell"]
 
 SCHEMA = "budget.robustness/1"
 #: names of the cases with every effect off and every effect on
@@ -113,6 +115,28 @@ def _severity(cell: dict) -> float:
         band = 3 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / cell["coverage_n"])
         r = max(r, abs(cell["coverage_1sigma"] - EXPECTED_1SIGMA) / band)
     return r
+
+
+def summary_cell(axes: list[tuple[str, dict]], *, markdown: bool = False) -> str:
+    """One table cell for a class and variant over its axes ``[(axis, cell), ...]``: the
+    verdict (``ok`` when every determined axis holds; ``FAIL k/n`` when k of the n
+    determined axes fail, ``FAIL`` for one axis; ``--`` without a claim) and the bias of the
+    axis farthest past its claim (:func:`_severity`; the largest |bias| without a claim),
+    named when there are several."""
+    judged = [(a, c) for a, c in axes if c["claim_holds"] is not None]
+    if judged:
+        failing = [(a, c) for a, c in judged if c["claim_holds"] is False]
+        a, c = max(judged, key=lambda ac: _severity(ac[1]))
+        if failing:
+            v = "FAIL" if len(judged) == 1 else f"FAIL {len(failing)}/{len(judged)}"
+            v = f"**{v}**" if markdown else v
+        else:
+            v = "ok"
+        n = len(judged)
+    else:
+        a, c = max(axes, key=lambda ac: abs(ac[1]["bias"]) if math.isfinite(ac[1]["bias"]) else math.inf)
+        v, n = "--", len(axes)
+    return f"{v} {_fmt(c['bias'])}" + (f" ({a})" if n > 1 else "")
 
 
 # ---------------------------------------------------------------------- the cases
@@ -331,13 +355,17 @@ class RobustnessResult:
                 spec = res.class_spec(cls)
                 st = res.statistics(key)
                 cov = st.get("coverage")
-                claim = None if spec.role == "residual" else self.study.claim(case.scenario, cls, var)
+                # no claim: a residual, or an axis the data cannot determine (a gauge freedom,
+                # ClassSpec.undetermined: its estimate is a convention, no sigma is stated)
+                no_claim = spec.role == "residual" or st.get("determined") is False
+                claim = None if no_claim else self.study.claim(case.scenario, cls, var)
                 cell = {"bias": st["bias"], "se_bias": st["se_bias"], "std": st["std"], "mean": st["mean"],
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
                         "se_coverage_1sigma": cov["se_1sigma"] if cov else None,
                         "coverage_n": cov["n"] if cov else 0, "claim": claim,
                         "scale": max(abs(st["truth"]), abs(st["mean"]))}
-                cell["claim_holds"] = None if spec.role == "residual" else claim_holds(
+                cell["determined"] = st.get("determined") is not False
+                cell["claim_holds"] = None if no_claim else claim_holds(
                     bias=cell["bias"], se_bias=cell["se_bias"], claim=claim, coverage_1sigma=cell["coverage_1sigma"],
                     coverage_n=cell["coverage_n"], scale=cell["scale"])
                 cell["shift"], cell["se_shift"] = self._shift(key, res, ideal, case)
@@ -377,11 +405,18 @@ class RobustnessResult:
                 keys = [k for k in self.columns() if k[0] == spec.name and k[1] == var]
                 if not keys:
                     continue
+                determined = [k for k in keys if cells[IDEAL][k]["determined"]]
+                if not determined:
+                    out[(spec.name, var)] = {"effect": None, "axis": None, "sentence": (
+                        f"{spec.label}, {var}: not determined (a gauge freedom: the data cannot separate "
+                        "it from another parameter), no claim to test.")}
+                    continue
+                keys = determined
                 out[(spec.name, var)] = self._verdict(spec, var, keys, cells, singles)
         return out
 
     def _verdict(self, spec: ClassSpec, var: str, keys, cells, singles) -> dict:
-        unit = spec.unit
+        unit = "" if spec.unit in ("", "1") else f" {spec.unit}"  # a ratio's unit "1" is not written
         head = f"{spec.label}, {var}"
 
         def worst(case_names, failing_only=True):
@@ -398,7 +433,7 @@ class RobustnessResult:
 
         def said(cn, k) -> str:
             c = cells[cn][k]
-            s = f"bias {_fmt(c['bias'])} +- {abs(c['se_bias']):.2g} {unit}"
+            s = f"bias {_fmt(c['bias'])} +- {abs(c['se_bias']):.2g}{unit}"
             if cn != IDEAL:
                 s += f" (a shift of {_fmt(c['shift'])} +- {abs(c['se_shift']):.2g} from the ideal world)"
             if c["claim"] is not None:
@@ -409,12 +444,17 @@ class RobustnessResult:
             return s + (f" on axis {k[2]}" if len(keys) > 1 else "")
 
         if spec.role == "residual":
-            others = [cn for cn in singles + [ALL] if cn in cells]
-            if not others:
-                return {"effect": None, "axis": None, "sentence": f"{head}: a residual, no claim to test."}
-            big = max(((cn, k) for cn in others for k in keys), key=lambda ck: abs(cells[ck[0]][ck[1]]["shift"]))
-            return {"effect": None, "axis": None,
-                    "sentence": f"{head}: a residual, no claim to test; {big[0]} changes it most: {said(*big)}."}
+            # no verdict; which effect alone moves it most (the case "all" always would, or
+            # nearly: naming it would say nothing), then all together
+            s, effect, axis = f"{head}: a residual, no claim to test", None, None
+            if singles:
+                big = max(((cn, k) for cn in singles for k in keys), key=lambda ck: abs(cells[ck[0]][ck[1]]["shift"]))
+                s += f"; of the effects alone {big[0]} changes it most: {said(*big)}"
+                effect, axis = big[0], big[1][2]
+            if ALL in cells:
+                ka = max(keys, key=lambda k: abs(cells[ALL][k]["shift"]))
+                s += f"; all together: {said(ALL, ka)}"
+            return {"effect": effect, "axis": axis, "sentence": s + "."}
         w0 = worst([IDEAL])
         if w0 is not None:
             s = f"{head}: its claim fails already in the ideal world: {said(IDEAL, w0[2])}"
@@ -481,25 +521,23 @@ class RobustnessResult:
         }
 
     def table_rows(self, *, markdown: bool = False) -> list[list[str]]:
-        """Header and one row per case: each cell the verdict and the bias in the class's unit."""
-        cols = self.columns()
+        """Header and one row per case, one column per class and variant (the variant's axes
+        summed up in one cell, :func:`summary_cell`: a table read at a glance, also for a
+        study of ten classes and thirty axes)."""
+        groups: dict[tuple[str, str], list[str]] = {}
+        for c, v, a in self.columns():
+            groups.setdefault((c, v), []).append(a)
         units = {c.name: c.unit for c in self.classes()}
-        head = ["case"] + [f"{v} {c}/{a} ({units[c]})" if markdown else f"{v} {c}/{a}" for c, v, a in cols]
+        head = ["case"] + [f"{v} {c} ({units[c]})" if markdown else f"{v} {c}" for c, v in groups]
         rows = [head]
         cells = self.cells()
         for case in self.cases:
-            row = [case.name]
-            for k in cols:
-                c = cells[case.name][k]
-                v = {True: "ok", False: "FAIL", None: "--"}[c["claim_holds"]]
-                if markdown and c["claim_holds"] is False:
-                    v = "**FAIL**"
-                row.append(f"{v} {_fmt(c['bias'])}")
-            rows.append(row)
+            rows.append([case.name] + [summary_cell([(a, cells[case.name][(c, v, a)]) for a in axes],
+                                                    markdown=markdown) for (c, v), axes in groups.items()])
         return rows
 
     def format_table(self) -> str:
-        """The table for a terminal: rows cases, columns variant x class/axis."""
+        """The table for a terminal: rows cases, columns variant x class."""
         rows = self.table_rows()
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
@@ -555,8 +593,10 @@ class RobustnessResult:
                                     "the ideal case's, reused by every case whose effects leave them unchanged "
                                     f"(they depend on {', '.join(sorted(depends)) or 'no effect'})."),
                       "", "## Verdicts", "", self.markdown_table(), "",
-                      "Each cell: `ok` when the claim holds, `FAIL` when it does not (`--`: a residual, no claim), "
-                      "then the bias in the class's unit. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
+                      "Each cell, one class and variant: `ok` when its claim holds on every axis, `FAIL k/n` "
+                      "when it fails on k of its n axes (`--`: a residual or an undetermined axis, no claim), "
+                      "then the bias in the class's unit of the axis farthest past its claim (named in "
+                      "brackets); every axis is in `robustness.json`. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
             lines += [f"* {s}" for s in self.sentences()]
             scenario_toml = st.scenario_text(self.scenario)
             lines += ["", "## Scenario", "", "```toml", scenario_toml.rstrip(), "```", ""]
