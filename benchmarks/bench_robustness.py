@@ -160,9 +160,9 @@ def main() -> None:
         figure("robustness_over_validate_cpu",
                f"robustness / validate CPU time of all processes, {label}, {n_effects} effects "
                f"({len(cases)} cases), {args.trials} trials, {args.workers} workers", cpu_ratio, "x",
-               target=8.0, target_source="issue 22"),
+               target=8.0, target_source="project target"),
         figure("robustness_over_validate", f"robustness / validate wall time, same runs (load {load1:.1f} "
-               f"on {os.cpu_count()} cores)", ratio, "x", target=8.0, target_source="issue 22"),
+               f"on {os.cpu_count()} cores)", ratio, "x", target=8.0, target_source="project target"),
         figure("robustness_s", f"robustness wall time, {len(cases)} cases x {args.trials} trials (s)", t_robust, "s",
                peer=f"{len(cases)} separate validate runs" if t_separate is not None else None,
                peer_value=t_separate),

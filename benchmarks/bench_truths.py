@@ -93,14 +93,14 @@ def main() -> None:
     ]))
     emit_result("truths", [
         figure("truths_sized_cpu_s", f"default's truths at the precision of {args.trials} trials, sizing "
-               "included, one core (CPU s)", size_cpu + ada_cpu, "s", target=1.0, target_source="issue 25"),
+               "included, one core (CPU s)", size_cpu + ada_cpu, "s", target=1.0, target_source="project target"),
         figure("truths_fixed_cpu_s", "default's truths, fixed sizes, one core (CPU s)", fix_cpu, "s"),
         figure("validate_trials2_s", "budget validate --trials 2, warm, end to end (wall s)", small[0], "s",
-               target=2.0, target_source="issue 25"),
+               target=2.0, target_source="project target"),
         figure("validate_trials2_cpu_s", "budget validate --trials 2, warm, end to end (CPU s)", small[1], "s"),
         figure("sweep_point_cpu_s", f"camera sweep point, {args.trials} trials, with its truths (CPU s)",
                own_cpu, "s", target=7.0 if args.trials == 200 else None,
-               target_source="issue 25" if args.trials == 200 else None),
+               target_source="project target" if args.trials == 200 else None),
         figure("sweep_point_shared_cpu_s", f"camera sweep point, {args.trials} trials, truth shared (CPU s)",
                sh_cpu, "s"),
     ], quick=args.quick, trials=args.trials, hsfe_truth_frames=v.hsfe_truth_frames,

@@ -168,7 +168,7 @@ def read_toml(*, path: str | Path | None = None, text: str | None = None, source
         p = Path(path)
         if p.is_dir():
             raise ScenarioError(f"{source}: is a folder, not a scenario file")
-        from simcam.outputs import input_file_problem  # issue 24: a FIFO blocked forever, /dev/null read as empty
+        from simcam.outputs import input_file_problem  # a FIFO blocked forever, /dev/null read as empty
 
         if (why := input_file_problem(p)) is not None:
             raise ScenarioError(f"{source}: {why}")

@@ -1,4 +1,4 @@
-"""The world's unmodelled effects: one shape for every study (issue 22).
+"""The world's unmodelled effects: one shape for every study.
 
 A study's simulated world carries effects that the lab's method does not model (a
 positioning error with backlash, a detector non-linearity, a tracker bias ...). Each

@@ -1,4 +1,4 @@
-"""Checks shared by the scenario models of the newer studies (issue 24): epochs parsed when
+"""Checks shared by the scenario models of the newer studies: epochs parsed when
 the scenario loads, every number finite.
 
 Kept apart from :mod:`simcam.config_base` so that the models only gain a validator line.

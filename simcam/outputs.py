@@ -1,6 +1,6 @@
 """Where a command may write, checked before the work starts; several outputs written all or nothing.
 
-The rules (docs/reliability.md, issue 24):
+The rules (docs/reliability.md):
 
 * an output is a regular file or a folder that the command creates or was told to
   overwrite, never a device, a FIFO or a socket (an atomic rename over ``/dev/null``

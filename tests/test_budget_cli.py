@@ -1,4 +1,4 @@
-"""One command grammar (issue 21): `budget <study> <verb>` for every study.
+"""One command grammar: `budget <study> <verb>` for every study.
 
 The star camera's lab commands live in its group (`budget starcam simulate|measure|combine`
 beside `validate`); `budget validate` is the documented alias of the main job (the same

@@ -23,7 +23,7 @@ NO_COLOUR = {
     "optics.lateral_colour.radial_px_per_nm": [],
     "optics.lateral_colour.uniform_x_px_per_nm": [],
     "optics.lateral_colour.uniform_y_px_per_nm": [],
-    # the ideal world (issue 22): no higher-order distortion or non-linearity beside the
+    # the ideal world: no higher-order distortion or non-linearity beside the
     # convention under test
     "world.effects": default().world.effects.ideal().model_dump(),
 }

@@ -1,5 +1,5 @@
 """The camera's own distortion correction (simcam.starcam.correction) and the LSFE-C1 truth of a
-calibrated camera (issue 12).
+calibrated camera.
 
 Independent references: the least-squares algebra of a polynomial fit to exact
 polynomial data (recovered to rounding), and, for noisy calibration points, the expected
@@ -23,7 +23,7 @@ SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},
     "optics": {"r_norm_px": 256.0,
                "lateral_colour": {"radial_px_per_nm": [], "uniform_x_px_per_nm": [], "uniform_y_px_per_nm": []}},
-    # the ideal world (issue 22): no distortion beyond the scenario's own
+    # the ideal world: no distortion beyond the scenario's own
     "world": {"effects": {"distortion_r5_px_at_corner": 0.0, "distortion_r7_px_at_corner": 0.0}},
 }
 

@@ -1,4 +1,4 @@
-"""simcam.effects: the one shape of every study's world effects (issue 22)."""
+"""simcam.effects: the one shape of every study's world effects."""
 
 import pytest
 from pydantic import Field

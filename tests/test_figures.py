@@ -1,4 +1,4 @@
-"""Figures that state their point (issue 23 item 4): titles inside the figure, compared panels
+"""Figures that state their point: titles inside the figure, compared panels
 on one colour scale, every class and axis of a sweep store plotted, and captions whose numbers
 are the numbers drawn (read back from the figure's own artists, not from the code's inputs)."""
 

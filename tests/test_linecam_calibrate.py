@@ -20,7 +20,7 @@ from budget.linecam.trial import los_grid, simulate
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
 from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, from_dict, default
 
-#: the ideal world (every unmodelled effect of issue 22 off): the lab's model is the world's
+#: the ideal world (every unmodelled world effect off): the lab's model is the world's
 IDEAL = {"world": {"effects": {n: 0.0 for n in default().world.effects.names()}}}
 SC = from_dict(IDEAL, source="ideal world")
 CAM = NominalCamera.from_model(SC.camera)

@@ -1,4 +1,4 @@
-"""The line camera world's unmodelled effects (issue 22, seed 004): each injection against an
+"""The line camera world's unmodelled effects (seed 004): each injection against an
 independent reference, the ideal world equal to the code before the effects, and a lab that
 never reads the world."""
 

@@ -1,4 +1,4 @@
-"""The shared machinery knows no study by name (issue 21): budget/runner and budget/sweeps
+"""The shared machinery knows no study by name: budget/runner and budget/sweeps
 reach every study through the registry's table, and nothing else in them names one.
 
 A scan of the code (identifiers and string literals; docstrings and comments are prose and

@@ -28,7 +28,7 @@ SMALL = {
         "chromatic": {"frames": 3, "field_centers_px": [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]},
         "distortion": {"frames": 3},
     },
-    # the ideal world (issue 22): these tests check the simulator's lab physics against its truth
+    # the ideal world: these tests check the simulator's lab physics against its truth
     # tables; the world's effects have their own tests (test_world_starcam.py)
     "world": {"effects": default().world.effects.ideal().model_dump()},
 }
@@ -282,7 +282,7 @@ def test_fused_fast_path_threads_do_not_change_results(small, dark_frames):
 def test_measure_finds_only_the_target_stars_at_the_validate_threshold(tmp_path):
     """`budget measure` centroids at the same threshold as `budget validate` (3 sigma) and
     finds stars on the mean of a condition's frames: with two frames a single-frame 3-sigma
-    detection would admit noise "stars" (issue 12); here exactly the 25 pinholes are
+    detection would admit noise "stars"; here exactly the 25 pinholes are
     found, each matched to one true star within 0.5 px."""
     from budget.starcam.measure import DEFAULT_THRESHOLD_SIGMA
 

@@ -1,4 +1,4 @@
-"""Bad input and faults (issue 11; docs/reliability.md has the table).
+"""Bad input and faults (docs/reliability.md has the table).
 
 * Fuzz: random bytes and random structures fed to every reader through the command line
   (in this process, through the console scripts' ``main``): exit status 2, every stderr

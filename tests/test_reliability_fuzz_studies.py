@@ -1,4 +1,4 @@
-"""Fuzz of the newer studies' readers (issue 24), as tests/test_reliability.py does for the
+"""Fuzz of the newer studies' readers, as tests/test_reliability.py does for the
 star camera's: the whiskbroom, line camera and scan mirror scenarios and the line camera's
 observation table, fed through their commands in this process.
 

@@ -1,4 +1,4 @@
-"""Bad input and faults, round two (issue 24; docs/reliability.md has the table): outputs,
+"""Bad input and faults, round two (docs/reliability.md has the table): outputs,
 devices, sizes, observation tables, all-or-nothing runs, sweeps.
 
 Everything runs in this process (the commands through their ``main``/``run_cli``) except

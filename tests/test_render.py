@@ -13,7 +13,7 @@ from simcam.starcam.targets import star_grid
 
 def _quiet(scn, **extra):
     """A scenario with the fixed-pattern and background terms and the world's effects
-    (issue 22: non-linearity, higher-order distortion, hexapod, drift) switched off."""
+    (non-linearity, higher-order distortion, hexapod, drift) switched off."""
     upd = {"detector.prnu_rms": 0.0, "detector.dsnu_rms_e": 0.0, "detector.dark_current_e_per_s": 0.0,
            "detector.background_e_per_s": 0.0,
            "world.effects": scn.world.effects.ideal().model_dump()}

@@ -65,7 +65,7 @@ def test_adaptive_stopping_meets_the_tolerance():
 def test_adaptive_stopping_counts_the_truths_standard_error():
     """A truth with a Monte Carlo standard error s_T: the report's se_bias is
     sqrt(s^2/n + s_T^2), and a run stopped "by tolerance" must meet the tolerance with that
-    figure (issue 23). Toy numbers: the ddof=1 variance of m = 8 draws of sigma = 2 has
+    figure. Toy numbers: the ddof=1 variance of m = 8 draws of sigma = 2 has
     sd sigma^2 sqrt(2/(m-1)) = 2.14, so s/sqrt(n) <= 0.1 needs n >= 458; with s_T = 0.05 a
     stop on s/sqrt(n) alone would report se_bias = sqrt(0.1^2 + 0.05^2) = 0.112 > 0.1, the
     runner must go on to s/sqrt(n) <= sqrt(0.1^2 - 0.05^2) = 0.087 (n >= about 610)."""
@@ -179,7 +179,7 @@ class _ThreadsToy(type(STUDY)):
 
 @pytest.mark.parametrize("where", [{"workers": 2}, {"workers": None, "dask_local": 1}], ids=["processes", "dask"])
 def test_every_worker_the_runner_starts_has_one_numba_thread(where):
-    """The runner owns the worker set-up (issue 21): one numba thread in every worker it
+    """The runner owns the worker set-up: one numba thread in every worker it
     starts, local process or Dask worker, already when the study's own worker_init runs;
     a study sets nothing itself (the toy's worker_init only records)."""
     import numba

@@ -1,4 +1,4 @@
-"""The scan-mirror world's unmodelled effects (issue 22, seed 003): each injection against an
+"""The scan-mirror world's unmodelled effects (seed 003): each injection against an
 independent reference, the ideal world bit for bit against values recorded before the
 effects existed, and the lab never reading ``world``."""
 

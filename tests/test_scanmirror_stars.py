@@ -1,4 +1,4 @@
-"""Seed 003 star sensing and normal-deviation estimation (issue 15)."""
+"""Seed 003 star sensing and normal-deviation estimation."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ DEG = np.pi / 180
 
 def _default(**changes):
     data = tomllib.loads(default_text())
-    # the ideal world (issue 22): these tests check the lab's algebra on what it assumes;
+    # the ideal world: these tests check the lab's algebra on what it assumes;
     # tests/test_scanmirror_effects.py covers the realistic world
     data["world"]["effects"] = {k: 0.0 for k in data["world"]["effects"]}
     for dotted, value in changes.items():
@@ -137,7 +137,7 @@ def test_batch_estimate_sigma_matches_its_own_noise_model_algebra_check():
     """An algebra check, not a real-world coverage test: the measurements are drawn from the
     same Gaussian noise model, with the same sigmas, that the batch estimator assumes, so
     this checks the Gauss-Newton algebra and the (J^T W J)^-1 bookkeeping only. The
-    real-world version (noise and systematics the estimator does not model) is issue 22's.
+    real-world version (noise and systematics the estimator does not model) is in tests/test_scanmirror_effects.py.
 
     Monte Carlo (fixed seeds 0..199): the improved estimate's error over its stated sigma
     has mean 0 (tolerance 4/sqrt(N)) and standard deviation 1 (tolerance 4/sqrt(2N), the

@@ -1,4 +1,4 @@
-"""Seed 003 study on the shared runner (issue 15): equivalence (same seed, same numbers; any
+"""Seed 003 study on the shared runner: equivalence (same seed, same numbers; any
 worker count), classes, CLI. The equivalence tests check the code against itself, not
 physics; the documented figures are pinned in tests/test_scanmirror_headline.py."""
 

@@ -1,5 +1,5 @@
 """Seed 003 world: geometry, orbit and compensation checks against independent references
-(issue 15, "Checks that must hold")."""
+("Checks that must hold")."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """One shape per concept across the five instruments: every scenario module has the same
 four functions, every scenario the same base (name, validation, hash, source), every
 [validation] table the same fields and limits, and every study reaches its scenario
-through ``scenario_module`` (issue 21)."""
+through ``scenario_module``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A trial's numbers do not change when its code gets faster (issue 25 item 3).
+"""A trial's numbers do not change when its code gets faster.
 
 ``_BEFORE`` holds the estimates of trial 1 (run seed 0) of the embedded realistic default
 and of the ideal world, as float.hex, recorded from the code before the trial-speed work

@@ -1,4 +1,4 @@
-"""Each class's truth is computed without the estimator's own model (issue 12, point 8).
+"""Each class's truth is computed without the estimator's own model (point 8).
 
 The guard reads the source (``ast``), since budget/starcam/truth.py binds its imports when
 it loads: replacing the estimators in their module at test time would not show that the

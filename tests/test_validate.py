@@ -34,7 +34,7 @@ BASE = {
     },
     "validation": {"te_truth_frames": 300, "hsfe_phase_grid": 3, "hsfe_truth_frames": 200, "field_grid": 5,
                    "batch_trials": 4},
-    # the ideal world (issue 22): these tests check the lab's methods against closed forms;
+    # the ideal world: these tests check the lab's methods against closed forms;
     # the world's effects have their own tests (test_world_starcam.py)
     "world": {"effects": {"distortion_r5_px_at_corner": 0.0, "distortion_r7_px_at_corner": 0.0,
                           "nonlinearity_beta": 0.0, "hexapod_repeatability_arcsec": 0.0,

@@ -244,7 +244,7 @@ def test_prewarm_options_follow_the_scenario(monkeypatch):
             "dark_frames = 0", f"dark_frames = {dark}")
         warm.prewarm(st.from_dict(tomllib.loads(text), source="test"))
     # the stamps and the windows summed from them always; the fused kernel and its twin for a
-    # drifting condition (issue 25) for the centre of gravity
+    # drifting condition for the centre of gravity
     stamps = ["folded_stamp_spectra", "add_stamps_windows"]
     fused = ["expose_centroid_frames_serial", "expose_centroid_drift_serial"]
     assert seen[0] == ([{"fused": True, "windows": False}], stamps + fused)

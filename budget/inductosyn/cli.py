@@ -106,7 +106,7 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
 
     if pole_pairs < 1:
         raise UserInputError("--pole-pairs: must be >= 1")
-    from simcam.outputs import check_run_outputs  # issue 24: outputs checked before the work
+    from simcam.outputs import check_run_outputs  # outputs checked before the work
 
     check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)
     tables = [read_calibration_csv(path=f) for f in csv_files]

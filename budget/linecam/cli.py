@@ -248,7 +248,7 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     return Observations(b=b, sample=s, pass_index=passes, hip=hip.astype(np.int64)), t
 
 
-#: a physical observation table (issue 24): times within a century of the epoch, the
+#: a physical observation table: times within a century of the epoch, the
 #: spacecraft between the Earth's surface and ten times the Moon's distance, at less than
 #: the Earth's escape speed from its surface (11.2 km/s) plus margin
 MAX_ABS_TIME_S = 100 * 365.25 * 86400.0
@@ -397,7 +397,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
     from simcam.outputs import check_run_outputs
 
     # before any work: --json/--report are new files/folders or earlier outputs, not a
-    # device and not the observation table or the scenario (issue 24)
+    # device and not the observation table or the scenario
     check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(observations, scenario), overwrite=overwrite)
     scn = _scenario(scenario)
     src = str(observations)
@@ -440,7 +440,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         th = to_report_units(c.theta)
         sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
         # parameters the plan cannot separate are "not determined" (no sigma); what it does
-        # determine of them is printed as the combinations (issue 23)
+        # determine of them is printed as the combinations
         from .study import determined_combinations, gauge_combination_vector
 
         undet = set(sep.inseparable) if sep is not None else set()

@@ -163,7 +163,7 @@ class LineCamStudy(Study):
         return {}
 
     def truth_depends_on_effects(self, scenario) -> set[str] | None:
-        """World effects (issue 22) whose magnitude changes the truths: the distortion outside
+        """World effects whose magnitude changes the truths: the distortion outside
         the Brown family changes the true line-of-sight field; the others (jitter, time-tag
         bias, Gaia world, star colour against the solar reference, line-rate mismatch) change
         what the lab measures, not the camera."""

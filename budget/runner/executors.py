@@ -238,7 +238,7 @@ def make_executor(*, workers: int | None = None, scheduler: str | None = None, d
     n = workers if workers is not None else default_workers()
     if n < 1:
         raise UserInputError(f"--workers: must be >= 1 (got {n})")
-    from simcam.lifecycle import cap_workers  # issue 24: never more processes than cores/memory hold
+    from simcam.lifecycle import cap_workers  # never more processes than cores/memory hold
 
     n = cap_workers(n, quiet=workers is None)
     if n == 1:

@@ -1,4 +1,4 @@
-"""Robustness: what each method's claim survives of the world's unmodelled effects (issue 22).
+"""Robustness: what each method's claim survives of the world's unmodelled effects.
 
 ``budget <study> robustness [SCENARIO] --trials K --seed S --workers W --json OUT --report DIR``
 runs a study on *cases* of its scenario that differ only in ``world.effects``

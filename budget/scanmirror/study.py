@@ -10,7 +10,7 @@ no aberration; improved: batch fit with covariance) and compensates the last are
 compensation with the improved estimate; without_estimate: exact compensation with dtau = 0,
 as the paper does for scan 1).
 
-The world's unmodelled effects (``[world.effects]``, issue 22: tracker bias and correlated
+The world's unmodelled effects (``[world.effects]``, tracker bias and correlated
 error, Gaia DR3 stars, deviation drift, inductosyn encoders) are drawn afterwards from a
 child of the trial's generator by :mod:`simcam.scanmirror.effects`; the estimators and
 their stated covariance never see them. The default scenario is that realistic world;

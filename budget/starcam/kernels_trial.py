@@ -100,7 +100,7 @@ def expose_centroid_drift_serial(mean_e, grad_u, grad_v, drift, row0, col0, mosa
     ``np.maximum(mean + d_u * G_u + d_v * G_v, 0.0)``, and with that frame's key alone,
     so the result is bit for bit that of one :func:`expose_centroid_frames_serial` call
     per frame (``tests/test_protocols.py``). It saves a Python call, a chain and a mean
-    array per frame (issue 25).
+    array per frame.
     """
     n, h, w = mean_e.shape
     nf = frame_keys.shape[0]

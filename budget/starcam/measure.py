@@ -119,7 +119,7 @@ def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool)
 def _check_pixels(path, data: np.ndarray) -> None:
     """A NaN pixel is a marked bad pixel: the star it touches is flagged and left out (the
     documented rule). An infinite pixel, or a whole row or column of NaN, is no camera
-    frame: centroids and noise over them are meaningless, so the frame is refused (issue 24)."""
+    frame: centroids and noise over them are meaningless, so the frame is refused."""
     inf = np.isinf(data)
     if inf.any():
         r, c = np.argwhere(inf)[0]
@@ -356,7 +356,7 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
     from simcam.outputs import StagedOutputs, check_run_outputs
 
     # before any frame is read: the outputs are files (not a device), not an input, in a
-    # writable folder (issue 24)
+    # writable folder
     check_run_outputs(json_out=json_out, files={"--centroids": centroids_out},
                       inputs=(manifest, reference, Path(directory) / "manifest.csv"))
     with warnings.catch_warnings(record=True) as caught:

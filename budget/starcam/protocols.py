@@ -218,7 +218,7 @@ def simulate(
     truths, wins = [], {}
     cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt", "field",
                                              "x", "y", "flux", "flag")}
-    # the simulated world's hexapod pose errors and target drift (issue 22): the camera draws
+    # the simulated world's hexapod pose errors and target drift: the camera draws
     # them from the run seed (simcam.starcam.world); the plan, like a lab's, has only the
     # commanded poses
     motion = camera.world_motion(seed)

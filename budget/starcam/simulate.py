@@ -44,7 +44,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     cam = StarCamera(scenario)
     rows, truths = [], []
     bar = progress_bar(total=n_files, desc=f"{protocol} frames", unit="frame", enabled=progress)
-    # the world's hexapod pose errors and target drift (issue 22, simcam.starcam.world): in the
+    # the world's hexapod pose errors and target drift (simcam.starcam.world): in the
     # frames, not in the plan or the headers (which hold what the lab commanded)
     motion = cam.world_motion(seed)
     with io.atomic_directory(out, overwrite=overwrite) as tmp:

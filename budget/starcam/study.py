@@ -78,7 +78,7 @@ class StarCameraStudy(Study):
                      for n, label, desc in _CLASSES)
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
-        """World effects whose magnitude changes a truth (issue 22; budget.starcam.truth):
+        """World effects whose magnitude changes a truth (budget.starcam.truth):
         the distortion beyond the cubic (LSFE-C1's truth is what the camera's own correction
         leaves of the world's distortion; it also moves the TE and HSFE targets' stars a
         little) and the detector non-linearity (a static pixel-level error: HSFE's truth, and
@@ -252,7 +252,7 @@ class StarCameraStudy(Study):
         eff = scn.world.effects
         on = [f"{n} = {getattr(eff, n):g}" for n in eff.active()]
         text = [
-            "World effects (`[world.effects]`, what the lab's methods do not model; issue 22): "
+            "World effects (`[world.effects]`, what the lab's methods do not model): "
             + ("; ".join(on) + "." if on else "none (the ideal world)."),
             "What is compared. **Truth**: the quantity each method claims to measure, computed from the "
             "injected physics by a route that shares nothing with the estimators (budget.starcam.truth): TE, the mean "

@@ -31,7 +31,7 @@ in px, per axis):
   sqrt(S^2 + C1^2 + C2^2), total = sqrt(TE^2 + HSFE^2 + LSFE^2). (Seed 000's eq 31 adds
   C1 and C2 linearly; the validation reports how far that is from this.)
 
-World effects (issue 22, ``[world.effects]``, :mod:`simcam.starcam.world`): each truth stays
+World effects (``[world.effects]``, :mod:`simcam.starcam.world`): each truth stays
 the quantity its method claims to measure, computed from the injected physics:
 
 * the **detector non-linearity** is part of the camera: TE's and HSFE's truths are computed

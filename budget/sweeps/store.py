@@ -151,7 +151,7 @@ def create_store(path: str | os.PathLike, sweep) -> None:
 
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
-    check_store_size(path, sweep)  # refused before anything is created (issue 24)
+    check_store_size(path, sweep)  # refused before anything is created
     parent.mkdir(parents=True, exist_ok=True)
     from simcam.lifecycle import partial_prefix, remove_stale_partials
     from simcam.outputs import apply_umask

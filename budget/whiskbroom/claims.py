@@ -1,4 +1,4 @@
-"""Seed 002's claims stated as what they are (issue 22 item 4).
+"""Seed 002's claims stated as what they are.
 
 * :func:`seed_distribution`: the paper's headline figures, the largest ``|Delta V_P|``
   (0.7 mm/s at 0.001 deg/s) and the stage pattern (N < 48/72/84/96 at 0.001/0.0005/0.0004/
@@ -96,7 +96,7 @@ def published_criterion(sc, seed: int = 0, trials: int = 200, *, n_time: int | N
 
 
 def world_synthesis(sc, seed: int = 0, *, trials: int | None = None) -> dict | None:
-    """The synthesis's truth side in the scenario's world (issue 22): at the first mirror-rate
+    """The synthesis's truth side in the scenario's world: at the first mirror-rate
     error, the same trials with ``V_true`` ray-traced to the world's ellipsoid
     (``world.effects.earth_flattening_scale`` x WGS 84; :mod:`simcam.whiskbroom.raytrace`, no
     code shared with the paper's chain) while the knowledge stays the paper's chain on its

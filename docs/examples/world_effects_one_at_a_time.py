@@ -1,4 +1,4 @@
-"""Seed 000 in the realistic world, one world effect at a time (issue 22; docs/validation.md,
+"""Seed 000 in the realistic world, one world effect at a time (docs/validation.md,
 "What its claim survives").
 
 For each group of ``[world.effects]`` (distortion beyond the cubic, non-linearity, hexapod,

@@ -199,7 +199,7 @@ def nonlinearity_windows(mean, col0, chip_cols, full_well_e, beta, out):
     ``mean[n, h, w]`` (window ``k`` starting at mosaic column ``col0[k]``, ``FW`` the full well of
     each column's chip) into ``out`` (:func:`simcam.detector.apply_nonlinearity`): the same
     operations in the same order as its numpy expression, so the same values, in one pass
-    without temporaries (an 8-Mpx frame: five 64-MB passes fewer; issue 25)."""
+    without temporaries (an 8-Mpx frame: five 64-MB passes fewer)."""
     n, h, w = mean.shape
     fwc = np.empty(w)
     for k in range(n):

@@ -126,7 +126,7 @@ def scan_plan(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float) -> Sc
     """The passes of a scenario over the strip centred at (ra, dec)."""
     cam, att, obs = scenario.camera, scenario.attitude, scenario.observation
     w0 = cam.matched_rate_rad_s
-    # the world's line-rate mismatch effect (issue 22) adds to the scenario's own mismatch
+    # the world's line-rate mismatch effect adds to the scenario's own mismatch
     mismatch = att.rate_mismatch + scenario.world.effects.line_rate_mismatch_percent / 100.0
     rate = np.array([np.radians(att.cross_rate_deg_s), w0 * (1.0 + mismatch),
                      np.radians(att.yaw_rate_deg_s)])

@@ -1,4 +1,4 @@
-"""What the line camera's world carries and the lab's model leaves out (issue 22, seed 004).
+"""What the line camera's world carries and the lab's model leaves out (seed 004).
 
 ``[world.effects]`` of the scenario holds one magnitude per effect (unit in the name, 0 =
 off, default = the sourced realistic magnitude); ``[world]`` holds settings of the model

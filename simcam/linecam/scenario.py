@@ -51,7 +51,7 @@ class QEModel(_M):
 class LineCameraModel(_M):
     """TDI line camera: geometry, timing, photometry."""
 
-    # physical ranges (issue 24): beyond them the geometry overflows (tracebacks before)
+    # physical ranges: beyond them the geometry overflows (tracebacks before)
     focal_length_mm: Annotated[float, Field(gt=0, le=100000.0, allow_inf_nan=False)] = 1000.0
     pixel_pitch_um: Annotated[float, Field(gt=0, le=1000.0, allow_inf_nan=False)] = 10.0
     n_pixels: Annotated[int, Field(ge=64, le=100000)] = 6144
@@ -198,7 +198,7 @@ class LineCamScenario(ScenarioBase):
     errors: ErrorsModel = ErrorsModel()
     lab: LabModel = LabModel()
     validation: ValidationModel = ValidationModel()
-    #: the world's unmodelled effects (issue 22); read by the world only, never by the lab
+    #: the world's unmodelled effects; read by the world only, never by the lab
     world: LineCamWorld = LineCamWorld()
 
     model_config = _M.model_config

@@ -1,4 +1,4 @@
-"""The scan-mirror world's unmodelled effects (issue 22, seed 003): what a real GEO imager
+"""The scan-mirror world's unmodelled effects (seed 003): what a real GEO imager
 carries that the lab's batch fit and compensation leave out.
 
 The lab (``budget/scanmirror``: the published and improved estimators, the compensation

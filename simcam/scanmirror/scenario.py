@@ -54,7 +54,7 @@ class OrbitConfig(StrictModel):
 
 class AttitudeConfig(StrictModel):
     mode: Literal["pd", "profile"] = "pd"
-    # physical ranges (issue 24)
+    # physical ranges
     inertia_kg_m2: tuple[Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000.0, allow_inf_nan=False)]] = (1800.0, 1500.0, 2200.0)
     kp_n_m_rad: tuple[Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)]] = (4.5, 3.75, 5.5)
     kd_n_m_s_rad: tuple[Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)], Annotated[float, Field(gt=0, le=1000000000000.0, allow_inf_nan=False)]] = (126.0, 105.0, 154.0)

@@ -579,7 +579,7 @@ class CompositeDistortion(_Distortion):
 
 @dataclass(frozen=True, kw_only=True)
 class HigherOrderRadialDistortion(_Distortion):
-    """A distortion plus radial terms of fifth and seventh order in the field (issue 22).
+    """A distortion plus radial terms of fifth and seventh order in the field.
 
     The lab calibrates distortion with a cubic polynomial; a real lens has higher orders
     too (the traced ``embedded:star_camera``: 1.47 px of ``r^5`` and 0.081 px of ``r^7`` at the

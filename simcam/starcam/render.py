@@ -143,7 +143,7 @@ class StarCamera:
         )
         eff = scenario.world.effects
         if o.lens is None and (eff.distortion_r5_px_at_corner != 0.0 or eff.distortion_r7_px_at_corner != 0.0):
-            # the world's lens distortion beyond the scenario's (issue 22): fifth and seventh
+            # the world's lens distortion beyond the scenario's: fifth and seventh
             # order radial terms, sized at the mosaic's corner. A traced lens (optics.lens)
             # already carries its own higher orders (fitted up to r^5): nothing is added to it
             self.distortion = optics.HigherOrderRadialDistortion(
@@ -424,7 +424,6 @@ class StarCamera:
         return cached
 
     def _expected_windows_e(self, scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        w = self.scenario.render.window_px
         col0, row0 = self.window_origins(scene)
         return _expected_windows_at(self, scene, col0, row0), col0, row0
 

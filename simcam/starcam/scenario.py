@@ -538,7 +538,7 @@ class ValidationModel(ValidationSettings):
         return self
 
 
-# --------------------------------------------------------------------------- world (issue 22)
+# --------------------------------------------------------------------------- world
 class StarCameraEffects(EffectsBase):
     """What the simulated star camera and lab have and the seed-000 lab methods do not model.
 
@@ -583,7 +583,7 @@ class StarCameraEffects(EffectsBase):
 
 
 class StarCameraWorld(WorldBase):
-    """The star camera's world beyond the lab's model (issue 22): ``effects`` (magnitudes,
+    """The star camera's world beyond the lab's model: ``effects`` (magnitudes,
     :class:`StarCameraEffects`) and the settings of their model forms. The lab side (the
     protocols' plans and the estimators) never reads it; the simulator and the truths do.
 

@@ -1,4 +1,4 @@
-"""The star camera's world beyond the lab's model (issue 22): hexapod pose errors and drift.
+"""The star camera's world beyond the lab's model: hexapod pose errors and drift.
 
 :class:`simcam.starcam.scenario.StarCameraEffects` gives the magnitudes (0 = off) and
 :class:`simcam.starcam.scenario.StarCameraWorld` the settings of the model forms. The other
@@ -159,7 +159,7 @@ def drift_px(scn: Scenario, seed: int) -> dict:
     ramp = (rate / 3600.0) * t[:, None] * np.array([math.cos(phi), math.sin(phi)])[None, :]
     tau = scn.world.drift_time_constant_s
     # the recursion on Python floats (the same IEEE operations in the same order as on
-    # numpy rows, a microsecond less per frame: issue 25)
+    # numpy rows, a microsecond less per frame)
     tl, zu, zv = t.tolist(), z[:, 0].tolist(), z[:, 1].tolist()
     gu, gv = [sig * zu[0]], [sig * zv[0]]
     for k in range(1, t.size):

@@ -75,7 +75,7 @@ class Orbit(StrictModel):
     altitude_km: float = Field(gt=0, le=1e6)
     sun_synchronous: bool = True
     inclination_deg: float | None = Field(default=None, ge=0, le=180)
-    # physical ranges (issue 24): the Earth's constants within a factor of ~10 of theirs
+    # physical ranges: the Earth's constants within a factor of ~10 of theirs
     gamma0_deg: float = Field(default=0.0, ge=-3600, le=3600)
     gamma_step_deg: float = Field(default=0.36, ge=-3600, le=3600)
     earth_radius_km: float = Field(default=6378.137, ge=1000, le=70000)
@@ -86,7 +86,7 @@ class Orbit(StrictModel):
 
 
 class Camera(StrictModel):
-    # physical ranges (issue 24): a 100 m focal length, a 1 mm pixel, 10^4 stages, 1000
+    # physical ranges: a 100 m focal length, a 1 mm pixel, 10^4 stages, 1000
     # chips of 10^6 columns are beyond any camera; beyond them the image motion overflows
     focal_length_mm: float = Field(gt=0, le=1e5)
     pixel_pitch_um: float = Field(gt=0, le=1e3)
@@ -157,7 +157,7 @@ class Validation(ValidationSettings):
 
 
 class WhiskbroomEffects(EffectsBase):
-    """Unmodelled effects of the whiskbroom camera's world (issue 22; 0 = off). Only the
+    """Unmodelled effects of the whiskbroom camera's world (0 = off). Only the
     simulator's truth route (:mod:`simcam.whiskbroom.world`) reads them; the lab's predictions
     (published and improved sinc) and its slanted-edge measurement never do."""
 
@@ -250,7 +250,7 @@ def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
     scenario = validate_model(WhiskbroomScenario, data, source=source).with_source(source)
     from simcam.limits import nonfinite_fields
 
-    problems = nonfinite_fields(scenario)  # NaN and +-inf in any float field (issue 24)
+    problems = nonfinite_fields(scenario)  # NaN and +-inf in any float field
     orbit = scenario.orbit
     if orbit.sun_synchronous and orbit.inclination_deg is not None:
         problems.append("orbit.inclination_deg: give it only with sun_synchronous = false")

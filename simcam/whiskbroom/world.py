@@ -1,4 +1,4 @@
-"""The whiskbroom camera's world beyond the paper's model (issue 22): the truth route.
+"""The whiskbroom camera's world beyond the paper's model: the truth route.
 
 What the lab's predictions (the published and improved sinc) and its slanted-edge
 measurement never see (``[world.effects]`` of :class:`simcam.whiskbroom.scenario.WhiskbroomEffects`):

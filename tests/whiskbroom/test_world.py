@@ -1,4 +1,4 @@
-"""The whiskbroom world's effects (issue 22): each injection against an independent reference,
+"""The whiskbroom world's effects: each injection against an independent reference,
 the ideal world equal to the pre-issue-22 results bit for bit, the lab never reading ``world``."""
 
 import ast
@@ -157,7 +157,7 @@ def test_world_motion_on_the_sphere_is_the_papers_chain():
 
 
 # ------------------------------------------------------------------ contract
-#: validate --trials 4 --seed 0 of the embedded default recorded with the code BEFORE issue 22
+#: validate --trials 4 --seed 0 of the embedded default recorded with the code BEFORE the world effects
 #: (commit 5328684, /tmp run of `budget whiskbroom validate --trials 4 --workers 1 --json`):
 #: (truth, mean, std) per class/axis/variant
 PRE_ISSUE22 = {
@@ -223,7 +223,7 @@ def test_effects_scenario_errors():
         wsc.from_dict(data)
 
 
-# ------------------------------------------------------------------ issue 22 item 4
+# ------------------------------------------------------------------ seed 002's claims as distributions
 def test_seed_distribution_quantiles():
     from budget.whiskbroom import claims
     from simcam.whiskbroom import synthesis as sy

@@ -5,7 +5,7 @@ does once per window (every star of the window's chip, in star order, clipped to
 and the window), with the same floating-point operations in the same order
 (``sig += electrons_i * stamp_i`` pixel by pixel), so its windows are bit for bit those of
 the Python loop (``tests/test_render.py``); it saves the W^2 Python iterations a scene's
-windows cost (issue 25).
+windows cost.
 """
 
 from __future__ import annotations
