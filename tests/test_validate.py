@@ -200,7 +200,6 @@ def test_published_te_follows_the_c4_distribution_of_per_star_sds():
     k = 80
     res = validate(scn, trials=k, seed=21)
     n = scn.protocols.te.frames
-    f = 3 * scn.camera.scale_arcsec_per_px  # the study's values: 3 sigma in arcsec
     truth = res.truths[("te", "x")]  # already in the study's unit
     sigma_bar = truth.value / c4(truth.details["frames"])
     w = truth.details["stars"]

@@ -16,7 +16,7 @@ import pytest
 from simcam.config_base import ScenarioError
 from simcam.starcam import optics
 from simcam.detector import DetectorParams, expose, expose_windows, window_chain
-from simcam.starcam.scenario import ARCSEC_PER_RAD, default, from_dict, load, with_updates
+from simcam.starcam.scenario import ARCSEC_PER_RAD, default, load, with_updates
 from simcam.starcam.world import (
     WorldMotion, drift_px, frame_times_s, hexapod_pose_errors, timeline,
 )
