@@ -24,14 +24,14 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     import sys
     from pathlib import Path
 
-    from budget.runner.report import format_table, write_report
+    from budget.runner.findings import findings_lines
+    from budget.runner.report import format_table, world_line, write_report
     from budget.runner.run import run_study
     from simcam.cli_common import write_json_atomic
+    from simcam.outputs import StagedOutputs, check_run_outputs
 
     if progress is None:
         progress = sys.stderr.isatty()
-    from simcam.outputs import check_run_outputs
-
     check_run_outputs(json_out=json_out, report_dir=report_dir, overwrite=overwrite)  # refused before the work
     if workers is None and scheduler is None and dask_local is None:
         from budget.runner.executors import default_workers
@@ -42,16 +42,11 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
-    from budget.runner.report import world_line
-
     click.echo(world_line(scenario))
     click.echo(format_table(res))
-    from budget.runner.findings import findings_lines  # the findings in words
-    click.echo("\n".join(findings_lines(res)))
+    click.echo("\n".join(findings_lines(res)))  # the findings in words
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
-    from simcam.outputs import StagedOutputs
-
     with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
         if json_out:
             write_json_atomic(staged.file(json_out), res.to_json())
