@@ -61,7 +61,8 @@ COMMANDS = [("simcam", ["render"]), ("simcam", ["optics"]), ("budget", ["validat
             ("budget", ["inductosyn", "validate"]), ("budget", ["whiskbroom", "validate"]),
             ("budget", ["whiskbroom", "synthesize"]), ("budget", ["scanmirror", "validate"]),
             ("budget", ["scanmirror", "simulate"]), ("budget", ["linecam", "validate"]),
-            ("budget", ["linecam", "simulate"]), ("budget", ["linecam", "calibrate"]), ("budget", ["plot"])]
+            ("budget", ["linecam", "simulate"]), ("budget", ["linecam", "calibrate"]), ("budget", ["plot"]),
+            ("budget", ["scanmirror", "robustness"]), ("budget", ["starcam", "robustness"])]
 
 
 @pytest.mark.parametrize("prog,args", COMMANDS, ids=[" ".join([p, *a]) for p, a in COMMANDS])

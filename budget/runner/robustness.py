@@ -60,6 +60,7 @@ import click
 import numpy as np
 
 from budget.runner.study import ClassSpec, Study, TrialResult
+from simcam.cli_common import overwrite_option
 from simcam.effects import scenario_effects
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
@@ -642,16 +643,21 @@ def robustness_command_for(study_name: str) -> click.Command:
     @click.option("--scheduler", default=None, help="Run the trials on a Dask cluster (tcp://HOST:PORT).")
     @click.option("--dask-local", type=int, default=None, help="Run on a Dask LocalCluster of N processes.")
     @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
-    @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report.")
+    @click.option("--report", "report_dir", type=click.Path(file_okay=False),
+                  help="Write a report (report.md, report.html, robustness.json, scenario.toml).")
+    @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
-    def robustness(scenario, trials, seed, workers, scheduler, dask_local, json_out, report_dir, progress):
+    def robustness(scenario, trials, seed, workers, scheduler, dask_local, json_out, report_dir, overwrite, progress):
         import sys
 
         from budget.runner.registry import get_study
         from simcam.cli_common import write_json_atomic
+        from simcam.outputs import StagedOutputs, check_run_outputs
 
         study = get_study(study_name)
         scn = study.load_scenario(scenario)
+        # the outputs are checked before the work and written together (or not at all)
+        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)
         if progress is None:
             progress = sys.stderr.isatty()
         if workers is None and scheduler is None and dask_local is None:
@@ -665,9 +671,12 @@ def robustness_command_for(study_name: str) -> click.Command:
         click.echo(res.format_table())
         for s in res.sentences():
             click.echo(f"* {s}")
-        if json_out:
-            write_json_atomic(json_out, res.to_json())
+        with StagedOutputs() as staged:
+            if json_out:
+                write_json_atomic(staged.file(json_out), res.to_json())
+            if report_dir:
+                res.write_report(staged.folder(report_dir))
         if report_dir:
-            click.echo(f"report: {res.write_report(report_dir)}")
+            click.echo(f"report: {Path(report_dir) / 'report.md'}")
 
     return robustness

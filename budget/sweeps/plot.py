@@ -22,9 +22,9 @@ import re
 from pathlib import Path
 
 import click
+import numpy as np
 
 from simcam.cli_common import overwrite_option
-import numpy as np
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
 
