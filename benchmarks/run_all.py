@@ -74,7 +74,7 @@ and 25 exact pixel-integrated PSF stamps), noisy 11x11 windows per second
 (`render_windows`, serial and threaded), and the peak memory of one full frame.
 Targets: a full frame in at most 0.15 s, at least 100,000 windows per second,
 peak memory under 300 MB. GalSim's CCD noise and pyxel do fewer or other effects than our
-chain; they are the peers the issues name, not the same computation."""),
+chain; they are the peers the project names, not the same computation."""),
     "detector_noise": ("Simulator: detector chain alone", """\
 The detector chain alone on a full 2048 x 4096 two-chip mosaic (PRNU, dark + DSNU + hot
 pixels, Poisson shot noise, full-well clip, read noise, per-chip gain/offset ADC to
@@ -177,8 +177,8 @@ with the cases also run as separate validates. More in
 }
 
 INTRO = """\
-Scripts in `benchmarks/`, each timing our code and its peers (the libraries the issues
-name, or plain numpy) side by side in one run, after a warm-up call (numba JIT / cache
+Scripts in `benchmarks/`, each timing our code and its peers (the libraries the project
+names, or plain numpy) side by side in one run, after a warm-up call (numba JIT / cache
 load), best of several repeats. This page is generated: `python benchmarks/run_all.py`
 runs every `benchmarks/bench_*.py` in turn and writes it from what they printed; edit the
 template text in `benchmarks/run_all.py`, not this page. Each benchmark's last line,
@@ -208,6 +208,16 @@ class BenchRun:
     stderr: str = ""
     result: dict | None = None
     notes: list[str] = field(default_factory=list)
+
+
+def _interpreter() -> str:
+    """The interpreter, named relative to the repository when it lives there (a page that is
+    committed names no machine's paths)."""
+    exe = Path(sys.executable)
+    try:
+        return str(exe.relative_to(ROOT))
+    except ValueError:
+        return exe.name
 
 
 def discover(bench_dir: Path = HERE) -> dict[str, Path]:
@@ -312,7 +322,7 @@ def machine_info() -> dict[str, str]:
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     info = {"cpu": cpu, "logical cores": f"{os.cpu_count()} ({usable} usable)", "memory": mem,
             "os": f"{platform.system()} {platform.release()}",
-            "python": f"{platform.python_version()} ({sys.executable})"}
+            "python": f"{platform.python_version()} ({_interpreter()})"}
     try:
         head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                               capture_output=True, text=True, check=True).stdout.strip()
@@ -432,7 +442,7 @@ def render_page(runs: list[BenchRun], *, quick: bool, only: list[str] | None,
                           _load_str(r.load_before), _load_str(r.load_after),
                           r.status + ("; " + "; ".join(r.notes) if r.notes else "")]
                          for r in runs]), ""]
-    lines += ["## Summary: ours against the peers measured in the same run, and the issues' targets",
+    lines += ["## Summary: ours against the peers measured in the same run, and the project's targets",
               "",
               "The ratio is the peer's time over ours (or our rate over the peer's): above 1, ours "
               "is faster or smaller. The peer is measured by the same script in the same run; "
