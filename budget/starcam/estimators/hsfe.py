@@ -109,6 +109,17 @@ def high_spatial_frequency_error(table: pd.DataFrame, *, plate_scale_arcsec: flo
     )
 
 
+def _clipped_sigma(tau2: float, ax: str, kind: str, flags: list, log) -> float:
+    """sqrt of a variance estimate, a negative one (temporal noise dominates) set to 0 with
+    flag ``clipped_<ax>`` and a warning."""
+    if tau2 < 0:
+        flags.append(f"clipped_{ax}")
+        log.warn(f"HSFE: the {kind} variance along {ax} is negative ({tau2:.3g} px^2): "
+                 "temporal noise dominates; set to 0")
+        tau2 = 0.0
+    return math.sqrt(tau2)
+
+
 def high_spatial_frequency_error_debiased(
     table: pd.DataFrame, *, plate_scale_arcsec: float
 ) -> HsfeEstimate:
@@ -155,12 +166,7 @@ def high_spatial_frequency_error_debiased(
         details[f"published_sigma_{ax}_px"] = math.sqrt(s / (w * (m - 1)))
         details[f"temporal_noise_variance_{ax}_px2"] = noise / (w * (m - 1))
         details[f"tau2_{ax}_px2"] = tau2
-        if tau2 < 0:
-            flags.append(f"clipped_{ax}")
-            log.warn(f"HSFE: the debiased variance along {ax} is negative ({tau2:.3g} px^2): "
-                     "temporal noise dominates; set to 0")
-            tau2 = 0.0
-        sig[ax] = math.sqrt(tau2)
+        sig[ax] = _clipped_sigma(tau2, ax, "debiased", flags, log)
     return HsfeEstimate(
         quantity="HSFE", method="debiased", equations="docs/estimators.md (HSFE debiased)",
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
@@ -221,12 +227,7 @@ def high_spatial_frequency_error_static(
         tau2 = (s - noise) / ((w - 1) * (m - 1))
         details[f"tau2_{ax}_px2"] = tau2
         details[f"temporal_noise_variance_{ax}_px2"] = noise / ((w - 1) * (m - 1))
-        if tau2 < 0:
-            flags.append(f"clipped_{ax}")
-            log.warn(f"HSFE: the static variance along {ax} is negative ({tau2:.3g} px^2): "
-                     "temporal noise dominates; set to 0")
-            tau2 = 0.0
-        sig[ax] = math.sqrt(tau2)
+        sig[ax] = _clipped_sigma(tau2, ax, "static", flags, log)
     return HsfeEstimate(
         quantity="HSFE", method="static", equations="docs/estimators.md (HSFE static)",
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
