@@ -246,18 +246,20 @@ def _variant_summary(result, items: list[dict]) -> dict:
         by_var.setdefault(f["variant"], {}).setdefault(f["class"], []).append(f)
     out = {}
     for var, classes in by_var.items():
-        rec, notrec, other = [], [], []
+        rec, notrec, other, held = [], [], [], []
         for cls, fs in classes.items():
             rules = {f["rule"] for f in fs}
             if rules & {"input", "reference"} or rules == {"undetermined"}:
                 other.append(cls)
+            elif rules <= {"residual", "stated"} and all(f["recovered"] for f in fs):
+                held.append(cls)   # a residual or a stated figure is not "recovered": it agrees with its truth
             elif all(f["recovered"] or f["rule"] == "undetermined" for f in fs):
                 und = [f["axis"] for f in fs if f["rule"] == "undetermined"]
                 rec.append(cls if not und else
                            f"{cls} ({', '.join(f['axis'] for f in fs if f['rule'] != 'undetermined')} only)")
             else:
                 notrec.append(cls)
-        out[var] = {"recovered": rec, "not_recovered": notrec, "other": other,
+        out[var] = {"recovered": rec, "not_recovered": notrec, "other": other, "held": held,
                     "reference": all(f["rule"] == "reference" for fs in classes.values() for f in fs)}
     return out
 
@@ -285,8 +287,8 @@ def _recommendation(result, items: list[dict], summary: dict) -> str | None:
         best = min(ok, key=ok.get)
         use.setdefault(best, []).append(_label(result, cls))
     parts = [f"`{v}` for {', '.join(c)}" for v, c in sorted(use.items(), key=lambda kv: -len(kv[1]))]
-    s = ("Use " + "; ".join(parts) + " (of the variants that recover a class, the one with the smallest rms "
-         "error)." if parts else "")
+    s = ("Use " + "; ".join(parts) + " (of the variants within their claim on a class, the one with the "
+         "smallest rms error)." if parts else "")
     if none:
         s += (" " if s else "") + f"No variant recovers {', '.join(none)} within its claim."
     undet = sorted({(f["class"], f["axis"]) for f in items if f["rule"] == "undetermined"})
@@ -327,6 +329,9 @@ def findings_markdown(result, data: dict | None = None) -> list[str]:
             rec = ", ".join(_label(result, c) for c in s["recovered"]) or "none"
             nrec = ", ".join(_label(result, c) for c in s["not_recovered"]) or "none"
             head = f"`{var}` recovers within its claim: {rec}. Not recovered: {nrec}."
+            if s.get("held"):
+                head += (" Agrees with its truth (a residual or a stated figure, not an estimate): "
+                         + ", ".join(_label(result, c) for c in s["held"]) + ".")
         lines += [f"### {var}", "", head, ""]
         for f in fs:
             if f["recovered"] or f["rule"] == "input":
@@ -354,7 +359,8 @@ def findings_lines(result, data: dict | None = None) -> list[str]:
             out.append(f"  {var}: a reference (does not estimate)")
             continue
         out.append(f"  {var}: recovers {', '.join(s['recovered']) or 'none'}; "
-                   f"not: {', '.join(s['not_recovered']) or 'none'}")
+                   f"not: {', '.join(s['not_recovered']) or 'none'}"
+                   + (f"; agrees with its truth (residual or stated): {', '.join(s['held'])}" if s.get("held") else ""))
         shown: dict = {}
         for f in fs:
             if not f["recovered"] and f["rule"] not in ("input", "reference"):
