@@ -81,6 +81,12 @@ World effects (``budget <study> robustness``, :mod:`budget.runner.robustness`):
 :meth:`Study.truth_depends_on_effects` (the effects whose change changes the truths; default
 all) and :meth:`Study.claim` (the accuracy a method claims for a class; default: unbiased).
 
+Protocol planning (``budget <study> plan``, :mod:`budget.runner.plan`):
+:meth:`Study.protocol_knobs` (the fields a lab chooses, :class:`Knob`, with bounds; none by
+default, and then the study has no ``plan`` command), :meth:`Study.protocol_shapes` (named
+protocol geometries to compare) and :meth:`Study.lab_time_s` (the lab time of a protocol, in
+seconds by item, from the scenario's own fields: exposures, frames, moves, settling, dwells).
+
 Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
 :meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
 :meth:`Study.commands` (extra click commands of its CLI group besides ``validate``).
@@ -101,7 +107,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CLASS_ROLES", "ClassSpec", "Key", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
+__all__ = ["CLASS_ROLES", "ClassSpec", "Key", "Knob", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
            "Truth", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
 
 #: spawn key of the truths' seed sequence (trials use 0, 1, 2, ...)
@@ -210,6 +216,39 @@ class Truth:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.se) and self.se >= 0.0):
             raise ValueError(f"Truth.se must be finite and >= 0, got {self.se}")
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One knob of a lab protocol (:meth:`Study.protocol_knobs`): a scenario field the lab
+    chooses, with the range the planner may search.
+
+    Parameters
+    ----------
+    field : str
+        Dotted scenario key (``"validation.te_frames"``, ``"protocol.faces"``).
+    kind : {"int", "real"}
+        Integer knobs take whole values only.
+    low, high : float
+        Inclusive bounds, in the field's unit (``low <= high``).
+    unit : str
+        What one step of the knob is (``"frames"``, ``"faces"``, ``"mag"``).
+    description : str
+        One sentence a report prints beside the chosen value.
+    """
+
+    field: str
+    kind: str
+    low: float
+    high: float
+    unit: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("int", "real"):
+            raise ValueError(f"Knob {self.field!r}: kind must be 'int' or 'real', got {self.kind!r}")
+        if not (math.isfinite(self.low) and math.isfinite(self.high) and self.low <= self.high):
+            raise ValueError(f"Knob {self.field!r}: bounds must be finite with low <= high, got {self.low}, {self.high}")
 
 
 @dataclass
@@ -400,6 +439,26 @@ class Study(ABC):
         unit (a bound on the bias); None (the default): it claims to be unbiased within its
         Monte Carlo uncertainty (:func:`budget.runner.robustness.claim_holds`)."""
         return None
+
+    # ------------------------------------------------------------ protocol planning
+    def protocol_knobs(self, scenario: Any) -> tuple["Knob", ...]:
+        """The protocol's knobs a lab chooses before booking the lab (frames per condition,
+        poses, dark frames, polygon faces, passes, ...), each a scenario field with bounds
+        (:class:`Knob`); ``budget <study> plan`` searches them. Empty (the default): the study
+        has no plannable protocol."""
+        return ()
+
+    def protocol_shapes(self, scenario: Any) -> dict[str, dict[str, Any]]:
+        """Named protocol geometries the planner compares besides the counts, each a mapping of
+        dotted scenario keys to values (e.g. an HSFE step pattern along one diagonal or over a
+        grid spanning both axes). Empty (the default): the scenario's own shape only."""
+        return {}
+
+    def lab_time_s(self, scenario: Any) -> dict[str, float]:
+        """The lab time the scenario's protocol takes, in seconds, by item (``"exposure"``,
+        ``"moves"``, ``"settling"``, ``"dwell"``, ...), from the scenario's own fields; the
+        planner's cost is their sum. Required where :meth:`protocol_knobs` is not empty."""
+        raise NotImplementedError(f"{type(self).__name__}: no lab time model (lab_time_s)")
 
     # ------------------------------------------------------------ presentation
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
