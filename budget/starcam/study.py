@@ -238,8 +238,8 @@ class StarCameraStudy(Study):
                           f"leaves {c1.value:.3g} of the {raw * f:.3g} raw static displacement "
                           f"({100 * c1.value / (raw * f):.0f} %) over {c1.details.get('dense_points', 'the')} "
                           f"points of the field, but it was fitted at a {cor.rows} x {cor.cols} grid"
-                          + (" at the lab's own calibration points" if same else "")
-                          + ", where it leaves less of it")
+                          + (", the lab's own calibration points," if same else "")
+                          + " and leaves less of it there")
             if var == "published":
                 # eq 29 reports the cubic part of the points' displacements: the markers' floor and,
                 # were it seen, the camera's residual beside it (root-sum-square)
