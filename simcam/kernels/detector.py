@@ -121,9 +121,19 @@ def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_pe
 @njit(parallel=True, cache=True)
 def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
                  read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
-                 hot_dark_e, frame_key, detector_key, shot_noise, read_noise, quantize,
-                 max_dn, out):
-    """Detector chain for a rectangular block; rows in parallel; writes ``out``.
+                 hot_dark_e, nonlinearity_beta, max_signal_e, frame_key, detector_key, shot_noise,
+                 read_noise, quantize, max_dn, out):
+    """Whole detector chain of a rectangular block in one pass per pixel; rows in parallel.
+
+    Per pixel, with nothing stored in between: the mean charge ``S g + d`` (PRNU, dark,
+    DSNU, hot pixels), the integral non-linearity ``s (1 - beta min(s, FW) / FW)`` when
+    ``nonlinearity_beta`` is not 0 (:func:`nonlinearity_windows`, same operations), then
+    the Poisson draw, full well, read noise, gain, quantisation and clipping
+    (:func:`_noise_adc_pixel`). The same expressions in the same order as the window
+    route (:func:`mean_charge_windows`, :func:`nonlinearity_windows`,
+    :func:`noise_adc_frames`), so the same pixels bit for bit; the random numbers are
+    functions of the pixel index and the keys only, so the row split over threads does
+    not change them.
 
     Parameters
     ----------
@@ -138,6 +148,10 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
     prnu_rms, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e : float
         PRNU rms (fraction), mean dark (e-), DSNU rms (e-), hot-pixel fraction and
         excess dark (e-).
+    nonlinearity_beta : float
+        Integral non-linearity coefficient (0: the linear camera).
+    max_signal_e : float
+        Largest valid ``signal_e``; the input check rides on the same pass.
     frame_key, detector_key : uint64
         Stream keys.
     shot_noise, read_noise, quantize : bool
@@ -146,13 +160,42 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
         ``2**adc_bits - 1``.
     out : ndarray, shape (h, w)
         Output (uint16/uint32 when quantising, float64 otherwise).
+
+    Returns
+    -------
+    int
+        Number of rows with a value of ``signal_e`` outside ``[0, max_signal_e]`` or NaN
+        (the caller rejects the input then; every pixel is still computed, the generator
+        being total: no loop runs forever on such a value).
     """
-    h = signal_e.shape[0]
+    h, w = signal_e.shape
+    bad_row = np.zeros(h, dtype=np.int64)
     for i in prange(h):
-        expose_row(signal_e[i], out[i], row0 + i, col0, mosaic_cols, chip_cols,
-                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, prnu_rms, dark_e,
-                   dsnu_rms_e, hot_fraction, hot_dark_e, frame_key, detector_key,
-                   shot_noise, read_noise, quantize, max_dn)
+        sig = signal_e[i]
+        out_row = out[i]
+        base = (row0 + i) * mosaic_cols + col0
+        bad = 0
+        j = 0
+        while j < w:
+            chip, j_end = _chip_segment(col0, j, w, chip_cols)
+            g = gain_e_per_dn[chip]
+            off = offset_dn[chip]
+            rn = read_noise_e[chip]
+            fw = full_well_e[chip]
+            for jj in range(j, j_end):
+                s = sig[jj]
+                if not (s >= 0.0 and s <= max_signal_e):
+                    bad = 1
+                v = (s * prnu_value(detector_key, base + jj, prnu_rms)
+                     + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e))
+                if nonlinearity_beta != 0.0:
+                    mn = v if v <= fw else fw
+                    v = v * (1.0 - nonlinearity_beta * mn / fw)
+                out_row[jj] = _noise_adc_pixel(v, base + jj, g, off, rn, fw, frame_key, shot_noise,
+                                               read_noise, quantize, max_dn)
+            j = j_end
+        bad_row[i] = bad
+    return bad_row.sum()
 
 
 @njit(parallel=True, cache=True)
