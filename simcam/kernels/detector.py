@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from simcam.rng import SLOT_BITS, DRAW_BITS, poisson_prepared, poisson_setup, std_normal, uniform01
+from simcam.rng import SLOT_BITS, DRAW_BITS, poisson, poisson_prepared, poisson_setup, std_normal, uniform01
 
 SLOT_PRNU = 0
 SLOT_DSNU = 1
@@ -118,6 +118,85 @@ def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_pe
                    max_dn)
 
 
+#: Pixels per chunk of :func:`expose_block` (three float64 scratch rows of 4 kB: L1-resident).
+_CHUNK = 512
+
+
+@njit(cache=True, inline="always")
+def _chain_chunk(sig, out, pixel0, m, z, n, g, off, rn, fw, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                 hot_dark_e, beta, max_signal_e, frame_key, detector_key, shot_noise, read_noise,
+                 quantize, max_dn):
+    """The chain of :func:`expose_block` for ``len(sig)`` consecutive pixels of one chip from
+    mosaic pixel ``pixel0``: the random draws in loops of their own (the generator's
+    branches and table look-ups), the arithmetic between them in plain loops that the
+    compiler vectorises. The operations on each pixel and their order are those of
+    :func:`prnu_value`, :func:`dark_value`, :func:`nonlinearity_windows` and
+    :func:`_noise_adc_prepared` (so the same values). Returns 1 if a ``sig`` value is
+    outside ``[0, max_signal_e]`` or NaN, else 0."""
+    k = sig.shape[0]
+    bad = False
+    for jj in range(k):
+        s = sig[jj]
+        bad |= not (s >= 0.0 and s <= max_signal_e)
+    # mean charge S g + d (prnu_value, dark_value)
+    if prnu_rms == 0.0:
+        for jj in range(k):
+            m[jj] = sig[jj] * 1.0
+    else:
+        for jj in range(k):
+            z[jj] = std_normal(detector_key, slot_counter(pixel0 + jj, SLOT_PRNU))
+        for jj in range(k):
+            gg = 1.0 + prnu_rms * z[jj]
+            m[jj] = sig[jj] * (gg if gg > 0.0 else 0.0)
+    if dsnu_rms_e > 0.0:
+        for jj in range(k):
+            z[jj] = std_normal(detector_key, slot_counter(pixel0 + jj, SLOT_DSNU))
+        for jj in range(k):
+            d = dark_e + dsnu_rms_e * z[jj]
+            z[jj] = 0.0 if d < 0.0 else d
+    else:
+        for jj in range(k):
+            z[jj] = dark_e
+    if hot_fraction > 0.0:
+        for jj in range(k):
+            if uniform01(detector_key, slot_counter(pixel0 + jj, SLOT_HOT)) < hot_fraction:
+                z[jj] += hot_dark_e
+    for jj in range(k):
+        m[jj] = m[jj] + z[jj]
+    if beta != 0.0:
+        for jj in range(k):
+            v = m[jj]
+            mn = v if v <= fw else fw
+            m[jj] = v * (1.0 - beta * mn / fw)
+    # temporal noise (_noise_adc_prepared): count, full well, read noise, ADC
+    if shot_noise:
+        for jj in range(k):
+            n[jj] = np.float64(poisson(m[jj], frame_key, slot_counter(pixel0 + jj, SLOT_SHOT)))
+    else:
+        for jj in range(k):
+            n[jj] = m[jj]
+    for jj in range(k):
+        v = n[jj]
+        n[jj] = v if not v > fw else fw
+    if read_noise:
+        for jj in range(k):
+            z[jj] = std_normal(frame_key, slot_counter(pixel0 + jj, SLOT_READ))
+        for jj in range(k):
+            n[jj] += rn * z[jj]
+    if quantize:
+        for jj in range(k):
+            v = math.floor(n[jj] / g + off + 0.5)
+            if v < 0.0:
+                v = 0.0
+            elif v > max_dn:
+                v = max_dn
+            out[jj] = v
+    else:
+        for jj in range(k):
+            out[jj] = n[jj] / g + off
+    return 1 if bad else 0
+
+
 @njit(parallel=True, cache=True)
 def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
                  read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
@@ -171,28 +250,21 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
     h, w = signal_e.shape
     bad_row = np.zeros(h, dtype=np.int64)
     for i in prange(h):
-        sig = signal_e[i]
-        out_row = out[i]
         base = (row0 + i) * mosaic_cols + col0
+        # scratch of one chunk (L1-sized): mean charge, a normal (or the dark signal), the count
+        m = np.empty(_CHUNK)
+        z = np.empty(_CHUNK)
+        n = np.empty(_CHUNK)
         bad = 0
         j = 0
         while j < w:
             chip, j_end = _chip_segment(col0, j, w, chip_cols)
-            g = gain_e_per_dn[chip]
-            off = offset_dn[chip]
-            rn = read_noise_e[chip]
-            fw = full_well_e[chip]
-            for jj in range(j, j_end):
-                s = sig[jj]
-                if not (s >= 0.0 and s <= max_signal_e):
-                    bad = 1
-                v = (s * prnu_value(detector_key, base + jj, prnu_rms)
-                     + dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e))
-                if nonlinearity_beta != 0.0:
-                    mn = v if v <= fw else fw
-                    v = v * (1.0 - nonlinearity_beta * mn / fw)
-                out_row[jj] = _noise_adc_pixel(v, base + jj, g, off, rn, fw, frame_key, shot_noise,
-                                               read_noise, quantize, max_dn)
+            j_end = min(j_end, j + _CHUNK)
+            bad += _chain_chunk(signal_e[i, j:j_end], out[i, j:j_end], base + j, m, z, n,
+                                gain_e_per_dn[chip], offset_dn[chip], read_noise_e[chip],
+                                full_well_e[chip], prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                                hot_dark_e, nonlinearity_beta, max_signal_e, frame_key, detector_key,
+                                shot_noise, read_noise, quantize, max_dn)
             j = j_end
         bad_row[i] = bad
     return bad_row.sum()
