@@ -178,7 +178,6 @@ def main() -> None:
                      cam.detector_key, sums)
 
     floor_s = best_of_wall_cpu(floor, repeat=args.repeat)
-    del mean_e
     nump = best_of_wall_cpu(lambda: numpy_frame(expected, scn, next(counter)), repeat=max(2, args.repeat // 2))
     peak_mb = peak_traced_mb(sim_frame)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
