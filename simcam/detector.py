@@ -272,12 +272,15 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
            quantize=True) -> np.ndarray:
     """Turn expected electrons of a block of mosaic pixels into detector output.
 
-    Per pixel (Janesick 2007; EMVA 1288 linear model): ``n = Poisson(S * g + d)`` with the
-    PRNU factor ``g`` and the dark signal ``d`` (DSNU, hot pixels) of
-    :func:`prnu_map` and :func:`dsnu_map`, ``n`` clipped at the full well, plus
+    Per pixel (Janesick 2007; EMVA 1288 linear model): ``n = Poisson(mu)`` with
+    ``mu = S * g + d``, the PRNU factor ``g`` and the dark signal ``d`` (DSNU, hot pixels) of
+    :func:`prnu_map` and :func:`dsnu_map` (with ``params.nonlinearity_beta`` not 0, ``mu`` is
+    first compressed by :func:`apply_nonlinearity`), ``n`` clipped at the full well, plus
     ``N(0, read_noise_e**2)``, then ``DN = floor(n / K + offset + 0.5)`` clipped to
     ``[0, 2**adc_bits - 1]``. The random numbers depend only on the keys and the mosaic
-    pixel index, so any block, window or thread count gives identical pixels.
+    pixel index, so any block, window or thread count gives identical pixels. The whole
+    chain runs in one numba pass per pixel, rows in parallel
+    (:func:`simcam.kernels.detector.expose_block`), with the window route's operations.
 
     Parameters
     ----------

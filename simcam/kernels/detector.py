@@ -20,7 +20,9 @@ EMVA Standard 1288 release 4.0 (2021) (linear camera model):
 * PRNU: ``g = max(0, 1 + prnu_rms * z1)``, ``z1 ~ N(0, 1)``;
 * dark signal with DSNU: ``d = max(0, dark_e + dsnu_rms_e * z2)`` plus
   ``hot_dark_e`` if ``u3 < hot_fraction`` (``u3 ~ U(0, 1)``);
-* charge: ``n = Poisson(signal_e * g + d)`` (or its mean without shot noise), clipped at
+* integral non-linearity of the mean charge ``s = signal_e * g + d`` when ``beta != 0``:
+  ``s (1 - beta min(s, FW) / FW)`` (:func:`simcam.detector.apply_nonlinearity`);
+* charge: ``n = Poisson(s)`` (or its mean without shot noise), clipped at
   the full well ``full_well_e[k]`` (the pixel's charge capacity, Janesick 2007);
 * read noise added at the output amplifier: ``n + read_noise_e[k] * z4``;
 * ADC: ``DN = n / gain_e_per_dn[k] + offset_dn[k]``, quantised as
