@@ -204,10 +204,11 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
                  read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
                  hot_dark_e, nonlinearity_beta, max_signal_e, frame_key, detector_key, shot_noise,
                  read_noise, quantize, max_dn, out):
-    """Whole detector chain of a rectangular block in one pass per pixel; rows in parallel.
+    """Whole detector chain of a rectangular block in one pass over it; rows in parallel.
 
-    Per pixel, with nothing stored in between: the mean charge ``S g + d`` (PRNU, dark,
-    DSNU, hot pixels), the integral non-linearity ``s (1 - beta min(s, FW) / FW)`` when
+    Per pixel, with nothing stored but the output (512-pixel chunks of a row through L1
+    scratch, :func:`_chain_chunk`): the mean charge ``S g + d`` (PRNU, dark, DSNU, hot
+    pixels), the integral non-linearity ``s (1 - beta min(s, FW) / FW)`` when
     ``nonlinearity_beta`` is not 0 (:func:`nonlinearity_windows`, same operations), then
     the Poisson draw, full well, read noise, gain, quantisation and clipping
     (:func:`_noise_adc_pixel`). The same expressions in the same order as the window
