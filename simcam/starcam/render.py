@@ -22,6 +22,7 @@ The true position reported for a star is the centroid of its noise-free image:
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -208,8 +209,11 @@ class StarCamera:
                 if sc is None:
                     if len(scenes) > 1024:
                         scenes.clear()
+                    # the displaced scenes use the profiles of p's own pose: the gradient of
+                    # one smooth stamp model, never a difference across two rounded poses
                     sc = scenes[sk] = self._scene(dataclasses.replace(
-                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy))
+                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy),
+                        profile_node=self.profile_node(p))
                 sig = _expected_windows_at(self, sc, chain.col0, chain.row0)
                 _, cols = self.mosaic.shape
                 out.append(window_chain(signal_e=sig, row0=chain.row0, col0=chain.col0, mosaic_cols=cols,
@@ -277,7 +281,63 @@ class StarCamera:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
 
-    def _scene(self, placement: Placement) -> Scene:
+    def _lateral_colour(self, wl, ud, vd):
+        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions."""
+        scn = self.scenario
+        lc = scn.optics.lateral_colour
+        return optics.lateral_colour_shift_px(
+            wavelength_nm=wl,
+            u_px=ud,
+            v_px=vd,
+            ref_wavelength_nm=lc.ref_wavelength_nm,
+            radial_coeffs=tuple(lc.radial_px_per_nm),
+            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
+            r_norm_px=scn.optics.r_norm_px,
+        )
+
+    def profile_node(self, placement: Placement) -> tuple[float, float]:
+        """The pose whose stamp profiles serve ``placement`` (``render.stamp_route = "profile"``):
+        its hexapod translation rounded to the nearest multiple of ``render.stamp_profile_step_px``
+        (halves up), roll 0. A function of the placement alone, so a scene does not depend on
+        which scenes were rendered before it."""
+        h = self.scenario.render.stamp_profile_step_px
+        return (math.floor(placement.platform_dx_px / h + 0.5) * h,
+                math.floor(placement.platform_dy_px / h + 0.5) * h)
+
+    def _stamp_profiles(self, placement: Placement, chip, wl, weights_1d, node=None):
+        """The stamp profiles (:func:`simcam.starcam.optics.stamp_profiles`) of the placement's
+        stars at the pose ``node`` (default :meth:`profile_node`): the same chain as
+        :meth:`_scene` (distortion, lateral colour, PSF width) at that pose, in the chips the
+        stars land on. Cached per target, filter, pose and chips (the last 64)."""
+        scn = self.scenario
+        lay = placement.layout
+        if node is None:
+            node = self.profile_node(placement)
+        key = (lay.u_px.tobytes(), lay.v_px.tobytes(), lay.pinhole_radius_px, placement.filter_nm,
+               float(node[0]), float(node[1]), chip.tobytes())
+        cache = self.__dict__.setdefault("_profile_cache", {})
+        hit = cache.get(key)
+        if hit is None:
+            ud, vd = self.distortion.forward(u_px=lay.u_px + node[0], v_px=lay.v_px + node[1])
+            su, sv = self._lateral_colour(wl, ud, vd)
+            sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
+            sig = optics.psf_sigma_px(
+                u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
+                sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
+            )
+            W = lay.n_stars
+            hit = optics.stamp_profiles(
+                stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind, sigma_px=sig,
+                pinhole_radius_px=lay.pinhole_radius_px, f_number=scn.camera.f_number,
+                pixel_pitch_um=scn.camera.pixel_pitch_um, wavelength_nm=wl,
+                weights=np.broadcast_to(weights_1d, (W, len(wl))), shift_x_px=sx, shift_y_px=sy)
+            if len(cache) >= 64:
+                cache.pop(next(iter(cache)))
+            cache[key] = hit
+        return hit
+
+    def _scene(self, placement: Placement, profile_node=None) -> Scene:
         scn = self.scenario
         lay = placement.layout
         u0 = lay.u_px + placement.platform_dx_px
@@ -291,17 +351,7 @@ class StarCamera:
         weights_1d = self.spectra.weights(e_rate)
         electrons = self.spectra.electrons_per_exposure(e_rate)
         W = lay.n_stars
-        lc = scn.optics.lateral_colour
-        su, sv = optics.lateral_colour_shift_px(
-            wavelength_nm=wl,
-            u_px=ud,
-            v_px=vd,
-            ref_wavelength_nm=lc.ref_wavelength_nm,
-            radial_coeffs=tuple(lc.radial_px_per_nm),
-            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
-            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
-            r_norm_px=scn.optics.r_norm_px,
-        )
+        su, sv = self._lateral_colour(wl, ud, vd)
         chrom_u = su @ weights_1d
         chrom_v = sv @ weights_1d
         half = scn.render.window_px // 2
@@ -325,13 +375,19 @@ class StarCamera:
             u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
             sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
         )
-        stamps, c0, r0 = optics.render_stamps(
-            x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
-            sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
-            f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
-            wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
-            shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
-        )
+        if scn.render.stamp_route == "profile":
+            prof = self._stamp_profiles(placement, chip, wl, weights_1d, profile_node)
+            stamps, c0, r0 = optics.render_shifted_stamps(
+                prof, x_px=xr, y_px=yr, sigma_px=sig, mean_shift_x_px=sx @ weights_1d,
+                mean_shift_y_px=sy @ weights_1d)
+        else:
+            stamps, c0, r0 = optics.render_stamps(
+                x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
+                sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
+                f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
+                wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
+                shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
+            )
         x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
         _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
         _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
