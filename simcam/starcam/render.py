@@ -85,13 +85,25 @@ class Scene:
     stamps: np.ndarray  # (W, L, L) flux fractions
     stamp_col0: np.ndarray  # chip px of stamps[:, 0, 0]
     stamp_row0: np.ndarray
-    truth: pd.DataFrame
-    background_e: float
+    #: the truth table's columns (name -> (W,) array), in the table's order
+    truth_columns: dict = field(repr=False, compare=False)
+    background_e: float = 0.0
 
     @property
     def n_stars(self) -> int:
         """Number of stars W."""
         return len(self.chip)
+
+    @property
+    def truth(self) -> pd.DataFrame:
+        """Per star: the injected truth (positions, the displacements that make them up, flux,
+        PSF width, filter, condition). Built on first use and kept (a Monte Carlo trial never
+        reads it: a table costs about a millisecond); callers must not modify it."""
+        t = self.__dict__.get("_truth")
+        if t is None:
+            t = pd.DataFrame(self.truth_columns)
+            object.__setattr__(self, "_truth", t)
+        return t
 
 
 @dataclass(frozen=True)
@@ -272,14 +284,24 @@ class StarCamera:
                 and np.array_equal(old.reference_v_px, lay.reference_v_px)):
             return hit
         _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-        truth = hit.truth.copy()
-        truth["x_reference"] = x_refm
-        truth["y_reference"] = y_refm
-        derived = dataclasses.replace(hit, placement=placement, truth=truth)
+        derived = dataclasses.replace(hit, placement=placement,
+                                      truth_columns={**hit.truth_columns, "x_reference": x_refm, "y_reference": y_refm})
         for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
+
+    def _spectrum(self, filter_nm):
+        """(wavelength_nm, per-wavelength weights, electrons per exposure) of a pinhole through
+        ``filter_nm``: :class:`simcam.starcam.sources.SourceSpectra`'s, kept per filter (they do
+        not depend on the placement; callers must not modify the arrays)."""
+        cache = self.__dict__.setdefault("_spectrum_cache", {})
+        key = None if filter_nm is None else float(filter_nm)
+        hit = cache.get(key)
+        if hit is None:
+            wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=filter_nm)
+            hit = cache[key] = (wl, self.spectra.weights(e_rate), self.spectra.electrons_per_exposure(e_rate))
+        return hit
 
     def _lateral_colour(self, wl, ud, vd):
         """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions."""
@@ -347,9 +369,7 @@ class StarCamera:
             u0 = u0 - placement.platform_roll_rad * lay.v_px
             v0 = v0 + placement.platform_roll_rad * lay.u_px
         ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
-        wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=placement.filter_nm)
-        weights_1d = self.spectra.weights(e_rate)
-        electrons = self.spectra.electrons_per_exposure(e_rate)
+        wl, weights_1d, electrons = self._spectrum(placement.filter_nm)
         W = lay.n_stars
         su, sv = self._lateral_colour(wl, ud, vd)
         chrom_u = su @ weights_1d
@@ -391,7 +411,7 @@ class StarCamera:
         x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
         _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
         _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-        truth = pd.DataFrame(
+        truth = (
             {
                 "star": np.arange(W),
                 "chip": chip,
@@ -418,7 +438,7 @@ class StarCamera:
         scene = Scene(
             placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
             electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
-            truth=truth, background_e=self.background_e,
+            truth_columns=truth, background_e=self.background_e,
         )
         # the true positions as arrays beside the table (a fresh DataFrame's first column
         # reads cost about a millisecond; window_origins reads them once per scene)
