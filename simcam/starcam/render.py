@@ -283,13 +283,26 @@ class StarCamera:
         if (np.array_equal(old.reference_u_px, lay.reference_u_px)
                 and np.array_equal(old.reference_v_px, lay.reference_v_px)):
             return hit
-        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        x_refm, y_refm = self._focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
         derived = dataclasses.replace(hit, placement=placement,
                                       truth_columns={**hit.truth_columns, "x_reference": x_refm, "y_reference": y_refm})
         for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
+
+    def _focal_to_mosaic(self, u_px, v_px):
+        """Mosaic (x, y) of target positions (:meth:`simcam.starcam.geometry.Mosaic.focal_to_mosaic`),
+        kept per position set (a target's ideal and reference positions recur in every
+        condition; callers must not modify the arrays)."""
+        key = (u_px.tobytes(), v_px.tobytes())
+        cache = self.__dict__.setdefault("_mosaic_xy", {})
+        hit = cache.get(key)
+        if hit is None:
+            if len(cache) >= 256:
+                cache.pop(next(iter(cache)))
+            hit = cache[key] = self.mosaic.focal_to_mosaic(u_px, v_px)[1:]
+        return hit
 
     def _spectrum(self, filter_nm):
         """(wavelength_nm, per-wavelength weights, electrons per exposure) of a pinhole through
@@ -409,8 +422,8 @@ class StarCamera:
                 shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
             )
         x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
-        _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
-        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        x_ideal, y_ideal = self._focal_to_mosaic(lay.u_px, lay.v_px)
+        x_refm, y_refm = self._focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
         truth = (
             {
                 "star": np.arange(W),
