@@ -283,15 +283,18 @@ def shifted_stamp_spectra(prof, qmax, zero, pos_x, pos_y, sigma, L, out):
     px from their stamp origin, from their profiles (:func:`stamp_profiles`).
 
     ``G(q) = prof[q] exp(-2 pi^2 sigma^2 |q|^2 / L^2) exp(-2 pi i (qx pos_x + qy pos_y) / L)``
-    for the half plane, folded (aliased) onto the ``L x L`` lattice with its conjugate
-    ``G(-q) = conj(G(q))``, plus the zero frequency ``zero[i]`` (the sum of the weights);
-    only the columns ``0 .. L // 2`` are written. ``out`` (n, L, L // 2 + 1) complex128,
-    zero-filled on entry. Both factors are exact separable products
-    (``exp(a (qx^2 + qy^2)) = exp(a qx^2) exp(a qy^2)``).
+    on the half plane, folded (aliased) onto the ``L x L`` lattice as ``A``; the full
+    spectrum is ``F(k) = A(k) + conj(A(-k))`` (``G(-q) = conj(G(q))``) plus the zero
+    frequency ``zero[i]`` (the sum of the weights), and only its columns ``0 .. L // 2`` are
+    written. ``out`` (n, L, L // 2 + 1) complex128, zero-filled on entry. The Gaussian and
+    the phase are separable products (``exp(a (qx^2 + qy^2)) = exp(a qx^2) exp(a qy^2)``),
+    so a row ``qy`` is ``ey(qy) sum_qx prof(qx, qy) ex(qx)``: one complex product per frequency.
     """
     n = pos_x.shape[0]
     Kp = prof.shape[2] // 2
     H = L // 2
+    A = np.empty((L, L), dtype=np.complex128)
+    row = np.empty(L, dtype=np.complex128)
     for i in range(n):
         qm = qmax[i]
         K = int(math.floor(qm))
@@ -304,44 +307,40 @@ def shifted_stamp_spectra(prof, qmax, zero, pos_x, pos_y, sigma, L, out):
         ex_im = np.empty(nq)
         ey_re = np.empty(K + 1)
         ey_im = np.empty(K + 1)
-        _phase_ramp(-2.0 * math.pi * pos_x[i] / L, 1.0, nq, ex_re, ex_im)
         phx = -2.0 * math.pi * pos_x[i] / L
+        _phase_ramp(phx, 1.0, nq, ex_re, ex_im)
         c0 = math.cos(-phx * K)
         s0 = math.sin(-phx * K)
+        ex = np.empty(nq, dtype=np.complex128)
+        fold = np.empty(nq, dtype=np.int64)
         for k in range(nq):
             qx = k - K
             gx = math.exp(gfac * qx * qx)
-            t = (ex_re[k] * c0 - ex_im[k] * s0) * gx
-            ex_im[k] = (ex_re[k] * s0 + ex_im[k] * c0) * gx
-            ex_re[k] = t
+            ex[k] = complex((ex_re[k] * c0 - ex_im[k] * s0) * gx, (ex_re[k] * s0 + ex_im[k] * c0) * gx)
+            fold[k] = qx % L
         _phase_ramp(-2.0 * math.pi * pos_y[i] / L, 1.0, K + 1, ey_re, ey_im)
-        for qy in range(K + 1):
-            gy = math.exp(gfac * qy * qy)
-            ey_re[qy] *= gy
-            ey_im[qy] *= gy
-        o = out[i]
-        o[0, 0] += zero[i]
+        A[:, :] = 0.0
+        pi_ = prof[i]
         for qy in range(K + 1):
             kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
             if kxlim > K:
                 kxlim = K
             k_lo = K + (1 if qy == 0 else -kxlim)
             k_hi = K + kxlim + 1
-            fy = qy % L
-            fyn = (-qy) % L
-            eyr = ey_re[qy]
-            eyi = ey_im[qy]
+            if k_lo >= k_hi:
+                continue
+            row[:] = 0.0
             for k in range(k_lo, k_hi):
-                qx = k - K
-                p = prof[i, qy, Kp + qx]
-                # e = ex ey; g = p e
-                er = ex_re[k] * eyr - ex_im[k] * eyi
-                ei = ex_re[k] * eyi + ex_im[k] * eyr
-                gr = p.real * er - p.imag * ei
-                gi = p.real * ei + p.imag * er
-                fx = qx % L
-                if fx <= H:
-                    o[fy, fx] += complex(gr, gi)
-                fxn = (-qx) % L
-                if fxn <= H:
-                    o[fyn, fxn] += complex(gr, -gi)
+                row[fold[k]] += pi_[qy, Kp - K + k] * ex[k]
+            gy = math.exp(gfac * qy * qy)
+            ey = complex(ey_re[qy] * gy, ey_im[qy] * gy)
+            fy = qy % L
+            for c in range(L):
+                A[fy, c] += row[c] * ey
+        o = out[i]
+        for r in range(L):
+            rn = (L - r) % L
+            for c in range(H + 1):
+                cn = (L - c) % L
+                o[r, c] += A[r, c] + A[rn, cn].conjugate()
+        o[0, 0] += zero[i]
