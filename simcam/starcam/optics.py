@@ -335,9 +335,10 @@ def stamp_profiles(*, stamp_px: int = 32, psf_kind: str, sigma_px, pinhole_radiu
     n = sig.shape[0]
     wl = np.asarray(wavelength_nm, dtype=np.float64)
     n_l = wl.shape[0]
-    w = _broadcast("weights", np.asarray(weights, dtype=np.float64), (n, n_l))
-    sx = _broadcast("shift_x_px", np.asarray(shift_x_px, dtype=np.float64), (n, n_l))
-    sy = _broadcast("shift_y_px", np.asarray(shift_y_px, dtype=np.float64), (n, n_l))
+    # writable contiguous copies: the kernel sees one type whatever the caller passed (a
+    # broadcast view is read-only), so numba compiles it once
+    w, sx, sy = (np.array(_broadcast(name, np.asarray(v, dtype=np.float64), (n, n_l)))
+                 for name, v in (("weights", weights), ("shift_x_px", shift_x_px), ("shift_y_px", shift_y_px)))
     rad = _broadcast("pinhole_radius_px", np.asarray(pinhole_radius_px, dtype=np.float64), (n,))
     is_airy = psf_kind == "airy"
     cutoff = (airy_cutoff_cyc_per_px(wavelength_nm=wl, f_number=f_number, pixel_pitch_um=pixel_pitch_um)
@@ -379,7 +380,7 @@ def render_shifted_stamps(profiles: StampProfiles, *, x_px, y_px, sigma_px, mean
     half = np.zeros((x.shape[0], L, L // 2 + 1), dtype=np.complex128)
     if x.shape[0]:
         _psf.shifted_stamp_spectra(profiles.spectra, profiles.qmax, profiles.zero, px, py,
-                                   np.ascontiguousarray(sigma_px, dtype=np.float64), L, half)
+                                   np.array(sigma_px, dtype=np.float64), L, half)
     stamps = np.fft.irfft2(half, s=(L, L), axes=(-2, -1))
     return stamps, origin_x, origin_y
 
