@@ -243,9 +243,14 @@ class CalibrationParams(StrictModel):
     ----------
     requirement_arcsec : the pointing requirement; a compensation is accepted when its
         verification 3 sigma is within ``requirement_arcsec / 3`` (section 3.1).
+    repeats : rounds of each pass (the lab's choice): the polygon is read round ``repeats``
+        times in a row and each face's table entry is the mean of its rounds (fresh stops,
+        quantisation phases, reading and autocollimator noise each round; the same polygon
+        and mounting). Seed 001 reads each face once (1).
     """
 
     requirement_arcsec: float = Field(10.0, gt=0)
+    repeats: int = Field(1, ge=1, le=100)
     long_polygon: PolygonParams = PolygonParams(faces=24)
     short_polygon: PolygonParams = PolygonParams(faces=23)
     autocollimator: AutocollimatorParams = AutocollimatorParams()
