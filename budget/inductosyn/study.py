@@ -173,14 +173,14 @@ class InductosynStudy(Study):
 
     def lab_time_s(self, scenario) -> dict[str, float]:
         """The session of :func:`simcam.encoder.polygon.pass_times_s`, by item: every face
-        read (rotate, settle, read: ``world.face_time_s``) in the four passes (long raw and
-        verify, short raw and verify), each ``calibration.repeats`` rounds, and the three
-        set-ups between passes (``world.pass_setup_s``: compensation upload, polygon change).
-        The same times the world's drifts run on."""
-        cal, w = scenario.calibration, scenario.world
-        return {"long polygon readings": 2 * cal.repeats * cal.long_polygon.faces * w.face_time_s,
-                "short polygon readings": 2 * cal.repeats * cal.short_polygon.faces * w.face_time_s,
-                "pass set-ups": 3 * w.pass_setup_s}
+        read (rotate, settle, read: ``calibration.face_time_s``) in the four passes (long raw
+        and verify, short raw and verify), each ``calibration.repeats`` rounds, and the three
+        set-ups between passes (``calibration.pass_setup_s``: compensation upload, polygon
+        change). The same timeline the world's drifts run on."""
+        cal = scenario.calibration
+        return {"long polygon readings": 2 * cal.repeats * cal.long_polygon.faces * cal.face_time_s,
+                "short polygon readings": 2 * cal.repeats * cal.short_polygon.faces * cal.face_time_s,
+                "pass set-ups": 3 * cal.pass_setup_s}
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:

@@ -250,16 +250,16 @@ def autocollimator_error_arcsec(*, rng: np.random.Generator, t_s, noise_arcsec: 
 
 def pass_times_s(*, scenario: InductosynScenario) -> list[np.ndarray]:
     """Reading times (s from the first reading) of the four passes: long raw, long verify,
-    short raw, short verify; ``world.face_time_s`` per face, ``world.pass_setup_s`` between.
+    short raw, short verify; ``calibration.face_time_s`` per face, ``calibration.pass_setup_s``
+    between.
     A pass of ``calibration.repeats`` rounds reads its ``repeats * faces`` faces in a row
     (round-major: the faces of round 0, then of round 1, ...)."""
-    w = scenario.world
     cal = scenario.calibration
     r = cal.repeats
     out, start = [], 0.0
     for n in (cal.long_polygon.faces, cal.long_polygon.faces, cal.short_polygon.faces, cal.short_polygon.faces):
-        out.append(start + np.arange(r * n) * w.face_time_s)
-        start = out[-1][-1] + w.face_time_s + w.pass_setup_s
+        out.append(start + np.arange(r * n) * cal.face_time_s)
+        start = out[-1][-1] + cal.face_time_s + cal.pass_setup_s
     return out
 
 
