@@ -74,7 +74,7 @@ The recommendation is re-validated on ``n`` fresh trials with fresh truths: seed
 :func:`validation_seed` (the 32-bit state of ``SeedSequence(seed, spawn_key=(2**31 + 1,))``,
 a spawn key no trial (0, 1, ...) nor truth (``2**31``) of the search uses), so no trial of
 the verdict was seen by the search. Per requirement, the verdict's C-quantile with its
-standard error (half the distribution-free 68 % interval between order statistics), bias
+standard error (Maritz-Jarrett: the order statistics weighted by the quantile's beta distribution), bias
 and spread with theirs, and how sure the requirement is met: the posterior probability
 (Jeffreys prior) that the exceedance rate is at most ``1 - C`` given the re-validation's
 exceedance count, averaged over the truth's own uncertainty (Gauss-Hermite over a truth
@@ -235,18 +235,16 @@ def sure_met(exceed: int, n: int, confidence: float) -> float:
 def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float = 0.0) -> dict:
     """What ``err`` (errors of one requirement's key over trials) says about the bound
     ``value``: the C-quantile of ``|err|`` and its standard error, exceedances, bias and spread
-    with their standard errors, and how sure the bound is met (:func:`sure_met`, averaged
+    with their standard errors (the quantile's: Maritz-Jarrett), and how sure the bound is met (:func:`sure_met`, averaged
     over the truth's standard error ``truth_se``)."""
-    from scipy import stats
-
     e = np.asarray(err, dtype=float)
     n = e.size
     a = np.sort(np.abs(e))
     q = float(a[_rank(n, confidence) - 1])
-    # distribution-free 68 % interval of the quantile: order statistics at the binomial's 1-sigma points
-    lo = int(stats.binom.ppf(0.158655, n, confidence))
-    hi = int(stats.binom.ppf(0.841345, n, confidence)) + 1
-    q_lo, q_hi = float(a[max(lo, 1) - 1]), float(a[min(hi, n) - 1])
+    # its standard error: Maritz-Jarrett (order statistics weighted by the quantile's beta distribution)
+    from scipy.stats import mstats
+
+    se_q = float(mstats.mjci(a, prob=[confidence])[0]) if n >= 3 else float("nan")
     exceed = int(np.count_nonzero(a > value))
     if truth_se > 0:
         x, w = np.polynomial.hermite_e.hermegauss(7)  # over N(0, 1)
@@ -256,7 +254,7 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     else:
         sure = sure_met(exceed, n, confidence)
     sd = float(e.std(ddof=1)) if n > 1 else 0.0
-    return {"quantile": q, "se_quantile": 0.5 * (q_hi - q_lo), "bound": float(value), "n": int(n),
+    return {"quantile": q, "se_quantile": se_q, "bound": float(value), "n": int(n),
             "exceed": exceed, "allowed": int(n - _rank(n, confidence)), "met": bool(q <= value), "sure": sure,
             "bias": float(e.mean()), "se_bias": float(math.sqrt(sd**2 / n + truth_se**2)), "sd": sd,
             "se_sd": sd / math.sqrt(2.0 * max(n - 1, 1)), "truth_se": float(truth_se)}
@@ -489,23 +487,17 @@ class _ShapeSearch:
         for idx in np.ndindex(*cost.shape):
             scn, _ = self.scenario([coarse[i][j] for i, j in enumerate(idx)])
             cost[idx] = sum(self.o.study.lab_time_s(scn).values())
-        axes = [self._u(k, c) for k, c in zip(self.knobs, coarse)]
         mesh = np.meshgrid(*fine, indexing="ij")
         pts = np.stack([m.ravel() for m in mesh], axis=1)
-        u = np.stack([self._u(k, pts[:, i]) for i, k in enumerate(self.knobs)], axis=1)
-        keep = [i for i, a in enumerate(axes) if len(a) > 1]
+        keep = [i for i, a in enumerate(coarse) if len(a) > 1]
         if keep:
-            interp = RegularGridInterpolator([axes[i] for i in keep], np.log(np.maximum(cost.squeeze(), 1e-9))
-                                             if cost.size > 1 else np.log(cost), method="linear")
-            c = np.exp(interp(u[:, keep]))
+            # multilinear in the knob values: exact for lab times that are sums of products of knobs
+            interp = RegularGridInterpolator([coarse[i] for i in keep], cost.reshape([len(coarse[i]) for i in keep]),
+                                             method="linear")
+            c = interp(pts[:, keep])
         else:
             c = np.full(len(pts), float(cost.ravel()[0]))
         self.points, self.costs = pts, c
-
-    @staticmethod
-    def _u(k: Knob, x):
-        x = np.asarray(x, dtype=float)
-        return np.log(x) if k.low > 0 else x
 
     # ---- the model
     def _fit(self):
@@ -632,7 +624,22 @@ class _ShapeSearch:
             cands = [e for e in self.evals if self._in_budget(e)]
             out["best_achievable"] = min(cands, key=lambda e: e.ratio) if cands else None
         out["evaluations"], out["trials"] = list(self.evals), self.spent()
+        out["model"] = self.model_curve()
         return out
+
+    def model_curve(self) -> dict:
+        """The fitted model's frontier: lab time and predicted quantile per requirement, and the
+        fitted coefficients (``a``: the squared floor; ``b``: per knob)."""
+        coefs = self._fit()
+        front, _ = self.frontier(coefs)
+        pts = self.points[front]
+        feats = np.column_stack([np.ones(len(pts))] + [_feature(k, pts[:, i]) for i, k in enumerate(self.knobs)])
+        return {"cost_s": [float(c) for c in self.costs[front]],
+                "knobs": [{k.field: _knob_value(k, x) for k, x in zip(self.knobs, p)} for p in pts],
+                "quantile": {r.name: [float(v) for v in np.sqrt(np.maximum(feats @ coefs[r.name], 0.0))]
+                             for r in self.o.reqs},
+                "floor": {r.name: float(math.sqrt(max(coefs[r.name][0], 0.0))) for r in self.o.reqs},
+                "b": {r.name: {k.field: float(b) for k, b in zip(self.knobs, coefs[r.name][1:])} for r in self.o.reqs}}
 
     def _in_budget(self, e: Evaluation) -> bool:
         return self.budget_s is None or e.cost_s <= self.budget_s

@@ -74,6 +74,7 @@ def answer_text(res) -> str:
         name = next(n for n, f in b.figures.items() if f is worst)
         return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
                 f"Best achievable: {name} {_fmt(worst['quantile'])} +- {_fmt(worst['se_quantile'])} "
+                f"{next(r.unit for r in res.requirements if r.name == name)} "
                 f"(the {conf} quantile of |error|, bound {_fmt(worst['bound'])}) with {_knobs(b)} "
                 f"({b.shape}, {_hours(b.cost_s)} of lab time).")
     rec, val = res.recommended, res.validation
@@ -173,23 +174,28 @@ def plot_trade_curve(res, path: Path):
     markers = "osD^v<>"
     for ax, r in zip(axes[0], reqs):
         for j, name in enumerate(shapes):
+            m = res.shapes[name].get("model")
+            lab = f"{name}: " if len(shapes) > 1 else ""
+            if m and m["cost_s"]:
+                ax.plot(np.array(m["cost_s"]) / 3600, m["quantile"][r.name], lw=1.2, color=f"C{j}",
+                        label=f"{lab}model, best protocol per lab time")
             evs = [e for e in res.evaluations if e.shape == name]
             if not evs:
                 continue
             c = np.array([e.cost_s / 3600 for e in evs])
             q = np.array([e.figures[r.name]["quantile"] for e in evs])
             met = np.array([e.met for e in evs])
-            order = np.argsort(c)
-            ax.plot(c[order], q[order], ls=":", lw=0.8, color=f"C{j}")
-            ax.scatter(c[met], q[met], marker=markers[j % len(markers)], color=f"C{j}",
-                       label=f"{name}: meets all" if len(shapes) > 1 else "meets all")
+            ax.scatter(c[met], q[met], marker=markers[j % len(markers)], color=f"C{j}", zorder=3,
+                       label=f"{lab}run: meets all")
             ax.scatter(c[~met], q[~met], marker=markers[j % len(markers)], facecolors="none", edgecolors=f"C{j}",
-                       label=f"{name}: fails one" if len(shapes) > 1 else "fails one")
+                       zorder=3, label=f"{lab}run: fails one")
         ax.axhline(r.value, color="k", lw=1.0, ls="--", label=f"bound {_fmt(r.value)}")
         if res.validation is not None:
             f = res.validation.figures[r.name]
             ax.errorbar([res.validation.cost_s / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
-                        ms=13, color="crimson", label="recommended, re-validated")
+                        ms=13, color="crimson", zorder=4, label="recommended, re-validated")
+        if res.budget_hours is not None:
+            ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.", label=f"budget {res.budget_hours:g} h")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("lab time (h)")
@@ -200,20 +206,29 @@ def plot_trade_curve(res, path: Path):
     parts = []
     for r in reqs:
         evs = sorted(res.evaluations, key=lambda e: e.cost_s)
-        c = np.array([e.cost_s for e in evs])
-        q = np.array([e.figures[r.name]["quantile"] for e in evs])
-        ok = (c > 0) & (q > 0)
-        slope = float(np.polyfit(np.log(c[ok]), np.log(q[ok]), 1)[0]) if ok.sum() >= 3 else float("nan")
-        parts.append(f"{r.name}: from {_fmt(q.max())} to {_fmt(q.min())} {r.unit} over "
-                     f"{_hours(c.min())} to {_hours(c.max())} of lab time"
-                     + (f" (a power-law fit gives quantile ~ time^{slope:.2f}; pure averaging gives -0.5)"
-                        if math.isfinite(slope) else ""))
+        meets = [e for e in evs if e.met]
+        s = f"{r.name}: measured from {_fmt(max(e.figures[r.name]['quantile'] for e in evs))} to " \
+            f"{_fmt(min(e.figures[r.name]['quantile'] for e in evs))} {r.unit} over {_hours(evs[0].cost_s)} to " \
+            f"{_hours(evs[-1].cost_s)} of lab time"
+        if meets:
+            best = meets[0]
+            fails = [e for e in evs if not e.met and e.cost_s < best.cost_s and e.stage == "search"]
+            s += (f"; the cheapest meeting every bound, {_knobs(best)} at {_hours(best.cost_s)}, reaches "
+                  f"{_fmt(best.figures[r.name]['quantile'])}")
+            if fails:
+                f = fails[-1]
+                s += f", the dearest failing below it, {_knobs(f)} at {_hours(f.cost_s)}, " \
+                     f"{_fmt(f.figures[r.name]['quantile'])}"
+        floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
+        if floors:
+            s += f"; the model's floor (no count removes it) {_fmt(min(floors))} {r.unit}"
+        parts.append(s)
     rec = "" if res.validation is None else (
         f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
         "re-validated on fresh trials (error bar: one standard error of the quantile).")
-    caption = (f"The trade curve: each point a protocol the search ran ({len(res.evaluations)} in all, "
-               f"{res.search_trials} trials with common random numbers; filled: meets every requirement). "
-               + "; ".join(parts) + "." + rec)
+    caption = (f"The trade curve: each marker a protocol the search ran ({len(res.evaluations)} in all, "
+               f"{res.search_trials} trials with common random numbers; filled: meets every bound), each line "
+               "the fitted model's best protocol at each lab time. " + "; ".join(parts) + "." + rec)
     return save(fig, path, caption)
 
 
@@ -265,7 +280,7 @@ def write_plan_report(res, out_dir) -> Path:
                  f"estimates, each met when {conf} of tests land within the bound (the {conf} quantile of "
                  f"|estimate - truth|)" + ("" if res.budget_hours is None else
                                            f"; lab time at most {res.budget_hours:g} h") + ".", "",
-                 '<section id="findings">', "", "## Findings", "", summary_markdown(res), "", "</section>", ""]
+                 "## Findings", "", summary_markdown(res), ""]
         if res.recommended is not None:
             lines += ["## The recommended protocol", "",
                       "Knobs: " + "; ".join(f"`{k.field}` = {res.recommended.knobs[k.field]} {k.unit} "
