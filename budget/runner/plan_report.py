@@ -108,8 +108,12 @@ def findings_sentences(res) -> list[str]:
         for name, s in res.shapes.items():
             b = s["best"]
             if b is not None:
+                rel = "" if res.recommended is None else (
+                    " (recommended)" if b is res.recommended else
+                    f" ({100 * (b.cost_s / res.recommended.cost_s - 1):.0f} % more lab time than "
+                    f"{res.recommended.shape})")
                 out.append(f"Shape {name}: cheapest meeting every requirement {_knobs(b)}, "
-                           f"{_hours(b.cost_s)} ({len(s['evaluations'])} protocols run, {s['trials']} trials).")
+                           f"{_hours(b.cost_s)}{rel}; {len(s['evaluations'])} protocols run, {s['trials']} trials.")
             else:
                 a = s.get("best_achievable")
                 best = "" if a is None else (f"; its most accurate, {_knobs(a)} ({_hours(a.cost_s)}), reaches "
