@@ -580,9 +580,15 @@ class _ShapeSearch:
             hi_cost = hi.cost_s if hi is not None else math.inf
             # what bounds the answer from below: a protocol measured failing on the search's path
             # (every protocol with one knob; with more, a design corner may be dear and poor)
-            lows = [e.cost_s for e in self.evals if not e.met and (d == 1 or e.stage == "search")
-                    and e.cost_s < hi_cost]
-            lo_cost = max(lows, default=0.0)
+            lows = [e for e in self.evals if not e.met and (d == 1 or e.stage == "search") and e.cost_s < hi_cost]
+            lo = max(lows, key=lambda e: e.cost_s) if lows else None
+            lo_cost = lo.cost_s if lo is not None else 0.0
+            # what averaging allows (q^2 = a + b / x, a >= 0): a protocol failing by the ratio r needs at
+            # least r^2 its lab time above the cheapest setting; one meeting with r < 1 at most r^2 of its
+            # own would do. The model's pick is kept within these bounds (a safeguard against a model
+            # that the design's few trials made optimistic or pessimistic)
+            lo_need = c0 + (lo_cost - c0) * min(lo.ratio ** 2, 16.0) if lo is not None else 0.0
+            hi_need = c0 + (hi_cost - c0) * hi.ratio ** 2 if hi is not None else math.inf
             if hi is not None and hi_cost - c0 <= max(lo_cost - c0, 0.0) * (1 + rho):
                 break
             inside = [int(i) for i in front if lo_cost < self.costs[i] < hi_cost and int(i) not in tried]
@@ -595,6 +601,11 @@ class _ShapeSearch:
             else:
                 pred = [i for i in inside if ratio[i] <= 1.0]
                 pick = pred[0] if pred else None
+                if lo_need < hi_need:
+                    if pick is not None and self.costs[pick] < lo_need:
+                        pick = next((i for i in inside if self.costs[i] >= lo_need), pick)
+                    if pick is not None and self.costs[pick] > hi_need:
+                        pick = next((i for i in reversed(inside) if self.costs[i] <= hi_need), pick)
                 if pick is not None and hi is not None and self.costs[pick] - c0 >= (hi_cost - c0) / (1 + rho / 2):
                     pick = None  # the model sits on the cheapest feasible: test just below, or bisect
                 if pick is None:
@@ -604,6 +615,8 @@ class _ShapeSearch:
                         lo_ref = max(lo_cost, float(self.costs[inside[0]])) - c0
                         target = c0 + ((hi_cost - c0) / (1 + rho) if not last_step_met
                                        else math.sqrt(lo_ref * (hi_cost - c0)))
+                        if lo_need < hi_need < target:
+                            target = hi_need  # averaging says that much less would do
                         below = [i for i in inside if self.costs[i] <= target]
                         pick = below[-1] if below else inside[0]
                         step = not last_step_met
