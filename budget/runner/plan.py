@@ -467,6 +467,8 @@ class _ShapeSearch:
         self.start_trials = oracle.trials_run
         self.where = f"plan shape {shape}"
         self.exact: set[int] = set()
+        #: protocols refused (scenario model, check or trials), with the reason
+        self.refused: list[dict] = []
         self._grid()
 
     # ---- scenarios and costs
@@ -485,8 +487,7 @@ class _ShapeSearch:
         fine = [_levels(k, fine_n) for k in self.knobs]
         cost = np.empty([len(c) for c in coarse])
         for idx in np.ndindex(*cost.shape):
-            scn, _ = self.scenario([coarse[i][j] for i, j in enumerate(idx)])
-            cost[idx] = sum(self.o.study.lab_time_s(scn).values())
+            cost[idx] = self._cost([coarse[i][j] for i, j in enumerate(idx)])
         mesh = np.meshgrid(*fine, indexing="ij")
         pts = np.stack([m.ravel() for m in mesh], axis=1)
         keep = [i for i, a in enumerate(coarse) if len(a) > 1]
@@ -498,6 +499,14 @@ class _ShapeSearch:
         else:
             c = np.full(len(pts), float(cost.ravel()[0]))
         self.points, self.costs = pts, c
+
+    def _cost(self, x) -> float:
+        """Lab time of protocol ``x`` (NaN where the scenario model refuses it)."""
+        try:
+            scn, _ = self.scenario(x)
+        except ValueError:
+            return float("nan")
+        return float(sum(self.o.study.lab_time_s(scn).values()))
 
     # ---- the model
     def _fit(self):
@@ -525,6 +534,7 @@ class _ShapeSearch:
         ratio = self.predicted_ratio(coefs, self.points)
         for _ in range(3):  # the frontier's costs exact (computed once each), then its order again
             order = np.argsort(self.costs, kind="stable")
+            order = order[np.isfinite(self.costs[order])]
             if self.budget_s is not None:
                 order = order[self.costs[order] <= self.budget_s]
             out, best = [], math.inf
@@ -536,8 +546,8 @@ class _ShapeSearch:
             if not new:
                 break
             for i in new:
-                scn, _ = self.scenario(self.points[i])
-                self.costs[i] = sum(self.o.study.lab_time_s(scn).values())
+                c = self._cost(self.points[i])
+                self.costs[i] = c if math.isfinite(c) else math.inf
                 self.exact.add(i)
         return np.array(out, dtype=int), ratio
 
@@ -546,11 +556,22 @@ class _ShapeSearch:
         return self.o.trials_run - self.start_trials
 
     def run(self, x, stage) -> Evaluation | None:
-        scn, vals = self.scenario(x)
+        """Run protocol ``x`` (once); a protocol the scenario model, :meth:`Study.check` or the
+        study's trials refuse (a ``ValueError`` or an arithmetic error: too few poses for a fit,
+        ...) is recorded in :attr:`refused` and skipped (None)."""
+        vals = {k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}
         for e in self.evals:
             if e.knobs == vals:
                 return e
-        ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        if any(r["knobs"] == vals for r in self.refused):
+            return None
+        try:
+            scn, vals = self.scenario(x)
+            self.o.study.check(scn, where=self.where)
+            ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        except (ValueError, ArithmeticError) as exc:
+            self.refused.append({"knobs": vals, "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
+            return None
         self.evals.append(ev)
         return ev
 
@@ -622,7 +643,7 @@ class _ShapeSearch:
                         step = not last_step_met
             tried.add(pick)
             ev = self.run(self.points[pick], "search")
-            last_step_met = bool(step and ev.met)
+            last_step_met = bool(step and ev is not None and ev.met)
         while True:  # the answer judged on a validation's trials
             feas = [e for e in self.evals if e.met and self._in_budget(e)]
             best = min(feas, key=lambda e: e.cost_s) if feas else None
@@ -636,7 +657,7 @@ class _ShapeSearch:
                 self.run(self.points[front[-1]], "best achievable")
             cands = [e for e in self.evals if self._in_budget(e)]
             out["best_achievable"] = min(cands, key=lambda e: e.ratio) if cands else None
-        out["evaluations"], out["trials"] = list(self.evals), self.spent()
+        out["evaluations"], out["trials"], out["refused"] = list(self.evals), self.spent(), list(self.refused)
         out["model"] = self.model_curve()
         return out
 
@@ -822,7 +843,10 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
 
 # ---------------------------------------------------------------------- the command
 def has_knobs(study: Study) -> bool:
-    """Whether the study's default scenario declares protocol knobs (then it has ``plan``)."""
+    """Whether the study's default scenario declares protocol knobs (then it has ``plan``); a
+    study that keeps the default hook has none (no scenario loaded to say so)."""
+    if getattr(type(study), "protocol_knobs", None) is Study.protocol_knobs:
+        return False
     try:
         return bool(study.protocol_knobs(study.load_scenario()))
     except Exception:  # noqa: BLE001 - a study without a loadable default has no plan command

@@ -48,6 +48,12 @@ def _knobs(ev) -> str:
     return _knobs_text(ev.knobs)
 
 
+def _knobs_text_raw(knobs: dict) -> str:
+    from budget.runner.plan import _knobs_text
+
+    return _knobs_text(knobs)
+
+
 def _req_list(res) -> str:
     return " and ".join(f"{r.name} <= {_unit(r)}" for r in res.requirements)
 
@@ -119,6 +125,11 @@ def findings_sentences(res) -> list[str]:
                 best = "" if a is None else (f"; its most accurate, {_knobs(a)} ({_hours(a.cost_s)}), reaches "
                                              f"{a.ratio:.3g} times the bound")
                 out.append(f"Shape {name}: no protocol meets every requirement{best}.")
+    for name, s in res.shapes.items():
+        if s.get("refused"):
+            r = s["refused"]
+            out.append(f"{len(r)} protocol{'s' if len(r) > 1 else ''} of shape {name} refused by the study "
+                       f"(first: {_knobs_text_raw(r[0]['knobs'])}: {r[0]['error']}).")
     per_val = res.trials_per_validation
     out.append(f"The search ran {len(res.evaluations)} protocols with common random numbers, "
                f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
@@ -150,6 +161,7 @@ def plan_json(res) -> dict:
         "validation": None if res.validation is None else res.validation.to_json(),
         "best_achievable": None if res.best_achievable is None else res.best_achievable.to_json(),
         "shapes": {name: {"overrides": s.get("overrides", {}), "trials": s["trials"],
+                          "refused": s.get("refused", []),
                           "protocols": len(s["evaluations"]),
                           "best": None if s["best"] is None else s["best"].to_json(),
                           "best_achievable": None if s.get("best_achievable") is None
