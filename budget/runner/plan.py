@@ -656,7 +656,10 @@ class _ShapeSearch:
             if len(front):
                 self.run(self.points[front[-1]], "best achievable")
             cands = [e for e in self.evals if self._in_budget(e)]
-            out["best_achievable"] = min(cands, key=lambda e: e.ratio) if cands else None
+            best_a = min(cands, key=lambda e: e.ratio) if cands else None
+            if best_a is not None:
+                self.o.complete(best_a)  # its figure on a validation's trials
+            out["best_achievable"] = best_a
         out["evaluations"], out["trials"], out["refused"] = list(self.evals), self.spent(), list(self.refused)
         out["model"] = self.model_curve()
         return out

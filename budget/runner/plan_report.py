@@ -133,7 +133,8 @@ def findings_sentences(res) -> list[str]:
     per_val = res.trials_per_validation
     out.append(f"The search ran {len(res.evaluations)} protocols with common random numbers, "
                f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
-               f"{res.truth_runs} truths computed (shared by protocols with the same truth).")
+               f"{res.truth_runs} truth{'' if res.truth_runs == 1 else 's'} computed (shared by protocols "
+               "with the same truth identity).")
     return out
 
 
@@ -237,7 +238,7 @@ def plot_trade_curve(res, path: Path):
                      f"{_fmt(f.figures[r.name]['quantile'])}"
         floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
         if floors:
-            s += f"; the model's floor (no count removes it) {_fmt(min(floors))} {r.unit}"
+            s += f"; the fitted model's floor (what no count removes) {_fmt(min(floors))} {r.unit}"
         parts.append(s)
     rec = "" if res.validation is None else (
         f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
