@@ -186,7 +186,8 @@ def plot_trade_curve(res, path: Path):
 
     p = plt()
     reqs = res.requirements
-    fig, axes = p.subplots(1, len(reqs), figsize=(6.0 * len(reqs), 4.2), squeeze=False)
+    fig, axes = p.subplots(len(reqs), 1, figsize=(8.6, 4.2 * len(reqs)), squeeze=False)
+    axes = axes.T
     shapes = list(res.shapes)
     markers = "osD^v<>"
     for ax, r in zip(axes[0], reqs):
@@ -218,7 +219,7 @@ def plot_trade_curve(res, path: Path):
         ax.set_xlabel("lab time (h)")
         ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
         ax.set_title(f"{r.name} ({res.variant}) against lab time")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     # the caption from the numbers drawn
     parts = []
     for r in reqs:
@@ -237,8 +238,10 @@ def plot_trade_curve(res, path: Path):
                 s += f", the dearest failing below it, {_knobs(f)} at {_hours(f.cost_s)}, " \
                      f"{_fmt(f.figures[r.name]['quantile'])}"
         floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
-        if floors:
+        if floors and min(floors) > 0:
             s += f"; the fitted model's floor (what no count removes) {_fmt(min(floors))} {r.unit}"
+        elif floors:
+            s += "; the fitted model has no floor (every count averages the error down)"
         parts.append(s)
     rec = "" if res.validation is None else (
         f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
