@@ -272,3 +272,36 @@ def test_truths_are_computed_once_per_truth_identity_and_seed():
     # the toy's truths depend on [world] only: one truth for the search's seed, one for the verdict's
     res = plan_protocol(TOY, TOY.load_scenario(), ["offset.x<=0.01"], seed=0)
     assert res.truth_runs == 2 and len(res.evaluations) > 2
+
+
+def _studies_with_knobs():
+    from budget.runner.plan import has_knobs
+    from budget.runner.registry import get_study, study_names
+
+    return [n for n in study_names() if has_knobs(get_study(n))] or ["(none)"]
+
+
+@pytest.mark.parametrize("name", _studies_with_knobs())
+def test_every_study_knob_is_a_lab_field_the_sweeps_can_set(name):
+    """The planner's contract with a study: each knob a dotted key that the sweeps set and the
+    scenario model validates at both bounds, never a world field; the lab time a dict of
+    finite, non-negative seconds that does not fall as a knob grows; shapes that apply."""
+    if name == "(none)":
+        pytest.skip("no registered study declares protocol knobs")
+    from budget.runner.plan import _with_values
+    from budget.runner.registry import get_study
+
+    study = get_study(name)
+    scn = study.load_scenario()
+    knobs = study.protocol_knobs(scn)
+    assert knobs and len({k.field for k in knobs}) == len(knobs)
+    base = {k: v for k, v in study.lab_time_s(scn).items()}
+    assert base and all(math.isfinite(v) and v >= 0 for v in base.values())
+    for k in knobs:
+        assert not k.field.startswith("world."), k.field
+        lo = _with_values(study, scn, {k.field: int(k.low) if k.kind == "int" else k.low}, where="test")
+        hi = _with_values(study, scn, {k.field: int(k.high) if k.kind == "int" else k.high}, where="test")
+        assert sum(study.lab_time_s(lo).values()) <= sum(study.lab_time_s(hi).values()), k.field
+    for shape, overrides in study.protocol_shapes(scn).items():
+        shaped = _with_values(study, scn, overrides, where=f"shape {shape}")
+        assert study.protocol_knobs(shaped), shape
