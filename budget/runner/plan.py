@@ -514,6 +514,8 @@ class _ShapeSearch:
         from scipy.optimize import nnls
 
         evs = [e for e in self.evals]
+        if not evs:  # nothing measured yet (every design protocol refused): no preference
+            return {r.name: np.zeros(1 + len(self.knobs)) for r in self.o.reqs}
         coefs = {}
         for r in self.o.reqs:
             q2 = np.array([e.figures[r.name]["quantile"] ** 2 for e in evs])
@@ -583,8 +585,8 @@ class _ShapeSearch:
             self.run(x, "design")
         rho = resolution(self.o.n)
         # lab time the knobs add above their cheapest setting: what the resolution applies to
-        c0 = sum(self.o.study.lab_time_s(self.scenario([k.low for k in self.knobs])[0]).values())
-        c0 = min(c0, float(self.costs.min())) * (1 - 1e-9)
+        cands = [self._cost([k.low for k in self.knobs])] + [float(c) for c in self.costs if math.isfinite(c)]
+        c0 = min((c for c in cands if math.isfinite(c)), default=0.0) * (1 - 1e-9)
         tried: set = set()
         last_step_met = False
         for _ in range(100):

@@ -8,9 +8,8 @@ Rules of the words:
 * the answer: "meets R at C % (re-validated on N fresh trials; sure at S %)" where the
   re-validation meets every requirement; "the re-validation does not confirm" otherwise
   (the search's verdict came from trials the verdict does not share, so a protocol at the
-  boundary fails it about half the time: the sureness says how close); "no protocol ...
-  meets" with the best achievable figure where the search found none;
-* sureness in words: "sure" from 90 %, "likely" from 60 %, "doubtful" below;
+  boundary may fail it: the sureness says how close); "no protocol ... meets" with the best
+  achievable figure where the search found none;
 * a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
   its best figure where none met.
 """
@@ -63,10 +62,6 @@ def pct(p: float) -> str:
     return f"{100 * p:.0f} %"
 
 
-def sureness_word(p: float) -> str:
-    return "sure" if p >= 0.9 else "likely" if p >= 0.6 else "doubtful"
-
-
 def answer_text(res) -> str:
     """The plan's answer in one paragraph (module docstring)."""
     st = res.study
@@ -89,7 +84,7 @@ def answer_text(res) -> str:
     n = val.trials
     if res.confirmed:
         tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
-                f"{sureness_word(res.sure)} at {pct(res.sure)}).")
+                f"sure at {pct(res.sure)}).")
     else:
         failed = [name for name, f in val.figures.items() if not f["met"]]
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
@@ -109,7 +104,7 @@ def findings_sentences(res) -> list[str]:
                        f"{_fmt(f['se_quantile'])} {r.unit} (bound {_fmt(r.value)}; {f['exceed']} of {f['n']} "
                        f"fresh trials beyond it, {f['allowed']} allowed); bias {_fmt(f['bias'])} +- "
                        f"{_fmt(f['se_bias'])}, sd {_fmt(f['sd'])} +- {_fmt(f['se_sd'])}; "
-                       f"{sureness_word(f['sure'])} at {pct(f['sure'])}.")
+                       f"sure at {pct(f['sure'])}.")
     if len(res.shapes) > 1 or res.recommended is None:
         for name, s in res.shapes.items():
             b = s["best"]
