@@ -50,21 +50,28 @@ For each shape (the scenario's own when the study names none):
    knob, 2 for more than two knobs), screening trials each;
 2. model: per requirement, the physics of averaging, ``q^2 = a + sum_i b_i / x_i``
    (independent noise averaged over each count, ``a`` a floor no count removes), fitted
-   to the measured C-quantiles ``q`` by non-negative least squares in relative terms
-   (:func:`scipy.optimize.nnls`);
+   to the measured C-quantiles ``q`` by non-negative least squares in relative terms,
+   weighted by each protocol's trials (:func:`scipy.optimize.nnls`);
 3. frontier: the protocols of a fine grid over the knobs (log-spaced, whole numbers for
    ``int`` knobs) whose predicted worst ratio ``max_r q_r / VALUE_r`` no cheaper protocol
-   beats, their lab time interpolated (log-linear) from :meth:`Study.lab_time_s` on a
-   coarse grid and computed exactly for every protocol run; ``--budget-hours`` removes the
-   protocols above it;
+   beats, their lab time interpolated multilinearly in the knob values (exact for lab times
+   that are sums of products of knobs) from :meth:`Study.lab_time_s` on a coarse grid and
+   computed exactly for every frontier protocol; ``--budget-hours`` removes the protocols
+   above it;
 4. refinement: the cheapest frontier protocol the model predicts feasible is run; then,
-   between the cheapest protocol measured feasible and the dearest frontier protocol
-   measured infeasible below it, the model's new prediction (refitted to every protocol
-   run) where it falls strictly inside, else the frontier protocol at the geometric mean
-   of their costs (bisection along cost), until their costs are within
-   :func:`resolution` (``1 / (2 sqrt(n))``: finer than the quantile's relative standard
-   error can tell apart), no frontier protocol lies between, or the trial budget
-   (:data:`BUDGET_VALIDATIONS` validations, the re-validation included) is spent;
+   between the cheapest protocol measured feasible (on a validation's ``n`` trials) and the
+   dearest frontier protocol measured infeasible below it, the model's new prediction
+   (refitted to every protocol run) where it falls strictly inside, else a step just below
+   the feasible one, else the frontier protocol at the geometric mean of their lab times
+   above the cheapest setting (bisection along cost). Averaging bounds every pick: a
+   protocol failing by the ratio ``r = q / VALUE`` needs at least ``r^2`` its lab time above
+   the cheapest setting, one meeting with ``r < 1`` at most ``r^2`` of its own. It stops
+   when the two lab times above the cheapest setting are within :func:`resolution`
+   (``1 / (2 sqrt(n))``: finer than the quantile's relative standard error can tell apart),
+   no frontier protocol lies between, or the trial budget (:data:`BUDGET_VALIDATIONS`
+   validations per shape, the re-validation included) is spent. A protocol the study
+   refuses (its scenario model, :meth:`Study.check` or its trials raise a ``ValueError`` or
+   an arithmetic error) is skipped and listed;
 5. shapes: the cheapest shape's best protocol is the recommendation; the report lists
    every shape's best and its cost.
 
@@ -743,7 +750,7 @@ class PlanResult:
             return None
         req = "; ".join(r.text for r in self.requirements)
         head = (f"# {self.study.title}: the cheapest protocol found by `budget {self.study.name} plan` for "
-                f"{req} ({self.variant}, {self.confidence:.0%} of tests), "
+                f"{req} ({self.variant}, {100 * self.confidence:.0f} % of tests), "
                 f"lab time {_hours(self.recommended.cost_s)}.\n")
         return head + self.study.scenario_text(self.recommended.scenario)
 

@@ -157,7 +157,7 @@ def plan_json(res) -> dict:
         "validation": None if res.validation is None else res.validation.to_json(),
         "best_achievable": None if res.best_achievable is None else res.best_achievable.to_json(),
         "shapes": {name: {"overrides": s.get("overrides", {}), "trials": s["trials"],
-                          "refused": s.get("refused", []),
+                          "refused": s.get("refused", []), "model": _thin_model(s.get("model")),
                           "protocols": len(s["evaluations"]),
                           "best": None if s["best"] is None else s["best"].to_json(),
                           "best_achievable": None if s.get("best_achievable") is None
@@ -169,6 +169,17 @@ def plan_json(res) -> dict:
                    "total": res.total_trials},
         "truths_computed": res.truth_runs, "elapsed_s": res.elapsed_s, "cpu_s": res.cpu_s,
     }
+
+
+def _thin_model(m: dict | None, most: int = 200) -> dict | None:
+    """The fitted model's frontier for the JSON, at most ``most`` protocols (evenly by index)."""
+    if not m:
+        return None
+    n = len(m["cost_s"])
+    idx = sorted(set(round(i * (n - 1) / (most - 1)) for i in range(most))) if n > most else list(range(n))
+    return {"cost_s": [m["cost_s"][i] for i in idx], "knobs": [m["knobs"][i] for i in idx],
+            "quantile": {k: [v[i] for i in idx] for k, v in m["quantile"].items()},
+            "floor": m["floor"], "b": m["b"]}
 
 
 def plot_trade_curve(res, path: Path):
