@@ -240,3 +240,68 @@ def test_a_plan_does_not_depend_on_workers():
     one = plan_protocol(TOY, scn, ["offset.x<=0.01"], seed=3, workers=1).to_json()
     two = plan_protocol(TOY, scn, ["offset.x<=0.01"], seed=3, workers=2).to_json()
     assert one["evaluations"] == two["evaluations"] and one["validation"] == two["validation"]
+
+
+class _Picky(ToyStudy):
+    """The toy with protocols it refuses: fewer than 3 positions (its check) and fewer than 3
+    frames (its trials raise, as a fit with too few data would)."""
+
+    def check(self, scenario, *, where):
+        if scenario.protocol.positions < 3:
+            raise ValueError(f"{where}: protocol.positions: at least 3")
+
+    def trial(self, scenario, seed, k):
+        if scenario.protocol.frames < 3:
+            raise ArithmeticError("too few frames to fit")
+        return super().trial(scenario, seed, k)
+
+
+def test_refused_protocols_are_skipped_and_reported():
+    study = _Picky()
+    res = plan_protocol(study, study.load_scenario(), ["offset.x<=0.01"], seed=0)
+    refused = res.shapes["scenario"]["refused"]
+    assert refused and all(r["knobs"]["protocol.positions"] < 3 or r["knobs"]["protocol.frames"] < 3
+                           for r in refused)
+    assert any("at least 3" in r["error"] for r in refused) and any("too few frames" in r["error"] for r in refused)
+    assert res.feasible and res.recommended.knobs["protocol.positions"] >= 3
+    assert any("refused by the study" in s for s in res.sentences())
+    assert all(e.knobs["protocol.positions"] >= 3 and e.knobs["protocol.frames"] >= 3 for e in res.evaluations)
+
+
+def test_truths_are_computed_once_per_truth_identity_and_seed():
+    # the toy's truths depend on [world] only: one truth for the search's seed, one for the verdict's
+    res = plan_protocol(TOY, TOY.load_scenario(), ["offset.x<=0.01"], seed=0)
+    assert res.truth_runs == 2 and len(res.evaluations) > 2
+
+
+def _studies_with_knobs():
+    from budget.runner.plan import has_knobs
+    from budget.runner.registry import get_study, study_names
+
+    return [n for n in study_names() if has_knobs(get_study(n))] or ["(none)"]
+
+
+@pytest.mark.parametrize("name", _studies_with_knobs())
+def test_every_study_knob_is_a_lab_field_the_sweeps_can_set(name):
+    """The planner's contract with a study: each knob a dotted key that the sweeps set and the
+    scenario model validates at both bounds, never a world field; the lab time a dict of
+    finite, non-negative seconds that does not fall as a knob grows; shapes that apply."""
+    if name == "(none)":
+        pytest.skip("no registered study declares protocol knobs")
+    from budget.runner.plan import _with_values
+    from budget.runner.registry import get_study
+
+    study = get_study(name)
+    scn = study.load_scenario()
+    knobs = study.protocol_knobs(scn)
+    assert knobs and len({k.field for k in knobs}) == len(knobs)
+    base = {k: v for k, v in study.lab_time_s(scn).items()}
+    assert base and all(math.isfinite(v) and v >= 0 for v in base.values())
+    for k in knobs:
+        assert not k.field.startswith("world."), k.field
+        lo = _with_values(study, scn, {k.field: int(k.low) if k.kind == "int" else k.low}, where="test")
+        hi = _with_values(study, scn, {k.field: int(k.high) if k.kind == "int" else k.high}, where="test")
+        assert sum(study.lab_time_s(lo).values()) <= sum(study.lab_time_s(hi).values()), k.field
+    for shape, overrides in study.protocol_shapes(scn).items():
+        shaped = _with_values(study, scn, overrides, where=f"shape {shape}")
+        assert study.protocol_knobs(shaped), shape

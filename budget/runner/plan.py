@@ -50,21 +50,28 @@ For each shape (the scenario's own when the study names none):
    knob, 2 for more than two knobs), screening trials each;
 2. model: per requirement, the physics of averaging, ``q^2 = a + sum_i b_i / x_i``
    (independent noise averaged over each count, ``a`` a floor no count removes), fitted
-   to the measured C-quantiles ``q`` by non-negative least squares in relative terms
-   (:func:`scipy.optimize.nnls`);
+   to the measured C-quantiles ``q`` by non-negative least squares in relative terms,
+   weighted by each protocol's trials (:func:`scipy.optimize.nnls`);
 3. frontier: the protocols of a fine grid over the knobs (log-spaced, whole numbers for
    ``int`` knobs) whose predicted worst ratio ``max_r q_r / VALUE_r`` no cheaper protocol
-   beats, their lab time interpolated (log-linear) from :meth:`Study.lab_time_s` on a
-   coarse grid and computed exactly for every protocol run; ``--budget-hours`` removes the
-   protocols above it;
+   beats, their lab time interpolated multilinearly in the knob values (exact for lab times
+   that are sums of products of knobs) from :meth:`Study.lab_time_s` on a coarse grid and
+   computed exactly for every frontier protocol; ``--budget-hours`` removes the protocols
+   above it;
 4. refinement: the cheapest frontier protocol the model predicts feasible is run; then,
-   between the cheapest protocol measured feasible and the dearest frontier protocol
-   measured infeasible below it, the model's new prediction (refitted to every protocol
-   run) where it falls strictly inside, else the frontier protocol at the geometric mean
-   of their costs (bisection along cost), until their costs are within
-   :func:`resolution` (``1 / (2 sqrt(n))``: finer than the quantile's relative standard
-   error can tell apart), no frontier protocol lies between, or the trial budget
-   (:data:`BUDGET_VALIDATIONS` validations, the re-validation included) is spent;
+   between the cheapest protocol measured feasible (on a validation's ``n`` trials) and the
+   dearest frontier protocol measured infeasible below it, the model's new prediction
+   (refitted to every protocol run) where it falls strictly inside, else a step just below
+   the feasible one, else the frontier protocol at the geometric mean of their lab times
+   above the cheapest setting (bisection along cost). Averaging bounds every pick: a
+   protocol failing by the ratio ``r = q / VALUE`` needs at least ``r^2`` its lab time above
+   the cheapest setting, one meeting with ``r < 1`` at most ``r^2`` of its own. It stops
+   when the two lab times above the cheapest setting are within :func:`resolution`
+   (``1 / (2 sqrt(n))``: finer than the quantile's relative standard error can tell apart),
+   no frontier protocol lies between, or the trial budget (:data:`BUDGET_VALIDATIONS`
+   validations per shape, the re-validation included) is spent. A protocol the study
+   refuses (its scenario model, :meth:`Study.check` or its trials raise a ``ValueError`` or
+   an arithmetic error) is skipped and listed;
 5. shapes: the cheapest shape's best protocol is the recommendation; the report lists
    every shape's best and its cost.
 
@@ -467,6 +474,8 @@ class _ShapeSearch:
         self.start_trials = oracle.trials_run
         self.where = f"plan shape {shape}"
         self.exact: set[int] = set()
+        #: protocols refused (scenario model, check or trials), with the reason
+        self.refused: list[dict] = []
         self._grid()
 
     # ---- scenarios and costs
@@ -485,8 +494,7 @@ class _ShapeSearch:
         fine = [_levels(k, fine_n) for k in self.knobs]
         cost = np.empty([len(c) for c in coarse])
         for idx in np.ndindex(*cost.shape):
-            scn, _ = self.scenario([coarse[i][j] for i, j in enumerate(idx)])
-            cost[idx] = sum(self.o.study.lab_time_s(scn).values())
+            cost[idx] = self._cost([coarse[i][j] for i, j in enumerate(idx)])
         mesh = np.meshgrid(*fine, indexing="ij")
         pts = np.stack([m.ravel() for m in mesh], axis=1)
         keep = [i for i, a in enumerate(coarse) if len(a) > 1]
@@ -499,12 +507,22 @@ class _ShapeSearch:
             c = np.full(len(pts), float(cost.ravel()[0]))
         self.points, self.costs = pts, c
 
+    def _cost(self, x) -> float:
+        """Lab time of protocol ``x`` (NaN where the scenario model refuses it)."""
+        try:
+            scn, _ = self.scenario(x)
+        except ValueError:
+            return float("nan")
+        return float(sum(self.o.study.lab_time_s(scn).values()))
+
     # ---- the model
     def _fit(self):
         """Per requirement, non-negative ``(a, b_1..b_d)`` of ``q^2 = a + sum b_i f_i(x_i)``."""
         from scipy.optimize import nnls
 
         evs = [e for e in self.evals]
+        if not evs:  # nothing measured yet (every design protocol refused): no preference
+            return {r.name: np.zeros(1 + len(self.knobs)) for r in self.o.reqs}
         coefs = {}
         for r in self.o.reqs:
             q2 = np.array([e.figures[r.name]["quantile"] ** 2 for e in evs])
@@ -525,6 +543,7 @@ class _ShapeSearch:
         ratio = self.predicted_ratio(coefs, self.points)
         for _ in range(3):  # the frontier's costs exact (computed once each), then its order again
             order = np.argsort(self.costs, kind="stable")
+            order = order[np.isfinite(self.costs[order])]
             if self.budget_s is not None:
                 order = order[self.costs[order] <= self.budget_s]
             out, best = [], math.inf
@@ -536,8 +555,8 @@ class _ShapeSearch:
             if not new:
                 break
             for i in new:
-                scn, _ = self.scenario(self.points[i])
-                self.costs[i] = sum(self.o.study.lab_time_s(scn).values())
+                c = self._cost(self.points[i])
+                self.costs[i] = c if math.isfinite(c) else math.inf
                 self.exact.add(i)
         return np.array(out, dtype=int), ratio
 
@@ -546,11 +565,22 @@ class _ShapeSearch:
         return self.o.trials_run - self.start_trials
 
     def run(self, x, stage) -> Evaluation | None:
-        scn, vals = self.scenario(x)
+        """Run protocol ``x`` (once); a protocol the scenario model, :meth:`Study.check` or the
+        study's trials refuse (a ``ValueError`` or an arithmetic error: too few poses for a fit,
+        ...) is recorded in :attr:`refused` and skipped (None)."""
+        vals = {k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}
         for e in self.evals:
             if e.knobs == vals:
                 return e
-        ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        if any(r["knobs"] == vals for r in self.refused):
+            return None
+        try:
+            scn, vals = self.scenario(x)
+            self.o.study.check(scn, where=self.where)
+            ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        except (ValueError, ArithmeticError) as exc:
+            self.refused.append({"knobs": vals, "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
+            return None
         self.evals.append(ev)
         return ev
 
@@ -562,8 +592,8 @@ class _ShapeSearch:
             self.run(x, "design")
         rho = resolution(self.o.n)
         # lab time the knobs add above their cheapest setting: what the resolution applies to
-        c0 = sum(self.o.study.lab_time_s(self.scenario([k.low for k in self.knobs])[0]).values())
-        c0 = min(c0, float(self.costs.min())) * (1 - 1e-9)
+        cands = [self._cost([k.low for k in self.knobs])] + [float(c) for c in self.costs if math.isfinite(c)]
+        c0 = min((c for c in cands if math.isfinite(c)), default=0.0) * (1 - 1e-9)
         tried: set = set()
         last_step_met = False
         for _ in range(100):
@@ -580,9 +610,15 @@ class _ShapeSearch:
             hi_cost = hi.cost_s if hi is not None else math.inf
             # what bounds the answer from below: a protocol measured failing on the search's path
             # (every protocol with one knob; with more, a design corner may be dear and poor)
-            lows = [e.cost_s for e in self.evals if not e.met and (d == 1 or e.stage == "search")
-                    and e.cost_s < hi_cost]
-            lo_cost = max(lows, default=0.0)
+            lows = [e for e in self.evals if not e.met and (d == 1 or e.stage == "search") and e.cost_s < hi_cost]
+            lo = max(lows, key=lambda e: e.cost_s) if lows else None
+            lo_cost = lo.cost_s if lo is not None else 0.0
+            # what averaging allows (q^2 = a + b / x, a >= 0): a protocol failing by the ratio r needs at
+            # least r^2 its lab time above the cheapest setting; one meeting with r < 1 at most r^2 of its
+            # own would do. The model's pick is kept within these bounds (a safeguard against a model
+            # that the design's few trials made optimistic or pessimistic)
+            lo_need = c0 + (lo_cost - c0) * min(lo.ratio ** 2, 16.0) if lo is not None else 0.0
+            hi_need = c0 + (hi_cost - c0) * hi.ratio ** 2 if hi is not None else math.inf
             if hi is not None and hi_cost - c0 <= max(lo_cost - c0, 0.0) * (1 + rho):
                 break
             inside = [int(i) for i in front if lo_cost < self.costs[i] < hi_cost and int(i) not in tried]
@@ -595,6 +631,11 @@ class _ShapeSearch:
             else:
                 pred = [i for i in inside if ratio[i] <= 1.0]
                 pick = pred[0] if pred else None
+                if lo_need < hi_need:
+                    if pick is not None and self.costs[pick] < lo_need:
+                        pick = next((i for i in inside if self.costs[i] >= lo_need), pick)
+                    if pick is not None and self.costs[pick] > hi_need:
+                        pick = next((i for i in reversed(inside) if self.costs[i] <= hi_need), pick)
                 if pick is not None and hi is not None and self.costs[pick] - c0 >= (hi_cost - c0) / (1 + rho / 2):
                     pick = None  # the model sits on the cheapest feasible: test just below, or bisect
                 if pick is None:
@@ -604,12 +645,14 @@ class _ShapeSearch:
                         lo_ref = max(lo_cost, float(self.costs[inside[0]])) - c0
                         target = c0 + ((hi_cost - c0) / (1 + rho) if not last_step_met
                                        else math.sqrt(lo_ref * (hi_cost - c0)))
+                        if lo_need < hi_need < target:
+                            target = hi_need  # averaging says that much less would do
                         below = [i for i in inside if self.costs[i] <= target]
                         pick = below[-1] if below else inside[0]
                         step = not last_step_met
             tried.add(pick)
             ev = self.run(self.points[pick], "search")
-            last_step_met = bool(step and ev.met)
+            last_step_met = bool(step and ev is not None and ev.met)
         while True:  # the answer judged on a validation's trials
             feas = [e for e in self.evals if e.met and self._in_budget(e)]
             best = min(feas, key=lambda e: e.cost_s) if feas else None
@@ -622,8 +665,11 @@ class _ShapeSearch:
             if len(front):
                 self.run(self.points[front[-1]], "best achievable")
             cands = [e for e in self.evals if self._in_budget(e)]
-            out["best_achievable"] = min(cands, key=lambda e: e.ratio) if cands else None
-        out["evaluations"], out["trials"] = list(self.evals), self.spent()
+            best_a = min(cands, key=lambda e: e.ratio) if cands else None
+            if best_a is not None:
+                self.o.complete(best_a)  # its figure on a validation's trials
+            out["best_achievable"] = best_a
+        out["evaluations"], out["trials"], out["refused"] = list(self.evals), self.spent(), list(self.refused)
         out["model"] = self.model_curve()
         return out
 
@@ -704,7 +750,7 @@ class PlanResult:
             return None
         req = "; ".join(r.text for r in self.requirements)
         head = (f"# {self.study.title}: the cheapest protocol found by `budget {self.study.name} plan` for "
-                f"{req} ({self.variant}, {self.confidence:.0%} of tests), "
+                f"{req} ({self.variant}, {100 * self.confidence:.0f} % of tests), "
                 f"lab time {_hours(self.recommended.cost_s)}.\n")
         return head + self.study.scenario_text(self.recommended.scenario)
 
@@ -809,7 +855,10 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
 
 # ---------------------------------------------------------------------- the command
 def has_knobs(study: Study) -> bool:
-    """Whether the study's default scenario declares protocol knobs (then it has ``plan``)."""
+    """Whether the study's default scenario declares protocol knobs (then it has ``plan``); a
+    study that keeps the default hook has none (no scenario loaded to say so)."""
+    if getattr(type(study), "protocol_knobs", None) is Study.protocol_knobs:
+        return False
     try:
         return bool(study.protocol_knobs(study.load_scenario()))
     except Exception:  # noqa: BLE001 - a study without a loadable default has no plan command
