@@ -50,10 +50,9 @@ def test_the_bright_end_of_the_magnitude_knob_still_calibrates_in_one_pass():
     assert all(math.isfinite(v) for v in r.estimates.values())
 
 
-@pytest.mark.slow
 def test_plan_end_to_end_on_a_loose_requirement():
     """`plan` on the study's own hooks (passes 1 to 2, the default magnitude limit fixed, to
-    keep it short; still ~1 min of trials, hence slow): a bound of 10 arcsec on the improved
+    keep it short: ~8 s of CPU): a bound of 10 arcsec on the improved
     look angle at the line's end (one pass: ~0.5 arcsec) is met by one pass, 8.73 s of scan,
     and the re-validation on fresh seeds confirms it. Fixed seed 0."""
     from budget.linecam.study import LineCamStudy
