@@ -234,6 +234,27 @@ def test_protocol_shapes_are_each_searched_and_compared():
     assert len(study.calls) == res.total_trials
 
 
+def test_a_plan_starts_one_pool_and_does_not_depend_on_workers(monkeypatch):
+    """Every candidate runs on the one pool the planner starts (the runner's ``executor``), and
+    2 workers give the 1-worker plan exactly (the trials carry their seeds)."""
+    from budget.runner import executors
+
+    started = []
+    enter = executors.ProcessExecutor.__enter__
+
+    def counted(self):
+        started.append(self)
+        return enter(self)
+
+    monkeypatch.setattr(executors.ProcessExecutor, "__enter__", counted)
+    study = ToyStudy(("frames",))
+    scn = study.load_scenario()
+    one = plan_protocol(study, scn, ["offset.x<=0.02"], seed=5, workers=1).to_json()
+    two = plan_protocol(study, scn, ["offset.x<=0.02"], seed=5, workers=2).to_json()
+    assert len(started) <= 1  # one pool for the whole plan (none where the machine caps workers at 1)
+    assert one["evaluations"] == two["evaluations"] and one["validation"] == two["validation"]
+
+
 @pytest.mark.slow
 def test_a_plan_does_not_depend_on_workers():
     scn = TOY.load_scenario()

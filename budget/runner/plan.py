@@ -328,8 +328,13 @@ class Evaluation:
 class _Oracle:
     """Runs candidates with common random numbers and shared truths, counting trials."""
 
-    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress):
+    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress, executor=None,
+                 sure=None):
         self.study, self.reqs, self.variant = study, requirements, variant
+        #: the one executor every candidate's run uses (started by :func:`plan_protocol`)
+        self.executor = executor
+        #: the search's level: a candidate meets when its quantile's P prediction bound is within (None: the point)
+        self.sure = sure
         self.confidence, self.seed, self.n, self.workers = confidence, seed, trials, workers
         self.progress = progress
         self.truths: dict = {}
@@ -373,7 +378,7 @@ class _Oracle:
 
         study = self.study if k0 == 0 else _Shifted(self.study, k0)
         res = run_study(study, scn, trials=k1 - k0, seed=seed, workers=self.workers, truths=truths,
-                        prewarm=not self.prewarmed)
+                        prewarm=not self.prewarmed, executor=self.executor)
         self.prewarmed = True
         self.trials_run += k1 - k0
         return self._errors(res)
@@ -825,7 +830,21 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     if n < 20:
         raise UserInputError(f"--trials {n}: a plan needs at least 20 trials per validation")
     budget_s = None if budget_hours is None else 3600.0 * budget_hours
-    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress)
+    from budget.runner.executors import make_executor
+    from budget.runner.run import _worker_init
+
+    # one pool for every candidate (the study's kernels compiled first, so its workers load them
+    # from the cache): starting workers per candidate would cost more than the toy's trials
+    study.prewarm(scenario)
+    with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
+        return _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                     budget_s, knobs, t0, c0)
+
+
+def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
+          knobs, t0, c0) -> PlanResult:
+    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool)
+    oracle.prewarmed = True
     shapes = study.protocol_shapes(scenario) or {"scenario": {}}
     cap = (BUDGET_VALIDATIONS - 1) * n
     results = {}
