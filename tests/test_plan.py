@@ -33,7 +33,7 @@ def test_one_knob_plan_is_the_analytic_optimum():
     study = ToyStudy(("frames",), record=True)
     scn = study.load_scenario()
     value = 0.02
-    res = plan_protocol(study, scn, ["offset.x<=0.02"], seed=0)
+    res = plan_protocol(study, scn, ["offset.x<=0.02"], seed=0, sure=0.5)  # the boundary protocol
     f_hat = res.recommended.knobs["protocol.frames"]
     w, p = scn.world, scn.protocol.positions
     # (1) against the closed form F* = sigma_f^2 / ((V / z)^2 - sigma_p^2 / P): the search judges on
@@ -62,7 +62,7 @@ def test_one_knob_plan_is_the_analytic_optimum():
 def test_two_knob_plan_meets_the_lagrange_optimum_within_the_trial_budget():
     study = ToyStudy(record=True)
     scn = study.load_scenario()
-    res = plan_protocol(study, scn, ["offset.x<=0.01"], seed=0)
+    res = plan_protocol(study, scn, ["offset.x<=0.01"], seed=0, sure=0.5)  # the boundary protocol
     opt = analytic_optimum(scn, 0.01)
     # the cost above setup scales as 1/v = (q_z / V)^2: twice the quantile's relative error;
     # 3 standard errors, the cost resolution, and 2 % for whole frames and positions near a flat optimum
@@ -109,11 +109,11 @@ def test_an_infeasible_requirement_gives_the_best_achievable():
 def test_a_lab_time_budget_bounds_the_search():
     scn = TOY.load_scenario()
     opt_h = analytic_optimum(scn, 0.01)["cost_s"] / 3600  # 0.335 h
-    tight = plan_protocol(TOY, scn, ["offset.x<=0.01"], budget_hours=0.3, seed=0)
+    tight = plan_protocol(TOY, scn, ["offset.x<=0.01"], budget_hours=0.3, seed=0, sure=0.5)
     assert opt_h > 0.3 and not tight.feasible
     assert tight.best_achievable.cost_s <= 0.3 * 3600
     assert "within 0.3 h" in tight.answer()
-    loose = plan_protocol(TOY, scn, ["offset.x<=0.01"], budget_hours=0.5, seed=0)
+    loose = plan_protocol(TOY, scn, ["offset.x<=0.01"], budget_hours=0.5, seed=0, sure=0.5)
     assert loose.feasible and loose.recommended.cost_s <= 0.5 * 3600
 
 
@@ -216,7 +216,7 @@ def test_a_study_without_knobs_has_no_plan_command(monkeypatch):
 def test_protocol_shapes_are_each_searched_and_compared():
     study = ToyStudy(shapes=True, record=True)
     scn = study.load_scenario()
-    res = plan_protocol(study, scn, ["offset.x<=0.01"], seed=0)
+    res = plan_protocol(study, scn, ["offset.x<=0.01"], seed=0, sure=0.5)  # the boundary protocols
     assert set(res.shapes) == {"grid", "line"}
     tol = 3 * 2 * _quantile_rel_se(N, C) + resolution(N) + 0.02  # as for the two-knob optimum
     for name, s in res.shapes.items():
