@@ -15,7 +15,15 @@ of the chosen variant (``--variant``; default the study's last variant that esti
 ``|e|`` over trials is at most VALUE (``--confidence C``, default 0.95): 95 % of the tests
 run with this protocol land within VALUE. The C-quantile of ``n`` trials is the order
 statistic ``|e|_(ceil(C n))``, so a protocol *measures* feasible when at most
-``n - ceil(C n)`` of its trials exceed VALUE. Only a class of role ``result`` (an estimate
+``n - ceil(C n)`` of its trials exceed VALUE.
+
+How sure (``--sure P``, default :data:`DEFAULT_SURE`): the search counts a protocol as
+meeting a requirement only when the one-sided ``P`` upper prediction bound of the quantile
+the re-validation will measure is within VALUE (:func:`prediction_bound`: ``q + z_P
+sqrt(se_q^2 (1 + n_s / n) + 2 se_truth^2)``, Maritz-Jarrett ``se_q``), so the recommendation
+passes the re-validation (fresh trials, the measured quantile) with probability about ``P``;
+``P = 0.5`` gives the boundary protocol. :attr:`PlanResult.premium` states what the margin
+costs over the boundary protocol. Only a class of role ``result`` (an estimate
 of a truth) or ``residual`` (what a compensation leaves) can be required; an ``input``
 (taken as given), a ``stated`` uncertainty, a reference variant, an axis the data cannot
 determine, an unknown class, axis or variant, a value that is not a positive number and
