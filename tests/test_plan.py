@@ -392,3 +392,21 @@ def test_the_premium_over_the_boundary_protocol_is_the_analytic_one(sure_plans):
         (prem.mean(), c_mult)
     assert "Aiming 90 % sure to pass the real test costs" in plans[0][1].answer()
     assert plans[0][1].to_json()["premium"]["factor"] == pytest.approx(prem[0])
+
+
+def test_run_study_uses_a_given_executor_and_leaves_it_running():
+    """``run_study(..., executor=pool)``: the caller's pool runs the trials (the same numbers as
+    the run's own executor) and is still running after the run, for the next."""
+    from budget.runner.executors import ProcessExecutor
+    from budget.runner.run import _worker_init, run_study
+
+    scn = TOY.load_scenario()
+    own = run_study(TOY, scn, trials=40, seed=2, workers=1)
+    with ProcessExecutor(2, initializer=_worker_init, initargs=(TOY,)) as pool:
+        first = run_study(TOY, scn, trials=40, seed=2, executor=pool, prewarm=False)
+        assert pool._pool is not None  # not shut down by the run
+        second = run_study(TOY, scn, trials=40, seed=2, executor=pool, prewarm=False)
+        assert first.executor == "2 local processes"
+    for key, x in own.samples.items():
+        np.testing.assert_array_equal(first.samples[key], x)
+        np.testing.assert_array_equal(second.samples[key], x)
