@@ -179,6 +179,7 @@ def test_dataframe_repr_and_html():
     (["--require", "offset.x<=0.01", "--variant", "none"], "--variant none: a reference"),
     (["--require", "offset.x<=0.01", "--variant", "bogus"], "--variant bogus: unknown"),
     ([], "give at least one requirement"),
+    (["--require", "offset.x<=0.01", "--sure", "1.5"], "--sure 1.5: must be in [0.5, 1)"),
 ])
 def test_bad_requirements_are_one_line_errors(tmp_path, monkeypatch, capsys, args, message):
     from budget.runner.cli import study_group
