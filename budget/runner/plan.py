@@ -15,7 +15,15 @@ of the chosen variant (``--variant``; default the study's last variant that esti
 ``|e|`` over trials is at most VALUE (``--confidence C``, default 0.95): 95 % of the tests
 run with this protocol land within VALUE. The C-quantile of ``n`` trials is the order
 statistic ``|e|_(ceil(C n))``, so a protocol *measures* feasible when at most
-``n - ceil(C n)`` of its trials exceed VALUE. Only a class of role ``result`` (an estimate
+``n - ceil(C n)`` of its trials exceed VALUE.
+
+How sure (``--sure P``, default :data:`DEFAULT_SURE`): the search counts a protocol as
+meeting a requirement only when the one-sided ``P`` upper prediction bound of the quantile
+the re-validation will measure is within VALUE (:func:`prediction_bound`: ``q + z_P
+sqrt(se_q^2 (1 + n_s / n) + 2 se_truth^2)``, Maritz-Jarrett ``se_q``), so the recommendation
+passes the re-validation (fresh trials, the measured quantile) with probability about ``P``;
+``P = 0.5`` gives the boundary protocol. :attr:`PlanResult.premium` states what the margin
+costs over the boundary protocol. Only a class of role ``result`` (an estimate
 of a truth) or ``residual`` (what a compensation leaves) can be required; an ``input``
 (taken as given), a ``stated`` uncertainty, a reference variant, an axis the data cannot
 determine, an unknown class, axis or variant, a value that is not a positive number and
@@ -109,12 +117,15 @@ import numpy as np
 from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
-__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
+__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
            "PlanResult", "Requirement", "default_variant", "parse_requirements", "plan_command_for",
-           "plan_protocol", "resolution", "screening_trials", "sure_met", "validation_seed"]
+           "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
+           "validation_seed"]
 
 SCHEMA = "budget.plan/1"
 DEFAULT_CONFIDENCE = 0.95
+#: how sure the search wants a protocol to pass the real test (the re-validation): the default ``--sure``
+DEFAULT_SURE = 0.9
 #: the re-validation's spawn key: distinct from every trial's (0, 1, ...) and the truths' (2**31)
 VALIDATION_SPAWN_KEY = 2**31 + 1
 #: a candidate is decided by its screening trials when the posterior probability of meeting is below
@@ -239,11 +250,54 @@ def sure_met(exceed: int, n: int, confidence: float) -> float:
     return float(stats.beta.cdf(1.0 - confidence, exceed + 0.5, n - exceed + 0.5))
 
 
-def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float = 0.0) -> dict:
+def quantile_rel_se(trials: int, confidence: float) -> float:
+    """Relative standard error of the sample C-quantile of ``|e|``, ``e ~ N(0, s^2)``, over ``n``
+    trials: the asymptotic ``sqrt(C (1 - C) / n) / (f(q) q)`` with ``q = z s``, ``z =
+    Phi^-1((1 + C) / 2)`` and ``f(q) = 2 phi(z) / s`` the density of ``|e|`` at ``q`` (about
+    ``0.95 / sqrt(n)`` at C = 0.95)."""
+    from scipy import stats
+
+    z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    return math.sqrt(confidence * (1 - confidence) / trials) / (2.0 * float(stats.norm.pdf(z)) * z)
+
+
+def sure_margin(sure: float | None, trials: int, confidence: float) -> float:
+    """The factor by which a protocol's true C-quantile must sit below the bound for its
+    :func:`prediction_bound` to meet it (a normal error, ``n`` trials searched and ``n``
+    re-validated): ``1 + z_P sqrt(2) r_n``, ``r_n`` :func:`quantile_rel_se`. The search steers by
+    it; the measured bound decides."""
+    if sure is None or sure <= 0.5:
+        return 1.0
+    from scipy import stats
+
+    return 1.0 + float(stats.norm.ppf(sure)) * math.sqrt(2.0) * quantile_rel_se(trials, confidence)
+
+
+def prediction_bound(q: float, se_q: float, n: int, n_future: int, truth_se: float, sure: float) -> float:
+    """One-sided ``sure`` upper prediction bound of the C-quantile the re-validation will
+    measure: ``q + z_P sqrt(se_q^2 (1 + n / n_future) + 2 truth_se^2)``. The re-validation
+    draws fresh trials (``n_future``; its quantile's variance ``se_q^2 n / n_future``) and fresh
+    truths (their standard error as this run's), independent of this run's, so ``q_future - q``
+    has the summed variance; a bound on the true quantile alone (``q + z_P se``) would be
+    passed by the re-validation only at ``Phi(z_P / sqrt(2))`` (82 % for P = 0.9)."""
+    from scipy import stats
+
+    if sure <= 0.5:
+        return q
+    if not math.isfinite(se_q):
+        return math.inf
+    z = float(stats.norm.ppf(sure))
+    return q + z * math.sqrt(se_q**2 * (1.0 + n / n_future) + 2.0 * truth_se**2)
+
+
+def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float = 0.0, *,
+               sure: float | None = None, n_future: int | None = None) -> dict:
     """What ``err`` (errors of one requirement's key over trials) says about the bound
     ``value``: the C-quantile of ``|err|`` and its standard error, exceedances, bias and spread
     with their standard errors (the quantile's: Maritz-Jarrett), and how sure the bound is met (:func:`sure_met`, averaged
-    over the truth's standard error ``truth_se``)."""
+    over the truth's standard error ``truth_se``). ``sure``: ``met`` when the ``sure``
+    :func:`prediction_bound` (``upper``; the re-validation has ``n_future`` trials, default
+    ``n``) is within ``value``; None: when the quantile itself is (the re-validation's rule)."""
     e = np.asarray(err, dtype=float)
     n = e.size
     a = np.sort(np.abs(e))
@@ -256,13 +310,17 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     if truth_se > 0:
         x, w = np.polynomial.hermite_e.hermegauss(7)  # over N(0, 1)
         w = w / w.sum()
-        sure = float(sum(wi * sure_met(int(np.count_nonzero(np.abs(e - xi * truth_se) > value)), n, confidence)
-                         for xi, wi in zip(x, w)))
+        sure_p = float(sum(wi * sure_met(int(np.count_nonzero(np.abs(e - xi * truth_se) > value)), n, confidence)
+                           for xi, wi in zip(x, w)))
     else:
-        sure = sure_met(exceed, n, confidence)
+        sure_p = sure_met(exceed, n, confidence)
     sd = float(e.std(ddof=1)) if n > 1 else 0.0
+    out_sure = sure
+    sure = sure_p
+    upper = q if out_sure is None else prediction_bound(q, se_q, n, n_future or n, truth_se, out_sure)
     return {"quantile": q, "se_quantile": se_q, "bound": float(value), "n": int(n),
-            "exceed": exceed, "allowed": int(n - _rank(n, confidence)), "met": bool(q <= value), "sure": sure,
+            "exceed": exceed, "allowed": int(n - _rank(n, confidence)), "met": bool(upper <= value), "sure": sure,
+            **({} if out_sure is None else {"upper": upper, "upper_sure": float(out_sure)}),
             "bias": float(e.mean()), "se_bias": float(math.sqrt(sd**2 / n + truth_se**2)), "sd": sd,
             "se_sd": sd / math.sqrt(2.0 * max(n - 1, 1)), "truth_se": float(truth_se)}
 
@@ -316,8 +374,8 @@ class Evaluation:
 
     @property
     def ratio(self) -> float:
-        """Worst measured quantile over its bound."""
-        return max(f["quantile"] / f["bound"] for f in self.figures.values())
+        """Worst measured quantile (its prediction bound where the search judged by one) over its bound."""
+        return max(f.get("upper", f["quantile"]) / f["bound"] for f in self.figures.values())
 
     def to_json(self) -> dict:
         return {"shape": self.shape, "knobs": dict(self.knobs), "cost_s": self.cost_s,
@@ -328,8 +386,13 @@ class Evaluation:
 class _Oracle:
     """Runs candidates with common random numbers and shared truths, counting trials."""
 
-    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress):
+    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress, executor=None,
+                 sure=None):
         self.study, self.reqs, self.variant = study, requirements, variant
+        #: the one executor every candidate's run uses (started by :func:`plan_protocol`)
+        self.executor = executor
+        #: the search's level: a candidate meets when its quantile's P prediction bound is within (None: the point)
+        self.sure = sure
         self.confidence, self.seed, self.n, self.workers = confidence, seed, trials, workers
         self.progress = progress
         self.truths: dict = {}
@@ -340,6 +403,7 @@ class _Oracle:
         from scipy import stats
 
         self.z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+        self.margin = sure_margin(sure, trials, confidence)
 
     # the truths, once per truth identity and seed
     def truths_for(self, scn, seed):
@@ -373,13 +437,17 @@ class _Oracle:
 
         study = self.study if k0 == 0 else _Shifted(self.study, k0)
         res = run_study(study, scn, trials=k1 - k0, seed=seed, workers=self.workers, truths=truths,
-                        prewarm=not self.prewarmed)
+                        prewarm=not self.prewarmed, executor=self.executor)
         self.prewarmed = True
         self.trials_run += k1 - k0
         return self._errors(res)
 
-    def _figures(self, errs, tse):
-        return {r.name: figures_of(errs[r.name], r.value, self.confidence, tse[r.name]) for r in self.reqs}
+    def _figures(self, errs, tse, point=False):
+        """Per requirement; the search's judged by the ``sure`` prediction bound, the
+        re-validation's (``point``) by the quantile itself."""
+        sure = None if point or self.sure is None or self.sure <= 0.5 else self.sure
+        return {r.name: figures_of(errs[r.name], r.value, self.confidence, tse[r.name], sure=sure, n_future=self.n)
+                for r in self.reqs}
 
     def evaluate(self, shape, knobs, scn, *, stage, seed=None, full=False, extend=True) -> Evaluation:
         """Run ``scn``: screening trials, then (``extend``) up to ``n`` unless they decide it;
@@ -390,7 +458,7 @@ class _Oracle:
         errs, tse = self._run(scn, seed, 0, n0, truths)
         items = {k: float(v) for k, v in self.study.lab_time_s(scn).items()}
         ev = Evaluation(shape, dict(knobs), float(sum(items.values())), items, seed, n0,
-                        self._figures(errs, tse), stage, scn, errs, tse)
+                        self._figures(errs, tse, point=stage == "validation"), stage, scn, errs, tse)
         if extend and n0 < self.n and not self._decided(ev.figures):
             self.complete(ev, quiet=True)
         self.evaluations.append(ev)
@@ -404,7 +472,7 @@ class _Oracle:
         more, _ = self._run(ev.scenario, ev.seed, ev.trials, self.n, self.truths_for(ev.scenario, ev.seed))
         ev.errors = {k: np.concatenate([ev.errors[k], more[k]]) for k in ev.errors}
         ev.trials = self.n
-        ev.figures = self._figures(ev.errors, ev.truth_se)
+        ev.figures = self._figures(ev.errors, ev.truth_se, point=ev.stage == "validation")
         if not quiet:
             self._echo(ev, "extended")
         return ev
@@ -417,7 +485,8 @@ class _Oracle:
 
     def _decided(self, figs) -> bool:
         s = [sure_met(f["exceed"], f["n"], self.confidence) for f in figs.values()]
-        return min(s) > 1 - DECIDED or min(s) < DECIDED
+        # meeting is decided only where the search's rule (the prediction bound) already says so
+        return (min(s) > 1 - DECIDED and all(f["met"] for f in figs.values())) or min(s) < DECIDED
 
 
 # ---------------------------------------------------------------------- scenarios of a protocol
@@ -533,9 +602,12 @@ class _ShapeSearch:
             coefs[r.name] = coef
         return coefs
 
-    def predicted_ratio(self, coefs, pts) -> np.ndarray:
+    def predicted_ratio(self, coefs, pts, margin: float | None = None) -> np.ndarray:
+        """The model's worst quantile over its bound, times the ``sure`` margin
+        (:func:`sure_margin`; default the search's)."""
+        m = self.o.margin if margin is None else margin
         feats = np.column_stack([np.ones(len(pts))] + [_feature(k, pts[:, i]) for i, k in enumerate(self.knobs)])
-        return np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) / r.value for r in self.o.reqs], axis=0)
+        return m * np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) / r.value for r in self.o.reqs], axis=0)
 
     def frontier(self, coefs):
         """Indices into the fine grid, by cost, of protocols no cheaper protocol predicts better
@@ -671,7 +743,26 @@ class _ShapeSearch:
             out["best_achievable"] = best_a
         out["evaluations"], out["trials"], out["refused"] = list(self.evals), self.spent(), list(self.refused)
         out["model"] = self.model_curve()
+        out["boundary"] = self.boundary()
         return out
+
+    def boundary(self) -> dict | None:
+        """The fitted model's cheapest protocol (frontier) whose predicted quantiles sit at the
+        bounds (no ``sure`` margin): what a search judging by the measured quantile alone aims
+        at; and the model's at the search's margin (None where the model predicts none)."""
+        coefs = self._fit()
+        front, _ = self.frontier(coefs)
+        out = {}
+        for name, m in (("boundary", 1.0), ("sure", self.o.margin)):
+            r = self.predicted_ratio(coefs, self.points[front], margin=m) if len(front) else np.array([])
+            ok = np.flatnonzero(r <= 1.0)
+            if not len(ok):
+                return None
+            i = int(front[ok[0]])
+            out[name] = {"cost_s": float(self.costs[i]),
+                         "knobs": {k.field: _knob_value(k, x) for k, x in zip(self.knobs, self.points[i])}}
+        return {"cost_s": out["boundary"]["cost_s"], "knobs": out["boundary"]["knobs"],
+                "model_sure_cost_s": out["sure"]["cost_s"]}
 
     def model_curve(self) -> dict:
         """The fitted model's frontier: lab time and predicted quantile per requirement, and the
@@ -714,6 +805,8 @@ class PlanResult:
     truth_runs: int
     elapsed_s: float = float("nan")
     cpu_s: float = float("nan")
+    #: how sure the search wanted the recommendation to pass the re-validation (``--sure``)
+    sure_level: float = DEFAULT_SURE
 
     # ---- verdicts
     @property
@@ -732,6 +825,20 @@ class PlanResult:
         if self.validation is None:
             return float("nan")
         return max(0.0, 1.0 - sum(1.0 - f["sure"] for f in self.validation.figures.values()))
+
+    @property
+    def premium(self) -> dict | None:
+        """What aiming ``sure_level`` costs: the recommendation's lab time over that of the
+        boundary protocol (the fitted model's cheapest whose predicted quantiles equal the
+        bounds, in the recommended shape); None without a recommendation or a model boundary."""
+        if self.recommended is None:
+            return None
+        b = self.shapes.get(self.recommended.shape, {}).get("boundary")
+        if not b or not b["cost_s"] > 0:
+            return None
+        return {"sure": self.sure_level, "factor": self.recommended.cost_s / b["cost_s"],
+                "boundary_cost_s": b["cost_s"], "boundary_knobs": dict(b["knobs"]),
+                "model_factor": b["model_sure_cost_s"] / b["cost_s"]}
 
     @property
     def validation_seed(self) -> int:
@@ -805,16 +912,21 @@ class PlanResult:
 # ---------------------------------------------------------------------- the planner
 def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | None = None,
                   confidence: float = DEFAULT_CONFIDENCE, budget_hours: float | None = None, seed: int = 0,
-                  trials: int | None = None, workers: int | None = 1, progress: bool = False) -> PlanResult:
+                  trials: int | None = None, workers: int | None = 1, progress: bool = False,
+                  sure: float = DEFAULT_SURE) -> PlanResult:
     """Plan ``study``'s protocol on ``scenario`` (module docstring). ``requirements``: texts
     ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
-    the scenario's ``validation.trials``)."""
+    the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
+    prediction bound of the quantile the re-validation will measure is within the bound
+    (:func:`prediction_bound`; 0.5: the measured quantile itself, the boundary protocol)."""
     t0, c0 = time.perf_counter(), time.process_time()
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
         raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
     if not (0.5 <= confidence < 1.0):
         raise UserInputError(f"--confidence {confidence}: must be in [0.5, 1)")
+    if not (0.5 <= sure < 1.0):
+        raise UserInputError(f"--sure {sure}: must be in [0.5, 1)")
     if budget_hours is not None and not (math.isfinite(budget_hours) and budget_hours > 0):
         raise UserInputError(f"--budget-hours {budget_hours}: must be a positive number")
     if requirements and all(isinstance(r, Requirement) for r in requirements):
@@ -825,7 +937,21 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     if n < 20:
         raise UserInputError(f"--trials {n}: a plan needs at least 20 trials per validation")
     budget_s = None if budget_hours is None else 3600.0 * budget_hours
-    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress)
+    from budget.runner.executors import make_executor
+    from budget.runner.run import _worker_init
+
+    # one pool for every candidate (the study's kernels compiled first, so its workers load them
+    # from the cache): starting workers per candidate would cost more than the toy's trials
+    study.prewarm(scenario)
+    with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
+        return _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                     budget_s, knobs, t0, c0, sure)
+
+
+def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
+          knobs, t0, c0, sure) -> PlanResult:
+    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure)
+    oracle.prewarmed = True
     shapes = study.protocol_shapes(scenario) or {"scenario": {}}
     cap = (BUDGET_VALIDATIONS - 1) * n
     results = {}
@@ -850,7 +976,7 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
                       recommended=rec, validation=validation, best_achievable=best_ach,
                       evaluations=list(oracle.evaluations), search_trials=search_trials,
                       truth_runs=oracle.truth_runs, elapsed_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0)
+                      cpu_s=time.process_time() - c0, sure_level=sure)
 
 
 # ---------------------------------------------------------------------- the command
@@ -879,6 +1005,9 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     @click.option("--variant", default=None, help="The estimator judged (default: the study's last that estimates).")
     @click.option("--confidence", type=float, default=DEFAULT_CONFIDENCE, show_default=True,
                   help="The share of tests that must land within VALUE (the quantile).")
+    @click.option("--sure", "sure", type=float, default=DEFAULT_SURE, show_default=True,
+                  help="How sure the recommended protocol should be to meet every requirement on the real test "
+                       "(the re-validation's fresh trials); 0.5: the boundary protocol.")
     @click.option("--budget-hours", "budget_hours", type=float, default=None,
                   help="Lab time allowed: protocols above it are not considered.")
     @click.option("--trials", type=click.IntRange(min=20), default=None,
@@ -892,7 +1021,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
                   help="Write a report (report.md, report.html, trade_curve.png, recommended.toml).")
     @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Each protocol run on stderr (default: on a terminal).")
-    def plan(scenario, require, variant, confidence, budget_hours, trials, seed, workers, json_out, report_dir,
+    def plan(scenario, require, variant, confidence, sure, budget_hours, trials, seed, workers, json_out, report_dir,
              overwrite, progress):
         import sys
         from pathlib import Path
@@ -915,7 +1044,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
 
             workers = default_workers()
         res = plan_protocol(study, scn, list(require), variant=variant, confidence=confidence,
-                            budget_hours=budget_hours, seed=seed, trials=trials, workers=workers, progress=progress)
+                            budget_hours=budget_hours, seed=seed, trials=trials, workers=workers, progress=progress,
+                            sure=sure)
         click.echo(res.answer())
         for s in res.sentences():
             click.echo(f"* {s}")

@@ -10,6 +10,9 @@ Rules of the words:
   (the search's verdict came from trials the verdict does not share, so a protocol at the
   boundary may fail it: the sureness says how close); "no protocol ... meets" with the best
   achievable figure where the search found none;
+* the premium: "aiming P sure to pass the real test costs Fx the boundary protocol's lab
+  time", where the search judged by the ``--sure`` prediction bound (F: the recommendation's
+  lab time over the fitted model's cheapest protocol whose predicted quantiles equal the bounds);
 * a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
   its best figure where none met.
 """
@@ -82,15 +85,22 @@ def answer_text(res) -> str:
     head = (f"{st.title}: the cheapest protocol found{budget} is {_knobs(rec)}"
             f"{'' if rec.shape == 'scenario' else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
     n = val.trials
+    prem = res.premium
+    aim = "" if prem is None or res.sure_level <= 0.5 else (
+        f" Aiming {pct(res.sure_level)} sure to pass the real test costs {prem['factor']:.2g}x the boundary "
+        f"protocol's lab time ({_knobs_text_raw(prem['boundary_knobs'])}, {_hours(prem['boundary_cost_s'])}).")
     if res.confirmed:
         tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
                 f"sure at {pct(res.sure)}).")
     else:
         failed = [name for name, f in val.figures.items() if not f["met"]]
+        why = ("the protocol sits at the boundary; take the next larger one or plan for a tighter bound"
+               if res.sure_level <= 0.5 else
+               f"a protocol aimed {pct(res.sure_level)} sure fails about {pct(1 - res.sure_level)} of "
+               "re-validations; plan with a higher --sure or a tighter bound")
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
-                f"(sure at {pct(res.sure)}): the protocol sits at the boundary; take the next larger one "
-                "or plan for a tighter bound.")
-    return head + tail
+                f"(sure at {pct(res.sure)}): {why}.")
+    return head + tail + aim
 
 
 def findings_sentences(res) -> list[str]:
@@ -150,6 +160,7 @@ def plan_json(res) -> dict:
                    "description": k.description} for k in res.knobs],
         "feasible": res.feasible, "confirmed": res.confirmed,
         "sure": None if res.validation is None else res.sure,
+        "sure_level": res.sure_level, "premium": res.premium,
         "answer": answer_text(res), "findings": findings_sentences(res),
         "recommended": None if res.recommended is None else {
             **res.recommended.to_json(), "scenario_hash": st.scenario_hash(res.recommended.scenario),
