@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
+from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 
 __all__ = ["STUDY", "StarCameraStudy"]
 
@@ -174,6 +174,82 @@ class StarCameraStudy(Study):
                 out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, getattr(t, f"se_{ax}_px") * f, details)
         return out
 
+    # ------------------------------------------------------------ protocol planning
+    def protocol_knobs(self, scenario) -> tuple[Knob, ...]:
+        """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
+        or ``[validation]``: frames of each protocol's conditions, the HSFE poses (along the
+        diagonal, or per axis of the grid pattern, whichever ``protocols.hsfe.pattern`` the
+        scenario has) and the dark frames per condition. Lower bounds are what the
+        estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
+        improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
+        their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
+        a degree of freedom after each star's mean; 2+ grid poses per axis. Upper bounds are
+        about ten times seed 000's counts (a lab day). The filter set (500, 600, 800 nm:
+        two differences about the 600 nm reference, eqs 13-16) and the four corner fields
+        (whose symmetric average eqs 13-16 take) are what the chromatic estimators are
+        built on, so they are not counts to plan; the frames per field and filter are."""
+        h = scenario.protocols.hsfe
+        poses = (Knob("protocols.hsfe.conditions", "int", 3, 48, "poses",
+                      f"HSFE: poses along the diagonal, {h.step_px:g} px apart")
+                 if h.pattern == "diagonal" else
+                 Knob("protocols.hsfe.grid_poses", "int", 2, 8, "poses per axis",
+                      "HSFE: poses per axis of the grid (its square the poses)"))
+        return (
+            Knob("protocols.te.frames", "int", 2, 300, "frames", "TE: frames of the static target (seed 000: >= 30)"),
+            Knob("protocols.hsfe.frames", "int", 2, 300, "frames", "HSFE: frames per pose"),
+            poses,
+            Knob("protocols.chromatic.frames", "int", 2, 300, "frames", "LSFE-S: frames per corner field and filter"),
+            Knob("protocols.distortion.frames", "int", 2, 300, "frames", "LSFE-C1: frames of the calibration grid"),
+            Knob("validation.dark_frames", "int", 0, 30, "frames",
+                 "dark frames per condition subtracted before centroiding (0: the window border's background)"),
+        )
+
+    def protocol_shapes(self, scenario) -> dict[str, dict]:
+        """The HSFE step patterns: seed 000's ``diagonal`` (the scenario's own poses along one
+        direction) and the ``grid`` over pixels in both axes (``protocols.hsfe.grid_poses``
+        per axis, pitch ``1 + 1/grid_poses`` px unless ``grid_step_px`` is given), which sees
+        the static error the diagonal cannot (docs/validation.md, "Planning the test")."""
+        return {"diagonal": {"protocols.hsfe.pattern": "diagonal"},
+                "grid": {"protocols.hsfe.pattern": "grid"}}
+
+    def lab_time_s(self, scenario) -> dict[str, float]:
+        """Lab seconds of the scenario's four protocols, by item, from its own fields
+        (``camera.exposure_s``, ``[protocols]`` and ``protocols.timing``):
+
+        * ``<protocol>.frames``: its lit frames x (exposure + ``frame_readout_s``);
+        * ``dark_frames``: ``validation.dark_frames`` per condition of every protocol, each
+          condition's dark frames x the frame period plus ``dark_switch_s`` (the shutter);
+        * ``<protocol>.changes``: between consecutive conditions of a protocol, in plan order,
+          ``hexapod_move_s`` where the pointing changes, ``filter_change_s`` where the filter
+          changes, and ``settle_s`` once where either does (the HSFE poses; the chromatic
+          filters and corner fields);
+        * ``setup``: ``protocol_setup_s`` per protocol (target and alignment);
+        * ``warmup``: ``source_warmup_s`` once.
+        """
+        from budget.starcam.protocols import PROTOCOLS, make_plan
+
+        t = scenario.protocols.timing
+        period = scenario.camera.exposure_s + t.frame_readout_s
+        dark = scenario.validation.dark_frames
+        out: dict[str, float] = {}
+        n_conditions = 0
+        for proto in PROTOCOLS:
+            conds = make_plan(proto, scenario).conditions
+            n_conditions += len(conds)
+            out[f"{proto}.frames"] = float(sum(c.frames for c in conds)) * period
+            changes = 0.0
+            for a, b in zip(conds[:-1], conds[1:]):
+                moved = ((a.field_center_px, a.platform_dx_px, a.platform_dy_px)
+                         != (b.field_center_px, b.platform_dx_px, b.platform_dy_px))
+                filtered = a.filter_nm != b.filter_nm
+                changes += t.hexapod_move_s * moved + t.filter_change_s * filtered + t.settle_s * (moved or filtered)
+            if changes:
+                out[f"{proto}.changes"] = changes
+        out["dark_frames"] = n_conditions * (dark * period + t.dark_switch_s) if dark else 0.0
+        out["setup"] = len(PROTOCOLS) * t.protocol_setup_s
+        out["warmup"] = t.source_warmup_s
+        return out
+
     def likely_cause(self, result, key, stats) -> str | None:
         """Seed 000's causes (docs/validation.md), each given only where the run's numbers show
         its pattern; the numbers quoted are computed from this run."""
@@ -192,10 +268,11 @@ class StarCameraStudy(Study):
                 return (f"the published estimator measures temporal noise, not the pixel error: its mean "
                         f"{stats['mean']:.3g} sits at the temporal-noise floor of the {p.frames}-frame means "
                         f"(TE x sqrt(2/{p.frames}) = {floor:.3g}), not at the static error {stats['truth']:.3g}.")
+            seen = (f", and the {p.conditions} poses along one diagonal see only part of the static error"
+                    if p.pattern == "diagonal" else "")
             return (f"the scatter of the {p.frames}-frame means about the fitted steps holds their temporal noise "
-                    f"(about {floor:.3g}) beside the static error, and the {p.conditions} poses along one "
-                    "diagonal see only part of the static error: its sign depends on which dominates.")
-        if cls == "hsfe" and b < 0:
+                    f"(about {floor:.3g}) beside the static error{seen}: its sign depends on which dominates.")
+        if cls == "hsfe" and b < 0 and result.scenario.protocols.hsfe.pattern == "diagonal":
             p = result.scenario.protocols.hsfe
             return (f"the improved static estimator removes the temporal noise but cannot see the part of the "
                     f"static error that stays constant over the {p.conditions} poses ({p.step_px:g} px steps "

@@ -436,13 +436,48 @@ class TEProtocolModel(_Model):
 
 
 class HSFEProtocolModel(_Model):
-    """HSFE plan (seed 000 eqs 3-12): ``conditions`` poses, each moving the image by
-    ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one."""
+    """HSFE plan (seed 000 eqs 3-12): hexapod poses of the target's image, ``frames``
+    frames each, in one of two step patterns (``pattern``):
 
+    * ``"diagonal"`` (seed 000, the default): ``conditions`` poses, each moving the image by
+      ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one;
+    * ``"grid"``: ``grid_poses x grid_poses`` poses on a square grid of pitch
+      ``grid_step_px`` in x and in y from the first pose, visited row by row in serpentine
+      order (every move one grid step). Unset, the pitch is ``1 + 1/grid_poses`` px: along
+      each axis the poses then fall on ``grid_poses`` different pixels at sub-pixel phases
+      ``1/grid_poses`` apart, so both the pixel-phase error and each pixel's own response
+      (PRNU, DSNU) vary over the poses and no part of the static error stays constant over
+      them (docs/validation.md, "Planning the test"). ``conditions``, ``step_px`` and
+      ``direction_deg`` are not used.
+    """
+
+    pattern: Literal["diagonal", "grid"] = "diagonal"
     conditions: Annotated[int, Field(ge=2)] = 12
     frames: Annotated[int, Field(ge=1)] = 30
     step_px: Finite = 0.2
     direction_deg: Finite = 45.0
+    grid_poses: Annotated[int, Field(ge=2, le=16)] = 5
+    grid_step_px: Finite | None = None
+
+    @property
+    def n_poses(self) -> int:
+        """Number of poses (conditions) of the pattern."""
+        return self.conditions if self.pattern == "diagonal" else self.grid_poses**2
+
+    @property
+    def grid_pitch_px(self) -> float:
+        """The grid's pitch in px (``grid_step_px``, or ``1 + 1/grid_poses`` when unset)."""
+        return float(self.grid_step_px) if self.grid_step_px is not None else 1.0 + 1.0 / self.grid_poses
+
+    def grid_offsets_px(self) -> tuple[tuple[float, float], ...]:
+        """Commanded image offsets (px) of the grid pattern's poses, in acquisition order:
+        rows of constant y, x forward on even rows and backward on odd ones."""
+        n, s = self.grid_poses, self.grid_pitch_px
+        out = []
+        for j in range(n):
+            cols = range(n) if j % 2 == 0 else range(n - 1, -1, -1)
+            out += [(i * s, j * s) for i in cols]
+        return tuple(out)
 
 
 class ChromaticProtocolModel(_Model):
@@ -479,13 +514,46 @@ class DistortionProtocolModel(_Model):
     frames: Annotated[int, Field(ge=1)] = 30
 
 
+class LabTimingModel(_Model):
+    """How long the lab's steps take, in seconds: the lab time of a protocol
+    (:meth:`budget.starcam.study.StarCameraStudy.lab_time_s`, what ``budget starcam plan``
+    minimises). Seed 000 gives no times; these are typical values. The simulated world never
+    reads them (the drift's timeline has its own ``world.frame_overhead_s``, ``settle_s``,
+    ``setup_s``, whose defaults these match).
+
+    * ``frame_readout_s``: readout and transfer of a frame beyond ``camera.exposure_s`` (a
+      2048 x 2048 CMOS at 12 bit reads out in 25-50 ms; the world's 0.05 s);
+    * ``hexapod_move_s``: one hexapod move between poses (a micro-radian rotation of a PI
+      H-840 class hexapod, commanding included: about 1-3 s);
+    * ``settle_s``: the wait after a move or a filter change before the first frame (the
+      hexapod's and the mount's settling to sub-arcsecond; with a move, the world's 10 s);
+    * ``filter_change_s``: one change of the filter in front of the target (a motorised
+      filter wheel: 1-3 s);
+    * ``dark_switch_s``: closing and reopening the source's shutter around a condition's
+      dark frames (``validation.dark_frames > 0``);
+    * ``protocol_setup_s``: changing target and aligning between protocols (the world's 300 s);
+    * ``source_warmup_s``: warm-up of the lamp before the first frame of a run (a
+      quartz-tungsten-halogen source stabilises in 15-30 min).
+    """
+
+    frame_readout_s: NonNeg = 0.05
+    hexapod_move_s: NonNeg = 2.0
+    settle_s: NonNeg = 8.0
+    filter_change_s: NonNeg = 2.0
+    dark_switch_s: NonNeg = 2.0
+    protocol_setup_s: NonNeg = 300.0
+    source_warmup_s: NonNeg = 900.0
+
+
 class ProtocolsModel(_Model):
-    """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols)."""
+    """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols),
+    and how long the lab's steps take (``timing``)."""
 
     te: TEProtocolModel = TEProtocolModel()
     hsfe: HSFEProtocolModel = HSFEProtocolModel()
     chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
     distortion: DistortionProtocolModel = DistortionProtocolModel()
+    timing: LabTimingModel = LabTimingModel()
 
 
 class ValidationModel(ValidationSettings):
