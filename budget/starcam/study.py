@@ -31,12 +31,14 @@ _CLASSES = (
 #: scenario fields no truth of :mod:`budget.starcam.truth` reads (the truth seed aside): the
 #: run settings, what only the trials draw (new markers), the lab's own imperfect
 #: knowledge (the improved estimators' models; tests/test_truth_routes.py), the frames of
-#: the lab's protocols (the truths take their own), the chromatic and distortion
-#: protocols (their truths read the optics, the population and the calibration grid)
+#: the lab's protocols (the truths take their own), the HSFE poses (its truth is over
+#: sub-pixel phases at the first pose, whatever the step pattern), the chromatic and
+#: distortion protocols (their truths read the optics, the population and the calibration
+#: grid) and the lab's step times
 TRUTH_BLIND_FIELDS = (
     "name", "validation.trials", "validation.tolerance", "validation.max_trials", "validation.batch_trials",
-    "validation.new_markers_per_trial", "lab.knowledge", "protocols.te.frames", "protocols.hsfe.frames",
-    "protocols.chromatic", "protocols.distortion",
+    "validation.new_markers_per_trial", "lab.knowledge", "protocols.te.frames", "protocols.hsfe",
+    "protocols.chromatic", "protocols.distortion", "protocols.timing",
 )
 
 
