@@ -77,6 +77,20 @@ def test_knobs_and_shapes_are_scenario_fields_the_sweeps_can_set():
                 assert sum(STUDY.lab_time_s(s).values()) > 0
 
 
+def test_plan_knobs_name_the_counts_a_plan_may_change():
+    full = [k.field for k in STUDY.protocol_knobs(default())]
+    assert full == ["protocols.te.frames", "protocols.hsfe.frames", "protocols.hsfe.conditions",
+                    "protocols.chromatic.frames", "protocols.distortion.frames", "validation.dark_frames"]
+    s = with_updates(default(), {"protocols.plan_knobs": ["hsfe.poses", "hsfe.frames"]})
+    assert [k.field for k in STUDY.protocol_knobs(s)] == ["protocols.hsfe.conditions", "protocols.hsfe.frames"]
+    g = with_updates(s, {"protocols.hsfe.pattern": "grid"})
+    assert [k.field for k in STUDY.protocol_knobs(g)] == ["protocols.hsfe.grid_poses", "protocols.hsfe.frames"]
+    with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
+        with_updates(default(), {"protocols.plan_knobs": ["hsfe.frames", "hsfe.frames"]})
+    with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
+        with_updates(default(), {"protocols.plan_knobs": ["hsfe.pose"]})
+
+
 def test_a_wrong_pattern_is_one_error_naming_the_field():
     with pytest.raises(ScenarioError, match=r"protocols\.hsfe\.pattern"):
         with_updates(default(), {"protocols.hsfe.pattern": "spiral"})

@@ -181,7 +181,8 @@ class StarCameraStudy(Study):
         """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
         or ``[validation]``: frames of each protocol's conditions, the HSFE poses (along the
         diagonal, or per axis of the grid pattern, whichever ``protocols.hsfe.pattern`` the
-        scenario has) and the dark frames per condition. Lower bounds are what the
+        scenario has) and the dark frames per condition; those ``protocols.plan_knobs`` names
+        (default all six; a lab planning one test lists its own, which keeps the search small). Lower bounds are what the
         estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
         improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
         their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
@@ -196,15 +197,20 @@ class StarCameraStudy(Study):
                  if h.pattern == "diagonal" else
                  Knob("protocols.hsfe.grid_poses", "int", 2, 8, "poses per axis",
                       "HSFE: poses per axis of the grid (its square the poses)"))
-        return (
-            Knob("protocols.te.frames", "int", 2, 300, "frames", "TE: frames of the static target (seed 000: >= 30)"),
-            Knob("protocols.hsfe.frames", "int", 2, 300, "frames", "HSFE: frames per pose"),
-            poses,
-            Knob("protocols.chromatic.frames", "int", 2, 300, "frames", "LSFE-S: frames per corner field and filter"),
-            Knob("protocols.distortion.frames", "int", 2, 300, "frames", "LSFE-C1: frames of the calibration grid"),
-            Knob("validation.dark_frames", "int", 0, 30, "frames",
-                 "dark frames per condition subtracted before centroiding (0: the window border's background)"),
-        )
+        knobs = {
+            "te.frames": Knob("protocols.te.frames", "int", 2, 300, "frames",
+                              "TE: frames of the static target (seed 000: >= 30)"),
+            "hsfe.frames": Knob("protocols.hsfe.frames", "int", 2, 300, "frames", "HSFE: frames per pose"),
+            "hsfe.poses": poses,
+            "chromatic.frames": Knob("protocols.chromatic.frames", "int", 2, 300, "frames",
+                                     "LSFE-S: frames per corner field and filter"),
+            "distortion.frames": Knob("protocols.distortion.frames", "int", 2, 300, "frames",
+                                      "LSFE-C1: frames of the calibration grid"),
+            "dark_frames": Knob("validation.dark_frames", "int", 0, 30, "frames",
+                                "dark frames per condition subtracted before centroiding (0: the window "
+                                "border's background)"),
+        }
+        return tuple(knobs[name] for name in scenario.protocols.plan_knobs)
 
     def protocol_shapes(self, scenario) -> dict[str, dict]:
         """The HSFE step patterns: seed 000's ``diagonal`` (the scenario's own poses along one

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import tomli_w
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from simcam.config_base import ScenarioBase, ScenarioError, StrictModel, ValidationSettings, model_hash, read_toml, validate_model
 from simcam.effects import EffectsBase, WorldBase
@@ -545,15 +545,34 @@ class LabTimingModel(_Model):
     source_warmup_s: NonNeg = 900.0
 
 
+#: the counts of the seed-000 protocols a plan may change (``protocols.plan_knobs``): TE frames,
+#: HSFE frames per pose, HSFE poses (``conditions`` along the diagonal, ``grid_poses`` per axis
+#: of the grid), chromatic frames per field and filter, distortion frames, dark frames per
+#: condition (``validation.dark_frames``)
+PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames")
+
+
 class ProtocolsModel(_Model):
     """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols),
-    and how long the lab's steps take (``timing``)."""
+    how long the lab's steps take (``timing``) and which counts ``budget starcam plan`` may
+    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default all of them; the
+    others stay as the scenario gives them, e.g. a lab that plans only its HSFE test)."""
 
     te: TEProtocolModel = TEProtocolModel()
     hsfe: HSFEProtocolModel = HSFEProtocolModel()
     chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
     distortion: DistortionProtocolModel = DistortionProtocolModel()
     timing: LabTimingModel = LabTimingModel()
+    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = PLAN_KNOBS
+
+    @field_validator("plan_knobs")
+    @classmethod
+    def _unique_knobs(cls, v: tuple) -> tuple:
+        if not v:
+            raise ValueError("name at least one count to plan")
+        if len(set(v)) != len(v):
+            raise ValueError(f"a name is listed twice ({list(v)})")
+        return v
 
 
 class ValidationModel(ValidationSettings):
