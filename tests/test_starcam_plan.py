@@ -35,7 +35,7 @@ def test_lab_time_of_the_default_protocol_by_hand():
 
 
 def test_lab_time_of_the_grid_pattern_and_dark_frames_by_hand():
-    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.grid_poses": 4,
+    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 16,
                                    "protocols.hsfe.frames": 10, "validation.dark_frames": 5,
                                    "camera.exposure_s": 0.2, "protocols.timing.hexapod_move_s": 3.0})
     lt = STUDY.lab_time_s(scn)
@@ -59,9 +59,8 @@ def test_knobs_and_shapes_are_scenario_fields_the_sweeps_can_set():
         shaped = STUDY.from_dict(copy.deepcopy(raw), source="t")
         assert shaped.protocols.hsfe.pattern == shape
         knobs = STUDY.protocol_knobs(shaped)
-        fields = [k.field for k in knobs]
-        assert ("protocols.hsfe.grid_poses" in fields) == (shape == "grid")
-        assert ("protocols.hsfe.conditions" in fields) == (shape == "diagonal")
+        # the same knobs in every shape (the planner searches each shape over the base's knobs)
+        assert knobs == STUDY.protocol_knobs(base)
         for kb in knobs:
             assert kb.kind == "int" and kb.low <= kb.high
             for v in (int(kb.low), int(kb.high)):
@@ -84,7 +83,7 @@ def test_plan_knobs_name_the_counts_a_plan_may_change():
     s = with_updates(default(), {"protocols.plan_knobs": ["hsfe.poses", "hsfe.frames"]})
     assert [k.field for k in STUDY.protocol_knobs(s)] == ["protocols.hsfe.conditions", "protocols.hsfe.frames"]
     g = with_updates(s, {"protocols.hsfe.pattern": "grid"})
-    assert [k.field for k in STUDY.protocol_knobs(g)] == ["protocols.hsfe.grid_poses", "protocols.hsfe.frames"]
+    assert STUDY.protocol_knobs(g) == STUDY.protocol_knobs(s)
     with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
         with_updates(default(), {"protocols.plan_knobs": ["hsfe.frames", "hsfe.frames"]})
     with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
@@ -108,26 +107,26 @@ def test_default_diagonal_poses_are_seed_000s():
         assert c.platform_dy_px == pytest.approx(k * d, abs=1e-12)
 
 
-@pytest.mark.parametrize("n", [2, 3, 5, 8])
-def test_grid_poses_span_pixels_and_phases_in_both_axes(n):
-    """n x n poses, pitch 1 + 1/n px: per axis n different pixels at phases k/n (uniform over
-    the pixel), every move one grid step (serpentine), the world pointing where the plan says."""
+@pytest.mark.parametrize("m", [2, 3, 5, 12, 25, 48])
+def test_grid_poses_span_pixels_and_phases_in_both_axes(m):
+    """M poses, pitch 1 + 1/M px, one in each column and row: per axis M different pixels at
+    phases k/M (uniform over the pixel); the world points where the plan says."""
     from budget.starcam.protocols import make_plan
     from simcam.starcam.world import commanded_pointing_px
 
-    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.grid_poses": n})
+    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": m})
     plan = make_plan("hsfe", scn)
     xy = np.array([(c.platform_dx_px, c.platform_dy_px) for c in plan.conditions])
-    assert xy.shape == (n * n, 2) and np.all(xy[0] == 0.0)
-    step = 1.0 + 1.0 / n
+    assert xy.shape == (m, 2) and np.all(xy[0] == 0.0)
+    step = 1.0 + 1.0 / m
     for ax in (0, 1):
-        vals = np.unique(np.round(xy[:, ax], 9))
-        assert vals.size == n
-        assert np.unique(np.floor(vals + 1e-9)).size == n                      # n different pixels
-        phases = np.sort(np.round(np.mod(vals, 1.0), 9) % 1.0)
-        np.testing.assert_allclose(phases, np.arange(n) / n, atol=1e-9)         # phases k/n
-    moves = np.abs(np.diff(xy, axis=0)).sum(axis=1)
-    np.testing.assert_allclose(moves, step, rtol=1e-12)
+        cells = np.round(xy[:, ax] / step, 9)
+        np.testing.assert_array_equal(np.sort(cells), np.arange(m))           # one pose per row / column
+        assert np.unique(np.floor(xy[:, ax] + 1e-9)).size == m                 # m different pixels
+        phases = np.sort(np.round(np.mod(xy[:, ax], 1.0), 9) % 1.0)
+        np.testing.assert_allclose(phases, np.arange(m) / m, atol=1e-9)        # phases k/M
+    a = scn.protocols.hsfe.grid_multiplier
+    assert math.gcd(a, m) == 1 and abs(a - m / ((1 + 5**0.5) / 2)) < 1.5
     cu, cv = scn.lab.target_center_px
     pts = commanded_pointing_px(scn)
     for k, (dx, dy) in enumerate(xy):
@@ -135,7 +134,7 @@ def test_grid_poses_span_pixels_and_phases_in_both_axes(n):
     # an explicit pitch is kept
     s2 = with_updates(scn, {"protocols.hsfe.grid_step_px": 0.5})
     xy2 = np.array([(c.platform_dx_px, c.platform_dy_px) for c in make_plan("hsfe", s2).conditions])
-    assert xy2[:, 0].max() == pytest.approx(0.5 * (n - 1))
+    assert xy2[:, 0].max() == pytest.approx(0.5 * (m - 1))
 
 
 def _pixel_dominated_tiny(pattern: str) -> dict:
@@ -156,14 +155,14 @@ def _pixel_dominated_tiny(pattern: str) -> dict:
         "hexapod_repeatability_arcsec", "hexapod_backlash_arcsec", "drift_rate_arcsec_per_h",
         "drift_random_arcsec")}}
     d["validation"].update(new_maps_per_trial=True, hsfe_phase_grid=4, hsfe_truth_frames=200)
-    d["protocols"]["hsfe"].update(frames=10, conditions=12, pattern=pattern, grid_poses=5)
+    d["protocols"]["hsfe"].update(frames=10, conditions=12, pattern=pattern)
     return d
 
 
 def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
     """Pixel errors dominate: the improved (static) HSFE estimator on seed 000's diagonal (12
-    poses 0.2 px apart) recovers about two thirds of the truth; on the 5 x 5 grid (pitch 1.2 px)
-    it recovers the truth. Fixed seed 0, 16 trials; tolerance 3 combined standard errors (the
+    poses 0.2 px apart) recovers about two thirds of the truth; on the grid pattern with as many
+    poses (pitch 1 + 1/12 px, one pose in each row and column) it recovers the truth. Fixed seed 0, 16 trials; tolerance 3 combined standard errors (the
     trials' sd / sqrt(16) and the truth's own, which holds the spread of its 4 map
     realisations). The HSFE protocol is run alone, through the same make_plan / simulate /
     estimate calls as a validation trial (budget.starcam.validate.run_trial)."""

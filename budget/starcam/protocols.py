@@ -86,7 +86,7 @@ def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: 
         conds = tuple(
             Condition(k, f"pose {k + 1}", "star_grid", h.frames, tuple(scenario.lab.target_center_px),
                       float(dx[k]), float(dy[k]))
-            for k in range(h.n_poses)
+            for k in range(h.conditions)
         )
     elif protocol == "chromatic":
         c = p.chromatic

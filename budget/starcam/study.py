@@ -179,29 +179,23 @@ class StarCameraStudy(Study):
     # ------------------------------------------------------------ protocol planning
     def protocol_knobs(self, scenario) -> tuple[Knob, ...]:
         """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
-        or ``[validation]``: frames of each protocol's conditions, the HSFE poses (along the
-        diagonal, or per axis of the grid pattern, whichever ``protocols.hsfe.pattern`` the
-        scenario has) and the dark frames per condition; those ``protocols.plan_knobs`` names
+        or ``[validation]``: frames of each protocol's conditions, the HSFE poses (in either
+        step pattern, :meth:`protocol_shapes`) and the dark frames per condition; those ``protocols.plan_knobs`` names
         (default all six; a lab planning one test lists its own, which keeps the search small). Lower bounds are what the
         estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
         improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
         their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
-        a degree of freedom after each star's mean; 2+ grid poses per axis. Upper bounds are
+        a degree of freedom after each star's mean. Upper bounds are
         about ten times seed 000's counts (a lab day). The filter set (500, 600, 800 nm:
         two differences about the 600 nm reference, eqs 13-16) and the four corner fields
         (whose symmetric average eqs 13-16 take) are what the chromatic estimators are
         built on, so they are not counts to plan; the frames per field and filter are."""
-        h = scenario.protocols.hsfe
-        poses = (Knob("protocols.hsfe.conditions", "int", 3, 48, "poses",
-                      f"HSFE: poses along the diagonal, {h.step_px:g} px apart")
-                 if h.pattern == "diagonal" else
-                 Knob("protocols.hsfe.grid_poses", "int", 2, 8, "poses per axis",
-                      "HSFE: poses per axis of the grid (its square the poses)"))
         knobs = {
             "te.frames": Knob("protocols.te.frames", "int", 2, 300, "frames",
                               "TE: frames of the static target (seed 000: >= 30)"),
             "hsfe.frames": Knob("protocols.hsfe.frames", "int", 2, 300, "frames", "HSFE: frames per pose"),
-            "hsfe.poses": poses,
+            "hsfe.poses": Knob("protocols.hsfe.conditions", "int", 3, 48, "poses",
+                               "HSFE: poses (along the diagonal, or on the grid, as protocols.hsfe.pattern says)"),
             "chromatic.frames": Knob("protocols.chromatic.frames", "int", 2, 300, "frames",
                                      "LSFE-S: frames per corner field and filter"),
             "distortion.frames": Knob("protocols.distortion.frames", "int", 2, 300, "frames",
@@ -214,9 +208,9 @@ class StarCameraStudy(Study):
 
     def protocol_shapes(self, scenario) -> dict[str, dict]:
         """The HSFE step patterns: seed 000's ``diagonal`` (the scenario's own poses along one
-        direction) and the ``grid`` over pixels in both axes (``protocols.hsfe.grid_poses``
-        per axis, pitch ``1 + 1/grid_poses`` px unless ``grid_step_px`` is given), which sees
-        the static error the diagonal cannot (docs/validation.md, "Planning the test")."""
+        direction) and the ``grid`` over pixels in both axes (one pose in each row and column
+        of a grid of pitch ``1 + 1/conditions`` px unless ``grid_step_px`` is given), which
+        sees the static error the diagonal cannot; both take the same knobs (docs/validation.md, "Planning the test")."""
         return {"diagonal": {"protocols.hsfe.pattern": "diagonal"},
                 "grid": {"protocols.hsfe.pattern": "grid"}}
 

@@ -436,19 +436,21 @@ class TEProtocolModel(_Model):
 
 
 class HSFEProtocolModel(_Model):
-    """HSFE plan (seed 000 eqs 3-12): hexapod poses of the target's image, ``frames``
-    frames each, in one of two step patterns (``pattern``):
+    """HSFE plan (seed 000 eqs 3-12): ``conditions`` hexapod poses of the target's image,
+    ``frames`` frames each, in one of two step patterns (``pattern``):
 
-    * ``"diagonal"`` (seed 000, the default): ``conditions`` poses, each moving the image by
-      ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one;
-    * ``"grid"``: ``grid_poses x grid_poses`` poses on a square grid of pitch
-      ``grid_step_px`` in x and in y from the first pose, visited row by row in serpentine
-      order (every move one grid step). Unset, the pitch is ``1 + 1/grid_poses`` px: along
-      each axis the poses then fall on ``grid_poses`` different pixels at sub-pixel phases
-      ``1/grid_poses`` apart, so both the pixel-phase error and each pixel's own response
-      (PRNU, DSNU) vary over the poses and no part of the static error stays constant over
-      them (docs/validation.md, "Planning the test"). ``conditions``, ``step_px`` and
-      ``direction_deg`` are not used.
+    * ``"diagonal"`` (seed 000, the default): each pose moves the image by ``step_px`` along
+      ``direction_deg`` (from +x toward +y) from the previous one;
+    * ``"grid"``: the poses lie on a square grid of pitch ``grid_step_px`` in x and y from the
+      first pose (unset: ``1 + 1/conditions`` px), one pose in each column and each row: pose
+      ``k`` (0-based) in column ``k`` and row ``(a k) mod M`` (``M = conditions``; ``a`` the
+      integer nearest ``M / phi``, golden ratio ``phi``, that is coprime with ``M``: a rank-1
+      Fibonacci-type lattice, Korobov's construction, which spreads the poses evenly over the
+      square). With the default pitch the ``M`` poses fall on ``M`` different pixels in x and
+      in y, at sub-pixel phases ``1/M`` apart in each axis, so both the pixel-phase error and
+      each pixel's own response (PRNU, DSNU) vary over the poses and no part of the static
+      error stays constant over them (docs/validation.md, "Planning the test"). ``step_px``
+      and ``direction_deg`` are not used.
     """
 
     pattern: Literal["diagonal", "grid"] = "diagonal"
@@ -456,28 +458,27 @@ class HSFEProtocolModel(_Model):
     frames: Annotated[int, Field(ge=1)] = 30
     step_px: Finite = 0.2
     direction_deg: Finite = 45.0
-    grid_poses: Annotated[int, Field(ge=2, le=16)] = 5
     grid_step_px: Finite | None = None
 
     @property
-    def n_poses(self) -> int:
-        """Number of poses (conditions) of the pattern."""
-        return self.conditions if self.pattern == "diagonal" else self.grid_poses**2
+    def grid_pitch_px(self) -> float:
+        """The grid's pitch in px (``grid_step_px``, or ``1 + 1/conditions`` when unset)."""
+        return float(self.grid_step_px) if self.grid_step_px is not None else 1.0 + 1.0 / self.conditions
 
     @property
-    def grid_pitch_px(self) -> float:
-        """The grid's pitch in px (``grid_step_px``, or ``1 + 1/grid_poses`` when unset)."""
-        return float(self.grid_step_px) if self.grid_step_px is not None else 1.0 + 1.0 / self.grid_poses
+    def grid_multiplier(self) -> int:
+        """The lattice's multiplier ``a``: the integer nearest ``M / phi`` coprime with ``M``
+        (the nearer of the two candidates on either side, the smaller on a tie)."""
+        m = self.conditions
+        target = m / ((1.0 + math.sqrt(5.0)) / 2.0)
+        cands = [a for a in range(1, m) if math.gcd(a, m) == 1] or [1]
+        return min(cands, key=lambda a: (abs(a - target), a))
 
     def grid_offsets_px(self) -> tuple[tuple[float, float], ...]:
         """Commanded image offsets (px) of the grid pattern's poses, in acquisition order:
-        rows of constant y, x forward on even rows and backward on odd ones."""
-        n, s = self.grid_poses, self.grid_pitch_px
-        out = []
-        for j in range(n):
-            cols = range(n) if j % 2 == 0 else range(n - 1, -1, -1)
-            out += [(i * s, j * s) for i in cols]
-        return tuple(out)
+        pose ``k`` at ``(k, (a k) mod M)`` grid steps."""
+        m, s, a = self.conditions, self.grid_pitch_px, self.grid_multiplier
+        return tuple((k * s, ((a * k) % m) * s) for k in range(m))
 
 
 class ChromaticProtocolModel(_Model):
@@ -546,9 +547,9 @@ class LabTimingModel(_Model):
 
 
 #: the counts of the seed-000 protocols a plan may change (``protocols.plan_knobs``): TE frames,
-#: HSFE frames per pose, HSFE poses (``conditions`` along the diagonal, ``grid_poses`` per axis
-#: of the grid), chromatic frames per field and filter, distortion frames, dark frames per
-#: condition (``validation.dark_frames``)
+#: HSFE frames per pose, HSFE poses (``protocols.hsfe.conditions``, in either pattern),
+#: chromatic frames per field and filter, distortion frames, dark frames per condition
+#: (``validation.dark_frames``)
 PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames")
 
 
