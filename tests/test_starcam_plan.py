@@ -200,20 +200,21 @@ def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
 
 
 # ------------------------------------------------------------------ the planner's answer on seed 000
-#: the protocol ``budget starcam plan docs/examples/scenarios/plan_hsfe.toml --require 'hsfe.x<=0.01'
-#: --require 'hsfe.y<=0.01' --trials 20`` recommends (docs/validation.md, "Planning the test")
-RECOMMENDED = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 12, "protocols.hsfe.frames": 30}
+#: what ``budget starcam plan docs/examples/scenarios/plan_hsfe.toml --require 'hsfe.x<=0.01'
+#: --require 'hsfe.y<=0.01' --trials 20`` (seed 0) recommends, and its re-validation did not
+#: confirm (docs/validation.md, "Planning the test"): the grid, 3 poses x 41 frames
+RECOMMENDED = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 3, "protocols.hsfe.frames": 41}
+#: the cheapest protocol the same plan measured feasible in its first design: the grid, 12 x 24
+DESIGN_FEASIBLE = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 12, "protocols.hsfe.frames": 24}
 REQUIRED_ARCSEC = 0.01
 CONFIDENCE = 0.95
 
 
-def _recommended():
+def _planned(protocol: dict):
     from pathlib import Path
 
-    from budget.starcam.study import STUDY as S
-
-    scn = S.load_scenario(str(Path(__file__).parents[1] / "docs/examples/scenarios/plan_hsfe.toml"))
-    return with_updates(scn, RECOMMENDED)
+    scn = STUDY.load_scenario(str(Path(__file__).parents[1] / "docs/examples/scenarios/plan_hsfe.toml"))
+    return with_updates(scn, protocol)
 
 
 def _allowed_exceedances(n: int) -> int:
@@ -222,22 +223,20 @@ def _allowed_exceedances(n: int) -> int:
     return n - math.ceil(CONFIDENCE * n - 1e-9)
 
 
-def test_the_planners_protocol_meets_the_requirement_on_new_seeds():
-    """Seed 000 (the default camera, ideal world): the planner's HSFE protocol, re-run on seeds
-    the plan never used (run seed 7919, truth seed 7), keeps 95 % of its improved HSFE errors
-    within 0.01" (3 sigma). The HSFE protocol alone, 100 trials, through the same make_plan /
-    simulate / estimate calls as a validation trial; the truth from 400 noisy frames per
-    sub-pixel phase (standard error 0.0003", a thirtieth of the bound)."""
+def _hsfe_exceedances(protocol: dict, n: int) -> np.ndarray:
+    """Trials (of ``n``, run seed 7919, which no plan used) whose improved HSFE estimate is more
+    than 0.01" (3 sigma) from the truth, per axis: the HSFE protocol alone, through the same
+    make_plan / simulate / estimate calls as a validation trial; the truth from 400 noisy
+    frames per sub-pixel phase (truth seed 7; standard error 0.0003", a thirtieth of the bound)."""
     from budget.starcam import validate as V
     from budget.starcam.protocols import estimate, make_plan, simulate
     from budget.starcam.truth import hsfe_truth
 
-    scn = _recommended()
+    scn = _planned(protocol)
     f = 3.0 * scn.camera.scale_arcsec_per_px
     cam = V._camera(scn)
     truth = hsfe_truth(cam, frames=400, seed=7)
     assert max(truth.se_x_px, truth.se_y_px) * f < REQUIRED_ARCSEC / 20
-    n = 100
     err = []
     for k in range(n):
         noise_seed, _, _ = V.trial_seeds(7919, k)
@@ -245,17 +244,29 @@ def test_the_planners_protocol_meets_the_requirement_on_new_seeds():
         r = estimate("hsfe", data.centroids, plate_scale_arcsec=scn.camera.scale_arcsec_per_px,
                      extra_variants=False)["improved"]
         err.append(((r.sigma_x_px - truth.x_px) * f, (r.sigma_y_px - truth.y_px) * f))
-    exceed = (np.abs(np.array(err)) > REQUIRED_ARCSEC).sum(axis=0)
-    assert np.all(exceed <= _allowed_exceedances(n)), exceed
+    return (np.abs(np.array(err)) > REQUIRED_ARCSEC).sum(axis=0)
+
+
+def test_the_planners_verdicts_hold_on_new_seeds():
+    """Seed 000 (the default camera, ideal world), 100 trials on seeds no plan used. The plan's
+    answer (grid 3 x 41), which its own re-validation on 20 fresh trials did not confirm,
+    misses the bound on them too (more than 5 of 100 beyond 0.01"); the protocol its design
+    measured feasible (grid 12 x 24) meets it (at most 5 of 100 beyond: the 95 % quantile of
+    |error| within 0.01")."""
+    n = 100
+    allowed = _allowed_exceedances(n)
+    assert np.all(_hsfe_exceedances(DESIGN_FEASIBLE, n) <= allowed)
+    assert np.any(_hsfe_exceedances(RECOMMENDED, n) > allowed)
 
 
 @pytest.mark.slow
-def test_the_planners_protocol_meets_the_requirement_in_full_validations():
-    """The same through the runner: every protocol, the study's own truths (seed 7919), 200 trials."""
+def test_the_design_feasible_protocol_meets_the_requirement_in_full_validations():
+    """The grid 12 x 24 through the runner: every protocol, the study's own truths, 200 trials
+    on a seed no plan used."""
     from budget.runner.run import run_study
 
-    res = run_study(STUDY, _recommended(), trials=200, seed=7919, workers=2)
     n = 200
+    res = run_study(STUDY, _planned(DESIGN_FEASIBLE), trials=n, seed=7919, workers=2)
     for ax in ("x", "y"):
         e = np.asarray(res.samples[("hsfe", "improved", ax)]) - res.truths[("hsfe", ax)].value
         assert (np.abs(e) > REQUIRED_ARCSEC).sum() <= _allowed_exceedances(n), ax
