@@ -271,10 +271,10 @@ class StarCameraStudy(Study):
                         f"{stats['mean']:.3g} sits at the temporal-noise floor of the {p.frames}-frame means "
                         f"(TE x sqrt(2/{p.frames}) = {floor:.3g}), not at the static error {stats['truth']:.3g}.")
             seen = (f", and the {p.conditions} poses along one diagonal see only part of the static error"
-                    if p.pattern == "diagonal" else "")
+                    if getattr(p, "pattern", "diagonal") == "diagonal" else "")
             return (f"the scatter of the {p.frames}-frame means about the fitted steps holds their temporal noise "
                     f"(about {floor:.3g}) beside the static error{seen}: its sign depends on which dominates.")
-        if cls == "hsfe" and b < 0 and result.scenario.protocols.hsfe.pattern == "diagonal":
+        if cls == "hsfe" and b < 0 and getattr(result.scenario.protocols.hsfe, "pattern", "diagonal") == "diagonal":
             p = result.scenario.protocols.hsfe
             return (f"the improved static estimator removes the temporal noise but cannot see the part of the "
                     f"static error that stays constant over the {p.conditions} poses ({p.step_px:g} px steps "
