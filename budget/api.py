@@ -170,14 +170,15 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
 
 def plan(study, scenario=None, *, require=(), variant: str | None = None, confidence: float = 0.95,
          budget_hours: float | None = None, trials: int | None = None, seed: int = 0, workers: int | None = 1,
-         progress: bool = False):
+         progress: bool = False, sure: float = 0.9):
     """The cheapest protocol of ``study`` (its :meth:`~budget.runner.study.Study.protocol_knobs`
     and shapes) whose ``variant`` estimates meet every requirement of ``require``
     (``"CLASS.AXIS<=VALUE"``: the ``confidence`` quantile of ``|estimate - truth|``), re-validated
     on fresh trials (:func:`budget.runner.plan.plan_protocol`, docs/planning.md); ``study`` and
     ``scenario`` as for :func:`validate`. Returns a ``PlanResult`` (``answer()``,
     ``to_dataframe()``, ``to_json()``, ``write_report(folder)``, ``recommended_toml()``).
-    ``workers`` defaults to 1: a plan runs many short validations."""
+    ``workers`` defaults to 1: a plan runs many short validations. ``sure``: how sure the
+    recommended protocol is to pass the re-validation (0.5: the boundary protocol)."""
     from budget.runner.executors import default_workers
     from budget.runner.plan import plan_protocol
 
@@ -189,7 +190,8 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
         try:
             return plan_protocol(st, scn, list(require), variant=variant, confidence=confidence,
                                  budget_hours=budget_hours, trials=trials, seed=seed,
-                                 workers=default_workers() if workers is None else workers, progress=progress)
+                                 workers=default_workers() if workers is None else workers, progress=progress,
+                                 sure=sure)
         except Exception as exc:
             hint = _broken_pool_hint(exc)
             if hint is not None:

@@ -50,21 +50,28 @@ For each shape (the scenario's own when the study names none):
    knob, 2 for more than two knobs), screening trials each;
 2. model: per requirement, the physics of averaging, ``q^2 = a + sum_i b_i / x_i``
    (independent noise averaged over each count, ``a`` a floor no count removes), fitted
-   to the measured C-quantiles ``q`` by non-negative least squares in relative terms
-   (:func:`scipy.optimize.nnls`);
+   to the measured C-quantiles ``q`` by non-negative least squares in relative terms,
+   weighted by each protocol's trials (:func:`scipy.optimize.nnls`);
 3. frontier: the protocols of a fine grid over the knobs (log-spaced, whole numbers for
    ``int`` knobs) whose predicted worst ratio ``max_r q_r / VALUE_r`` no cheaper protocol
-   beats, their lab time interpolated (log-linear) from :meth:`Study.lab_time_s` on a
-   coarse grid and computed exactly for every protocol run; ``--budget-hours`` removes the
-   protocols above it;
+   beats, their lab time interpolated multilinearly in the knob values (exact for lab times
+   that are sums of products of knobs) from :meth:`Study.lab_time_s` on a coarse grid and
+   computed exactly for every frontier protocol; ``--budget-hours`` removes the protocols
+   above it;
 4. refinement: the cheapest frontier protocol the model predicts feasible is run; then,
-   between the cheapest protocol measured feasible and the dearest frontier protocol
-   measured infeasible below it, the model's new prediction (refitted to every protocol
-   run) where it falls strictly inside, else the frontier protocol at the geometric mean
-   of their costs (bisection along cost), until their costs are within
-   :func:`resolution` (``1 / (2 sqrt(n))``: finer than the quantile's relative standard
-   error can tell apart), no frontier protocol lies between, or the trial budget
-   (:data:`BUDGET_VALIDATIONS` validations, the re-validation included) is spent;
+   between the cheapest protocol measured feasible (on a validation's ``n`` trials) and the
+   dearest frontier protocol measured infeasible below it, the model's new prediction
+   (refitted to every protocol run) where it falls strictly inside, else a step just below
+   the feasible one, else the frontier protocol at the geometric mean of their lab times
+   above the cheapest setting (bisection along cost). Averaging bounds every pick: a
+   protocol failing by the ratio ``r = q / VALUE`` needs at least ``r^2`` its lab time above
+   the cheapest setting, one meeting with ``r < 1`` at most ``r^2`` of its own. It stops
+   when the two lab times above the cheapest setting are within :func:`resolution`
+   (``1 / (2 sqrt(n))``: finer than the quantile's relative standard error can tell apart),
+   no frontier protocol lies between, or the trial budget (:data:`BUDGET_VALIDATIONS`
+   validations per shape, the re-validation included) is spent. A protocol the study
+   refuses (its scenario model, :meth:`Study.check` or its trials raise a ``ValueError`` or
+   an arithmetic error) is skipped and listed;
 5. shapes: the cheapest shape's best protocol is the recommendation; the report lists
    every shape's best and its cost.
 
@@ -102,12 +109,15 @@ import numpy as np
 from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
-__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
+__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
            "PlanResult", "Requirement", "default_variant", "parse_requirements", "plan_command_for",
-           "plan_protocol", "resolution", "screening_trials", "sure_met", "validation_seed"]
+           "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
+           "validation_seed"]
 
 SCHEMA = "budget.plan/1"
 DEFAULT_CONFIDENCE = 0.95
+#: how sure the search wants a protocol to pass the real test (the re-validation): the default ``--sure``
+DEFAULT_SURE = 0.9
 #: the re-validation's spawn key: distinct from every trial's (0, 1, ...) and the truths' (2**31)
 VALIDATION_SPAWN_KEY = 2**31 + 1
 #: a candidate is decided by its screening trials when the posterior probability of meeting is below
@@ -232,11 +242,54 @@ def sure_met(exceed: int, n: int, confidence: float) -> float:
     return float(stats.beta.cdf(1.0 - confidence, exceed + 0.5, n - exceed + 0.5))
 
 
-def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float = 0.0) -> dict:
+def quantile_rel_se(trials: int, confidence: float) -> float:
+    """Relative standard error of the sample C-quantile of ``|e|``, ``e ~ N(0, s^2)``, over ``n``
+    trials: the asymptotic ``sqrt(C (1 - C) / n) / (f(q) q)`` with ``q = z s``, ``z =
+    Phi^-1((1 + C) / 2)`` and ``f(q) = 2 phi(z) / s`` the density of ``|e|`` at ``q`` (about
+    ``0.95 / sqrt(n)`` at C = 0.95)."""
+    from scipy import stats
+
+    z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    return math.sqrt(confidence * (1 - confidence) / trials) / (2.0 * float(stats.norm.pdf(z)) * z)
+
+
+def sure_margin(sure: float | None, trials: int, confidence: float) -> float:
+    """The factor by which a protocol's true C-quantile must sit below the bound for its
+    :func:`prediction_bound` to meet it (a normal error, ``n`` trials searched and ``n``
+    re-validated): ``1 + z_P sqrt(2) r_n``, ``r_n`` :func:`quantile_rel_se`. The search steers by
+    it; the measured bound decides."""
+    if sure is None or sure <= 0.5:
+        return 1.0
+    from scipy import stats
+
+    return 1.0 + float(stats.norm.ppf(sure)) * math.sqrt(2.0) * quantile_rel_se(trials, confidence)
+
+
+def prediction_bound(q: float, se_q: float, n: int, n_future: int, truth_se: float, sure: float) -> float:
+    """One-sided ``sure`` upper prediction bound of the C-quantile the re-validation will
+    measure: ``q + z_P sqrt(se_q^2 (1 + n / n_future) + 2 truth_se^2)``. The re-validation
+    draws fresh trials (``n_future``; its quantile's variance ``se_q^2 n / n_future``) and fresh
+    truths (their standard error as this run's), independent of this run's, so ``q_future - q``
+    has the summed variance; a bound on the true quantile alone (``q + z_P se``) would be
+    passed by the re-validation only at ``Phi(z_P / sqrt(2))`` (82 % for P = 0.9)."""
+    from scipy import stats
+
+    if sure <= 0.5:
+        return q
+    if not math.isfinite(se_q):
+        return math.inf
+    z = float(stats.norm.ppf(sure))
+    return q + z * math.sqrt(se_q**2 * (1.0 + n / n_future) + 2.0 * truth_se**2)
+
+
+def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float = 0.0, *,
+               sure: float | None = None, n_future: int | None = None) -> dict:
     """What ``err`` (errors of one requirement's key over trials) says about the bound
     ``value``: the C-quantile of ``|err|`` and its standard error, exceedances, bias and spread
     with their standard errors (the quantile's: Maritz-Jarrett), and how sure the bound is met (:func:`sure_met`, averaged
-    over the truth's standard error ``truth_se``)."""
+    over the truth's standard error ``truth_se``). ``sure``: ``met`` when the ``sure``
+    :func:`prediction_bound` (``upper``; the re-validation has ``n_future`` trials, default
+    ``n``) is within ``value``; None: when the quantile itself is (the re-validation's rule)."""
     e = np.asarray(err, dtype=float)
     n = e.size
     a = np.sort(np.abs(e))
@@ -249,13 +302,17 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     if truth_se > 0:
         x, w = np.polynomial.hermite_e.hermegauss(7)  # over N(0, 1)
         w = w / w.sum()
-        sure = float(sum(wi * sure_met(int(np.count_nonzero(np.abs(e - xi * truth_se) > value)), n, confidence)
-                         for xi, wi in zip(x, w)))
+        sure_p = float(sum(wi * sure_met(int(np.count_nonzero(np.abs(e - xi * truth_se) > value)), n, confidence)
+                           for xi, wi in zip(x, w)))
     else:
-        sure = sure_met(exceed, n, confidence)
+        sure_p = sure_met(exceed, n, confidence)
     sd = float(e.std(ddof=1)) if n > 1 else 0.0
+    out_sure = sure
+    sure = sure_p
+    upper = q if out_sure is None else prediction_bound(q, se_q, n, n_future or n, truth_se, out_sure)
     return {"quantile": q, "se_quantile": se_q, "bound": float(value), "n": int(n),
-            "exceed": exceed, "allowed": int(n - _rank(n, confidence)), "met": bool(q <= value), "sure": sure,
+            "exceed": exceed, "allowed": int(n - _rank(n, confidence)), "met": bool(upper <= value), "sure": sure,
+            **({} if out_sure is None else {"upper": upper, "upper_sure": float(out_sure)}),
             "bias": float(e.mean()), "se_bias": float(math.sqrt(sd**2 / n + truth_se**2)), "sd": sd,
             "se_sd": sd / math.sqrt(2.0 * max(n - 1, 1)), "truth_se": float(truth_se)}
 
@@ -309,8 +366,8 @@ class Evaluation:
 
     @property
     def ratio(self) -> float:
-        """Worst measured quantile over its bound."""
-        return max(f["quantile"] / f["bound"] for f in self.figures.values())
+        """Worst measured quantile (its prediction bound where the search judged by one) over its bound."""
+        return max(f.get("upper", f["quantile"]) / f["bound"] for f in self.figures.values())
 
     def to_json(self) -> dict:
         return {"shape": self.shape, "knobs": dict(self.knobs), "cost_s": self.cost_s,
@@ -321,8 +378,13 @@ class Evaluation:
 class _Oracle:
     """Runs candidates with common random numbers and shared truths, counting trials."""
 
-    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress):
+    def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress, executor=None,
+                 sure=None):
         self.study, self.reqs, self.variant = study, requirements, variant
+        #: the one executor every candidate's run uses (started by :func:`plan_protocol`)
+        self.executor = executor
+        #: the search's level: a candidate meets when its quantile's P prediction bound is within (None: the point)
+        self.sure = sure
         self.confidence, self.seed, self.n, self.workers = confidence, seed, trials, workers
         self.progress = progress
         self.truths: dict = {}
@@ -333,6 +395,7 @@ class _Oracle:
         from scipy import stats
 
         self.z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+        self.margin = sure_margin(sure, trials, confidence)
 
     # the truths, once per truth identity and seed
     def truths_for(self, scn, seed):
@@ -366,13 +429,17 @@ class _Oracle:
 
         study = self.study if k0 == 0 else _Shifted(self.study, k0)
         res = run_study(study, scn, trials=k1 - k0, seed=seed, workers=self.workers, truths=truths,
-                        prewarm=not self.prewarmed)
+                        prewarm=not self.prewarmed, executor=self.executor)
         self.prewarmed = True
         self.trials_run += k1 - k0
         return self._errors(res)
 
-    def _figures(self, errs, tse):
-        return {r.name: figures_of(errs[r.name], r.value, self.confidence, tse[r.name]) for r in self.reqs}
+    def _figures(self, errs, tse, point=False):
+        """Per requirement; the search's judged by the ``sure`` prediction bound, the
+        re-validation's (``point``) by the quantile itself."""
+        sure = None if point or self.sure is None or self.sure <= 0.5 else self.sure
+        return {r.name: figures_of(errs[r.name], r.value, self.confidence, tse[r.name], sure=sure, n_future=self.n)
+                for r in self.reqs}
 
     def evaluate(self, shape, knobs, scn, *, stage, seed=None, full=False, extend=True) -> Evaluation:
         """Run ``scn``: screening trials, then (``extend``) up to ``n`` unless they decide it;
@@ -383,7 +450,7 @@ class _Oracle:
         errs, tse = self._run(scn, seed, 0, n0, truths)
         items = {k: float(v) for k, v in self.study.lab_time_s(scn).items()}
         ev = Evaluation(shape, dict(knobs), float(sum(items.values())), items, seed, n0,
-                        self._figures(errs, tse), stage, scn, errs, tse)
+                        self._figures(errs, tse, point=stage == "validation"), stage, scn, errs, tse)
         if extend and n0 < self.n and not self._decided(ev.figures):
             self.complete(ev, quiet=True)
         self.evaluations.append(ev)
@@ -397,7 +464,7 @@ class _Oracle:
         more, _ = self._run(ev.scenario, ev.seed, ev.trials, self.n, self.truths_for(ev.scenario, ev.seed))
         ev.errors = {k: np.concatenate([ev.errors[k], more[k]]) for k in ev.errors}
         ev.trials = self.n
-        ev.figures = self._figures(ev.errors, ev.truth_se)
+        ev.figures = self._figures(ev.errors, ev.truth_se, point=ev.stage == "validation")
         if not quiet:
             self._echo(ev, "extended")
         return ev
@@ -410,7 +477,8 @@ class _Oracle:
 
     def _decided(self, figs) -> bool:
         s = [sure_met(f["exceed"], f["n"], self.confidence) for f in figs.values()]
-        return min(s) > 1 - DECIDED or min(s) < DECIDED
+        # meeting is decided only where the search's rule (the prediction bound) already says so
+        return (min(s) > 1 - DECIDED and all(f["met"] for f in figs.values())) or min(s) < DECIDED
 
 
 # ---------------------------------------------------------------------- scenarios of a protocol
@@ -467,6 +535,8 @@ class _ShapeSearch:
         self.start_trials = oracle.trials_run
         self.where = f"plan shape {shape}"
         self.exact: set[int] = set()
+        #: protocols refused (scenario model, check or trials), with the reason
+        self.refused: list[dict] = []
         self._grid()
 
     # ---- scenarios and costs
@@ -485,8 +555,7 @@ class _ShapeSearch:
         fine = [_levels(k, fine_n) for k in self.knobs]
         cost = np.empty([len(c) for c in coarse])
         for idx in np.ndindex(*cost.shape):
-            scn, _ = self.scenario([coarse[i][j] for i, j in enumerate(idx)])
-            cost[idx] = sum(self.o.study.lab_time_s(scn).values())
+            cost[idx] = self._cost([coarse[i][j] for i, j in enumerate(idx)])
         mesh = np.meshgrid(*fine, indexing="ij")
         pts = np.stack([m.ravel() for m in mesh], axis=1)
         keep = [i for i, a in enumerate(coarse) if len(a) > 1]
@@ -499,12 +568,22 @@ class _ShapeSearch:
             c = np.full(len(pts), float(cost.ravel()[0]))
         self.points, self.costs = pts, c
 
+    def _cost(self, x) -> float:
+        """Lab time of protocol ``x`` (NaN where the scenario model refuses it)."""
+        try:
+            scn, _ = self.scenario(x)
+        except ValueError:
+            return float("nan")
+        return float(sum(self.o.study.lab_time_s(scn).values()))
+
     # ---- the model
     def _fit(self):
         """Per requirement, non-negative ``(a, b_1..b_d)`` of ``q^2 = a + sum b_i f_i(x_i)``."""
         from scipy.optimize import nnls
 
         evs = [e for e in self.evals]
+        if not evs:  # nothing measured yet (every design protocol refused): no preference
+            return {r.name: np.zeros(1 + len(self.knobs)) for r in self.o.reqs}
         coefs = {}
         for r in self.o.reqs:
             q2 = np.array([e.figures[r.name]["quantile"] ** 2 for e in evs])
@@ -515,9 +594,12 @@ class _ShapeSearch:
             coefs[r.name] = coef
         return coefs
 
-    def predicted_ratio(self, coefs, pts) -> np.ndarray:
+    def predicted_ratio(self, coefs, pts, margin: float | None = None) -> np.ndarray:
+        """The model's worst quantile over its bound, times the ``sure`` margin
+        (:func:`sure_margin`; default the search's)."""
+        m = self.o.margin if margin is None else margin
         feats = np.column_stack([np.ones(len(pts))] + [_feature(k, pts[:, i]) for i, k in enumerate(self.knobs)])
-        return np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) / r.value for r in self.o.reqs], axis=0)
+        return m * np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) / r.value for r in self.o.reqs], axis=0)
 
     def frontier(self, coefs):
         """Indices into the fine grid, by cost, of protocols no cheaper protocol predicts better
@@ -525,6 +607,7 @@ class _ShapeSearch:
         ratio = self.predicted_ratio(coefs, self.points)
         for _ in range(3):  # the frontier's costs exact (computed once each), then its order again
             order = np.argsort(self.costs, kind="stable")
+            order = order[np.isfinite(self.costs[order])]
             if self.budget_s is not None:
                 order = order[self.costs[order] <= self.budget_s]
             out, best = [], math.inf
@@ -536,8 +619,8 @@ class _ShapeSearch:
             if not new:
                 break
             for i in new:
-                scn, _ = self.scenario(self.points[i])
-                self.costs[i] = sum(self.o.study.lab_time_s(scn).values())
+                c = self._cost(self.points[i])
+                self.costs[i] = c if math.isfinite(c) else math.inf
                 self.exact.add(i)
         return np.array(out, dtype=int), ratio
 
@@ -546,11 +629,22 @@ class _ShapeSearch:
         return self.o.trials_run - self.start_trials
 
     def run(self, x, stage) -> Evaluation | None:
-        scn, vals = self.scenario(x)
+        """Run protocol ``x`` (once); a protocol the scenario model, :meth:`Study.check` or the
+        study's trials refuse (a ``ValueError`` or an arithmetic error: too few poses for a fit,
+        ...) is recorded in :attr:`refused` and skipped (None)."""
+        vals = {k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}
         for e in self.evals:
             if e.knobs == vals:
                 return e
-        ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        if any(r["knobs"] == vals for r in self.refused):
+            return None
+        try:
+            scn, vals = self.scenario(x)
+            self.o.study.check(scn, where=self.where)
+            ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
+        except (ValueError, ArithmeticError) as exc:
+            self.refused.append({"knobs": vals, "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
+            return None
         self.evals.append(ev)
         return ev
 
@@ -562,8 +656,8 @@ class _ShapeSearch:
             self.run(x, "design")
         rho = resolution(self.o.n)
         # lab time the knobs add above their cheapest setting: what the resolution applies to
-        c0 = sum(self.o.study.lab_time_s(self.scenario([k.low for k in self.knobs])[0]).values())
-        c0 = min(c0, float(self.costs.min())) * (1 - 1e-9)
+        cands = [self._cost([k.low for k in self.knobs])] + [float(c) for c in self.costs if math.isfinite(c)]
+        c0 = min((c for c in cands if math.isfinite(c)), default=0.0) * (1 - 1e-9)
         tried: set = set()
         last_step_met = False
         for _ in range(100):
@@ -580,9 +674,15 @@ class _ShapeSearch:
             hi_cost = hi.cost_s if hi is not None else math.inf
             # what bounds the answer from below: a protocol measured failing on the search's path
             # (every protocol with one knob; with more, a design corner may be dear and poor)
-            lows = [e.cost_s for e in self.evals if not e.met and (d == 1 or e.stage == "search")
-                    and e.cost_s < hi_cost]
-            lo_cost = max(lows, default=0.0)
+            lows = [e for e in self.evals if not e.met and (d == 1 or e.stage == "search") and e.cost_s < hi_cost]
+            lo = max(lows, key=lambda e: e.cost_s) if lows else None
+            lo_cost = lo.cost_s if lo is not None else 0.0
+            # what averaging allows (q^2 = a + b / x, a >= 0): a protocol failing by the ratio r needs at
+            # least r^2 its lab time above the cheapest setting; one meeting with r < 1 at most r^2 of its
+            # own would do. The model's pick is kept within these bounds (a safeguard against a model
+            # that the design's few trials made optimistic or pessimistic)
+            lo_need = c0 + (lo_cost - c0) * min(lo.ratio ** 2, 16.0) if lo is not None else 0.0
+            hi_need = c0 + (hi_cost - c0) * hi.ratio ** 2 if hi is not None else math.inf
             if hi is not None and hi_cost - c0 <= max(lo_cost - c0, 0.0) * (1 + rho):
                 break
             inside = [int(i) for i in front if lo_cost < self.costs[i] < hi_cost and int(i) not in tried]
@@ -595,6 +695,11 @@ class _ShapeSearch:
             else:
                 pred = [i for i in inside if ratio[i] <= 1.0]
                 pick = pred[0] if pred else None
+                if lo_need < hi_need:
+                    if pick is not None and self.costs[pick] < lo_need:
+                        pick = next((i for i in inside if self.costs[i] >= lo_need), pick)
+                    if pick is not None and self.costs[pick] > hi_need:
+                        pick = next((i for i in reversed(inside) if self.costs[i] <= hi_need), pick)
                 if pick is not None and hi is not None and self.costs[pick] - c0 >= (hi_cost - c0) / (1 + rho / 2):
                     pick = None  # the model sits on the cheapest feasible: test just below, or bisect
                 if pick is None:
@@ -604,12 +709,14 @@ class _ShapeSearch:
                         lo_ref = max(lo_cost, float(self.costs[inside[0]])) - c0
                         target = c0 + ((hi_cost - c0) / (1 + rho) if not last_step_met
                                        else math.sqrt(lo_ref * (hi_cost - c0)))
+                        if lo_need < hi_need < target:
+                            target = hi_need  # averaging says that much less would do
                         below = [i for i in inside if self.costs[i] <= target]
                         pick = below[-1] if below else inside[0]
                         step = not last_step_met
             tried.add(pick)
             ev = self.run(self.points[pick], "search")
-            last_step_met = bool(step and ev.met)
+            last_step_met = bool(step and ev is not None and ev.met)
         while True:  # the answer judged on a validation's trials
             feas = [e for e in self.evals if e.met and self._in_budget(e)]
             best = min(feas, key=lambda e: e.cost_s) if feas else None
@@ -622,10 +729,32 @@ class _ShapeSearch:
             if len(front):
                 self.run(self.points[front[-1]], "best achievable")
             cands = [e for e in self.evals if self._in_budget(e)]
-            out["best_achievable"] = min(cands, key=lambda e: e.ratio) if cands else None
-        out["evaluations"], out["trials"] = list(self.evals), self.spent()
+            best_a = min(cands, key=lambda e: e.ratio) if cands else None
+            if best_a is not None:
+                self.o.complete(best_a)  # its figure on a validation's trials
+            out["best_achievable"] = best_a
+        out["evaluations"], out["trials"], out["refused"] = list(self.evals), self.spent(), list(self.refused)
         out["model"] = self.model_curve()
+        out["boundary"] = self.boundary()
         return out
+
+    def boundary(self) -> dict | None:
+        """The fitted model's cheapest protocol (frontier) whose predicted quantiles sit at the
+        bounds (no ``sure`` margin): what a search judging by the measured quantile alone aims
+        at; and the model's at the search's margin (None where the model predicts none)."""
+        coefs = self._fit()
+        front, _ = self.frontier(coefs)
+        out = {}
+        for name, m in (("boundary", 1.0), ("sure", self.o.margin)):
+            r = self.predicted_ratio(coefs, self.points[front], margin=m) if len(front) else np.array([])
+            ok = np.flatnonzero(r <= 1.0)
+            if not len(ok):
+                return None
+            i = int(front[ok[0]])
+            out[name] = {"cost_s": float(self.costs[i]),
+                         "knobs": {k.field: _knob_value(k, x) for k, x in zip(self.knobs, self.points[i])}}
+        return {"cost_s": out["boundary"]["cost_s"], "knobs": out["boundary"]["knobs"],
+                "model_sure_cost_s": out["sure"]["cost_s"]}
 
     def model_curve(self) -> dict:
         """The fitted model's frontier: lab time and predicted quantile per requirement, and the
@@ -668,6 +797,8 @@ class PlanResult:
     truth_runs: int
     elapsed_s: float = float("nan")
     cpu_s: float = float("nan")
+    #: how sure the search wanted the recommendation to pass the re-validation (``--sure``)
+    sure_level: float = DEFAULT_SURE
 
     # ---- verdicts
     @property
@@ -688,6 +819,20 @@ class PlanResult:
         return max(0.0, 1.0 - sum(1.0 - f["sure"] for f in self.validation.figures.values()))
 
     @property
+    def premium(self) -> dict | None:
+        """What aiming ``sure_level`` costs: the recommendation's lab time over that of the
+        boundary protocol (the fitted model's cheapest whose predicted quantiles equal the
+        bounds, in the recommended shape); None without a recommendation or a model boundary."""
+        if self.recommended is None:
+            return None
+        b = self.shapes.get(self.recommended.shape, {}).get("boundary")
+        if not b or not b["cost_s"] > 0:
+            return None
+        return {"sure": self.sure_level, "factor": self.recommended.cost_s / b["cost_s"],
+                "boundary_cost_s": b["cost_s"], "boundary_knobs": dict(b["knobs"]),
+                "model_factor": b["model_sure_cost_s"] / b["cost_s"]}
+
+    @property
     def validation_seed(self) -> int:
         return validation_seed(self.seed)
 
@@ -704,7 +849,7 @@ class PlanResult:
             return None
         req = "; ".join(r.text for r in self.requirements)
         head = (f"# {self.study.title}: the cheapest protocol found by `budget {self.study.name} plan` for "
-                f"{req} ({self.variant}, {self.confidence:.0%} of tests), "
+                f"{req} ({self.variant}, {100 * self.confidence:.0f} % of tests), "
                 f"lab time {_hours(self.recommended.cost_s)}.\n")
         return head + self.study.scenario_text(self.recommended.scenario)
 
@@ -759,16 +904,21 @@ class PlanResult:
 # ---------------------------------------------------------------------- the planner
 def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | None = None,
                   confidence: float = DEFAULT_CONFIDENCE, budget_hours: float | None = None, seed: int = 0,
-                  trials: int | None = None, workers: int | None = 1, progress: bool = False) -> PlanResult:
+                  trials: int | None = None, workers: int | None = 1, progress: bool = False,
+                  sure: float = DEFAULT_SURE) -> PlanResult:
     """Plan ``study``'s protocol on ``scenario`` (module docstring). ``requirements``: texts
     ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
-    the scenario's ``validation.trials``)."""
+    the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
+    prediction bound of the quantile the re-validation will measure is within the bound
+    (:func:`prediction_bound`; 0.5: the measured quantile itself, the boundary protocol)."""
     t0, c0 = time.perf_counter(), time.process_time()
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
         raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
     if not (0.5 <= confidence < 1.0):
         raise UserInputError(f"--confidence {confidence}: must be in [0.5, 1)")
+    if not (0.5 <= sure < 1.0):
+        raise UserInputError(f"--sure {sure}: must be in [0.5, 1)")
     if budget_hours is not None and not (math.isfinite(budget_hours) and budget_hours > 0):
         raise UserInputError(f"--budget-hours {budget_hours}: must be a positive number")
     if requirements and all(isinstance(r, Requirement) for r in requirements):
@@ -779,7 +929,21 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     if n < 20:
         raise UserInputError(f"--trials {n}: a plan needs at least 20 trials per validation")
     budget_s = None if budget_hours is None else 3600.0 * budget_hours
-    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress)
+    from budget.runner.executors import make_executor
+    from budget.runner.run import _worker_init
+
+    # one pool for every candidate (the study's kernels compiled first, so its workers load them
+    # from the cache): starting workers per candidate would cost more than the toy's trials
+    study.prewarm(scenario)
+    with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
+        return _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                     budget_s, knobs, t0, c0, sure)
+
+
+def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
+          knobs, t0, c0, sure) -> PlanResult:
+    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure)
+    oracle.prewarmed = True
     shapes = study.protocol_shapes(scenario) or {"scenario": {}}
     cap = (BUDGET_VALIDATIONS - 1) * n
     results = {}
@@ -804,12 +968,15 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
                       recommended=rec, validation=validation, best_achievable=best_ach,
                       evaluations=list(oracle.evaluations), search_trials=search_trials,
                       truth_runs=oracle.truth_runs, elapsed_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0)
+                      cpu_s=time.process_time() - c0, sure_level=sure)
 
 
 # ---------------------------------------------------------------------- the command
 def has_knobs(study: Study) -> bool:
-    """Whether the study's default scenario declares protocol knobs (then it has ``plan``)."""
+    """Whether the study's default scenario declares protocol knobs (then it has ``plan``); a
+    study that keeps the default hook has none (no scenario loaded to say so)."""
+    if getattr(type(study), "protocol_knobs", None) is Study.protocol_knobs:
+        return False
     try:
         return bool(study.protocol_knobs(study.load_scenario()))
     except Exception:  # noqa: BLE001 - a study without a loadable default has no plan command
@@ -830,6 +997,9 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     @click.option("--variant", default=None, help="The estimator judged (default: the study's last that estimates).")
     @click.option("--confidence", type=float, default=DEFAULT_CONFIDENCE, show_default=True,
                   help="The share of tests that must land within VALUE (the quantile).")
+    @click.option("--sure", "sure", type=float, default=DEFAULT_SURE, show_default=True,
+                  help="How sure the recommended protocol should be to meet every requirement on the real test "
+                       "(the re-validation's fresh trials); 0.5: the boundary protocol.")
     @click.option("--budget-hours", "budget_hours", type=float, default=None,
                   help="Lab time allowed: protocols above it are not considered.")
     @click.option("--trials", type=click.IntRange(min=20), default=None,
@@ -843,7 +1013,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
                   help="Write a report (report.md, report.html, trade_curve.png, recommended.toml).")
     @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Each protocol run on stderr (default: on a terminal).")
-    def plan(scenario, require, variant, confidence, budget_hours, trials, seed, workers, json_out, report_dir,
+    def plan(scenario, require, variant, confidence, sure, budget_hours, trials, seed, workers, json_out, report_dir,
              overwrite, progress):
         import sys
         from pathlib import Path
@@ -866,7 +1036,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
 
             workers = default_workers()
         res = plan_protocol(study, scn, list(require), variant=variant, confidence=confidence,
-                            budget_hours=budget_hours, seed=seed, trials=trials, workers=workers, progress=progress)
+                            budget_hours=budget_hours, seed=seed, trials=trials, workers=workers, progress=progress,
+                            sure=sure)
         click.echo(res.answer())
         for s in res.sentences():
             click.echo(f"* {s}")

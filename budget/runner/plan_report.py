@@ -8,9 +8,8 @@ Rules of the words:
 * the answer: "meets R at C % (re-validated on N fresh trials; sure at S %)" where the
   re-validation meets every requirement; "the re-validation does not confirm" otherwise
   (the search's verdict came from trials the verdict does not share, so a protocol at the
-  boundary fails it about half the time: the sureness says how close); "no protocol ...
-  meets" with the best achievable figure where the search found none;
-* sureness in words: "sure" from 90 %, "likely" from 60 %, "doubtful" below;
+  boundary may fail it: the sureness says how close); "no protocol ... meets" with the best
+  achievable figure where the search found none;
 * a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
   its best figure where none met.
 """
@@ -48,6 +47,12 @@ def _knobs(ev) -> str:
     return _knobs_text(ev.knobs)
 
 
+def _knobs_text_raw(knobs: dict) -> str:
+    from budget.runner.plan import _knobs_text
+
+    return _knobs_text(knobs)
+
+
 def _req_list(res) -> str:
     return " and ".join(f"{r.name} <= {_unit(r)}" for r in res.requirements)
 
@@ -55,10 +60,6 @@ def _req_list(res) -> str:
 def pct(p: float) -> str:
     """``0.95`` -> ``"95 %"``."""
     return f"{100 * p:.0f} %"
-
-
-def sureness_word(p: float) -> str:
-    return "sure" if p >= 0.9 else "likely" if p >= 0.6 else "doubtful"
 
 
 def answer_text(res) -> str:
@@ -83,7 +84,7 @@ def answer_text(res) -> str:
     n = val.trials
     if res.confirmed:
         tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
-                f"{sureness_word(res.sure)} at {pct(res.sure)}).")
+                f"sure at {pct(res.sure)}).")
     else:
         failed = [name for name, f in val.figures.items() if not f["met"]]
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
@@ -103,22 +104,32 @@ def findings_sentences(res) -> list[str]:
                        f"{_fmt(f['se_quantile'])} {r.unit} (bound {_fmt(r.value)}; {f['exceed']} of {f['n']} "
                        f"fresh trials beyond it, {f['allowed']} allowed); bias {_fmt(f['bias'])} +- "
                        f"{_fmt(f['se_bias'])}, sd {_fmt(f['sd'])} +- {_fmt(f['se_sd'])}; "
-                       f"{sureness_word(f['sure'])} at {pct(f['sure'])}.")
+                       f"sure at {pct(f['sure'])}.")
     if len(res.shapes) > 1 or res.recommended is None:
         for name, s in res.shapes.items():
             b = s["best"]
             if b is not None:
+                rel = "" if res.recommended is None else (
+                    " (recommended)" if b is res.recommended else
+                    f" ({100 * (b.cost_s / res.recommended.cost_s - 1):.0f} % more lab time than "
+                    f"{res.recommended.shape})")
                 out.append(f"Shape {name}: cheapest meeting every requirement {_knobs(b)}, "
-                           f"{_hours(b.cost_s)} ({len(s['evaluations'])} protocols run, {s['trials']} trials).")
+                           f"{_hours(b.cost_s)}{rel}; {len(s['evaluations'])} protocols run, {s['trials']} trials.")
             else:
                 a = s.get("best_achievable")
                 best = "" if a is None else (f"; its most accurate, {_knobs(a)} ({_hours(a.cost_s)}), reaches "
                                              f"{a.ratio:.3g} times the bound")
                 out.append(f"Shape {name}: no protocol meets every requirement{best}.")
+    for name, s in res.shapes.items():
+        if s.get("refused"):
+            r = s["refused"]
+            out.append(f"{len(r)} protocol{'s' if len(r) > 1 else ''} of shape {name} refused by the study "
+                       f"(first: {_knobs_text_raw(r[0]['knobs'])}: {r[0]['error']}).")
     per_val = res.trials_per_validation
     out.append(f"The search ran {len(res.evaluations)} protocols with common random numbers, "
                f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
-               f"{res.truth_runs} truths computed (shared by protocols with the same truth).")
+               f"{res.truth_runs} truth{'' if res.truth_runs == 1 else 's'} computed (shared by protocols "
+               "with the same truth identity).")
     return out
 
 
@@ -146,6 +157,7 @@ def plan_json(res) -> dict:
         "validation": None if res.validation is None else res.validation.to_json(),
         "best_achievable": None if res.best_achievable is None else res.best_achievable.to_json(),
         "shapes": {name: {"overrides": s.get("overrides", {}), "trials": s["trials"],
+                          "refused": s.get("refused", []), "model": _thin_model(s.get("model")),
                           "protocols": len(s["evaluations"]),
                           "best": None if s["best"] is None else s["best"].to_json(),
                           "best_achievable": None if s.get("best_achievable") is None
@@ -159,6 +171,17 @@ def plan_json(res) -> dict:
     }
 
 
+def _thin_model(m: dict | None, most: int = 200) -> dict | None:
+    """The fitted model's frontier for the JSON, at most ``most`` protocols (evenly by index)."""
+    if not m:
+        return None
+    n = len(m["cost_s"])
+    idx = sorted(set(round(i * (n - 1) / (most - 1)) for i in range(most))) if n > most else list(range(n))
+    return {"cost_s": [m["cost_s"][i] for i in idx], "knobs": [m["knobs"][i] for i in idx],
+            "quantile": {k: [v[i] for i in idx] for k, v in m["quantile"].items()},
+            "floor": m["floor"], "b": m["b"]}
+
+
 def plot_trade_curve(res, path: Path):
     """Cost against each required figure: every protocol run (by shape; filled: met), the
     bound, the recommendation's re-validated figure with its standard error. Returns the
@@ -169,7 +192,8 @@ def plot_trade_curve(res, path: Path):
 
     p = plt()
     reqs = res.requirements
-    fig, axes = p.subplots(1, len(reqs), figsize=(6.0 * len(reqs), 4.2), squeeze=False)
+    fig, axes = p.subplots(len(reqs), 1, figsize=(8.6, 4.2 * len(reqs)), squeeze=False)
+    axes = axes.T
     shapes = list(res.shapes)
     markers = "osD^v<>"
     for ax, r in zip(axes[0], reqs):
@@ -201,7 +225,7 @@ def plot_trade_curve(res, path: Path):
         ax.set_xlabel("lab time (h)")
         ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
         ax.set_title(f"{r.name} ({res.variant}) against lab time")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     # the caption from the numbers drawn
     parts = []
     for r in reqs:
@@ -220,8 +244,10 @@ def plot_trade_curve(res, path: Path):
                 s += f", the dearest failing below it, {_knobs(f)} at {_hours(f.cost_s)}, " \
                      f"{_fmt(f.figures[r.name]['quantile'])}"
         floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
-        if floors:
-            s += f"; the model's floor (no count removes it) {_fmt(min(floors))} {r.unit}"
+        if floors and min(floors) > 0:
+            s += f"; the fitted model's floor (what no count removes) {_fmt(min(floors))} {r.unit}"
+        elif floors:
+            s += "; the fitted model has no floor (every count averages the error down)"
         parts.append(s)
     rec = "" if res.validation is None else (
         f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
