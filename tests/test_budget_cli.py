@@ -30,7 +30,7 @@ def test_top_level_lists_the_studies_and_the_machinery_only():
 
 def test_starcam_group_holds_the_lab_commands():
     group = cli.get_command(_ctx(), "starcam")
-    assert set(group.list_commands(_ctx())) == {"validate", "simulate", "measure", "combine", "robustness", "scenario"}
+    assert set(group.list_commands(_ctx())) == {"validate", "simulate", "measure", "combine", "robustness", "scenario", "plan"}
 
 
 def test_budget_validate_is_the_starcam_validate_command():

@@ -11,7 +11,8 @@ Plans (seed 000, section 1):
 
 * ``te`` (1.2): the 5x5 target, static, ``N`` frames;
 * ``hsfe`` (1.3): ``M`` conditions, the image moved ``step_px`` along ``direction_deg``
-  between consecutive conditions by the hexapod, ``N`` frames each;
+  between consecutive conditions by the hexapod, ``N`` frames each; or, with
+  ``pattern = "grid"``, a square grid of poses spanning pixels in x and y;
 * ``chromatic`` (1.4.1): the target at each corner field, behind each filter, ``N``
   frames each (condition index = field index x number of filters + filter index);
 * ``distortion`` (1.4.2): the calibrated grid target, ``N`` frames; its reference
@@ -76,10 +77,12 @@ def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: 
         conds = (Condition(0, "static", "star_grid", p.te.frames, tuple(scenario.lab.target_center_px)),)
     elif protocol == "hsfe":
         h = p.hsfe
-        dx, dy = platform_offsets_px(
-            steps=h.conditions, step_px=h.step_px, direction_deg=h.direction_deg,
-            noise_px=scenario.lab.platform.positioning_noise_px, seed=seed, stream=STREAM_PLATFORM,
-        )
+        noise = scenario.lab.platform.positioning_noise_px
+        if h.pattern == "diagonal":
+            dx, dy = platform_offsets_px(steps=h.conditions, step_px=h.step_px, direction_deg=h.direction_deg,
+                                         noise_px=noise, seed=seed, stream=STREAM_PLATFORM)
+        else:
+            dx, dy = _grid_offsets_px(h, noise_px=noise, seed=seed)
         conds = tuple(
             Condition(k, f"pose {k + 1}", "star_grid", h.frames, tuple(scenario.lab.target_center_px),
                       float(dx[k]), float(dy[k]))
@@ -99,6 +102,21 @@ def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: 
     else:
         raise ValueError(f"protocol: unknown {protocol!r} (one of {', '.join(PROTOCOLS)})")
     return AcquisitionPlan(protocol, conds, dark_frames=dark_frames)
+
+
+def _grid_offsets_px(h, *, noise_px: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Image displacements of the HSFE grid pattern's poses
+    (:meth:`simcam.starcam.scenario.HSFEProtocolModel.grid_offsets_px`), plus the positioning
+    error of :func:`simcam.starcam.targets.platform_offsets_px` (same streams, per pose)."""
+    off = np.array(h.grid_offsets_px(), dtype=float)
+    dx, dy = off[:, 0].copy(), off[:, 1].copy()
+    if noise_px > 0:
+        for i in range(dx.size):
+            rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM_PLATFORM, i)))
+            ex, ey = rng.normal(0.0, noise_px, 2)
+            dx[i] += ex
+            dy[i] += ey
+    return dx, dy
 
 
 @dataclass

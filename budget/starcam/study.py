@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
+from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 
 __all__ = ["STUDY", "StarCameraStudy"]
 
@@ -31,12 +31,14 @@ _CLASSES = (
 #: scenario fields no truth of :mod:`budget.starcam.truth` reads (the truth seed aside): the
 #: run settings, what only the trials draw (new markers), the lab's own imperfect
 #: knowledge (the improved estimators' models; tests/test_truth_routes.py), the frames of
-#: the lab's protocols (the truths take their own), the chromatic and distortion
-#: protocols (their truths read the optics, the population and the calibration grid)
+#: the lab's protocols (the truths take their own), the HSFE poses (its truth is over
+#: sub-pixel phases at the first pose, whatever the step pattern), the chromatic and
+#: distortion protocols (their truths read the optics, the population and the calibration
+#: grid) and the lab's step times
 TRUTH_BLIND_FIELDS = (
     "name", "validation.trials", "validation.tolerance", "validation.max_trials", "validation.batch_trials",
-    "validation.new_markers_per_trial", "lab.knowledge", "protocols.te.frames", "protocols.hsfe.frames",
-    "protocols.chromatic", "protocols.distortion",
+    "validation.new_markers_per_trial", "lab.knowledge", "protocols.te.frames", "protocols.hsfe",
+    "protocols.chromatic", "protocols.distortion", "protocols.timing",
 )
 
 
@@ -174,6 +176,82 @@ class StarCameraStudy(Study):
                 out[(cls, ax)] = Truth(getattr(t, f"{ax}_px") * f, getattr(t, f"se_{ax}_px") * f, details)
         return out
 
+    # ------------------------------------------------------------ protocol planning
+    def protocol_knobs(self, scenario) -> tuple[Knob, ...]:
+        """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
+        or ``[validation]``: frames of each protocol's conditions, the HSFE poses (in either
+        step pattern, :meth:`protocol_shapes`) and the dark frames per condition; those ``protocols.plan_knobs`` names
+        (default all six; a lab planning one test lists its own, which keeps the search small). Lower bounds are what the
+        estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
+        improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
+        their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
+        a degree of freedom after each star's mean. Upper bounds are
+        about ten times seed 000's counts (a lab day). The filter set (500, 600, 800 nm:
+        two differences about the 600 nm reference, eqs 13-16) and the four corner fields
+        (whose symmetric average eqs 13-16 take) are what the chromatic estimators are
+        built on, so they are not counts to plan; the frames per field and filter are."""
+        knobs = {
+            "te.frames": Knob("protocols.te.frames", "int", 2, 300, "frames",
+                              "TE: frames of the static target (seed 000: >= 30)"),
+            "hsfe.frames": Knob("protocols.hsfe.frames", "int", 2, 300, "frames", "HSFE: frames per pose"),
+            "hsfe.poses": Knob("protocols.hsfe.conditions", "int", 3, 48, "poses",
+                               "HSFE: poses (along the diagonal, or on the grid, as protocols.hsfe.pattern says)"),
+            "chromatic.frames": Knob("protocols.chromatic.frames", "int", 2, 300, "frames",
+                                     "LSFE-S: frames per corner field and filter"),
+            "distortion.frames": Knob("protocols.distortion.frames", "int", 2, 300, "frames",
+                                      "LSFE-C1: frames of the calibration grid"),
+            "dark_frames": Knob("validation.dark_frames", "int", 0, 30, "frames",
+                                "dark frames per condition subtracted before centroiding (0: the window "
+                                "border's background)"),
+        }
+        return tuple(knobs[name] for name in scenario.protocols.plan_knobs)
+
+    def protocol_shapes(self, scenario) -> dict[str, dict]:
+        """The HSFE step patterns: seed 000's ``diagonal`` (the scenario's own poses along one
+        direction) and the ``grid`` over pixels in both axes (one pose in each row and column
+        of a grid of pitch ``1 + 1/conditions`` px unless ``grid_step_px`` is given), which
+        sees the static error the diagonal cannot; both take the same knobs (docs/validation.md, "Planning the test")."""
+        return {"diagonal": {"protocols.hsfe.pattern": "diagonal"},
+                "grid": {"protocols.hsfe.pattern": "grid"}}
+
+    def lab_time_s(self, scenario) -> dict[str, float]:
+        """Lab seconds of the scenario's four protocols, by item, from its own fields
+        (``camera.exposure_s``, ``[protocols]`` and ``protocols.timing``):
+
+        * ``<protocol>.frames``: its lit frames x (exposure + ``frame_readout_s``);
+        * ``dark_frames``: ``validation.dark_frames`` per condition of every protocol, each
+          condition's dark frames x the frame period plus ``dark_switch_s`` (the shutter);
+        * ``<protocol>.changes``: between consecutive conditions of a protocol, in plan order,
+          ``hexapod_move_s`` where the pointing changes, ``filter_change_s`` where the filter
+          changes, and ``settle_s`` once where either does (the HSFE poses; the chromatic
+          filters and corner fields);
+        * ``setup``: ``protocol_setup_s`` per protocol (target and alignment);
+        * ``warmup``: ``source_warmup_s`` once.
+        """
+        from budget.starcam.protocols import PROTOCOLS, make_plan
+
+        t = scenario.protocols.timing
+        period = scenario.camera.exposure_s + t.frame_readout_s
+        dark = scenario.validation.dark_frames
+        out: dict[str, float] = {}
+        n_conditions = 0
+        for proto in PROTOCOLS:
+            conds = make_plan(proto, scenario).conditions
+            n_conditions += len(conds)
+            out[f"{proto}.frames"] = float(sum(c.frames for c in conds)) * period
+            changes = 0.0
+            for a, b in zip(conds[:-1], conds[1:]):
+                moved = ((a.field_center_px, a.platform_dx_px, a.platform_dy_px)
+                         != (b.field_center_px, b.platform_dx_px, b.platform_dy_px))
+                filtered = a.filter_nm != b.filter_nm
+                changes += t.hexapod_move_s * moved + t.filter_change_s * filtered + t.settle_s * (moved or filtered)
+            if changes:
+                out[f"{proto}.changes"] = changes
+        out["dark_frames"] = n_conditions * (dark * period + t.dark_switch_s) if dark else 0.0
+        out["setup"] = len(PROTOCOLS) * t.protocol_setup_s
+        out["warmup"] = t.source_warmup_s
+        return out
+
     def likely_cause(self, result, key, stats) -> str | None:
         """Seed 000's causes (docs/validation.md), each given only where the run's numbers show
         its pattern; the numbers quoted are computed from this run."""
@@ -192,10 +270,11 @@ class StarCameraStudy(Study):
                 return (f"the published estimator measures temporal noise, not the pixel error: its mean "
                         f"{stats['mean']:.3g} sits at the temporal-noise floor of the {p.frames}-frame means "
                         f"(TE x sqrt(2/{p.frames}) = {floor:.3g}), not at the static error {stats['truth']:.3g}.")
+            seen = (f", and the {p.conditions} poses along one diagonal see only part of the static error"
+                    if getattr(p, "pattern", "diagonal") == "diagonal" else "")
             return (f"the scatter of the {p.frames}-frame means about the fitted steps holds their temporal noise "
-                    f"(about {floor:.3g}) beside the static error, and the {p.conditions} poses along one "
-                    "diagonal see only part of the static error: its sign depends on which dominates.")
-        if cls == "hsfe" and b < 0:
+                    f"(about {floor:.3g}) beside the static error{seen}: its sign depends on which dominates.")
+        if cls == "hsfe" and b < 0 and getattr(result.scenario.protocols.hsfe, "pattern", "diagonal") == "diagonal":
             p = result.scenario.protocols.hsfe
             return (f"the improved static estimator removes the temporal noise but cannot see the part of the "
                     f"static error that stays constant over the {p.conditions} poses ({p.step_px:g} px steps "

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import tomli_w
-from pydantic import ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from simcam.config_base import ScenarioBase, ScenarioError, StrictModel, ValidationSettings, model_hash, read_toml, validate_model
 from simcam.effects import EffectsBase, WorldBase
@@ -442,13 +442,49 @@ class TEProtocolModel(_Model):
 
 
 class HSFEProtocolModel(_Model):
-    """HSFE plan (seed 000 eqs 3-12): ``conditions`` poses, each moving the image by
-    ``step_px`` along ``direction_deg`` (from +x toward +y) from the previous one."""
+    """HSFE plan (seed 000 eqs 3-12): ``conditions`` hexapod poses of the target's image,
+    ``frames`` frames each, in one of two step patterns (``pattern``):
 
+    * ``"diagonal"`` (seed 000, the default): each pose moves the image by ``step_px`` along
+      ``direction_deg`` (from +x toward +y) from the previous one;
+    * ``"grid"``: the poses lie on a square grid of pitch ``grid_step_px`` in x and y from the
+      first pose (unset: ``1 + 1/conditions`` px), one pose in each column and each row: pose
+      ``k`` (0-based) in column ``k`` and row ``(a k) mod M`` (``M = conditions``; ``a`` the
+      integer nearest ``M / phi``, golden ratio ``phi``, that is coprime with ``M``: a rank-1
+      Fibonacci-type lattice, Korobov's construction, which spreads the poses evenly over the
+      square). With the default pitch the ``M`` poses fall on ``M`` different pixels in x and
+      in y, at sub-pixel phases ``1/M`` apart in each axis, so both the pixel-phase error and
+      each pixel's own response (PRNU, DSNU) vary over the poses and no part of the static
+      error stays constant over them (docs/validation.md, "Planning the test"). ``step_px``
+      and ``direction_deg`` are not used.
+    """
+
+    pattern: Literal["diagonal", "grid"] = "diagonal"
     conditions: Annotated[int, Field(ge=2)] = 12
     frames: Annotated[int, Field(ge=1)] = 30
     step_px: Finite = 0.2
     direction_deg: Finite = 45.0
+    grid_step_px: Finite | None = None
+
+    @property
+    def grid_pitch_px(self) -> float:
+        """The grid's pitch in px (``grid_step_px``, or ``1 + 1/conditions`` when unset)."""
+        return float(self.grid_step_px) if self.grid_step_px is not None else 1.0 + 1.0 / self.conditions
+
+    @property
+    def grid_multiplier(self) -> int:
+        """The lattice's multiplier ``a``: the integer nearest ``M / phi`` coprime with ``M``
+        (the nearer of the two candidates on either side, the smaller on a tie)."""
+        m = self.conditions
+        target = m / ((1.0 + math.sqrt(5.0)) / 2.0)
+        cands = [a for a in range(1, m) if math.gcd(a, m) == 1] or [1]
+        return min(cands, key=lambda a: (abs(a - target), a))
+
+    def grid_offsets_px(self) -> tuple[tuple[float, float], ...]:
+        """Commanded image offsets (px) of the grid pattern's poses, in acquisition order:
+        pose ``k`` at ``(k, (a k) mod M)`` grid steps."""
+        m, s, a = self.conditions, self.grid_pitch_px, self.grid_multiplier
+        return tuple((k * s, ((a * k) % m) * s) for k in range(m))
 
 
 class ChromaticProtocolModel(_Model):
@@ -485,13 +521,65 @@ class DistortionProtocolModel(_Model):
     frames: Annotated[int, Field(ge=1)] = 30
 
 
+class LabTimingModel(_Model):
+    """How long the lab's steps take, in seconds: the lab time of a protocol
+    (:meth:`budget.starcam.study.StarCameraStudy.lab_time_s`, what ``budget starcam plan``
+    minimises). Seed 000 gives no times; these are typical values. The simulated world never
+    reads them (the drift's timeline has its own ``world.frame_overhead_s``, ``settle_s``,
+    ``setup_s``, whose defaults these match).
+
+    * ``frame_readout_s``: readout and transfer of a frame beyond ``camera.exposure_s`` (a
+      2048 x 2048 CMOS at 12 bit reads out in 25-50 ms; the world's 0.05 s);
+    * ``hexapod_move_s``: one hexapod move between poses (a micro-radian rotation of a PI
+      H-840 class hexapod, commanding included: about 1-3 s);
+    * ``settle_s``: the wait after a move or a filter change before the first frame (the
+      hexapod's and the mount's settling to sub-arcsecond; with a move, the world's 10 s);
+    * ``filter_change_s``: one change of the filter in front of the target (a motorised
+      filter wheel: 1-3 s);
+    * ``dark_switch_s``: closing and reopening the source's shutter around a condition's
+      dark frames (``validation.dark_frames > 0``);
+    * ``protocol_setup_s``: changing target and aligning between protocols (the world's 300 s);
+    * ``source_warmup_s``: warm-up of the lamp before the first frame of a run (a
+      quartz-tungsten-halogen source stabilises in 15-30 min).
+    """
+
+    frame_readout_s: NonNeg = 0.05
+    hexapod_move_s: NonNeg = 2.0
+    settle_s: NonNeg = 8.0
+    filter_change_s: NonNeg = 2.0
+    dark_switch_s: NonNeg = 2.0
+    protocol_setup_s: NonNeg = 300.0
+    source_warmup_s: NonNeg = 900.0
+
+
+#: the counts of the seed-000 protocols a plan may change (``protocols.plan_knobs``): TE frames,
+#: HSFE frames per pose, HSFE poses (``protocols.hsfe.conditions``, in either pattern),
+#: chromatic frames per field and filter, distortion frames, dark frames per condition
+#: (``validation.dark_frames``)
+PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames")
+
+
 class ProtocolsModel(_Model):
-    """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols)."""
+    """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols),
+    how long the lab's steps take (``timing``) and which counts ``budget starcam plan`` may
+    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default all of them; the
+    others stay as the scenario gives them, e.g. a lab that plans only its HSFE test)."""
 
     te: TEProtocolModel = TEProtocolModel()
     hsfe: HSFEProtocolModel = HSFEProtocolModel()
     chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
     distortion: DistortionProtocolModel = DistortionProtocolModel()
+    timing: LabTimingModel = LabTimingModel()
+    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = PLAN_KNOBS
+
+    @field_validator("plan_knobs")
+    @classmethod
+    def _unique_knobs(cls, v: tuple) -> tuple:
+        if not v:
+            raise ValueError("name at least one count to plan")
+        if len(set(v)) != len(v):
+            raise ValueError(f"a name is listed twice ({list(v)})")
+        return v
 
 
 class ValidationModel(ValidationSettings):

@@ -16,7 +16,8 @@ Frame ``f`` of a condition starting at ``t0`` is dated at mid-exposure,
 
 Commanded pointings (:func:`commanded_pointing_px`): the hexapod points the camera so that
 the target's centre images where the plan says (TE: ``lab.target_center_px``; HSFE pose
-``k``: that plus ``k * step_px`` along ``direction_deg``; chromatic: the field centre of the
+``k``: that plus ``k * step_px`` along ``direction_deg``, or its grid offset with
+``pattern = "grid"``; chromatic: the field centre of the
 condition, the same for the three filters of a field; distortion: the grid target centred,
 pointing ``(0, 0)``). A condition whose pointing differs from the previous condition's is
 reached by a **move**.
@@ -70,8 +71,13 @@ def _conditions(scn: Scenario):
     h = p.hsfe
     ang = math.radians(h.direction_deg)
     cu, cv = scn.lab.target_center_px
-    for k in range(h.conditions):
-        out.append(("hsfe", k, h.frames, (cu + k * h.step_px * math.cos(ang), cv + k * h.step_px * math.sin(ang))))
+    if h.pattern == "grid":
+        for k, (gx, gy) in enumerate(h.grid_offsets_px()):
+            out.append(("hsfe", k, h.frames, (cu + gx, cv + gy)))
+    else:
+        for k in range(h.conditions):
+            out.append(("hsfe", k, h.frames, (cu + k * h.step_px * math.cos(ang),
+                                              cv + k * h.step_px * math.sin(ang))))
     nf = len(scn.lab.filters)
     for i, ctr in enumerate(p.chromatic.field_centers_px):
         for k in range(nf):

@@ -1,0 +1,272 @@
+"""The star camera's protocol planning hooks (StarCameraStudy.protocol_knobs, protocol_shapes,
+lab_time_s) and the HSFE grid step pattern (protocols.hsfe.pattern = "grid")."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from budget.starcam.study import STUDY
+from simcam.config_base import ScenarioError, read_toml
+from simcam.starcam.scenario import default, with_updates
+
+
+# ------------------------------------------------------------------ lab time
+def test_lab_time_of_the_default_protocol_by_hand():
+    """The seed-000 protocol counted by hand from the embedded scenario's values (0.1 s
+    exposure + 0.05 s readout; move 2 s, filter 2 s, settle 8 s; setup 300 s x 4; warm-up 900 s)."""
+    lt = STUDY.lab_time_s(default())
+    frame = 0.1 + 0.05
+    assert lt["te.frames"] == pytest.approx(30 * frame, rel=1e-12)
+    assert lt["hsfe.frames"] == pytest.approx(12 * 30 * frame, rel=1e-12)
+    # 11 moves between the 12 poses, each a move and its settling
+    assert lt["hsfe.changes"] == pytest.approx(11 * (2.0 + 8.0), rel=1e-12)
+    # 4 fields x 3 filters; in each field 2 filter changes (500 -> 600 -> 800); between
+    # fields 3 moves, each with the filter back to 500 nm (one settling for both)
+    assert lt["chromatic.frames"] == pytest.approx(4 * 3 * 30 * frame, rel=1e-12)
+    assert lt["chromatic.changes"] == pytest.approx(4 * 2 * (2.0 + 8.0) + 3 * (2.0 + 2.0 + 8.0), rel=1e-12)
+    assert lt["distortion.frames"] == pytest.approx(30 * frame, rel=1e-12)
+    assert lt["dark_frames"] == 0.0
+    assert lt["setup"] == 4 * 300.0 and lt["warmup"] == 900.0
+    assert sum(lt.values()) == pytest.approx(4.5 + 54 + 110 + 54 + 116 + 4.5 + 1200 + 900, rel=1e-12)
+
+
+def test_lab_time_of_the_grid_pattern_and_dark_frames_by_hand():
+    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 16,
+                                   "protocols.hsfe.frames": 10, "validation.dark_frames": 5,
+                                   "camera.exposure_s": 0.2, "protocols.timing.hexapod_move_s": 3.0})
+    lt = STUDY.lab_time_s(scn)
+    frame = 0.2 + 0.05
+    assert lt["hsfe.frames"] == pytest.approx(16 * 10 * frame, rel=1e-12)
+    assert lt["hsfe.changes"] == pytest.approx(15 * (3.0 + 8.0), rel=1e-12)   # 16 poses, 15 moves
+    # conditions: TE 1, HSFE 16, chromatic 12, distortion 1; each K dark frames and a shutter cycle
+    assert lt["dark_frames"] == pytest.approx((1 + 16 + 12 + 1) * (5 * frame + 2.0), rel=1e-12)
+
+
+# ------------------------------------------------------------------ knobs and shapes
+def test_knobs_and_shapes_are_scenario_fields_the_sweeps_can_set():
+    from budget.sweeps.dotted import set_dotted
+
+    base = default()
+    resolved = base.model_dump(mode="python")
+    for shape, keys in STUDY.protocol_shapes(base).items():
+        raw: dict = {}
+        for k, v in keys.items():
+            set_dotted(raw, resolved, k, v, where="t")
+        shaped = STUDY.from_dict(copy.deepcopy(raw), source="t")
+        assert shaped.protocols.hsfe.pattern == shape
+        knobs = STUDY.protocol_knobs(shaped)
+        # the same knobs in every shape (the planner searches each shape over the base's knobs)
+        assert knobs == STUDY.protocol_knobs(base)
+        for kb in knobs:
+            assert kb.kind == "int" and kb.low <= kb.high
+            for v in (int(kb.low), int(kb.high)):
+                r = copy.deepcopy(raw)
+                set_dotted(r, resolved, kb.field, v, where="t")
+                s = STUDY.from_dict(r, source="t")
+                STUDY.check(s, where="t")
+                node = s
+                for part in kb.field.split("."):
+                    node = getattr(node, part)
+                assert node == v
+                # every knob costs lab time (none is free, or the planner would max it out)
+                assert sum(STUDY.lab_time_s(s).values()) > 0
+
+
+def test_plan_knobs_name_the_counts_a_plan_may_change():
+    full = [k.field for k in STUDY.protocol_knobs(default())]
+    assert full == ["protocols.te.frames", "protocols.hsfe.frames", "protocols.hsfe.conditions",
+                    "protocols.chromatic.frames", "protocols.distortion.frames", "validation.dark_frames"]
+    s = with_updates(default(), {"protocols.plan_knobs": ["hsfe.poses", "hsfe.frames"]})
+    assert [k.field for k in STUDY.protocol_knobs(s)] == ["protocols.hsfe.conditions", "protocols.hsfe.frames"]
+    g = with_updates(s, {"protocols.hsfe.pattern": "grid"})
+    assert STUDY.protocol_knobs(g) == STUDY.protocol_knobs(s)
+    with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
+        with_updates(default(), {"protocols.plan_knobs": ["hsfe.frames", "hsfe.frames"]})
+    with pytest.raises(ScenarioError, match=r"protocols\.plan_knobs"):
+        with_updates(default(), {"protocols.plan_knobs": ["hsfe.pose"]})
+
+
+def test_a_wrong_pattern_is_one_error_naming_the_field():
+    with pytest.raises(ScenarioError, match=r"protocols\.hsfe\.pattern"):
+        with_updates(default(), {"protocols.hsfe.pattern": "spiral"})
+
+
+# ------------------------------------------------------------------ the grid pattern
+def test_default_diagonal_poses_are_seed_000s():
+    from budget.starcam.protocols import make_plan
+
+    plan = make_plan("hsfe", default())
+    d = 0.2 / math.sqrt(2.0)
+    assert len(plan.conditions) == 12
+    for k, c in enumerate(plan.conditions):
+        assert c.platform_dx_px == pytest.approx(k * d, abs=1e-12)
+        assert c.platform_dy_px == pytest.approx(k * d, abs=1e-12)
+
+
+@pytest.mark.parametrize("m", [2, 3, 5, 12, 25, 48])
+def test_grid_poses_span_pixels_and_phases_in_both_axes(m):
+    """M poses, pitch 1 + 1/M px, one in each column and row: per axis M different pixels at
+    phases k/M (uniform over the pixel); the world points where the plan says."""
+    from budget.starcam.protocols import make_plan
+    from simcam.starcam.world import commanded_pointing_px
+
+    scn = with_updates(default(), {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": m})
+    plan = make_plan("hsfe", scn)
+    xy = np.array([(c.platform_dx_px, c.platform_dy_px) for c in plan.conditions])
+    assert xy.shape == (m, 2) and np.all(xy[0] == 0.0)
+    step = 1.0 + 1.0 / m
+    for ax in (0, 1):
+        cells = np.round(xy[:, ax] / step, 9)
+        np.testing.assert_array_equal(np.sort(cells), np.arange(m))           # one pose per row / column
+        assert np.unique(np.floor(xy[:, ax] + 1e-9)).size == m                 # m different pixels
+        phases = np.sort(np.round(np.mod(xy[:, ax], 1.0), 9) % 1.0)
+        np.testing.assert_allclose(phases, np.arange(m) / m, atol=1e-9)        # phases k/M
+    a = scn.protocols.hsfe.grid_multiplier
+    assert math.gcd(a, m) == 1 and abs(a - m / ((1 + 5**0.5) / 2)) < 1.5
+    cu, cv = scn.lab.target_center_px
+    pts = commanded_pointing_px(scn)
+    for k, (dx, dy) in enumerate(xy):
+        assert pts[("hsfe", k)] == pytest.approx((cu + dx, cv + dy), abs=1e-12)
+    # an explicit pitch is kept
+    s2 = with_updates(scn, {"protocols.hsfe.grid_step_px": 0.5})
+    xy2 = np.array([(c.platform_dx_px, c.platform_dy_px) for c in make_plan("hsfe", s2).conditions])
+    assert xy2[:, 0].max() == pytest.approx(0.5 * (m - 1))
+
+
+def _pixel_dominated_tiny(pattern: str) -> dict:
+    """The tiny camera (tests/tiny_camera.py) with seed 000's own pixel errors (12 % PRNU,
+    11 e- DSNU) on the default bright source, so the static pixel error dominates the
+    temporal noise; ideal world; new PRNU/DSNU maps in every trial (the truth then averages
+    4 map realisations, the trials sample the maps as the estimator does)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from tiny_camera import TINY
+
+    d = read_toml(text=TINY, source="tiny")
+    d["detector"].update(prnu_rms=0.12, dsnu_rms_e=11.0)
+    d["world"] = {"effects": {k: 0.0 for k in (
+        "distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta",
+        "hexapod_repeatability_arcsec", "hexapod_backlash_arcsec", "drift_rate_arcsec_per_h",
+        "drift_random_arcsec")}}
+    d["validation"].update(new_maps_per_trial=True, hsfe_phase_grid=4, hsfe_truth_frames=200)
+    d["protocols"]["hsfe"].update(frames=10, conditions=12, pattern=pattern)
+    return d
+
+
+def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
+    """Pixel errors dominate: the improved (static) HSFE estimator on seed 000's diagonal (12
+    poses 0.2 px apart) recovers about two thirds of the truth; on the grid pattern with as many
+    poses (pitch 1 + 1/12 px, one pose in each row and column) it recovers the truth. Fixed seed 0, 16 trials; tolerance 3 combined standard errors (the
+    trials' sd / sqrt(16) and the truth's own, which holds the spread of its 4 map
+    realisations). The HSFE protocol is run alone, through the same make_plan / simulate /
+    estimate calls as a validation trial (budget.starcam.validate.run_trial)."""
+    from budget.starcam import validate as V
+    from budget.starcam.protocols import estimate, make_plan, simulate
+
+    scns = {p: STUDY.from_dict(_pixel_dominated_tiny(p), source="t") for p in ("diagonal", "grid")}
+    from budget.runner.study import truth_identity
+
+    truth = V.truths(scns["diagonal"], seed=0)["hsfe"]
+    # the truth does not depend on the pattern (sub-pixel phases at the first pose), and the
+    # study says so (a sweep or a plan over the patterns shares it)
+    assert V.truths(scns["grid"], seed=0)["hsfe"] == truth
+    assert truth_identity(STUDY, scns["grid"]) == truth_identity(STUDY, scns["diagonal"])
+    trials = 16
+    means = {}
+    for p, scn in scns.items():
+        est = []
+        for k in range(trials):
+            noise_seed, map_seed, _ = V.trial_seeds(0, k)
+            data = simulate(make_plan("hsfe", scn, seed=noise_seed), V._camera(scn, map_seed), seed=noise_seed)
+            r = estimate("hsfe", data.centroids, plate_scale_arcsec=5.5, extra_variants=False)["improved"]
+            est.append((r.sigma_x_px, r.sigma_y_px))
+        est = np.array(est)
+        means[p] = (est.mean(axis=0), est.std(axis=0, ddof=1) / math.sqrt(trials))
+    for i, ax in enumerate(("x", "y")):
+        t, se_t = getattr(truth, f"{ax}_px"), getattr(truth, f"se_{ax}_px")
+        for p in ("diagonal", "grid"):
+            m, se_m = means[p][0][i], means[p][1][i]
+            tol = 3.0 * math.hypot(se_t, se_m)
+            if p == "grid":
+                assert abs(m - t) <= tol, (ax, p, m, t, tol)
+            else:
+                assert t - m > tol and m / t < 0.8, (ax, p, m, t, tol)
+
+
+# ------------------------------------------------------------------ the planner's answer on seed 000
+#: what ``budget starcam plan docs/examples/scenarios/plan_hsfe.toml --require 'hsfe.x<=0.01'
+#: --require 'hsfe.y<=0.01' --trials 20`` (seed 0) recommends, and its re-validation did not
+#: confirm (docs/validation.md, "Planning the test"): the grid, 3 poses x 41 frames
+RECOMMENDED = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 3, "protocols.hsfe.frames": 41}
+#: the cheapest protocol the same plan measured feasible in its first design: the grid, 12 x 24
+DESIGN_FEASIBLE = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 12, "protocols.hsfe.frames": 24}
+REQUIRED_ARCSEC = 0.01
+CONFIDENCE = 0.95
+
+
+def _planned(protocol: dict):
+    from pathlib import Path
+
+    scn = STUDY.load_scenario(str(Path(__file__).parents[1] / "docs/examples/scenarios/plan_hsfe.toml"))
+    return with_updates(scn, protocol)
+
+
+def _allowed_exceedances(n: int) -> int:
+    """The planner's criterion: the C-quantile of n errors (order statistic ceil(C n)) within
+    the bound, i.e. at most n - ceil(C n) of them beyond it."""
+    return n - math.ceil(CONFIDENCE * n - 1e-9)
+
+
+def _hsfe_exceedances(protocol: dict, n: int) -> np.ndarray:
+    """Trials (of ``n``, run seed 7919, which no plan used) whose improved HSFE estimate is more
+    than 0.01" (3 sigma) from the truth, per axis: the HSFE protocol alone, through the same
+    make_plan / simulate / estimate calls as a validation trial; the truth from 400 noisy
+    frames per sub-pixel phase (truth seed 7; standard error 0.0003", a thirtieth of the bound)."""
+    from budget.starcam import validate as V
+    from budget.starcam.protocols import estimate, make_plan, simulate
+    from budget.starcam.truth import hsfe_truth
+
+    scn = _planned(protocol)
+    f = 3.0 * scn.camera.scale_arcsec_per_px
+    cam = V._camera(scn)
+    truth = hsfe_truth(cam, frames=400, seed=7)
+    assert max(truth.se_x_px, truth.se_y_px) * f < REQUIRED_ARCSEC / 20
+    err = []
+    for k in range(n):
+        noise_seed, _, _ = V.trial_seeds(7919, k)
+        data = simulate(make_plan("hsfe", scn, seed=noise_seed), cam, seed=noise_seed)
+        r = estimate("hsfe", data.centroids, plate_scale_arcsec=scn.camera.scale_arcsec_per_px,
+                     extra_variants=False)["improved"]
+        err.append(((r.sigma_x_px - truth.x_px) * f, (r.sigma_y_px - truth.y_px) * f))
+    return (np.abs(np.array(err)) > REQUIRED_ARCSEC).sum(axis=0)
+
+
+def test_the_planners_verdicts_hold_on_new_seeds():
+    """Seed 000 (the default camera, ideal world), 100 trials on seeds no plan used. The plan's
+    answer (grid 3 x 41), which its own re-validation on 20 fresh trials did not confirm,
+    misses the bound on them too (more than 5 of 100 beyond 0.01"); the protocol its design
+    measured feasible (grid 12 x 24) meets it (at most 5 of 100 beyond: the 95 % quantile of
+    |error| within 0.01")."""
+    n = 100
+    allowed = _allowed_exceedances(n)
+    assert np.all(_hsfe_exceedances(DESIGN_FEASIBLE, n) <= allowed)
+    assert np.any(_hsfe_exceedances(RECOMMENDED, n) > allowed)
+
+
+@pytest.mark.slow
+def test_the_design_feasible_protocol_meets_the_requirement_in_full_validations():
+    """The grid 12 x 24 through the runner: every protocol, the study's own truths, 200 trials
+    on a seed no plan used."""
+    from budget.runner.run import run_study
+
+    n = 200
+    res = run_study(STUDY, _planned(DESIGN_FEASIBLE), trials=n, seed=7919, workers=2)
+    for ax in ("x", "y"):
+        e = np.asarray(res.samples[("hsfe", "improved", ax)]) - res.truths[("hsfe", ax)].value
+        assert (np.abs(e) > REQUIRED_ARCSEC).sum() <= _allowed_exceedances(n), ax
