@@ -68,3 +68,15 @@ def test_pieced_truths_fixed_and_tolerance_do_not_depend_on_workers():
         for key in one.samples:
             assert np.array_equal(one.samples[key], two.samples[key])
     assert N_PARTS > 2  # several pieces: they are spread over the workers
+
+
+def test_pieced_truths_on_dask_match_one_worker():
+    # a Dask LocalCluster of two processes: the truths' pieces are submitted when the
+    # pilot is done, beside the trials already running
+    pytest.importorskip("distributed")
+    one = run_study(PARTED, Toy(), trials=PILOT_TRIALS + 10, seed=8, workers=1)
+    dask = run_study(PARTED, Toy(), trials=PILOT_TRIALS + 10, seed=8, workers=None, dask_local=2)
+    assert "Dask" in dask.executor
+    assert one.truths == dask.truths
+    for key in one.samples:
+        assert np.array_equal(one.samples[key], dask.samples[key])
