@@ -1,11 +1,19 @@
 """Rendering speed of the simulator on the embedded seed-000 scenario, beside plain numpy.
 
-* **Full frame**: one 2048 x 4096 two-chip mosaic with the 25-star target and every
-  detector effect (PRNU, dark + DSNU, shot noise, read noise, full well, per-chip ADC),
-  from a cached scene (PSF stamps computed once, as for a sequence of frames): the
-  expected-signal image (background + stamps) and the detector chain. Beside it, plain
-  numpy doing the same noise on the same expected image with one ``Generator``
-  (``poisson`` + ``normal`` + ADC ops, maps drawn per frame as the kernel does).
+* **Full frame**: one 2048 x 4096 mosaic (two 2048 x 2048 chips: "2 x 2048^2") with the
+  25-star target and every detector effect of the default (realistic) world: PRNU, dark +
+  DSNU, the integral non-linearity (``nonlinearity_beta`` 0.008), shot noise, read noise,
+  full well, per-chip ADC; from a cached scene (PSF stamps computed once, as for a
+  sequence of frames): the expected-signal image (background + stamps) and the detector
+  chain. Beside it, plain numpy doing the same noise on the same expected image with one
+  ``Generator`` (``poisson`` + ``normal`` + ADC ops, maps drawn per frame as the kernel
+  does; no non-linearity).
+* **Detector chain alone** on the cached expected image (``simcam.detector.expose``, one
+  fused numba pass per pixel), realistic (non-linearity on) and ideal (the same scenario
+  with ``nonlinearity_beta`` 0), and its **random-number floor**: the same generator
+  drawing the same variates at the same counters (PRNU and DSNU normals, the Poisson
+  count of each pixel's true mean charge, the read-noise normal), in the same chunked
+  loops over rows on the same threads, and nothing else (no arithmetic, no output frame).
 * **Scene**: computing the 25 stars' spectra, distortion, colour and PSF stamps once.
 * **Windows**: 11x11 windows (noise included) per second for 25 stars x 2000 frames,
   numba serial and threaded.
@@ -28,7 +36,10 @@ import resource
 import sys
 import time
 
+import dataclasses
+
 import numpy as np
+from numba import njit, prange
 
 if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -43,6 +54,9 @@ from benchmarks._common import (  # noqa: E402
     print_machine,
 )
 
+from simcam.detector import expose, window_chain  # noqa: E402
+from simcam.kernels.detector import SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, slot_counter  # noqa: E402
+from simcam.rng import poisson, std_normal, uniform01  # noqa: E402
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
 from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402
@@ -64,6 +78,35 @@ def numpy_frame(expected_e: np.ndarray, scn, seed: int) -> np.ndarray:
         v = np.floor(v / chip.gain_e_per_dn + chip.offset_dn + 0.5)
         out[sl] = np.clip(v, 0, 2**det.bits - 1)
     return out
+
+
+@njit(parallel=True)
+def _draws_floor(mean_e, mosaic_cols, prnu, dsnu, hot, frame_key, detector_key, sums):
+    """The random numbers of a full frame alone: per pixel the draws the detector chain
+    makes (PRNU and DSNU normals, hot-pixel uniform when ``hot``, the Poisson count of the
+    pixel's mean charge ``mean_e``, the read-noise normal) with the same generator, keys
+    and counters, in 512-pixel chunks of rows on numba threads as the chain does; the sum
+    of each row's draws into ``sums`` (so that nothing is optimised away)."""
+    h, w = mean_e.shape
+    for i in prange(h):
+        base = i * mosaic_cols
+        acc = 0.0
+        for j0 in range(0, w, 512):
+            j1 = min(w, j0 + 512)
+            if prnu:
+                for j in range(j0, j1):
+                    acc += std_normal(detector_key, slot_counter(base + j, SLOT_PRNU))
+            if dsnu:
+                for j in range(j0, j1):
+                    acc += std_normal(detector_key, slot_counter(base + j, SLOT_DSNU))
+            if hot:
+                for j in range(j0, j1):
+                    acc += uniform01(detector_key, slot_counter(base + j, SLOT_HOT))
+            for j in range(j0, j1):
+                acc += poisson(mean_e[i, j], frame_key, slot_counter(base + j, SLOT_SHOT))
+            for j in range(j0, j1):
+                acc += std_normal(frame_key, slot_counter(base + j, SLOT_READ))
+        sums[i] = acc
 
 
 def galsim_frame(galsim, scn, shape: tuple[int, int], background_e: float, seed: int, *,
@@ -110,6 +153,31 @@ def main() -> None:
 
     expected = cam.expected_frame_e(scene)
     full = best_of_wall_cpu(sim_frame, repeat=args.repeat)
+
+    # the detector chain alone (realistic and ideal) and the random numbers alone
+    params = cam.detector_params
+    ideal = dataclasses.replace(params, nonlinearity_beta=0.0)
+    rows_, cols_ = expected.shape
+
+    def chain(p):
+        return lambda: expose(signal_e=expected, row0=0, col0=0, mosaic_cols=cols_,
+                              chip_cols=cam.mosaic.chip_cols, params=p,
+                              frame_key=cam.frame_key(seed=1, condition=0, frame=next(counter)),
+                              detector_key=cam.detector_key)
+
+    chain_real = best_of_wall_cpu(chain(params), repeat=args.repeat)
+    chain_ideal = best_of_wall_cpu(chain(ideal), repeat=args.repeat)
+    mean_e = window_chain(signal_e=expected[None], row0=[0], col0=[0], mosaic_cols=cols_,
+                          chip_cols=cam.mosaic.chip_cols, params=params,
+                          detector_key=cam.detector_key).mean_e[0]
+    sums = np.empty(rows_)
+
+    def floor():
+        _draws_floor(mean_e, cols_, params.prnu_rms != 0.0, params.dsnu_rms_e > 0.0,
+                     params.hot_pixel_fraction > 0.0, cam.frame_key(seed=1, condition=0, frame=next(counter)),
+                     cam.detector_key, sums)
+
+    floor_s = best_of_wall_cpu(floor, repeat=args.repeat)
     nump = best_of_wall_cpu(lambda: numpy_frame(expected, scn, next(counter)), repeat=max(2, args.repeat // 2))
     peak_mb = peak_traced_mb(sim_frame)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -145,11 +213,20 @@ def main() -> None:
     else:
         peer_rows = [("peer: GalSim not installed", "", "")]
 
-    print_machine()
+    import numba
+
+    print_machine(numba_threads=numba.get_num_threads())
     print(format_table(
         ["what", "wall", "CPU (all threads)"],
         [
-            ("full frame 2048x4096, 25 stars, simcam", f"{full[0] * 1e3:.0f} ms", f"{full[1] * 1e3:.0f} ms"),
+            ("full frame 2048x4096 (2 x 2048^2), 25 stars, realistic chain: expected image + detector",
+             f"{full[0] * 1e3:.0f} ms", f"{full[1] * 1e3:.0f} ms"),
+            ("detector chain alone, realistic (non-linearity on)", f"{chain_real[0] * 1e3:.0f} ms",
+             f"{chain_real[1] * 1e3:.0f} ms"),
+            ("detector chain alone, ideal (non-linearity off)", f"{chain_ideal[0] * 1e3:.0f} ms",
+             f"{chain_ideal[1] * 1e3:.0f} ms"),
+            ("random-number floor: the chain's draws alone", f"{floor_s[0] * 1e3:.0f} ms",
+             f"{floor_s[1] * 1e3:.0f} ms"),
             ("same noise, plain numpy Generator", f"{nump[0] * 1e3:.0f} ms", f"{nump[1] * 1e3:.0f} ms"),
             ("scene: spectra, distortion, colour, 25 PSF stamps", f"{scene_s[0] * 1e3:.1f} ms",
              f"{scene_s[1] * 1e3:.1f} ms"),
@@ -161,13 +238,21 @@ def main() -> None:
         ],
     ))
     gstat = None if galsim is not None else "not installed"
-    what = "full 2048x4096 frame, 25 stars, every detector effect (wall ms)"
+    what = "full 2048x4096 frame, 25 stars, every detector effect of the realistic world (wall ms)"
     emit_result("render", [
         figure("full_frame_ms", what, full[0] * 1e3, "ms", peer="plain numpy Generator (same noise)",
                peer_value=nump[0] * 1e3, target=150.0, target_source="project target"),
         figure("full_frame_vs_galsim_ms", what, full[0] * 1e3, "ms",
                peer="GalSim 25 Airy stars + CCDNoise", peer_value=None if gal is None else gal[0] * 1e3,
                peer_status=gstat, target=150.0, target_source="project target"),
+        figure("chain_ms", "detector chain alone, full 2048x4096 frame, realistic (wall ms)",
+               chain_real[0] * 1e3, "ms", peer="random-number floor (the chain's draws alone)",
+               peer_value=floor_s[0] * 1e3, target=60.0, target_source="project target"),
+        figure("chain_ideal_ms", "detector chain alone, full 2048x4096 frame, ideal (wall ms)",
+               chain_ideal[0] * 1e3, "ms", peer="random-number floor (the chain's draws alone)",
+               peer_value=floor_s[0] * 1e3, target=60.0, target_source="project target"),
+        figure("chain_cpu_ms", "detector chain alone, realistic (CPU ms, all threads)",
+               chain_real[1] * 1e3, "ms", peer="random-number floor (CPU ms)", peer_value=floor_s[1] * 1e3),
         figure("scene_ms", "scene: 25 stars' spectra, distortion, colour, PSF stamps (ms)",
                scene_s[0] * 1e3, "ms", peer="GalSim 25 Airy stars drawn (monochromatic)",
                peer_value=None if gal_stars is None else gal_stars[0] * 1e3, peer_status=gstat),

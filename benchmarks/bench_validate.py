@@ -2,7 +2,9 @@
 
 * one full protocol trial (TE + HSFE + chromatic + distortion: 20,460 star-windows with
   the default plans, centroided and through the published and improved estimators), on
-  one core (numba serial kernels), after warm-up, best and median of ``--repeat``;
+  one core (numba serial kernels), after warm-up, best and median of ``--repeat``; its CPU
+  time (best), and that of the same trials in the ideal world and with the exact stamp
+  route (``render.stamp_route = "exact"``);
   with the time split into rendering, centroiding and estimating;
 * ``--trials K`` trials (default 1000) with ``--workers W`` processes (default all
   cores), wall time, including the truth computation and worker start-up.
@@ -56,6 +58,22 @@ def main() -> None:
         t0 = time.perf_counter()
         V.run_trial(scn, 0, k)
         times.append(time.perf_counter() - t0)
+    # the same trial's CPU time (each trial new: its hexapod errors and drift render new
+    # scenes), in the ideal world (no world effects) and with the exact stamp route
+    # (render.stamp_route = "exact": the wavelengths summed for every scene)
+    from budget.runner.cli import ideal_world_scenario
+    from simcam.starcam.scenario import with_updates
+
+    cpu = {}
+    for name, s in (("realistic", scn), ("ideal", ideal_world_scenario(STUDY, scn, source="embedded default")),
+                    ("exact", with_updates(scn, {"render.stamp_route": "exact"}))):
+        V.run_trial(s, 0, 0)
+        ts = []
+        for k in range(1, args.repeat + 1):
+            t0 = time.process_time()
+            V.run_trial(s, 0, 100 + k)
+            ts.append(time.process_time() - t0)
+        cpu[name] = min(ts)
     from budget.starcam.protocols import make_plan
     from simcam.starcam.targets import calibration_grid
 
@@ -73,6 +91,9 @@ def main() -> None:
         [
             (f"one trial, one core ({n_windows:,} star-windows), best", f"{min(times):.3f} s"),
             ("one trial, one core, median", f"{statistics.median(times):.3f} s"),
+            ("one trial, CPU, best", f"{cpu['realistic']:.3f} s"),
+            ("one trial, ideal world (--ideal-world), CPU, best", f"{cpu['ideal']:.3f} s"),
+            ("one trial, exact stamp route, CPU, best", f"{cpu['exact']:.3f} s"),
             (f"{res.trials} trials, {args.workers} worker process(es), wall (truth included)", f"{total:.1f} s"),
         ],
     ))
@@ -81,6 +102,11 @@ def main() -> None:
                target=0.1, target_source="project target"),
         figure("trial_median_s", "one full seed-000 protocol trial, one core, median (s)",
                statistics.median(times), "s", target=0.1, target_source="project target"),
+        figure("trial_cpu_s", "one full seed-000 protocol trial, CPU time, best (s)", cpu["realistic"], "s"),
+        figure("trial_ideal_cpu_s", "the same trial in the ideal world (--ideal-world), CPU time, best (s)",
+               cpu["ideal"], "s"),
+        figure("trial_exact_stamps_cpu_s", "the same trial with render.stamp_route = exact, CPU time, best (s)",
+               cpu["exact"], "s"),
         figure("trials_total_s", f"{res.trials} trials, {args.workers} workers, truth included (s)",
                total, "s", target=120.0 if res.trials == 1000 else None,
                target_source="project target, 1000 trials" if res.trials == 1000 else None),

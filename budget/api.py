@@ -12,6 +12,8 @@
 * :func:`validate` runs a study's Monte Carlo validation (the runner,
   :func:`budget.runner.run.run_study`) and returns its :class:`~budget.runner.run.StudyResult`;
 * :func:`robustness` runs a study's robustness cases (the world's effects) and returns them;
+* :func:`plan` finds the cheapest lab protocol that meets required accuracies
+  (:func:`budget.runner.plan.plan_protocol`, docs/planning.md) and returns its ``PlanResult``;
 * :func:`sweep` runs a design-trade sweep file into a Zarr store and returns it opened
   (:func:`budget.sweeps.run.run_sweep`).
 
@@ -29,7 +31,7 @@ import contextlib
 import sys
 from pathlib import Path
 
-__all__ = ["robustness", "scenario_text", "studies", "sweep", "validate"]
+__all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
 
 def studies() -> list[str]:
@@ -159,6 +161,37 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
             return run_robustness(st, scn, trials=trials, seed=seed,
                                   workers=default_workers() if workers is None else workers, progress=progress,
                                   source=str(scenario) if isinstance(scenario, (str, Path)) else "")
+        except Exception as exc:
+            hint = _broken_pool_hint(exc)
+            if hint is not None:
+                raise hint from None
+            raise
+
+
+def plan(study, scenario=None, *, require=(), variant: str | None = None, confidence: float = 0.95,
+         budget_hours: float | None = None, trials: int | None = None, seed: int = 0, workers: int | None = 1,
+         progress: bool = False, sure: float = 0.9):
+    """The cheapest protocol of ``study`` (its :meth:`~budget.runner.study.Study.protocol_knobs`
+    and shapes) whose ``variant`` estimates meet every requirement of ``require``
+    (``"CLASS.AXIS<=VALUE"``: the ``confidence`` quantile of ``|estimate - truth|``), re-validated
+    on fresh trials (:func:`budget.runner.plan.plan_protocol`, docs/planning.md); ``study`` and
+    ``scenario`` as for :func:`validate`. Returns a ``PlanResult`` (``answer()``,
+    ``to_dataframe()``, ``to_json()``, ``write_report(folder)``, ``recommended_toml()``).
+    ``workers`` defaults to 1: a plan runs many short validations. ``sure``: how sure the
+    recommended protocol is to pass the re-validation (0.5: the boundary protocol)."""
+    from budget.runner.executors import default_workers
+    from budget.runner.plan import plan_protocol
+
+    st = _study(study)
+    scn = _scenario(st, scenario)
+    if isinstance(require, str):
+        require = [require]
+    with _workers_skip_main(st):
+        try:
+            return plan_protocol(st, scn, list(require), variant=variant, confidence=confidence,
+                                 budget_hours=budget_hours, trials=trials, seed=seed,
+                                 workers=default_workers() if workers is None else workers, progress=progress,
+                                 sure=sure)
         except Exception as exc:
             hint = _broken_pool_hint(exc)
             if hint is not None:

@@ -206,7 +206,11 @@ def _check_geometry(*, rows_hi: int, cols_lo: int, cols_hi: int, mosaic_cols, ch
     return mc, cc
 
 
-def _signal(signal_e, ndim: int) -> np.ndarray:
+def _signal_range_error():
+    _fail("signal_e", f"must be in [0, {MAX_SIGNAL_E:g}] e- everywhere", "negative/NaN/inf/huge values")
+
+
+def _signal(signal_e, ndim: int, *, check_range: bool = True) -> np.ndarray:
     a = np.asarray(signal_e)
     if a.ndim != ndim:
         _fail("signal_e", f"must be a {ndim}-D array", a.shape)
@@ -217,9 +221,8 @@ def _signal(signal_e, ndim: int) -> np.ndarray:
     a = np.ascontiguousarray(a)
     # min and max propagate NaN, and NaN fails both comparisons (numpy's reductions: no
     # kernel for numba to compile on a first run, 2 ms more on an 8-Mpx frame)
-    if a.size and not (a.min() >= 0.0 and a.max() <= MAX_SIGNAL_E):
-        _fail("signal_e", f"must be in [0, {MAX_SIGNAL_E:g}] e- everywhere",
-              "negative/NaN/inf/huge values")
+    if check_range and a.size and not (a.min() >= 0.0 and a.max() <= MAX_SIGNAL_E):
+        _signal_range_error()
     return a
 
 
@@ -269,12 +272,15 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
            quantize=True) -> np.ndarray:
     """Turn expected electrons of a block of mosaic pixels into detector output.
 
-    Per pixel (Janesick 2007; EMVA 1288 linear model): ``n = Poisson(S * g + d)`` with the
-    PRNU factor ``g`` and the dark signal ``d`` (DSNU, hot pixels) of
-    :func:`prnu_map` and :func:`dsnu_map`, ``n`` clipped at the full well, plus
+    Per pixel (Janesick 2007; EMVA 1288 linear model): ``n = Poisson(mu)`` with
+    ``mu = S * g + d``, the PRNU factor ``g`` and the dark signal ``d`` (DSNU, hot pixels) of
+    :func:`prnu_map` and :func:`dsnu_map` (with ``params.nonlinearity_beta`` not 0, ``mu`` is
+    first compressed by :func:`apply_nonlinearity`), ``n`` clipped at the full well, plus
     ``N(0, read_noise_e**2)``, then ``DN = floor(n / K + offset + 0.5)`` clipped to
     ``[0, 2**adc_bits - 1]``. The random numbers depend only on the keys and the mosaic
-    pixel index, so any block, window or thread count gives identical pixels.
+    pixel index, so any block, window or thread count gives identical pixels. The whole
+    chain runs in one numba pass per pixel, rows in parallel
+    (:func:`simcam.kernels.detector.expose_block`), with the window route's operations.
 
     Parameters
     ----------
@@ -311,27 +317,27 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
     DetectorParameterError
         On an invalid argument, naming it.
     """
-    sig = _signal(signal_e, 2)
+    # the range check rides on the kernel's pass (numpy's min and max are two more passes
+    # over a full frame); a bad value is reported after it, nothing is returned
+    sig = _signal(signal_e, 2, check_range=False)
     r0 = _int_arg("row0", row0, minimum=0)
     c0 = _int_arg("col0", col0, minimum=0)
     h, w = sig.shape
     mc, cc = _check_geometry(rows_hi=r0 + h, cols_lo=c0, cols_hi=c0 + w, mosaic_cols=mosaic_cols,
                              chip_cols=chip_cols, params=params)
     fk, dk = _keys(frame_key, detector_key)
-    if params.nonlinearity_beta != 0.0:
-        # the non-linear camera: the window chain's fixed pattern and non-linearity, then the
-        # same per-pixel noise and ADC kernel (pixels equal the linear route at beta = 0)
-        chain = window_chain(signal_e=sig[None], row0=[r0], col0=[c0], mosaic_cols=mc, chip_cols=cc,
-                             params=params, detector_key=dk)
-        return expose_windows_frames(chain=chain, frame_keys=[fk], shot_noise=shot_noise, read_noise=read_noise,
-                                     quantize=quantize, parallel=False)[0, 0]
     out = np.empty((h, w), dtype=params.output_dtype if quantize else np.float64)
     if sig.size:
         g, off, rn, fw = params._chip_arrays()
-        _k.expose_block(sig, r0, c0, mc, cc, g, off, rn, fw, params.prnu_rms, params.dark_e,
-                        params.dsnu_rms_e, params.hot_pixel_fraction,
-                        params.hot_pixel_dark_e, fk, dk, bool(shot_noise), bool(read_noise),
-                        bool(quantize), float(params.max_dn), out)
+        # one pass per pixel: fixed pattern, non-linearity (the linear camera at beta = 0),
+        # temporal noise and ADC; the same pixels as the window route (window_chain and
+        # expose_windows_frames) bit for bit
+        bad_rows = _k.expose_block(sig, r0, c0, mc, cc, g, off, rn, fw, params.prnu_rms, params.dark_e,
+                                   params.dsnu_rms_e, params.hot_pixel_fraction, params.hot_pixel_dark_e,
+                                   params.nonlinearity_beta, MAX_SIGNAL_E, fk, dk, bool(shot_noise),
+                                   bool(read_noise), bool(quantize), float(params.max_dn), out)
+        if bad_rows:
+            _signal_range_error()
     return out
 
 

@@ -243,9 +243,9 @@ def test_prewarm_options_follow_the_scenario(monkeypatch):
         text = base.replace('centroid_method = "cog"', f'centroid_method = "{method}"').replace(
             "dark_frames = 0", f"dark_frames = {dark}")
         warm.prewarm(st.from_dict(tomllib.loads(text), source="test"))
-    # the stamps and the windows summed from them always; the fused kernel and its twin for a
-    # drifting condition for the centre of gravity
-    stamps = ["folded_stamp_spectra", "add_stamps_windows"]
+    # the stamps (both routes) and the windows summed from them always; the fused kernel and
+    # its twin for a drifting condition for the centre of gravity
+    stamps = ["folded_stamp_spectra", "stamp_profiles", "shifted_stamp_spectra", "add_stamps_windows"]
     fused = ["expose_centroid_frames_serial", "expose_centroid_drift_serial"]
     assert seen[0] == ([{"fused": True, "windows": False}], stamps + fused)
     assert seen[1] == ([{"fused": True, "windows": True}], stamps + fused + ["expose_windows_frames_serial"])

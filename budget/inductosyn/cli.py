@@ -166,35 +166,44 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
     if json_out:
         write_json_atomic(json_out, payload)
     if plot_out:
-        _plot_fit(fits, plot_out, pole_pairs)
+        figure = _plot_fit(fits, plot_out, pole_pairs)
+        click.echo(f"plot: {figure}")
+        click.echo(f"  {figure.caption}")
 
 
-def _plot_fit(fits, path, pole_pairs) -> None:
-    import matplotlib
+def _plot_fit(fits, path, pole_pairs):
+    """The measured errors, the fitted model and the residuals of each fit (one row each);
+    returns the path with its caption (:func:`budget.figures.save`), from the numbers drawn:
+    per fit the points, the 3 sigma before and after and the largest residual with where it
+    lies, and a nuisance offset drawn with the model (fitted, not compensated)."""
+    from budget.figures import plt as _plt
+    from budget.figures import save
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _plt()
     fig, axes = plt.subplots(len(fits), 2, figsize=(10, 3.6 * len(fits)), squeeze=False)
+    parts = []
     for row, (label, f) in enumerate(fits):
         a = f.angle_deg
         short = not f.spec.mech_orders
+        # a nuisance offset (eq 8's table zero) is fitted, so it is in the model at the points;
+        # the curve carries it too, so that it passes through them
+        offset = float(f.coefficients_arcsec[0]) if f.spec.nuisance_offset else 0.0
         if short:
             cyc = pole_pairs * a / 360.0
             x = (cyc - np.floor(cyc)) * 360.0
             grid = np.linspace(0, 360, 721)
-            model = f.evaluate_arcsec(angle_deg=grid / pole_pairs)
-            xl = "electrical phase (deg)"
+            model = f.evaluate_arcsec(angle_deg=grid / pole_pairs) + offset
+            xl, xname = "electrical phase (deg)", "electrical phase"
         else:
             x = a
             grid = np.linspace(0, 360, 721)
             model = f.evaluate_arcsec(angle_deg=grid) if not f.spec.elec_orders else None
-            xl = "angle (deg)"
+            xl, xname = "angle (deg)", "angle"
         ax = axes[row, 0]
         ax.plot(x, f.error_arcsec, "o", ms=4, label="measured")
         ax.plot(x, f.error_arcsec - f.residual_arcsec, "x", ms=5, label="model at the points")
         if model is not None:
-            ax.plot(grid, model, lw=0.8, label="model")
+            ax.plot(grid, model, lw=0.8, label="model" + (f" (with offset {offset:.2f})" if offset else ""))
         ax.set_xlabel(xl)
         ax.set_ylabel("error (arcsec)")
         ax.set_title(f"{label}: 3 sigma before {f.sigma3_before_arcsec:.2f} arcsec")
@@ -205,9 +214,18 @@ def _plot_fit(fits, path, pole_pairs) -> None:
         ax.set_xlabel(xl)
         ax.set_ylabel("residual (arcsec)")
         ax.set_title(f"after: 3 sigma {f.sigma3_after_arcsec:.2f}, max {f.max_abs_after_arcsec:.2f} arcsec")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        i = int(np.argmax(np.abs(f.residual_arcsec)))
+        s = (f"{label} ({len(f.names)} coefficients) on {a.size} points against the {xname}: 3 sigma "
+             f"{f.sigma3_before_arcsec:.2f} arcsec before the fit, {f.sigma3_after_arcsec:.2f} after "
+             f"({100 * f.sigma3_after_arcsec / f.sigma3_before_arcsec:.1f} % of it), the largest residual "
+             f"{f.residual_arcsec[i]:+.2f} arcsec at {x[i]:.1f} deg")
+        if offset:
+            s += (f"; the model is drawn with the fitted offset {offset:+.2f} arcsec (the table's zero, "
+                  "fitted but not compensated)")
+        elif model is None:
+            s += "; no model curve (mechanical and electrical harmonics together have no single phase axis)"
+        parts.append(s)
+    return save(fig, path, "; ".join(parts[:1]) + "".join(f". {p}" for p in parts[1:]) + ".")
 
 
 def _summary_lines(result) -> list[str]:

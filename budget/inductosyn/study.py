@@ -29,9 +29,9 @@ seed-001 sections of the runner's report and the ``details`` of its JSON.
 
 from __future__ import annotations
 
-from budget.runner.study import ClassSpec, Study, TrialResult, Truth
+from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
-__all__ = ["COEFFICIENTS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
+__all__ = ["COEFFICIENTS", "POLYGON_PAIRS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
 
 _UNIT = "arcsec, 3 sigma"
 _PREPARED: dict = {}
@@ -40,6 +40,18 @@ COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "
                 "A_S3c", "A_S3s", "A_S4c", "A_S4s")
 #: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
 PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
+
+#: The polygon pairs the planner compares (``protocol_shapes``): (long faces, short faces).
+#: Long: a face count dividing the 360 pole pairs, so that every electrical harmonic samples
+#: as the table's constant and eq 7 sees the mechanical orders alone (seed 001's 24-face
+#: design); 12, 18, 24 and 36 faces are stock polygons. Short: a count the electrical orders
+#: 1-4 alias on to distinct non-zero mechanical orders below N/2, clear of the mechanical
+#: 1-2 the long table pins, so the eq 8 and joint designs are full rank
+#: (:func:`budget.inductosyn.harmonics.check_design`, which :meth:`InductosynStudy.check`
+#: runs): 11 is the fewest such faces (a table of N faces holds at most (N - 1) / 2
+#: harmonics besides its constant, and electrical 1-4 need 4; 9 and 10 faces fold two of
+#: them together: 360 = 0 mod 9 and 720 = 0 mod 10), 13, 17, 23 and 37 are others.
+POLYGON_PAIRS = ((12, 11), (12, 13), (18, 17), (24, 23), (36, 37))
 
 
 class InductosynStudy(Study):
@@ -141,6 +153,34 @@ class InductosynStudy(Study):
         ref = reference_coefficients(p)
         out.update({("coefficient", nm): Truth(float(v)) for nm, v in zip(names, ref) if nm in COEFFICIENTS})
         return out
+
+    # ------------------------------------------------------------ protocol planning
+    def protocol_knobs(self, scenario) -> tuple[Knob, ...]:
+        """The count the lab chooses: rounds of each pass (``calibration.repeats``), each
+        face's entry the mean of its rounds. Each round adds fresh stops, quantisation
+        phases, reading and autocollimator noise (the part of a coefficient's error that
+        averages as 1/sqrt(rounds)); the polygon's own errors and its mounting repeat. The
+        face counts are offered as polygon pairs (:meth:`protocol_shapes`): which counts
+        a design can fit is not monotone in the count (aliasing), and a polygon is bought,
+        not dialled."""
+        return (Knob("calibration.repeats", "int", 1, 16, "rounds",
+                     "rounds of each polygon pass, each face's table entry the mean of its rounds"),)
+
+    def protocol_shapes(self, scenario) -> dict[str, dict]:
+        """The polygon pairs of :data:`POLYGON_PAIRS`, named ``"<long>/<short> faces"``."""
+        return {f"{nl}/{ns} faces": {"calibration.long_polygon.faces": nl, "calibration.short_polygon.faces": ns}
+                for nl, ns in POLYGON_PAIRS}
+
+    def lab_time_s(self, scenario) -> dict[str, float]:
+        """The session of :func:`simcam.encoder.polygon.pass_times_s`, by item: every face
+        read (rotate, settle, read: ``calibration.face_time_s``) in the four passes (long raw
+        and verify, short raw and verify), each ``calibration.repeats`` rounds, and the three
+        set-ups between passes (``calibration.pass_setup_s``: compensation upload, polygon
+        change). The same timeline the world's drifts run on."""
+        cal = scenario.calibration
+        return {"long polygon readings": 2 * cal.repeats * cal.long_polygon.faces * cal.face_time_s,
+                "short polygon readings": 2 * cal.repeats * cal.short_polygon.faces * cal.face_time_s,
+                "pass set-ups": 3 * cal.pass_setup_s}
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:

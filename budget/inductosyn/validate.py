@@ -57,43 +57,55 @@ def trial_rng(*, seed: int, trial: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(trial,))))
 
 
-def trial_draws(*, rng: np.random.Generator, n_long: int, n_short: int):
-    """The draws of one trial, in their fixed order (two calls).
+def trial_draws(*, rng: np.random.Generator, n_long: int, n_short: int, repeats: int = 1):
+    """The draws of one trial, in their fixed order (two calls; four with ``repeats > 1``).
 
     ``u = rng.random(2 n_long + 2 n_short)``: quantisation phases of the four passes
     (long raw, long verify, short raw, short verify); then
     ``z = rng.standard_normal(n_long + n_short + 2 (2 n_long + 2 n_short))``: face errors
     of the long and of the short polygon, then for each pass its reading noise and its
-    autocollimator noise.
+    autocollimator noise. With ``repeats`` rounds per pass (``calibration.repeats``), the
+    rounds after the first draw afterwards, ``rng.random((repeats - 1) m)`` and
+    ``rng.standard_normal(2 (repeats - 1) m)`` (``m = 2 n_long + 2 n_short``), appended to
+    ``u`` and ``z``: the first round's draws are those of a single round.
 
     Returns
     -------
     (u, z) arrays.
     """
     nm = 2 * n_long + 2 * n_short
-    return rng.random(nm), rng.standard_normal(n_long + n_short + 2 * nm)
+    u, z = rng.random(nm), rng.standard_normal(n_long + n_short + 2 * nm)
+    if repeats > 1:
+        u = np.concatenate([u, rng.random((repeats - 1) * nm)])
+        z = np.concatenate([z, rng.standard_normal(2 * (repeats - 1) * nm)])
+    return u, z
 
 
-def split_draws(*, u, z, n_long: int, n_short: int):
+def split_draws(*, u, z, n_long: int, n_short: int, repeats: int = 1):
     """Split :func:`trial_draws` arrays (last axis) into face errors and per-pass draws.
 
     Returns
     -------
-    (face_long, face_short, passes) with ``passes`` a list of four (u, n_read, n_ac).
+    (face_long, face_short, passes) with ``passes`` a list of four (u, n_read, n_ac), each
+    ``repeats * faces`` long on its last axis (round-major: round 0's faces, then round 1's).
     """
     sizes = (n_long, n_long, n_short, n_short)
     fl = z[..., :n_long]
     fs = z[..., n_long:n_long + n_short]
+    rounds = [[] for _ in sizes]
     pos_u = 0
     pos_z = n_long + n_short
-    passes = []
-    for n in sizes:
-        uu = u[..., pos_u:pos_u + n]
-        nr = z[..., pos_z:pos_z + n]
-        na = z[..., pos_z + n:pos_z + 2 * n]
-        pos_u += n
-        pos_z += 2 * n
-        passes.append((uu, nr, na))
+    for _ in range(repeats):
+        for p, n in enumerate(sizes):
+            uu = u[..., pos_u:pos_u + n]
+            nr = z[..., pos_z:pos_z + n]
+            na = z[..., pos_z + n:pos_z + 2 * n]
+            pos_u += n
+            pos_z += 2 * n
+            rounds[p].append((uu, nr, na))
+    if repeats == 1:
+        return fl, fs, [r[0] for r in rounds]
+    passes = [tuple(np.concatenate([r[j][i] for j in range(repeats)], axis=-1) for i in range(3)) for r in rounds]
     return fl, fs, passes
 
 
@@ -284,15 +296,18 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     nl, ns = lp.faces, sp.faces
     q = sc.encoder.resolution_deg * ARCSEC_PER_DEG
     sr = sc.encoder.reading_noise_arcsec
+    reps = cal.repeats
     k = trials
     nm = 2 * nl + 2 * ns
-    uu = np.empty((k, nm))
-    zz = np.empty((k, nl + ns + 2 * nm))
+    uu = np.empty((k, reps * nm))
+    zz = np.empty((k, nl + ns + 2 * reps * nm))
     for i in range(k):
-        uu[i], zz[i] = trial_draws(rng=trial_rng(seed=seed, trial=first_trial + i), n_long=nl, n_short=ns)
-    fl, fs, passes = split_draws(u=uu, z=zz, n_long=nl, n_short=ns)
-    fl = fl * lp.face_error_arcsec
-    fs = fs * sp.face_error_arcsec
+        uu[i], zz[i] = trial_draws(rng=trial_rng(seed=seed, trial=first_trial + i), n_long=nl, n_short=ns,
+                                   repeats=reps)
+    fl, fs, passes = split_draws(u=uu, z=zz, n_long=nl, n_short=ns, repeats=reps)
+    # each pass reads its polygon ``reps`` times (round-major): the same face errors every round
+    fl = np.tile(fl * lp.face_error_arcsec, reps)
+    fs = np.tile(fs * sp.face_error_arcsec, reps)
     faces = [fl, fl, fs, fs]
     # the world's rig effects add to each face's deviation (None: all off, tables unchanged)
     world = world_alpha_arcsec(scenario=sc, seed=seed, trials=range(first_trial, first_trial + k))
@@ -301,8 +316,12 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     ys = []
     for (u, nr, nac), (tay, face, poly) in zip(passes, ((p.taylor_long, faces[0], lp), (p.taylor_long, faces[1], lp),
                                                         (p.taylor_short, faces[2], sp), (p.taylor_short, faces[3], sp))):
-        ys.append(_measure_fast(tay, u, nr, nac, face, poly.mount_offset_arcsec, q, sr,
-                                ac.noise_arcsec, ac.resolution_arcsec))
+        n = poly.faces
+        rounds = [_measure_fast(tay, u[:, j * n:(j + 1) * n], nr[:, j * n:(j + 1) * n], nac[:, j * n:(j + 1) * n],
+                                face[:, j * n:(j + 1) * n], poly.mount_offset_arcsec, q, sr,
+                                ac.noise_arcsec, ac.resolution_arcsec) for j in range(reps)]
+        # each face's entry: the mean of its rounds (one round: as it is)
+        ys.append(rounds[0] if reps == 1 else np.mean(rounds, axis=0))
     y1, y2, y3, y4 = ys
     # every product row by row (_mul): a trial's numbers do not depend on its batch
     c_long = _mul(y1, p.pinv_long)
@@ -337,10 +356,11 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
     enc = Inductosyn(params=world_encoder_params(scenario=scenario))
     cal = scenario.calibration
     nl, ns = cal.long_polygon.faces, cal.short_polygon.faces
-    u, z = trial_draws(rng=trial_rng(seed=seed, trial=trial), n_long=nl, n_short=ns)
-    fl, fs, passes = split_draws(u=u, z=z, n_long=nl, n_short=ns)
-    fl = fl * cal.long_polygon.face_error_arcsec
-    fs = fs * cal.short_polygon.face_error_arcsec
+    reps = cal.repeats
+    u, z = trial_draws(rng=trial_rng(seed=seed, trial=trial), n_long=nl, n_short=ns, repeats=reps)
+    fl, fs, passes = split_draws(u=u, z=z, n_long=nl, n_short=ns, repeats=reps)
+    fl = np.tile(fl * cal.long_polygon.face_error_arcsec, reps)
+    fs = np.tile(fs * cal.short_polygon.face_error_arcsec, reps)
     faces = [fl, fl, fs, fs]
     world = world_alpha_arcsec(scenario=scenario, seed=seed, trials=[trial])
     if world is not None:
@@ -348,8 +368,14 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
     tables = []
     for draws, (poly, face) in zip(passes, ((cal.long_polygon, faces[0]), (cal.long_polygon, faces[1]),
                                             (cal.short_polygon, faces[2]), (cal.short_polygon, faces[3]))):
-        tables.append(measure_polygon(encoder=enc, polygon=poly, autocollimator=cal.autocollimator,
-                                      face_errors_arcsec=face, draws=draws))
+        n = poly.faces
+        rounds = [measure_polygon(encoder=enc, polygon=poly, autocollimator=cal.autocollimator,
+                                  face_errors_arcsec=face[j * n:(j + 1) * n],
+                                  draws=tuple(d[j * n:(j + 1) * n] for d in draws)) for j in range(reps)]
+        table = rounds[0]
+        if reps > 1:  # each face's entry: the mean of its rounds
+            table = table.assign(error_arcsec=np.mean([r.error_arcsec.to_numpy() for r in rounds], axis=0))
+        tables.append(table)
     seq = calibrate_in_sequence(long_angle_deg=tables[0].angle_deg.to_numpy(),
                                 long_error_arcsec=tables[0].error_arcsec.to_numpy(),
                                 short_angle_deg=tables[2].angle_deg.to_numpy(),

@@ -120,7 +120,8 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
 
 
 def study_group(study_name: str) -> click.Group:
-    """The click group of a registered study: ``validate``, ``robustness`` plus
+    """The click group of a registered study: ``validate``, ``robustness``, ``plan`` (where its
+    default scenario declares protocol knobs) plus
     :meth:`Study.commands` (a command of the study named ``validate`` replaces the plain one).
 
     The study module is imported only when the group is invoked (or asked for help).
@@ -138,6 +139,10 @@ def study_group(study_name: str) -> click.Group:
             from budget.runner.robustness import robustness_command_for
 
             self.add_command(robustness_command_for(study_name))
+            from budget.runner.plan import has_knobs, plan_command_for
+
+            if has_knobs(get_study(study_name)):  # a protocol with knobs: `plan` (budget.runner.plan)
+                self.add_command(plan_command_for(study_name))
             for cmd in get_study(study_name).commands():
                 self.add_command(cmd)
             from budget.runner.scenario_cmd import scenario_command_for  # every study's, with comments

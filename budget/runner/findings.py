@@ -28,9 +28,9 @@ Rules, in the order they are tried for one ``(class, variant, axis)``:
     ``|bias|`` and 3 standard errors of it are both below the class's
     :attr:`ClassSpec.numerical_floor`: "exact to numerical precision", never significant.
 ``recovers``
-    no significant bias (``|bias| <= 3 se`` or below the floor) and, where the estimator
-    states a 1-sigma, its coverage is consistent with 68.3 % (within 3 binomial standard
-    errors): recovered within its claim.
+    no significant bias (``|bias| <= 3 se`` or below the floor; for a one-sided claim, no
+    significant shortfall) and, where the estimator states a 1-sigma, its coverage is
+    consistent with 68.3 % (within 3 binomial standard errors): recovered within its claim.
 ``biased``
     a significant bias: "biased by b (p % of the truth)", the percentage only where the
     truth is far from zero against its spread (:func:`budget.runner.stats.key_statistics`).
@@ -39,6 +39,11 @@ Rules, in the order they are tried for one ``(class, variant, axis)``:
     far from zero: too few trials (or too large a spread) to call it recovered.
 A ``residual`` or ``stated`` class counts as held within its claim when its difference is
 not significant.
+
+A one-sided claim (:attr:`ClassSpec.at_most`: the estimate is a stated bound, the truth at or
+below it) is past its claim only when the estimate is significantly *below* the truth: a
+significant difference the other way (the bound above the actual) holds, and is said so
+("a bound that holds"), never "biased" or "pessimistic" as a failure.
 
 ``coverage``
     no significant bias, but the stated 1-sigma interval holds the truth in a fraction
@@ -135,6 +140,17 @@ def _coverage_ok(st: dict) -> bool | None:
     return abs(cov["within_1sigma"] - cov["expected_1sigma"]) <= 3.0 * cov["se_1sigma"]
 
 
+def _at_most(result, cls) -> bool:
+    """Whether the class's claim is one-sided (:attr:`ClassSpec.at_most`)."""
+    return bool(getattr(_spec(result, cls), "at_most", False))
+
+
+def _past_claim(result, key, st: dict) -> bool:
+    """A significant difference on the side the claim forbids: either side for a two-sided
+    claim, the estimate below the truth for a one-sided one (:attr:`ClassSpec.at_most`)."""
+    return bool(st["bias_significant"]) and (not _at_most(result, key[0]) or st["bias"] < 0)
+
+
 def _verdict(result, key, st: dict) -> str:
     role = st.get("role", "result")
     if role == "input":
@@ -147,10 +163,12 @@ def _verdict(result, key, st: dict) -> str:
         return "undetermined"
     if st.get("exact_to_numerical_precision"):
         return "exact"
-    if st["bias_significant"]:
+    if _past_claim(result, key, st):
         return "biased"
     if _coverage_ok(st) is False:
         return "coverage"
+    if st["bias_significant"]:  # a one-sided claim's bound, significantly above its truth: it holds
+        return "recovers"
     pct = st.get("bias_percent", float("nan"))
     if math.isfinite(pct) and 3.0 * st["se_bias"] > RESOLUTION * abs(st["truth"]):
         return "unresolved"
@@ -176,8 +194,12 @@ def _sentence(result, key, st: dict, verdict: str) -> str:
         return f"an input of the method ({with_unit(st['mean'], unit)}), taken as given: nothing to validate"
     if verdict == "stated":
         ratio = st["mean"] / st["truth"] if st["truth"] else float("nan")
-        word = ("consistent with it" if not st["bias_significant"]
-                else ("pessimistic (states more)" if b > 0 else "optimistic (states less)"))
+        if _at_most(result, cls):  # a stated bound: the actual at or below it holds
+            word = ("a bound that holds (the actual at or below it)" if not _past_claim(result, key, st)
+                    else "optimistic: the actual exceeds the stated bound")
+        else:
+            word = ("consistent with it" if not st["bias_significant"]
+                    else ("pessimistic (states more)" if b > 0 else "optimistic (states less)"))
         return (f"states {with_unit(st['mean'], unit)} against an actual {with_unit(st['truth'], unit)} "
                 f"(ratio {fmt(ratio)}, difference {with_pm(b, se, unit)}): {word}")
     if verdict == "residual":
@@ -199,6 +221,9 @@ def _sentence(result, key, st: dict, verdict: str) -> str:
                 f"(or too large a spread, {with_unit(st['std'], unit)}) to call it recovered")
     if verdict == "biased":
         s = f"biased by {with_pm(b, se, unit)}{pct_s} against {_truth_words(st, unit)}"
+    elif _at_most(result, cls) and st["bias_significant"]:
+        s = (f"a bound that holds: {with_pm(b, se, unit)} above {_truth_words(st, unit)} (the truth at or "
+             f"below the estimate), spread {with_unit(st['std'], unit)}")
     else:
         s = (f"recovered: bias {with_pm(b, se, unit)} against {_truth_words(st, unit)}, "
              f"spread {with_unit(st['std'], unit)}")
@@ -222,7 +247,7 @@ def findings(result) -> list[dict]:
         verdict = _verdict(result, key, st)
         cls, var, ax = key
         cause = None
-        held = verdict in _OK or (verdict in ("residual", "stated") and not st["bias_significant"])
+        held = verdict in _OK or (verdict in ("residual", "stated") and not _past_claim(result, key, st))
         if not held and verdict in ("biased", "coverage", "unresolved", "residual", "stated"):
             try:
                 cause = result.study.likely_cause(result, key, st)

@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 
-__all__ = ["finding", "format_table", "plot_estimates", "write_report"]
+__all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "write_report"]
 
 
 def _fmt(v: float) -> str:
@@ -76,64 +76,138 @@ def _plt():
     return plt
 
 
-def plot_estimates(result, path: Path) -> Path:
-    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked.
+#: histogram bins of one panel of ``estimates.png`` (shared by every variant of the panel)
+ESTIMATE_BINS = 30
 
-    Variants are drawn as outlines with their own line style and width (the widest first), so
-    that identical histograms stay visible; a reference variant is marked in the legend;
-    titles are wrapped, never clipped; a dimensionless class has no unit on its axis."""
+
+def _constant(x: np.ndarray, scale: float) -> bool:
+    """A sample every trial of which gives the same value (to 1e-9 of the compared values'
+    magnitude ``scale``: the rounding of an exact estimator)."""
+    return bool(x.size) and not float(np.ptp(x)) > 1e-9 * max(scale, 1e-300)
+
+
+def estimates_panels(result) -> list[dict]:
+    """What ``estimates.png`` draws, one entry per panel (class and axis): ``cls``, ``axis``,
+    ``errors`` (per-trial truths: estimate minus truth), ``truth`` (the line: 0 for errors),
+    ``edges`` (the bin edges every variant of the panel shares, None when no variant has a
+    spread), ``constants`` (variant -> the value every trial gives, drawn as a vertical line)
+    and ``samples`` (variant -> values, the histograms)."""
+    groups: dict = {}
+    for k in result.keys():
+        groups.setdefault((k[0], k[2]), []).append(k)
+    panels = []
+    for (cls, ax), ks in groups.items():
+        errors = all(k in result.trial_truths for k in ks)
+        samples, constants = {}, {}
+        for k in ks:
+            x = np.asarray(result.samples[k], dtype=float)
+            scale = float(np.max(np.abs(x))) if x.size else 0.0
+            if k in result.trial_truths:
+                t = np.asarray(result.trial_truths[k], dtype=float)
+                scale = max(scale, float(np.max(np.abs(t))) if t.size else 0.0)
+                x = x - t
+            x = x[np.isfinite(x)]
+            if _constant(x, scale):
+                constants[k[1]] = float(np.mean(x))
+            else:
+                samples[k[1]] = x
+        edges = None
+        if samples:
+            allv = np.concatenate(list(samples.values()))
+            edges = np.linspace(float(allv.min()), float(allv.max()), ESTIMATE_BINS + 1)
+        panels.append({"cls": cls, "axis": ax, "errors": errors,
+                       "truth": 0.0 if errors else result.truths[(cls, ax)].value,
+                       "edges": edges, "samples": samples, "constants": constants})
+    return panels
+
+
+def plot_estimates(result, path: Path, fdata: dict | None = None):
+    """Histograms of the estimates (errors, for per-trial truths) of every key, truth marked;
+    returns the path with its caption (:func:`estimates_caption`, from what is drawn).
+
+    Every variant of a panel is binned on the same edges (:data:`ESTIMATE_BINS` between the
+    panel's smallest and largest value), so their histograms compare; a variant whose every
+    trial gives the same value (an exact or a reference estimator, an input) has no histogram
+    and is drawn as a vertical line of its colour, its value in the legend. Variants are
+    outlines with their own line style and width (the widest first), so that identical
+    histograms stay visible; a reference variant is marked in the legend; titles are wrapped,
+    never clipped; a dimensionless class has no unit on its axis."""
     import textwrap
 
-    from budget.runner.findings import _unit
+    from budget.figures import save
+    from budget.runner.findings import _unit, fmt
 
     plt = _plt()
-    keys = result.keys()
-    groups: dict = {}
-    for k in keys:
-        groups.setdefault((k[0], k[2]), []).append(k)
-    n = len(groups)
+    panels = estimates_panels(result)
+    n = len(panels)
     ncol = min(3, n)
     nrow = math.ceil(n / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.8 * ncol, 3.7 * nrow), squeeze=False)
     styles = [("-", 2.6), ("--", 1.8), (":", 1.4), ("-.", 1.2)]
     refs = set(getattr(result.study, "reference_variants", ()))
-    for ax_, ((cls, ax), ks) in zip(axes.flat, groups.items()):
-        spec = result.class_spec(cls)
+    variants = list(result.study.variants)
+    for ax_, p in zip(axes.flat, panels):
+        spec = result.class_spec(p["cls"])
         unit = _unit(spec.unit)
         unit_s = "" if unit in ("", "1") else f" ({unit})"
-        for i, k in enumerate(ks):
-            x = result.samples[k]
-            if k in result.trial_truths:
-                x = x - result.trial_truths[k]
-            # a constant (or numerically constant) sample has no 30 finite bins
-            flat = not np.ptp(x) > 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
+        ax_.axvline(p["truth"], color="k", lw=1, label="truth (error 0)" if p["errors"] else "truth")
+        for var in [v for v in variants if v in p["samples"] or v in p["constants"]]:
+            i = variants.index(var)
             ls, lw = styles[i % len(styles)]
-            ax_.hist(x, bins=1 if flat else 30, histtype="step", linestyle=ls, linewidth=lw,
-                     label=k[1] + (" (reference)" if k[1] in refs else ""))
-        if all(k in result.trial_truths for k in ks):
-            ax_.axvline(0.0, color="k", lw=1, label="truth (error 0)")
-            ax_.set_xlabel(f"estimate - truth{unit_s}")
+            label = var + (" (reference)" if var in refs else "")
+            if var in p["samples"]:
+                ax_.hist(p["samples"][var], bins=p["edges"], histtype="step", linestyle=ls, linewidth=lw,
+                         color=f"C{i}", label=label)
+            else:
+                # every trial the same value: a line, not a one-bin spike of arbitrary width
+                ax_.axvline(p["constants"][var], color=f"C{i}", linestyle=ls if ls != "-" else (0, (6, 3)),
+                            linewidth=lw, label=f"{label}: every trial {fmt(p['constants'][var])}")
+        ax_.set_xlabel(f"estimate - truth{unit_s}" if p["errors"] else f"estimate{unit_s}")
+        if p["samples"]:
+            ax_.set_ylabel("trials")
         else:
-            t = result.truths[(cls, ax)].value
-            ax_.axvline(t, color="k", lw=1, label="truth")
-            ax_.set_xlabel(f"estimate{unit_s}")
-        ax_.set_ylabel("trials")
-        ax_.set_title("\n".join(textwrap.wrap(f"{spec.label} ({ax})", 48)), fontsize=9)
+            ax_.set_yticks([])  # lines only: no counts to read
+            v = [p["truth"], *p["constants"].values()]
+            pad = 0.5 * (max(v) - min(v)) or 0.5 * max(abs(max(v)), abs(min(v))) or 1.0
+            ax_.set_xlim(min(v) - pad, max(v) + pad)
+        ax_.set_title("\n".join(textwrap.wrap(f"{spec.label} ({p['axis']})", 48)), fontsize=9)
         ax_.legend(fontsize=7)
     for ax_ in list(axes.flat)[n:]:
         ax_.set_visible(False)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    caption = estimates_caption(result, fdata, panels) if fdata is not None else ""
+    return save(fig, path, caption, dpi=110)
 
 
-def estimates_caption(result, fdata: dict) -> str:
-    """The estimates figure's caption: what it shows, and its finding (from the findings)."""
+def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> str:
+    """The estimates figure's caption: what it shows (from ``panels``, what
+    :func:`plot_estimates` draws: the shared bins, the constant samples drawn as lines) and
+    its finding (from the findings)."""
+    from budget.runner.findings import with_unit
+
+    panels = estimates_panels(result) if panels is None else panels
     biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
                      if f["rule"] == "biased"})
+    binned = [p for p in panels if p["edges"] is not None]
     s = ("Each panel: the estimates of one class and axis over the trials (for per-trial truths, estimate "
-         "minus the trial's truth), one outline per variant; the black line is the truth.")
+         "minus the trial's truth), one outline per variant")
+    if binned:
+        widths = [float(p["edges"][1] - p["edges"][0]) for p in binned]
+        s += (f", every variant of a panel on the same {ESTIMATE_BINS} bins between the panel's smallest and "
+              f"largest value")
+        if len(binned) == 1:
+            spec = result.class_spec(binned[0]["cls"])
+            s += f" (bin width {with_unit(widths[0], spec.unit)})"
+    s += "; the black line is the truth."
+    const = [(p, v, c) for p in panels for v, c in p["constants"].items()]
+    if const:
+        by_value: dict = {}
+        for p, v, c in const:
+            spec = result.class_spec(p["cls"])
+            by_value.setdefault((p["cls"], p["axis"], c, spec.unit), []).append(v)
+        items = [f"{cls} ({ax}) {' and '.join(vs)} {with_unit(c, unit)}"
+                 for (cls, ax, c, unit), vs in by_value.items()]
+        s += (" Every trial gives the same value, drawn as a vertical line of the variant's colour "
+              "(no histogram): " + "; ".join(items) + ".")
     if biased:
         s += " Off the line (significantly biased): " + ", ".join(biased) + "."
     else:
@@ -196,8 +270,8 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                   "numerical floor (`exact` below it); `ref` marks a reference variant that does not estimate, "
                   "`n/d` a quantity the data cannot determine; `bias %` only where the truth is far from zero "
                   "against its spread.", "",
-                  "![estimates](estimates.png)", "", estimates_caption(result, fdata), ""]
-        plot_estimates(result, tmp / "estimates.png")
+                  "![estimates](estimates.png)", "",
+                  plot_estimates(result, tmp / "estimates.png", fdata).caption, ""]
         for sec in study.report_sections(result, tmp):
             lines += [f"## {sec.title}", "", sec.markdown, ""]
             for fig in sec.figures:

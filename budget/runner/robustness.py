@@ -32,7 +32,9 @@ trials whose error is within it:
 * the bias part: with a claimed accuracy ``A`` (:meth:`Study.claim`, in the class unit),
   ``|b| + 3 se <= A``; without one, the method claims to be unbiased: ``|b| <= 3 se``
   (a bias below ``1e-9`` of the compared values' magnitude counts as rounding, for a
-  deterministic estimator whose ``se`` is 0);
+  deterministic estimator whose ``se`` is 0). A one-sided claim (:attr:`ClassSpec.at_most`:
+  the estimate is a stated bound, the truth at or below it) puts the shortfall ``-b`` in
+  place of ``|b|``: ``-b <= 3 se`` (``-b + 3 se <= A``), an estimate above the truth holds;
 * the coverage part, where a sigma is stated: ``|c - 0.6827| <= 3 sqrt(0.6827 * 0.3173 / m)``
   (the binomial 3-standard-error band for ``m`` trials);
 * ``claim_holds`` = both parts; ``null`` for a class of role ``"residual"`` (what a
@@ -83,19 +85,27 @@ def coverage_consistent(coverage_1sigma: float, n: int) -> bool:
     return abs(coverage_1sigma - EXPECTED_1SIGMA) <= 3.0 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / n)
 
 
+def _off(bias: float, at_most: bool) -> float:
+    """How far an estimate is off its claim's side: ``|b|`` (two-sided) or the shortfall
+    ``-b`` below the truth (one-sided, :attr:`ClassSpec.at_most`; negative when above)."""
+    return -bias if at_most else abs(bias)
+
+
 def claim_holds(*, bias: float, se_bias: float, claim: float | None = None, coverage_1sigma: float | None = None,
-                coverage_n: int = 0, scale: float = 0.0) -> bool:
+                coverage_n: int = 0, scale: float = 0.0, at_most: bool = False) -> bool:
     """Whether a method's claim holds on one key (the module docstring's definition).
 
     ``scale`` is the magnitude of the compared values (truth, mean): with ``se_bias`` 0 a bias
-    within ``1e-9 scale`` is rounding.
+    within ``1e-9 scale`` is rounding. ``at_most``: a one-sided claim (the estimate a bound
+    the truth stays at or below, :attr:`ClassSpec.at_most`).
     """
     if not math.isfinite(bias):
         return False
+    off = _off(bias, at_most)
     if claim is None:
-        ok = abs(bias) <= 3.0 * se_bias + ROUNDING * abs(scale)
+        ok = off <= 3.0 * se_bias + ROUNDING * abs(scale)
     else:
-        ok = abs(bias) + 3.0 * se_bias <= claim
+        ok = off + 3.0 * se_bias <= claim
     if coverage_1sigma is not None:
         ok = ok and coverage_n > 0 and coverage_consistent(coverage_1sigma, coverage_n)
     return bool(ok)
@@ -104,14 +114,14 @@ def claim_holds(*, bias: float, se_bias: float, claim: float | None = None, cove
 def _severity(cell: dict) -> float:
     """How far a cell is past its claim (> 1: beyond): the larger of the bias's ratio to its
     threshold and the coverage's distance from 68.27 % in 3-se bands."""
-    b, se, claim = abs(cell["bias"]), cell["se_bias"], cell["claim"]
+    b, se, claim = _off(cell["bias"], cell.get("at_most", False)), cell["se_bias"], cell["claim"]
     if not math.isfinite(b):
         return math.inf
     if claim is not None:
         r = (b + 3 * se) / claim if claim > 0 else math.inf
     else:
         thr = 3 * se + ROUNDING * cell["scale"]
-        r = b / thr if thr > 0 else (0.0 if b == 0 else math.inf)
+        r = b / thr if thr > 0 else (0.0 if b <= 0 else math.inf)
     if cell["coverage_1sigma"] is not None and cell["coverage_n"]:
         band = 3 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / cell["coverage_n"])
         r = max(r, abs(cell["coverage_1sigma"] - EXPECTED_1SIGMA) / band)
@@ -364,11 +374,11 @@ class RobustnessResult:
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
                         "se_coverage_1sigma": cov["se_1sigma"] if cov else None,
                         "coverage_n": cov["n"] if cov else 0, "claim": claim,
-                        "scale": max(abs(st["truth"]), abs(st["mean"]))}
+                        "scale": max(abs(st["truth"]), abs(st["mean"])), "at_most": spec.at_most}
                 cell["determined"] = st.get("determined") is not False
                 cell["claim_holds"] = None if no_claim else claim_holds(
                     bias=cell["bias"], se_bias=cell["se_bias"], claim=claim, coverage_1sigma=cell["coverage_1sigma"],
-                    coverage_n=cell["coverage_n"], scale=cell["scale"])
+                    coverage_n=cell["coverage_n"], scale=cell["scale"], at_most=spec.at_most)
                 cell["shift"], cell["se_shift"] = self._shift(key, res, ideal, case)
                 row[key] = cell
             out[case.name] = row
@@ -624,7 +634,9 @@ CLAIM_HOLDS_TEXT = (
     "A claim holds when the bias is within 3 combined standard errors of zero (where the method "
     "states an accuracy A: when |bias| + 3 se <= A) and, where the variant states a 1-sigma "
     "uncertainty, its 1-sigma coverage is within the binomial 3-standard-error band of 68.27 % "
-    "for the trial count; a residual has no claim.")
+    "for the trial count; a residual has no claim. A one-sided claim (a stated bound the actual "
+    "stays at or below) holds when the estimate is not below the truth by more than 3 standard "
+    "errors (-bias in place of |bias|).")
 
 
 # ---------------------------------------------------------------------- the command

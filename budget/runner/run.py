@@ -259,7 +259,7 @@ def with_targets(truths: dict, targets: dict) -> dict:
 def run_study(study: Study, scenario: Any, *, trials: int | None = None, tolerance: float | None = None,
               seed: int = 0, workers: int | None = 1, scheduler: str | None = None,
               dask_local: int | None = None, progress: bool = False, prewarm: bool = True,
-              truth_size: str = "adaptive", truths: dict | None = None) -> StudyResult:
+              truth_size: str = "adaptive", truths: dict | None = None, executor=None) -> StudyResult:
     """Run ``study`` on ``scenario`` (see the module docstring).
 
     Parameters
@@ -285,6 +285,10 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     truths : dict, optional
         The truths, computed before (with this seed, by :meth:`Study.truths`): nothing is
         computed for them here (a sweep shares one truth among points).
+    executor : budget.runner.executors.Executor, optional
+        An executor already started by the caller (its workers set up with this study's
+        ``worker_init``): the run uses it and leaves it running (a caller that runs many
+        candidates starts one pool); ``workers``, ``scheduler`` and ``dask_local`` are then ignored.
     """
     import time
 
@@ -315,8 +319,12 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         # so that they load them from numba's cache instead of each compiling them again
         # (a remote cluster's workers have their own caches)
         study.prewarm(scenario)
-    executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
-                             initializer=_worker_init, initargs=(study,))
+    import contextlib
+
+    own = executor is None
+    if own:
+        executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
+                                 initializer=_worker_init, initargs=(study,))
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
@@ -346,7 +354,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             tasks += [(study, truth_scn, seed, ("truth", i, p)) for i, p in enumerate(parts)]
         state["started"] = True
 
-    with executor:
+    with executor if own else contextlib.nullcontext(executor):
         if progress:
             from tqdm import tqdm
 

@@ -80,6 +80,13 @@ Truth sizing and sharing (what a truth costs follows the question):
 World effects (``budget <study> robustness``, :mod:`budget.runner.robustness`):
 :meth:`Study.truth_depends_on_effects` (the effects whose change changes the truths; default
 all) and :meth:`Study.claim` (the accuracy a method claims for a class; default: unbiased).
+A claim is two-sided (the estimate equals the truth within its uncertainty) unless the class
+says ``ClassSpec(at_most=True)``: the estimate is a stated bound (a largest error, a 3-sigma
+maximum) and the claim is one-sided, the truth (the actual) at or below it. It then holds
+when the estimate is not significantly *below* the truth (``-bias <= 3 se``; with a claimed
+accuracy ``A``, ``-bias + 3 se <= A``), however far above; the findings
+(:mod:`budget.runner.findings`) and the robustness verdicts
+(:func:`budget.runner.robustness.claim_holds`) both read it.
 
 Protocol planning (``budget <study> plan``, :mod:`budget.runner.plan`):
 :meth:`Study.protocol_knobs` (the fields a lab chooses, :class:`Knob`, with bounds; none by
@@ -188,6 +195,11 @@ class ClassSpec:
         "exact to numerical precision", never significant (:mod:`budget.runner.findings`).
     undetermined : tuple of str
         Axes the data cannot determine (a gauge freedom): reported "not determined", no sigma.
+    at_most : bool
+        The claim is one-sided: the estimate is a stated bound on the truth (the line camera's
+        largest stated 3-sigma against the largest actual error), so it holds when the truth is
+        at or below the estimate within the Monte Carlo uncertainty, not only when they are
+        equal. False (the default): two-sided, the estimate claims to equal the truth.
     """
 
     name: str
@@ -199,6 +211,7 @@ class ClassSpec:
     role: str = "result"
     numerical_floor: float = 0.0
     undetermined: tuple[str, ...] = ()
+    at_most: bool = False
 
     def __post_init__(self) -> None:
         if self.role not in CLASS_ROLES:
@@ -437,7 +450,8 @@ class Study(ABC):
     def claim(self, scenario: Any, class_name: str, variant: str) -> float | None:
         """The accuracy the method claims for ``class_name`` with ``variant``, in the class's
         unit (a bound on the bias); None (the default): it claims to be unbiased within its
-        Monte Carlo uncertainty (:func:`budget.runner.robustness.claim_holds`)."""
+        Monte Carlo uncertainty (:func:`budget.runner.robustness.claim_holds`). For a class with
+        :attr:`ClassSpec.at_most` the bound is on how far the estimate may fall below the truth."""
         return None
 
     # ------------------------------------------------------------ protocol planning

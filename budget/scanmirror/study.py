@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
 
 __all__ = ["ScanMirrorStudy", "STUDY"]
 
@@ -128,6 +128,43 @@ class ScanMirrorStudy(Study):
         the world, and ``dtau``'s truth is per trial (the world's deviation at the dwell,
         effects included, returned by each trial)."""
         return set()
+
+    # ------------------------------------------------------------ protocol planning
+    def protocol_knobs(self, scenario) -> tuple[Knob, ...]:
+        """Star dwells per star-sensing segment (``star_sensing.dwells``, 1 to 10: one dwell
+        with at least one star is what every estimator needs, the paper flies one; a trial
+        costs about 4 ms more per extra dwell), and frames per dwell
+        (``star_sensing.frames_per_dwell``, 1 to 20: one frame already determines the
+        deviation, the tracker's angles having their stated prior) only where a frame costs
+        time (``star_sensing.frame_time_s > 0``): with 0 the dwell lasts as written whatever
+        its frames, each at the stated centroid sigma, and more frames would be free."""
+        knobs = [Knob("star_sensing.dwells", "int", 1, 10, "dwells",
+                      "star-sensing dwells at each star-sensing segment, each after a scan-angle step")]
+        if scenario.star_sensing.frame_time_s > 0:
+            knobs.append(Knob("star_sensing.frames_per_dwell", "int", 1, 20, "frames",
+                              "frames read out in each star dwell (each lasts frames x frame_time_s)"))
+        return tuple(knobs)
+
+    def lab_time_s(self, scenario) -> dict[str, float]:
+        """The imaging time the star sensing takes, by item: the star dwells (each
+        ``frames_per_dwell * frame_time_s``, or as written when ``frame_time_s`` is 0, times
+        ``dwells``), the moves between dwells (``dwells - 1`` of ``extra_dwell_move_s``) and
+        the slews to and from the star-sensing position (the plan's move segments right
+        before and after each star-sensing dwell). The area scans are the mission's, not the
+        protocol's."""
+        ss = scenario.star_sensing
+        segs = scenario.scan_plan.segments
+        dwell = move = 0.0
+        slews = set()  # a move between two star dwells counts once
+        for i, seg in enumerate(segs):
+            if seg.kind != "dwell" or not seg.star_sensing:
+                continue
+            one = ss.frames_per_dwell * ss.frame_time_s if ss.frame_time_s > 0 else seg.duration_s
+            dwell += ss.dwells * one
+            move += (ss.dwells - 1) * ss.extra_dwell_move_s
+            slews.update(j for j in (i - 1, i + 1) if 0 <= j < len(segs) and segs[j].kind == "move")
+        slew = sum(segs[j].accel_s + segs[j].const_s + segs[j].decel_s for j in sorted(slews))
+        return {"star dwells": dwell, "moves between dwells": move, "slews to and from the stars": slew}
 
     # ------------------------------------------------------------ report and commands
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:

@@ -128,7 +128,8 @@ class ProtocolData:
         if cached is None:
             parts = []
             for table, index, field_label in self.truth_parts:
-                tr = table.copy()
+                # a condition's scene (simcam.starcam.render.Scene: its table is built on first use) or a table
+                tr = (table if isinstance(table, pd.DataFrame) else table.truth).copy()
                 tr["condition"] = index
                 tr["field"] = field_label
                 parts.append(tr)
@@ -274,7 +275,7 @@ def simulate(
                 wins[c.index] = win
         for name in ("x0", "y0", "star", "frame", "cond", "filt", "field"):
             cols[name].append(cc[name])
-        truths.append((scene.truth, c.index, c.field))
+        truths.append((scene, c.index, c.field))  # the scene's truth table only when asked for
     extra = {"condition": np.concatenate(cols["cond"])}
     if any(c.filter_nm is not None for c in plan.conditions):
         extra["filter_nm"] = np.concatenate(cols["filt"])

@@ -49,7 +49,7 @@ def prewarm(scenario) -> None:
     opts = json.dumps({"fused": fused, "windows": windows})
     from simcam.starcam.kernels import windows as kw
 
-    check = [kp.folded_stamp_spectra, kw.add_stamps_windows]
+    check = [kp.folded_stamp_spectra, kp.stamp_profiles, kp.shifted_stamp_spectra, kw.add_stamps_windows]
     check += [kt.expose_centroid_frames_serial, kt.expose_centroid_drift_serial] if fused else []
     check += [kd.expose_windows_frames_serial] if windows else []
     with compiling_in_parallel([("budget.starcam.warm:compile_support", opts)], check=check) as cold:
@@ -109,7 +109,7 @@ def compile_stamps_and_exposure(arg: str) -> None:
     from simcam.detector import DetectorParams, expose_windows_frames, window_chain
     from simcam.rng import child_keys
     from simcam.starcam.kernels.windows import add_stamps_windows
-    from simcam.starcam.optics import render_stamps
+    from simcam.starcam.optics import render_shifted_stamps, render_stamps, stamp_profiles
 
     opts = json.loads(arg)
     n, n_l = 2, 3
@@ -117,6 +117,12 @@ def compile_stamps_and_exposure(arg: str) -> None:
                   sigma_px=np.full(n, 0.8), pinhole_radius_px=0.3, wavelength_nm=np.array([500.0, 600.0, 700.0]),
                   weights=np.full((n, n_l), 1.0 / n_l), shift_x_px=np.zeros((n, n_l)),
                   shift_y_px=np.zeros((n, n_l)), parallel=False)
+    # the profile stamp route (render.stamp_route = "profile")
+    prof = stamp_profiles(stamp_px=8, psf_kind="gaussian", sigma_px=np.full(n, 0.8), pinhole_radius_px=0.3,
+                          wavelength_nm=np.array([500.0, 600.0, 700.0]), weights=np.full((n, n_l), 1.0 / n_l),
+                          shift_x_px=np.zeros((n, n_l)), shift_y_px=np.zeros((n, n_l)))
+    render_shifted_stamps(prof, x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), sigma_px=np.full(n, 0.8),
+                          mean_shift_x_px=np.zeros(n), mean_shift_y_px=np.zeros(n))
     h = w = 5
     params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
                             adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)

@@ -243,9 +243,21 @@ class CalibrationParams(StrictModel):
     ----------
     requirement_arcsec : the pointing requirement; a compensation is accepted when its
         verification 3 sigma is within ``requirement_arcsec / 3`` (section 3.1).
+    repeats : rounds of each pass (the lab's choice): the polygon is read round ``repeats``
+        times in a row and each face's table entry is the mean of its rounds (fresh stops,
+        quantisation phases, reading and autocollimator noise each round; the same polygon
+        and mounting). Seed 001 reads each face once (1).
+    face_time_s : lab time per face reading: rotate to the next face, settle, read.
+    pass_setup_s : lab time between two passes: compensation upload, polygon change.
+        Seed 001 gives no times; 60 s and 900 s are stated-typical values for a manual
+        polygon calibration (engineering estimate). The world's drifts run on this timeline
+        (:func:`simcam.encoder.polygon.pass_times_s`); the planner's lab time is its sum.
     """
 
     requirement_arcsec: float = Field(10.0, gt=0)
+    repeats: int = Field(1, ge=1, le=100)
+    face_time_s: float = Field(60.0, gt=0)
+    pass_setup_s: float = Field(900.0, ge=0)
     long_polygon: PolygonParams = PolygonParams(faces=24)
     short_polygon: PolygonParams = PolygonParams(faces=23)
     autocollimator: AutocollimatorParams = AutocollimatorParams()
@@ -309,10 +321,10 @@ class InductosynWorld(WorldBase):
     reads it; the simulator (:mod:`simcam.encoder.polygon`) and the truth
     (:func:`world_encoder_params`) do.
 
-    * ``face_time_s``: time per face (rotate, settle, read); ``pass_setup_s``: time between
-      passes (compensation upload, polygon change). The four passes run in the order long
-      raw, long verify, short raw, short verify; the drifts start at 0 at the first reading
-      (the truth is the encoder at the start of the calibration).
+    * The drifts run over the session the protocol's times give (``calibration.face_time_s``,
+      ``calibration.pass_setup_s``; the four passes in the order long raw, long verify,
+      short raw, short verify) and start at 0 at the first reading (the truth is the
+      encoder at the start of the calibration).
     * ``pyramidal_error_arcsec``: 1 sigma of the faces' pyramidal errors gamma_i.
     * ``face_curvature_arcsec_per_mm``: change of a face's normal per mm along the face
       (1/R of a spherical face; lambda/10 over a 20 mm face is about 0.25 arcsec/mm).
@@ -323,8 +335,6 @@ class InductosynWorld(WorldBase):
     """
 
     effects: InductosynEffects = InductosynEffects()
-    face_time_s: float = Field(60.0, gt=0)
-    pass_setup_s: float = Field(900.0, ge=0)
     pyramidal_error_arcsec: float = Field(5.0, ge=0)
     face_curvature_arcsec_per_mm: float = Field(0.5, ge=0)
     nonharmonic_max_order: int = Field(72, ge=3, le=2000)

@@ -250,13 +250,16 @@ def autocollimator_error_arcsec(*, rng: np.random.Generator, t_s, noise_arcsec: 
 
 def pass_times_s(*, scenario: InductosynScenario) -> list[np.ndarray]:
     """Reading times (s from the first reading) of the four passes: long raw, long verify,
-    short raw, short verify; ``world.face_time_s`` per face, ``world.pass_setup_s`` between."""
-    w = scenario.world
+    short raw, short verify; ``calibration.face_time_s`` per face, ``calibration.pass_setup_s``
+    between.
+    A pass of ``calibration.repeats`` rounds reads its ``repeats * faces`` faces in a row
+    (round-major: the faces of round 0, then of round 1, ...)."""
     cal = scenario.calibration
+    r = cal.repeats
     out, start = [], 0.0
     for n in (cal.long_polygon.faces, cal.long_polygon.faces, cal.short_polygon.faces, cal.short_polygon.faces):
-        out.append(start + np.arange(n) * w.face_time_s)
-        start = out[-1][-1] + w.face_time_s + w.pass_setup_s
+        out.append(start + np.arange(r * n) * cal.face_time_s)
+        start = out[-1][-1] + cal.face_time_s + cal.pass_setup_s
     return out
 
 
@@ -274,7 +277,8 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     """What the world adds to the autocollimator deviation ``alpha`` of each pass (arcsec).
 
     For trials ``trials`` (a sequence of trial numbers) returns four arrays (long raw, long
-    verify, short raw, short verify) of shape ``(len(trials), faces)``, or None when every
+    verify, short raw, short verify) of shape ``(len(trials), repeats * faces)`` (round-major,
+    ``calibration.repeats`` rounds of the pass, :func:`pass_times_s`), or None when every
     rig effect is 0 (then the tables are today's, bit for bit). Terms (magnitudes in
     ``world.effects``):
 
@@ -304,7 +308,9 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
         return None
     cal = scenario.calibration
     polys = (cal.long_polygon, cal.long_polygon, cal.short_polygon, cal.short_polygon)
-    angles = [nominal_face_angles_deg(faces=pp.faces) for pp in polys]
+    reps = cal.repeats
+    # each pass reads its faces round after round (round-major; one round: the faces once)
+    angles = [np.tile(nominal_face_angles_deg(faces=pp.faces), reps) for pp in polys]
     times = pass_times_s(scenario=scenario)
     t_all = np.concatenate(times)
     sizes = [a.size for a in angles]
@@ -315,8 +321,8 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     for key, poly in (("long", cal.long_polygon), ("short", cal.short_polygon)):
         z = ri.standard_normal(poly.faces)
         g = ri.standard_normal(poly.faces)
-        fixed[key] = (certified_face_errors_arcsec(z=z, u_arcsec=eff.polygon_face_error_arcsec),
-                      g * w.pyramidal_error_arcsec / ARCSEC_PER_RAD)
+        fixed[key] = (np.tile(certified_face_errors_arcsec(z=z, u_arcsec=eff.polygon_face_error_arcsec), reps),
+                      np.tile(g * w.pyramidal_error_arcsec / ARCSEC_PER_RAD, reps))
     keys = ("long", "long", "short", "short")
     basis = [_thermal_basis(a, scenario.encoder.pole_pairs) for a in angles]
     radius_mm = math.inf if w.face_curvature_arcsec_per_mm == 0 else ARCSEC_PER_RAD / w.face_curvature_arcsec_per_mm

@@ -20,7 +20,9 @@ EMVA Standard 1288 release 4.0 (2021) (linear camera model):
 * PRNU: ``g = max(0, 1 + prnu_rms * z1)``, ``z1 ~ N(0, 1)``;
 * dark signal with DSNU: ``d = max(0, dark_e + dsnu_rms_e * z2)`` plus
   ``hot_dark_e`` if ``u3 < hot_fraction`` (``u3 ~ U(0, 1)``);
-* charge: ``n = Poisson(signal_e * g + d)`` (or its mean without shot noise), clipped at
+* integral non-linearity of the mean charge ``s = signal_e * g + d`` when ``beta != 0``:
+  ``s (1 - beta min(s, FW) / FW)`` (:func:`simcam.detector.apply_nonlinearity`);
+* charge: ``n = Poisson(s)`` (or its mean without shot noise), clipped at
   the full well ``full_well_e[k]`` (the pixel's charge capacity, Janesick 2007);
 * read noise added at the output amplifier: ``n + read_noise_e[k] * z4``;
 * ADC: ``DN = n / gain_e_per_dn[k] + offset_dn[k]``, quantised as
@@ -41,7 +43,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from simcam.rng import SLOT_BITS, DRAW_BITS, poisson_prepared, poisson_setup, std_normal, uniform01
+from simcam.rng import SLOT_BITS, DRAW_BITS, poisson, poisson_prepared, poisson_setup, std_normal, uniform01
 
 SLOT_PRNU = 0
 SLOT_DSNU = 1
@@ -118,12 +120,102 @@ def expose_row(signal_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_pe
                    max_dn)
 
 
+#: Pixels per chunk of :func:`expose_block` (three float64 scratch rows of 4 kB: L1-resident).
+_CHUNK = 512
+
+
+@njit(cache=True, inline="always")
+def _chain_chunk(sig, out, pixel0, m, z, n, g, off, rn, fw, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                 hot_dark_e, beta, max_signal_e, frame_key, detector_key, shot_noise, read_noise,
+                 quantize, max_dn):
+    """The chain of :func:`expose_block` for ``len(sig)`` consecutive pixels of one chip from
+    mosaic pixel ``pixel0``: the random draws in loops of their own (the generator's
+    branches and table look-ups), the arithmetic between them in plain loops that the
+    compiler vectorises. The operations on each pixel and their order are those of
+    :func:`prnu_value`, :func:`dark_value`, :func:`nonlinearity_windows` and
+    :func:`_noise_adc_prepared` (so the same values). Returns 1 if a ``sig`` value is
+    outside ``[0, max_signal_e]`` or NaN, else 0."""
+    k = sig.shape[0]
+    bad = False
+    for jj in range(k):
+        s = sig[jj]
+        bad |= not (s >= 0.0 and s <= max_signal_e)
+    # mean charge S g + d (prnu_value, dark_value)
+    if prnu_rms == 0.0:
+        for jj in range(k):
+            m[jj] = sig[jj] * 1.0
+    else:
+        for jj in range(k):
+            z[jj] = std_normal(detector_key, slot_counter(pixel0 + jj, SLOT_PRNU))
+        for jj in range(k):
+            gg = 1.0 + prnu_rms * z[jj]
+            m[jj] = sig[jj] * (gg if gg > 0.0 else 0.0)
+    if dsnu_rms_e > 0.0:
+        for jj in range(k):
+            z[jj] = std_normal(detector_key, slot_counter(pixel0 + jj, SLOT_DSNU))
+        for jj in range(k):
+            d = dark_e + dsnu_rms_e * z[jj]
+            z[jj] = 0.0 if d < 0.0 else d
+    else:
+        for jj in range(k):
+            z[jj] = dark_e
+    if hot_fraction > 0.0:
+        for jj in range(k):
+            if uniform01(detector_key, slot_counter(pixel0 + jj, SLOT_HOT)) < hot_fraction:
+                z[jj] += hot_dark_e
+    for jj in range(k):
+        m[jj] = m[jj] + z[jj]
+    if beta != 0.0:
+        for jj in range(k):
+            v = m[jj]
+            mn = v if v <= fw else fw
+            m[jj] = v * (1.0 - beta * mn / fw)
+    # temporal noise (_noise_adc_prepared): count, full well, read noise, ADC
+    if shot_noise:
+        for jj in range(k):
+            n[jj] = np.float64(poisson(m[jj], frame_key, slot_counter(pixel0 + jj, SLOT_SHOT)))
+    else:
+        for jj in range(k):
+            n[jj] = m[jj]
+    for jj in range(k):
+        v = n[jj]
+        n[jj] = v if not v > fw else fw
+    if read_noise:
+        for jj in range(k):
+            z[jj] = std_normal(frame_key, slot_counter(pixel0 + jj, SLOT_READ))
+        for jj in range(k):
+            n[jj] += rn * z[jj]
+    if quantize:
+        for jj in range(k):
+            v = math.floor(n[jj] / g + off + 0.5)
+            if v < 0.0:
+                v = 0.0
+            elif v > max_dn:
+                v = max_dn
+            out[jj] = v
+    else:
+        for jj in range(k):
+            out[jj] = n[jj] / g + off
+    return 1 if bad else 0
+
+
 @njit(parallel=True, cache=True)
 def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
                  read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
-                 hot_dark_e, frame_key, detector_key, shot_noise, read_noise, quantize,
-                 max_dn, out):
-    """Detector chain for a rectangular block; rows in parallel; writes ``out``.
+                 hot_dark_e, nonlinearity_beta, max_signal_e, frame_key, detector_key, shot_noise,
+                 read_noise, quantize, max_dn, out):
+    """Whole detector chain of a rectangular block in one pass over it; rows in parallel.
+
+    Per pixel, with nothing stored but the output (512-pixel chunks of a row through L1
+    scratch, :func:`_chain_chunk`): the mean charge ``S g + d`` (PRNU, dark, DSNU, hot
+    pixels), the integral non-linearity ``s (1 - beta min(s, FW) / FW)`` when
+    ``nonlinearity_beta`` is not 0 (:func:`nonlinearity_windows`, same operations), then
+    the Poisson draw, full well, read noise, gain, quantisation and clipping
+    (:func:`_noise_adc_pixel`). The same expressions in the same order as the window
+    route (:func:`mean_charge_windows`, :func:`nonlinearity_windows`,
+    :func:`noise_adc_frames`), so the same pixels bit for bit; the random numbers are
+    functions of the pixel index and the keys only, so the row split over threads does
+    not change them.
 
     Parameters
     ----------
@@ -138,6 +230,10 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
     prnu_rms, dark_e, dsnu_rms_e, hot_fraction, hot_dark_e : float
         PRNU rms (fraction), mean dark (e-), DSNU rms (e-), hot-pixel fraction and
         excess dark (e-).
+    nonlinearity_beta : float
+        Integral non-linearity coefficient (0: the linear camera).
+    max_signal_e : float
+        Largest valid ``signal_e``; the input check rides on the same pass.
     frame_key, detector_key : uint64
         Stream keys.
     shot_noise, read_noise, quantize : bool
@@ -146,13 +242,35 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
         ``2**adc_bits - 1``.
     out : ndarray, shape (h, w)
         Output (uint16/uint32 when quantising, float64 otherwise).
+
+    Returns
+    -------
+    int
+        Number of rows with a value of ``signal_e`` outside ``[0, max_signal_e]`` or NaN
+        (the caller rejects the input then; every pixel is still computed, the generator
+        being total: no loop runs forever on such a value).
     """
-    h = signal_e.shape[0]
+    h, w = signal_e.shape
+    bad_row = np.zeros(h, dtype=np.int64)
     for i in prange(h):
-        expose_row(signal_e[i], out[i], row0 + i, col0, mosaic_cols, chip_cols,
-                   gain_e_per_dn, offset_dn, read_noise_e, full_well_e, prnu_rms, dark_e,
-                   dsnu_rms_e, hot_fraction, hot_dark_e, frame_key, detector_key,
-                   shot_noise, read_noise, quantize, max_dn)
+        base = (row0 + i) * mosaic_cols + col0
+        # scratch of one chunk (L1-sized): mean charge, a normal (or the dark signal), the count
+        m = np.empty(_CHUNK)
+        z = np.empty(_CHUNK)
+        n = np.empty(_CHUNK)
+        bad = 0
+        j = 0
+        while j < w:
+            chip, j_end = _chip_segment(col0, j, w, chip_cols)
+            j_end = min(j_end, j + _CHUNK)
+            bad += _chain_chunk(signal_e[i, j:j_end], out[i, j:j_end], base + j, m, z, n,
+                                gain_e_per_dn[chip], offset_dn[chip], read_noise_e[chip],
+                                full_well_e[chip], prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                                hot_dark_e, nonlinearity_beta, max_signal_e, frame_key, detector_key,
+                                shot_noise, read_noise, quantize, max_dn)
+            j = j_end
+        bad_row[i] = bad
+    return bad_row.sum()
 
 
 @njit(parallel=True, cache=True)

@@ -89,6 +89,12 @@ class StarSensingConfig(StrictModel):
     centroid_sigma_arcsec: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)] = 1.0
     tracker_sigma_arcsec: Annotated[float, Field(gt=0, le=3600, allow_inf_nan=False)] = 1.0
     frames_per_dwell: Annotated[int, Field(ge=1, le=100)] = 4
+    #: lab time of one star-sensing frame (exposure and readout at the stated centroid
+    #: sigma), s: 0 = each star dwell lasts as written in the plan and its frames share it
+    #: (today's); > 0 = each star-sensing dwell lasts ``frames_per_dwell * frame_time_s``
+    #: (:meth:`ScanMirrorScenario.effective_plan`), so a frame costs time, as it does when
+    #: each frame has the centroid sigma stated. 5 s is the paper's 20 s dwell over 4 frames.
+    frame_time_s: Annotated[float, Field(ge=0, le=3600, allow_inf_nan=False)] = 0.0
     published_uses_aberration: bool = False
 
 
@@ -168,29 +174,40 @@ class ScanMirrorScenario(ScenarioBase):
         """The scan plan as flown: each star-sensing dwell followed by
         ``star_sensing.dwells - 1`` more, each after a move of
         ``star_sensing.extra_dwell_beta_step_deg`` in scan angle (``extra_dwell_move_s``,
-        half accelerating, half decelerating) at the same step angle; the plan as written
-        when ``dwells = 1``."""
+        half accelerating, half decelerating) at the same step angle; with
+        ``star_sensing.frame_time_s > 0`` every star-sensing dwell lasts
+        ``frames_per_dwell * frame_time_s``; the plan as written when ``dwells = 1`` and
+        ``frame_time_s = 0``."""
         ss = self.star_sensing
+        if ss.frame_time_s > 0:
+            plan = ScanPlan(initial_alpha_deg=self.scan_plan.initial_alpha_deg,
+                            initial_beta_deg=self.scan_plan.initial_beta_deg,
+                            segments=tuple(DwellSegment(kind="dwell", duration_s=ss.frames_per_dwell * ss.frame_time_s,
+                                                        star_sensing=True)
+                                           if seg.kind == "dwell" and seg.star_sensing else seg
+                                           for seg in self.scan_plan.segments))
+        else:
+            plan = self.scan_plan
         if ss.dwells == 1:
-            return self.scan_plan
+            return plan
         from simcam.scanmirror.scanplan import evaluate_plan, segment_durations
 
-        segs = list(self.scan_plan.segments)
+        segs = list(plan.segments)
         starts = np.concatenate([[0.0], np.cumsum(segment_durations(segs))])
         out = []
         for seg, t0, t1 in zip(segs, starts[:-1], starts[1:]):
             out.append(seg)
             if seg.kind != "dwell" or not seg.star_sensing:
                 continue
-            p = evaluate_plan(self.scan_plan, np.array([0.5 * (t0 + t1)]))
+            p = evaluate_plan(plan, np.array([0.5 * (t0 + t1)]))
             a, b = float(np.rad2deg(p.alpha_rad[0])), float(np.rad2deg(p.beta_rad[0]))
             for j in range(1, ss.dwells):
                 half = 0.5 * ss.extra_dwell_move_s
                 out.append(MoveSegment(kind="move", to_alpha_deg=a, to_beta_deg=b + j * ss.extra_dwell_beta_step_deg,
                                        accel_s=half, const_s=0.0, decel_s=half))
                 out.append(DwellSegment(kind="dwell", duration_s=seg.duration_s, star_sensing=True))
-        return ScanPlan(initial_alpha_deg=self.scan_plan.initial_alpha_deg,
-                        initial_beta_deg=self.scan_plan.initial_beta_deg, segments=tuple(out))
+        return ScanPlan(initial_alpha_deg=plan.initial_alpha_deg,
+                        initial_beta_deg=plan.initial_beta_deg, segments=tuple(out))
 
 
 def default_text() -> str:

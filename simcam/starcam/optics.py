@@ -51,6 +51,9 @@ __all__ = [
     "NonInvertibleDistortionError",
     "airy_cutoff_cyc_per_px",
     "render_stamps",
+    "StampProfiles",
+    "stamp_profiles",
+    "render_shifted_stamps",
     "psf_sigma_px",
     "lateral_colour_shift_px",
     "CUBIC_MONOMIALS",
@@ -296,6 +299,89 @@ def render_stamps(
         a = [np.array(v, dtype=np.float64) for v in (pos_x, pos_y, sx, sy, w, sig, qmax)]
         kernel(*a, cutoff, bool(is_airy), chat, disc, spectra)
     stamps = np.fft.ifft2(spectra, axes=(-2, -1)).real
+    return stamps, origin_x, origin_y
+
+
+@dataclass(frozen=True)
+class StampProfiles:
+    """Position-free spectra of a batch of star images (:func:`stamp_profiles`): what
+    :func:`render_shifted_stamps` moves to each star's actual position and width."""
+
+    stamp_px: int
+    spectra: np.ndarray  # (n, K + 1, 2 K + 1) complex128, half plane, no position, no Gaussian
+    qmax: np.ndarray  # (n,) frequency extent, lattice units
+    zero: np.ndarray  # (n,) zero-frequency term (the sum of the weights)
+    mean_shift_x_px: np.ndarray  # (n,) weighted mean lateral-colour shift built into the spectra
+    mean_shift_y_px: np.ndarray
+    sigma_px: np.ndarray  # (n,) the Gaussian sigma the extents were sized for
+
+
+def stamp_profiles(*, stamp_px: int = 32, psf_kind: str, sigma_px, pinhole_radius_px, f_number=None,
+                   pixel_pitch_um=None, wavelength_nm, weights, shift_x_px, shift_y_px) -> StampProfiles:
+    """The spectra of :func:`render_stamps` without the star's position and Gaussian factor.
+
+    :func:`render_stamps` writes, per star, ``G(q) = P(q) exp(-2 pi^2 s^2 |q|^2 / L^2)
+    exp(-2 pi i q.x / L)`` with ``P(q) = sinc sinc OTF_disc sum_l w_l [chat_l]
+    exp(-2 pi i q.s_l / L)``: only ``P`` costs a sum over the ``n_l`` wavelengths, and it
+    depends on the position only through the lateral-colour shifts ``s_l``, which vary
+    slowly over the field. This computes ``P`` once (same arguments as
+    :func:`render_stamps` without the positions); :func:`render_shifted_stamps` then
+    places each star at any position and width for one term per frequency.
+    """
+    L = int(stamp_px)
+    if psf_kind not in PSF_KINDS:
+        raise OpticsError(f"psf_kind: must be one of {PSF_KINDS}, got {psf_kind!r}")
+    sig = np.ascontiguousarray(sigma_px, dtype=np.float64)
+    n = sig.shape[0]
+    wl = np.asarray(wavelength_nm, dtype=np.float64)
+    n_l = wl.shape[0]
+    # writable contiguous copies: the kernel sees one type whatever the caller passed (a
+    # broadcast view is read-only), so numba compiles it once
+    w, sx, sy = (np.array(_broadcast(name, np.asarray(v, dtype=np.float64), (n, n_l)))
+                 for name, v in (("weights", weights), ("shift_x_px", shift_x_px), ("shift_y_px", shift_y_px)))
+    rad = _broadcast("pinhole_radius_px", np.asarray(pinhole_radius_px, dtype=np.float64), (n,))
+    is_airy = psf_kind == "airy"
+    cutoff = (airy_cutoff_cyc_per_px(wavelength_nm=wl, f_number=f_number, pixel_pitch_um=pixel_pitch_um)
+              if is_airy else np.zeros(n_l))
+    cutoff = np.array(cutoff, dtype=np.float64)
+    qmax = _pt.freq_extent_cyc_per_px(sig, w, cutoff, is_airy, -math.log(SPECTRUM_EPS)) * L
+    if n and not np.all(np.isfinite(qmax)):
+        raise OpticsError("sigma_px: the profile route needs a finite frequency extent (sigma > 0 or an Airy PSF)")
+    K = int(math.floor(qmax.max())) if n else 0
+    chat, disc = _pt.radial_tables(qmax, rad, cutoff, is_airy, L)
+    spectra = np.zeros((n, K + 1, 2 * K + 1), dtype=np.complex128)
+    if n:
+        _psf.stamp_profiles(sx, sy, w, np.array(qmax), cutoff, bool(is_airy), chat, disc, L, spectra)
+    return StampProfiles(stamp_px=L, spectra=spectra, qmax=np.array(qmax), zero=w.sum(axis=1),
+                         mean_shift_x_px=np.einsum("ij,ij->i", w, sx), mean_shift_y_px=np.einsum("ij,ij->i", w, sy),
+                         sigma_px=sig.copy())
+
+
+def render_shifted_stamps(profiles: StampProfiles, *, x_px, y_px, sigma_px, mean_shift_x_px, mean_shift_y_px):
+    """:func:`render_stamps` of the profiled stars (:func:`stamp_profiles`) at new positions.
+
+    Each star ``i`` is placed at ``(x_i, y_i) + (mean_shift_i - profile mean shift_i)``
+    with Gaussian sigma ``sigma_px[i]``; both exactly (a phase ramp and the Gaussian
+    factor, separable products). What is approximated is the lateral colour: the shifts
+    ``s_l`` of each wavelength keep the profile's values apart from their weighted mean,
+    which follows the star (``mean_shift_*_px``: ``sum_l w_l s_l`` at the new position).
+    The change of ``s_l - mean`` between the profile's position and the new one is a
+    first-order change of the image by ``sum_l w_l (ds_l - mean ds) . grad I_l``, which
+    ``tests/test_render.py`` bounds and checks against :func:`render_stamps`.
+    Returns ``(stamps, origin_x, origin_y)`` as :func:`render_stamps`.
+    """
+    L = profiles.stamp_px
+    x = np.asarray(x_px, dtype=np.float64)
+    y = np.asarray(y_px, dtype=np.float64)
+    origin_x = np.floor(x + 0.5).astype(np.int64) - L // 2
+    origin_y = np.floor(y + 0.5).astype(np.int64) - L // 2
+    px = x - origin_x + (np.asarray(mean_shift_x_px, dtype=np.float64) - profiles.mean_shift_x_px)
+    py = y - origin_y + (np.asarray(mean_shift_y_px, dtype=np.float64) - profiles.mean_shift_y_px)
+    half = np.zeros((x.shape[0], L, L // 2 + 1), dtype=np.complex128)
+    if x.shape[0]:
+        _psf.shifted_stamp_spectra(profiles.spectra, profiles.qmax, profiles.zero, px, py,
+                                   np.array(sigma_px, dtype=np.float64), L, half)
+    stamps = np.fft.irfft2(half, s=(L, L), axes=(-2, -1))
     return stamps, origin_x, origin_y
 
 

@@ -22,6 +22,7 @@ The true position reported for a star is the centroid of its noise-free image:
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,13 +85,25 @@ class Scene:
     stamps: np.ndarray  # (W, L, L) flux fractions
     stamp_col0: np.ndarray  # chip px of stamps[:, 0, 0]
     stamp_row0: np.ndarray
-    truth: pd.DataFrame
-    background_e: float
+    #: the truth table's columns (name -> (W,) array), in the table's order
+    truth_columns: dict = field(repr=False, compare=False)
+    background_e: float = 0.0
 
     @property
     def n_stars(self) -> int:
         """Number of stars W."""
         return len(self.chip)
+
+    @property
+    def truth(self) -> pd.DataFrame:
+        """Per star: the injected truth (positions, the displacements that make them up, flux,
+        PSF width, filter, condition). Built on first use and kept (a Monte Carlo trial never
+        reads it: a table costs about a millisecond); callers must not modify it."""
+        t = self.__dict__.get("_truth")
+        if t is None:
+            t = pd.DataFrame(self.truth_columns)
+            object.__setattr__(self, "_truth", t)
+        return t
 
 
 @dataclass(frozen=True)
@@ -208,8 +221,11 @@ class StarCamera:
                 if sc is None:
                     if len(scenes) > 1024:
                         scenes.clear()
+                    # the displaced scenes use the profiles of p's own pose: the gradient of
+                    # one smooth stamp model, never a difference across two rounded poses
                     sc = scenes[sk] = self._scene(dataclasses.replace(
-                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy))
+                        p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy),
+                        profile_node=self.profile_node(p))
                 sig = _expected_windows_at(self, sc, chain.col0, chain.row0)
                 _, cols = self.mosaic.shape
                 out.append(window_chain(signal_e=sig, row0=chain.row0, col0=chain.col0, mosaic_cols=cols,
@@ -267,32 +283,44 @@ class StarCamera:
         if (np.array_equal(old.reference_u_px, lay.reference_u_px)
                 and np.array_equal(old.reference_v_px, lay.reference_v_px)):
             return hit
-        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-        truth = hit.truth.copy()
-        truth["x_reference"] = x_refm
-        truth["y_reference"] = y_refm
-        derived = dataclasses.replace(hit, placement=placement, truth=truth)
+        x_refm, y_refm = self._focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        derived = dataclasses.replace(hit, placement=placement,
+                                      truth_columns={**hit.truth_columns, "x_reference": x_refm, "y_reference": y_refm})
         for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
 
-    def _scene(self, placement: Placement) -> Scene:
+    def _focal_to_mosaic(self, u_px, v_px):
+        """Mosaic (x, y) of target positions (:meth:`simcam.starcam.geometry.Mosaic.focal_to_mosaic`),
+        kept per position set (a target's ideal and reference positions recur in every
+        condition; callers must not modify the arrays)."""
+        key = (u_px.tobytes(), v_px.tobytes())
+        cache = self.__dict__.setdefault("_mosaic_xy", {})
+        hit = cache.get(key)
+        if hit is None:
+            if len(cache) >= 256:
+                cache.pop(next(iter(cache)))
+            hit = cache[key] = self.mosaic.focal_to_mosaic(u_px, v_px)[1:]
+        return hit
+
+    def _spectrum(self, filter_nm):
+        """(wavelength_nm, per-wavelength weights, electrons per exposure) of a pinhole through
+        ``filter_nm``: :class:`simcam.starcam.sources.SourceSpectra`'s, kept per filter (they do
+        not depend on the placement; callers must not modify the arrays)."""
+        cache = self.__dict__.setdefault("_spectrum_cache", {})
+        key = None if filter_nm is None else float(filter_nm)
+        hit = cache.get(key)
+        if hit is None:
+            wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=filter_nm)
+            hit = cache[key] = (wl, self.spectra.weights(e_rate), self.spectra.electrons_per_exposure(e_rate))
+        return hit
+
+    def _lateral_colour(self, wl, ud, vd):
+        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions."""
         scn = self.scenario
-        lay = placement.layout
-        u0 = lay.u_px + placement.platform_dx_px
-        v0 = lay.v_px + placement.platform_dy_px
-        if placement.platform_roll_rad != 0.0:
-            # a small rotation about the optical axis (first order in the roll)
-            u0 = u0 - placement.platform_roll_rad * lay.v_px
-            v0 = v0 + placement.platform_roll_rad * lay.u_px
-        ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
-        wl, e_rate = self.spectra.electron_rate_per_nm(filter_nm=placement.filter_nm)
-        weights_1d = self.spectra.weights(e_rate)
-        electrons = self.spectra.electrons_per_exposure(e_rate)
-        W = lay.n_stars
         lc = scn.optics.lateral_colour
-        su, sv = optics.lateral_colour_shift_px(
+        return optics.lateral_colour_shift_px(
             wavelength_nm=wl,
             u_px=ud,
             v_px=vd,
@@ -302,6 +330,61 @@ class StarCamera:
             uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
             r_norm_px=scn.optics.r_norm_px,
         )
+
+    def profile_node(self, placement: Placement) -> tuple[float, float]:
+        """The pose whose stamp profiles serve ``placement`` (``render.stamp_route = "profile"``):
+        its hexapod translation rounded to the nearest multiple of ``render.stamp_profile_step_px``
+        (halves up), roll 0. A function of the placement alone, so a scene does not depend on
+        which scenes were rendered before it."""
+        h = self.scenario.render.stamp_profile_step_px
+        return (math.floor(placement.platform_dx_px / h + 0.5) * h,
+                math.floor(placement.platform_dy_px / h + 0.5) * h)
+
+    def _stamp_profiles(self, placement: Placement, chip, wl, weights_1d, node=None):
+        """The stamp profiles (:func:`simcam.starcam.optics.stamp_profiles`) of the placement's
+        stars at the pose ``node`` (default :meth:`profile_node`): the same chain as
+        :meth:`_scene` (distortion, lateral colour, PSF width) at that pose, in the chips the
+        stars land on. Cached per target, filter, pose and chips (the last 64)."""
+        scn = self.scenario
+        lay = placement.layout
+        if node is None:
+            node = self.profile_node(placement)
+        key = (lay.u_px.tobytes(), lay.v_px.tobytes(), lay.pinhole_radius_px, placement.filter_nm,
+               float(node[0]), float(node[1]), chip.tobytes())
+        cache = self.__dict__.setdefault("_profile_cache", {})
+        hit = cache.get(key)
+        if hit is None:
+            ud, vd = self.distortion.forward(u_px=lay.u_px + node[0], v_px=lay.v_px + node[1])
+            su, sv = self._lateral_colour(wl, ud, vd)
+            sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
+            sig = optics.psf_sigma_px(
+                u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
+                sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
+            )
+            W = lay.n_stars
+            hit = optics.stamp_profiles(
+                stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind, sigma_px=sig,
+                pinhole_radius_px=lay.pinhole_radius_px, f_number=scn.camera.f_number,
+                pixel_pitch_um=scn.camera.pixel_pitch_um, wavelength_nm=wl,
+                weights=np.broadcast_to(weights_1d, (W, len(wl))), shift_x_px=sx, shift_y_px=sy)
+            if len(cache) >= 64:
+                cache.pop(next(iter(cache)))
+            cache[key] = hit
+        return hit
+
+    def _scene(self, placement: Placement, profile_node=None) -> Scene:
+        scn = self.scenario
+        lay = placement.layout
+        u0 = lay.u_px + placement.platform_dx_px
+        v0 = lay.v_px + placement.platform_dy_px
+        if placement.platform_roll_rad != 0.0:
+            # a small rotation about the optical axis (first order in the roll)
+            u0 = u0 - placement.platform_roll_rad * lay.v_px
+            v0 = v0 + placement.platform_roll_rad * lay.u_px
+        ud, vd = self.distortion.forward(u_px=u0, v_px=v0)
+        wl, weights_1d, electrons = self._spectrum(placement.filter_nm)
+        W = lay.n_stars
+        su, sv = self._lateral_colour(wl, ud, vd)
         chrom_u = su @ weights_1d
         chrom_v = sv @ weights_1d
         half = scn.render.window_px // 2
@@ -325,17 +408,23 @@ class StarCamera:
             u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
             sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
         )
-        stamps, c0, r0 = optics.render_stamps(
-            x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
-            sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
-            f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
-            wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
-            shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
-        )
+        if scn.render.stamp_route == "profile":
+            prof = self._stamp_profiles(placement, chip, wl, weights_1d, profile_node)
+            stamps, c0, r0 = optics.render_shifted_stamps(
+                prof, x_px=xr, y_px=yr, sigma_px=sig, mean_shift_x_px=sx @ weights_1d,
+                mean_shift_y_px=sy @ weights_1d)
+        else:
+            stamps, c0, r0 = optics.render_stamps(
+                x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
+                sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
+                f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
+                wavelength_nm=wl, weights=np.broadcast_to(weights_1d, (W, len(wl))),
+                shift_x_px=sx, shift_y_px=sy, parallel=self.parallel,
+            )
         x_true = self.mosaic.chip_to_mosaic_x(chip, xc)
-        _, x_ideal, y_ideal = self.mosaic.focal_to_mosaic(lay.u_px, lay.v_px)
-        _, x_refm, y_refm = self.mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-        truth = pd.DataFrame(
+        x_ideal, y_ideal = self._focal_to_mosaic(lay.u_px, lay.v_px)
+        x_refm, y_refm = self._focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
+        truth = (
             {
                 "star": np.arange(W),
                 "chip": chip,
@@ -362,7 +451,7 @@ class StarCamera:
         scene = Scene(
             placement=placement, chip=chip, x_ref_chip=xr, y_ref_chip=yr,
             electrons=np.full(W, electrons), stamps=stamps, stamp_col0=c0, stamp_row0=r0,
-            truth=truth, background_e=self.background_e,
+            truth_columns=truth, background_e=self.background_e,
         )
         # the true positions as arrays beside the table (a fresh DataFrame's first column
         # reads cost about a millisecond; window_origins reads them once per scene)

@@ -417,6 +417,12 @@ class RenderModel(_Model):
     wavelength_min_nm: Pos = 400.0
     wavelength_max_nm: Pos = 1000.0
     wavelength_step_nm: Pos = 10.0
+    #: how PSF stamps are computed (simcam.starcam.render, docs/simulator.md): "exact" sums the
+    #: wavelengths for every scene; "profile" sums them once per target, filter and hexapod pose
+    #: rounded to ``stamp_profile_step_px`` and moves the stars to their actual positions and
+    #: PSF widths exactly (only the lateral colour's spread about its mean keeps the rounded pose's)
+    stamp_route: Literal["exact", "profile"] = "profile"
+    stamp_profile_step_px: Annotated[float, Field(gt=0.0, le=64.0)] = 1.0
 
     @model_validator(mode="after")
     def _sizes(self) -> RenderModel:

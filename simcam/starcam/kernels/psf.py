@@ -204,3 +204,143 @@ def folded_stamp_spectra_parallel(pos_x, pos_y, shift_x, shift_y, weights, sigma
         i = np.int64(ii)
         _one_star_spectrum(pos_x[i], pos_y[i], shift_x[i], shift_y[i], weights[i], sigma[i],
                            qmax[i], cutoff, is_airy, chat, disc[i if per_star else 0], out[i])
+
+
+# ----------------------------------------------------------------------------------------
+# Shifted stamps from a position-free spectral profile (the "profile" stamp route)
+
+
+@njit(cache=True)
+def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc, L, out):
+    """Position-free half-plane spectra of pixel-integrated polychromatic star images.
+
+    For star ``i`` and lattice frequency ``q = (qx, qy)`` (``qy >= 0``; ``qx > 0`` on
+    ``qy = 0``; ``|q| <= qmax_i``) writes, at ``out[i, qy, K + qx]`` (``K = out.shape[2] // 2``),
+    ``sinc(qx / L) sinc(qy / L) OTF_disc(|q| / L) sum_l w_l [chat_l(|q| / L)]
+    exp(-2 pi i (qx sx_l + qy sy_l) / L)``: the spectrum ``G(q / L)`` of
+    :func:`folded_stamp_spectra` without its position phase and without its Gaussian
+    factor, which :func:`shifted_stamp_spectra` applies for the star's actual position and
+    width. Other entries are left as they are (zero-filled on entry).
+    """
+    n = shift_x.shape[0]
+    n_l = weights.shape[1]
+    Kp = out.shape[2] // 2
+    for i in range(n):
+        qm = qmax[i]
+        K = int(math.floor(qm))
+        if K > Kp:
+            K = Kp
+        qmax2 = qm * qm
+        nq = 2 * K + 1
+        ex_re = np.empty((n_l, nq))
+        ex_im = np.empty((n_l, nq))
+        ey_re = np.empty((n_l, K + 1))
+        ey_im = np.empty((n_l, K + 1))
+        for j in range(n_l):
+            phx = -2.0 * math.pi * shift_x[i, j] / L
+            phy = -2.0 * math.pi * shift_y[i, j] / L
+            _phase_ramp(phx, weights[i, j], nq, ex_re[j], ex_im[j])
+            c0 = math.cos(-phx * K)
+            s0 = math.sin(-phx * K)
+            for k in range(nq):
+                t = ex_re[j, k] * c0 - ex_im[j, k] * s0
+                ex_im[j, k] = ex_re[j, k] * s0 + ex_im[j, k] * c0
+                ex_re[j, k] = t
+            _phase_ramp(phy, 1.0, K + 1, ey_re[j], ey_im[j])
+        drow = disc[i if disc.shape[0] > 1 else 0]
+        for qy in range(K + 1):
+            q_y = qy % L
+            if qy != 0 and q_y == 0:
+                continue  # exact zero of the pixel transfer function
+            sy_ = _sinc(qy / L)
+            kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
+            if kxlim > K:
+                kxlim = K
+            k_lo = K + (1 if qy == 0 else -kxlim)
+            k_hi = K + kxlim + 1
+            for k in range(k_lo, k_hi):
+                qx = k - K
+                if qx != 0 and qx % L == 0:
+                    continue
+                r2 = qx * qx + qy * qy
+                re = 0.0
+                im = 0.0
+                for j in range(n_l):
+                    c = chat[j, r2] if is_airy else 1.0
+                    if c == 0.0:
+                        continue
+                    eyr = ey_re[j, qy]
+                    eyi = ey_im[j, qy]
+                    re += c * (ex_re[j, k] * eyr - ex_im[j, k] * eyi)
+                    im += c * (ex_re[j, k] * eyi + ex_im[j, k] * eyr)
+                f = _sinc(qx / L) * sy_ * drow[r2]
+                out[i, qy, Kp + qx] = complex(f * re, f * im)
+
+
+@njit(cache=True)
+def shifted_stamp_spectra(prof, qmax, zero, pos_x, pos_y, sigma, L, out):
+    """Hermitian half spectra (``numpy.fft.irfft2`` input) of stars at ``(pos_x, pos_y)``
+    px from their stamp origin, from their profiles (:func:`stamp_profiles`).
+
+    ``G(q) = prof[q] exp(-2 pi^2 sigma^2 |q|^2 / L^2) exp(-2 pi i (qx pos_x + qy pos_y) / L)``
+    on the half plane, folded (aliased) onto the ``L x L`` lattice as ``A``; the full
+    spectrum is ``F(k) = A(k) + conj(A(-k))`` (``G(-q) = conj(G(q))``) plus the zero
+    frequency ``zero[i]`` (the sum of the weights), and only its columns ``0 .. L // 2`` are
+    written. ``out`` (n, L, L // 2 + 1) complex128, zero-filled on entry. The Gaussian and
+    the phase are separable products (``exp(a (qx^2 + qy^2)) = exp(a qx^2) exp(a qy^2)``),
+    so a row ``qy`` is ``ey(qy) sum_qx prof(qx, qy) ex(qx)``: one complex product per frequency.
+    """
+    n = pos_x.shape[0]
+    Kp = prof.shape[2] // 2
+    H = L // 2
+    A = np.empty((L, L), dtype=np.complex128)
+    row = np.empty(L, dtype=np.complex128)
+    for i in range(n):
+        qm = qmax[i]
+        K = int(math.floor(qm))
+        if K > Kp:
+            K = Kp
+        qmax2 = qm * qm
+        nq = 2 * K + 1
+        gfac = -2.0 * math.pi * math.pi * sigma[i] * sigma[i] / (L * L)
+        ex_re = np.empty(nq)
+        ex_im = np.empty(nq)
+        ey_re = np.empty(K + 1)
+        ey_im = np.empty(K + 1)
+        phx = -2.0 * math.pi * pos_x[i] / L
+        _phase_ramp(phx, 1.0, nq, ex_re, ex_im)
+        c0 = math.cos(-phx * K)
+        s0 = math.sin(-phx * K)
+        ex = np.empty(nq, dtype=np.complex128)
+        fold = np.empty(nq, dtype=np.int64)
+        for k in range(nq):
+            qx = k - K
+            gx = math.exp(gfac * qx * qx)
+            ex[k] = complex((ex_re[k] * c0 - ex_im[k] * s0) * gx, (ex_re[k] * s0 + ex_im[k] * c0) * gx)
+            fold[k] = qx % L
+        _phase_ramp(-2.0 * math.pi * pos_y[i] / L, 1.0, K + 1, ey_re, ey_im)
+        A[:, :] = 0.0
+        pi_ = prof[i]
+        for qy in range(K + 1):
+            kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
+            if kxlim > K:
+                kxlim = K
+            k_lo = K + (1 if qy == 0 else -kxlim)
+            k_hi = K + kxlim + 1
+            if k_lo >= k_hi:
+                continue
+            row[:] = 0.0
+            for k in range(k_lo, k_hi):
+                row[fold[k]] += pi_[qy, Kp - K + k] * ex[k]
+            gy = math.exp(gfac * qy * qy)
+            ey = complex(ey_re[qy] * gy, ey_im[qy] * gy)
+            fy = qy % L
+            for c in range(L):
+                A[fy, c] += row[c] * ey
+        o = out[i]
+        for r in range(L):
+            rn = (L - r) % L
+            for c in range(H + 1):
+                cn = (L - c) % L
+                o[r, c] += A[r, c] + A[rn, cn].conjugate()
+        o[0, 0] += zero[i]

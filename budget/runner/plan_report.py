@@ -1,0 +1,360 @@
+"""What a plan says (:mod:`budget.runner.plan`): its answer and findings in words, derived
+from its numbers by the rules below; its JSON (schema ``budget.plan/1``); ``report.md``,
+its HTML twin (:mod:`budget.runner.html`), the trade-curve figure (:mod:`budget.figures`,
+its caption computed from the points it draws) and ``recommended.toml``.
+
+Rules of the words:
+
+* the answer: "meets R at C % (re-validated on N fresh trials; sure at S %)" where the
+  re-validation meets every requirement; "the re-validation does not confirm" otherwise
+  (the search's verdict came from trials the verdict does not share, so a protocol at the
+  boundary may fail it: the sureness says how close); "no protocol ... meets" with the best
+  achievable figure where the search found none;
+* the premium: "aiming P sure to pass the real test costs Fx the boundary protocol's lab
+  time", where the search judged by the ``--sure`` prediction bound (F: the recommendation's
+  lab time over the fitted model's cheapest protocol whose predicted quantiles equal the bounds);
+* a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
+  its best figure where none met.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+__all__ = ["answer_text", "findings_sentences", "plan_json", "plot_trade_curve", "summary_markdown",
+           "write_plan_report"]
+
+
+def _fmt(v) -> str:
+    from budget.runner.findings import fmt
+
+    return fmt(v)
+
+
+def _unit(r) -> str:
+    from budget.runner.findings import with_unit
+
+    return with_unit(r.value, r.unit)
+
+
+def _hours(s: float) -> str:
+    from budget.runner.plan import _hours as h
+
+    return h(s)
+
+
+def _knobs(ev) -> str:
+    from budget.runner.plan import _knobs_text
+
+    return _knobs_text(ev.knobs)
+
+
+def _knobs_text_raw(knobs: dict) -> str:
+    from budget.runner.plan import _knobs_text
+
+    return _knobs_text(knobs)
+
+
+def _req_list(res) -> str:
+    return " and ".join(f"{r.name} <= {_unit(r)}" for r in res.requirements)
+
+
+def pct(p: float) -> str:
+    """``0.95`` -> ``"95 %"``."""
+    return f"{100 * p:.0f} %"
+
+
+def answer_text(res) -> str:
+    """The plan's answer in one paragraph (module docstring)."""
+    st = res.study
+    conf = pct(res.confidence)
+    budget = "" if res.budget_hours is None else f" within {res.budget_hours:g} h"
+    if res.recommended is None:
+        b = res.best_achievable
+        if b is None:
+            return f"{st.title}: no protocol{budget} could be run for {_req_list(res)}."
+        worst = max(b.figures.values(), key=lambda f: f["quantile"] / f["bound"])
+        name = next(n for n, f in b.figures.items() if f is worst)
+        return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
+                f"Best achievable: {name} {_fmt(worst['quantile'])} +- {_fmt(worst['se_quantile'])} "
+                f"{next(r.unit for r in res.requirements if r.name == name)} "
+                f"(the {conf} quantile of |error|, bound {_fmt(worst['bound'])}) with {_knobs(b)} "
+                f"({b.shape}, {_hours(b.cost_s)} of lab time).")
+    rec, val = res.recommended, res.validation
+    head = (f"{st.title}: the cheapest protocol found{budget} is {_knobs(rec)}"
+            f"{'' if rec.shape == 'scenario' else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
+    n = val.trials
+    prem = res.premium
+    aim = "" if prem is None or res.sure_level <= 0.5 else (
+        f" Aiming {pct(res.sure_level)} sure to pass the real test costs {prem['factor']:.2g}x the boundary "
+        f"protocol's lab time ({_knobs_text_raw(prem['boundary_knobs'])}, {_hours(prem['boundary_cost_s'])}).")
+    if res.confirmed:
+        tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
+                f"sure at {pct(res.sure)}).")
+    else:
+        failed = [name for name, f in val.figures.items() if not f["met"]]
+        why = ("the protocol sits at the boundary; take the next larger one or plan for a tighter bound"
+               if res.sure_level <= 0.5 else
+               f"a protocol aimed {pct(res.sure_level)} sure fails about {pct(1 - res.sure_level)} of "
+               "re-validations; plan with a higher --sure or a tighter bound")
+        tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
+                f"(sure at {pct(res.sure)}): {why}.")
+    return head + tail + aim
+
+
+def findings_sentences(res) -> list[str]:
+    """One sentence per requirement (the re-validated figures) and per shape (its best)."""
+    out = []
+    conf = pct(res.confidence)
+    if res.validation is not None:
+        for r in res.requirements:
+            f = res.validation.figures[r.name]
+            out.append(f"{r.name} ({r.label}, {res.variant}): {conf} of |error| within {_fmt(f['quantile'])} +- "
+                       f"{_fmt(f['se_quantile'])} {r.unit} (bound {_fmt(r.value)}; {f['exceed']} of {f['n']} "
+                       f"fresh trials beyond it, {f['allowed']} allowed); bias {_fmt(f['bias'])} +- "
+                       f"{_fmt(f['se_bias'])}, sd {_fmt(f['sd'])} +- {_fmt(f['se_sd'])}; "
+                       f"sure at {pct(f['sure'])}.")
+    if len(res.shapes) > 1 or res.recommended is None:
+        for name, s in res.shapes.items():
+            b = s["best"]
+            if b is not None:
+                rel = "" if res.recommended is None else (
+                    " (recommended)" if b is res.recommended else
+                    f" ({100 * (b.cost_s / res.recommended.cost_s - 1):.0f} % more lab time than "
+                    f"{res.recommended.shape})")
+                out.append(f"Shape {name}: cheapest meeting every requirement {_knobs(b)}, "
+                           f"{_hours(b.cost_s)}{rel}; {len(s['evaluations'])} protocols run, {s['trials']} trials.")
+            else:
+                a = s.get("best_achievable")
+                best = "" if a is None else (f"; its most accurate, {_knobs(a)} ({_hours(a.cost_s)}), reaches "
+                                             f"{a.ratio:.3g} times the bound")
+                out.append(f"Shape {name}: no protocol meets every requirement{best}.")
+    for name, s in res.shapes.items():
+        if s.get("refused"):
+            r = s["refused"]
+            out.append(f"{len(r)} protocol{'s' if len(r) > 1 else ''} of shape {name} refused by the study "
+                       f"(first: {_knobs_text_raw(r[0]['knobs'])}: {r[0]['error']}).")
+    per_val = res.trials_per_validation
+    out.append(f"The search ran {len(res.evaluations)} protocols with common random numbers, "
+               f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
+               f"{res.truth_runs} truth{'' if res.truth_runs == 1 else 's'} computed (shared by protocols "
+               "with the same truth identity).")
+    return out
+
+
+def plan_json(res) -> dict:
+    """The plan as JSON (schema ``budget.plan/1``)."""
+    from budget.runner.plan import SCHEMA, validation_seed
+    from simcam import __version__
+
+    st = res.study
+    return {
+        "schema": SCHEMA, "study": st.name, "title": st.title, "version": __version__,
+        "scenario_name": getattr(res.scenario, "name", None), "scenario_hash": st.scenario_hash(res.scenario),
+        "seed": res.seed, "validation_seed": validation_seed(res.seed), "confidence": res.confidence,
+        "variant": res.variant, "budget_hours": res.budget_hours,
+        "requirements": [{"class": r.cls, "axis": r.axis, "value": r.value, "unit": r.unit, "text": r.text}
+                         for r in res.requirements],
+        "knobs": [{"field": k.field, "kind": k.kind, "low": k.low, "high": k.high, "unit": k.unit,
+                   "description": k.description} for k in res.knobs],
+        "feasible": res.feasible, "confirmed": res.confirmed,
+        "sure": None if res.validation is None else res.sure,
+        "sure_level": res.sure_level, "premium": res.premium,
+        "answer": answer_text(res), "findings": findings_sentences(res),
+        "recommended": None if res.recommended is None else {
+            **res.recommended.to_json(), "scenario_hash": st.scenario_hash(res.recommended.scenario),
+            "scenario_toml": res.recommended_toml()},
+        "validation": None if res.validation is None else res.validation.to_json(),
+        "best_achievable": None if res.best_achievable is None else res.best_achievable.to_json(),
+        "shapes": {name: {"overrides": s.get("overrides", {}), "trials": s["trials"],
+                          "refused": s.get("refused", []), "model": _thin_model(s.get("model")),
+                          "protocols": len(s["evaluations"]),
+                          "best": None if s["best"] is None else s["best"].to_json(),
+                          "best_achievable": None if s.get("best_achievable") is None
+                          else s["best_achievable"].to_json()}
+                   for name, s in res.shapes.items()},
+        "evaluations": [e.to_json() for e in res.evaluations],
+        "trials": {"per_validation": res.trials_per_validation, "search": res.search_trials,
+                   "validation": 0 if res.validation is None else res.validation.trials,
+                   "total": res.total_trials},
+        "truths_computed": res.truth_runs, "elapsed_s": res.elapsed_s, "cpu_s": res.cpu_s,
+    }
+
+
+def _thin_model(m: dict | None, most: int = 200) -> dict | None:
+    """The fitted model's frontier for the JSON, at most ``most`` protocols (evenly by index)."""
+    if not m:
+        return None
+    n = len(m["cost_s"])
+    idx = sorted(set(round(i * (n - 1) / (most - 1)) for i in range(most))) if n > most else list(range(n))
+    return {"cost_s": [m["cost_s"][i] for i in idx], "knobs": [m["knobs"][i] for i in idx],
+            "quantile": {k: [v[i] for i in idx] for k, v in m["quantile"].items()},
+            "floor": m["floor"], "b": m["b"]}
+
+
+def plot_trade_curve(res, path: Path):
+    """Cost against each required figure: every protocol run (by shape; filled: met), the
+    bound, the recommendation's re-validated figure with its standard error. Returns the
+    :class:`budget.figures.Figure` with its caption."""
+    import numpy as np
+
+    from budget.figures import plt, save
+
+    p = plt()
+    reqs = res.requirements
+    fig, axes = p.subplots(len(reqs), 1, figsize=(8.6, 4.2 * len(reqs)), squeeze=False)
+    axes = axes.T
+    shapes = list(res.shapes)
+    markers = "osD^v<>"
+    for ax, r in zip(axes[0], reqs):
+        for j, name in enumerate(shapes):
+            m = res.shapes[name].get("model")
+            lab = f"{name}: " if len(shapes) > 1 else ""
+            if m and m["cost_s"]:
+                ax.plot(np.array(m["cost_s"]) / 3600, m["quantile"][r.name], lw=1.2, color=f"C{j}",
+                        label=f"{lab}model, best protocol per lab time")
+            evs = [e for e in res.evaluations if e.shape == name]
+            if not evs:
+                continue
+            c = np.array([e.cost_s / 3600 for e in evs])
+            q = np.array([e.figures[r.name]["quantile"] for e in evs])
+            met = np.array([e.met for e in evs])
+            ax.scatter(c[met], q[met], marker=markers[j % len(markers)], color=f"C{j}", zorder=3,
+                       label=f"{lab}run: meets all")
+            ax.scatter(c[~met], q[~met], marker=markers[j % len(markers)], facecolors="none", edgecolors=f"C{j}",
+                       zorder=3, label=f"{lab}run: fails one")
+        ax.axhline(r.value, color="k", lw=1.0, ls="--", label=f"bound {_fmt(r.value)}")
+        if res.validation is not None:
+            f = res.validation.figures[r.name]
+            ax.errorbar([res.validation.cost_s / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
+                        ms=13, color="crimson", zorder=4, label="recommended, re-validated")
+        if res.budget_hours is not None:
+            ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.", label=f"budget {res.budget_hours:g} h")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("lab time (h)")
+        ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
+        ax.set_title(f"{r.name} ({res.variant}) against lab time")
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    # the caption from the numbers drawn
+    parts = []
+    for r in reqs:
+        evs = sorted(res.evaluations, key=lambda e: e.cost_s)
+        meets = [e for e in evs if e.met]
+        s = f"{r.name}: measured from {_fmt(max(e.figures[r.name]['quantile'] for e in evs))} to " \
+            f"{_fmt(min(e.figures[r.name]['quantile'] for e in evs))} {r.unit} over {_hours(evs[0].cost_s)} to " \
+            f"{_hours(evs[-1].cost_s)} of lab time"
+        if meets:
+            best = meets[0]
+            fails = [e for e in evs if not e.met and e.cost_s < best.cost_s and e.stage == "search"]
+            s += (f"; the cheapest meeting every bound, {_knobs(best)} at {_hours(best.cost_s)}, reaches "
+                  f"{_fmt(best.figures[r.name]['quantile'])}")
+            if fails:
+                f = fails[-1]
+                s += f", the dearest failing below it, {_knobs(f)} at {_hours(f.cost_s)}, " \
+                     f"{_fmt(f.figures[r.name]['quantile'])}"
+        floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
+        if floors and min(floors) > 0:
+            s += f"; the fitted model's floor (what no count removes) {_fmt(min(floors))} {r.unit}"
+        elif floors:
+            s += "; the fitted model has no floor (every count averages the error down)"
+        parts.append(s)
+    rec = "" if res.validation is None else (
+        f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
+        "re-validated on fresh trials (error bar: one standard error of the quantile).")
+    caption = (f"The trade curve: each marker a protocol the search ran ({len(res.evaluations)} in all, "
+               f"{res.search_trials} trials with common random numbers; filled: meets every bound), each line "
+               "the fitted model's best protocol at each lab time. " + "; ".join(parts) + "." + rec)
+    return save(fig, path, caption)
+
+
+def summary_markdown(res) -> str:
+    lines = [answer_text(res), ""] + [f"* {s}" for s in findings_sentences(res)]
+    return "\n".join(lines)
+
+
+def _table(res) -> list[str]:
+    head = ["shape", "stage"] + [k.field.rsplit(".", 1)[-1] for k in res.knobs] + ["lab time", "trials"] + \
+        [f"{r.name} q ({r.unit})" for r in res.requirements] + ["meets"]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    evs = sorted(res.evaluations, key=lambda e: (e.shape, e.cost_s))
+    if res.validation is not None:
+        evs.append(res.validation)
+    for e in evs:
+        cells = [e.shape, e.stage] + [str(e.knobs.get(k.field, "")) for k in res.knobs] + \
+            [_hours(e.cost_s), str(e.trials)] + \
+            [f"{_fmt(e.figures[r.name]['quantile'])} +- {_fmt(e.figures[r.name]['se_quantile'])}"
+             for r in res.requirements] + ["yes" if e.met else "no"]
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
+def write_plan_report(res, out_dir) -> Path:
+    """``report.md``, ``report.html``, ``trade_curve.png``, ``plan.json`` and (where a protocol
+    meets) ``recommended.toml`` into ``out_dir`` (a staged folder or a new one)."""
+    import os
+    import shutil
+    import sys
+    import tempfile
+
+    from budget.figures import figure_markdown
+    from budget.runner.html import write_html
+    from simcam.cli_common import UserInputError, write_json_atomic
+    from simcam.lifecycle import partial_prefix, remove_stale_partials
+
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
+    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
+    try:
+        st = res.study
+        conf = pct(res.confidence)
+        figs = [plot_trade_curve(res, tmp / "trade_curve.png")]
+        lines = [f"# {st.title}: test plan", "",
+                 f"Study `{st.name}`; scenario `{getattr(res.scenario, 'name', '')}` (hash "
+                 f"`{st.scenario_hash(res.scenario)}`); requirements {_req_list(res)} on the `{res.variant}` "
+                 f"estimates, each met when {conf} of tests land within the bound (the {conf} quantile of "
+                 f"|estimate - truth|)" + ("" if res.budget_hours is None else
+                                           f"; lab time at most {res.budget_hours:g} h") + ".", "",
+                 "## Findings", "", summary_markdown(res), ""]
+        if res.recommended is not None:
+            lines += ["## The recommended protocol", "",
+                      "Knobs: " + "; ".join(f"`{k.field}` = {res.recommended.knobs[k.field]} {k.unit} "
+                                             f"({k.description})" for k in res.knobs) + ".", "",
+                      "Lab time by item: " + ", ".join(f"{n} {_hours(v)}" for n, v in
+                                                      res.recommended.cost_items.items())
+                      + f"; total {_hours(res.recommended.cost_s)}.", "",
+                      f"Ready to run: `budget {st.name} validate recommended.toml` (written beside this report).",
+                      ""]
+        lines += ["## Trade curve", "", figure_markdown(figs), "",
+                  "## Every protocol run", "",
+                  f"Search seed {res.seed} for every protocol (common random numbers); the re-validation "
+                  f"(stage `validation`) seed {res.validation_seed}, from "
+                  "`SeedSequence(seed, spawn_key=(2**31 + 1,))`, shares no trial with the search. "
+                  "q: the quantile of |error| +- its standard error.", ""] + _table(res) + [""]
+        lines += ["## How the plan was made", "",
+                  "Design protocols over the knobs' bounds, a fitted model of averaging (quantile^2 = a + "
+                  "sum b_i / knob_i) proposing the cheapest protocol predicted to meet, and bisection along lab "
+                  "time between the cheapest protocol measured meeting and the dearest measured failing, until "
+                  "their lab times are within the sampling resolution; then the answer re-validated on fresh "
+                  "trials. Sureness: the posterior probability that the share of tests beyond the bound is at "
+                  f"most {pct(1 - res.confidence)}" +
+                  " given the re-validation (Jeffreys prior), over the truth's own uncertainty; over several "
+                  "requirements the Bonferroni bound. See docs/planning.md.", ""]
+        (tmp / "report.md").write_text("\n".join(lines))
+        write_json_atomic(tmp / "plan.json", plan_json(res))
+        toml = res.recommended_toml()
+        if toml is not None:
+            (tmp / "recommended.toml").write_text(toml)
+        write_html(tmp / "report.md")
+        if out.exists():
+            if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
+                shutil.rmtree(out)
+            else:
+                raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out / "report.md"
