@@ -54,16 +54,17 @@ def titles_outside(fig) -> list[str]:
     return bad
 
 
-def fit_titles(fig, *, min_size: float = 6.0) -> None:
+def fit_titles(fig, *, min_size: float = 6.0) -> bool:
     """Shrink the font of any title that does not fit its figure (down to ``min_size``), then
-    wrap it at the widest word boundary that fits; the figure's layout is redone each step."""
+    wrap it at the widest word boundary that fits; the figure's layout is redone each step.
+    True when every title fits (checked after the last change)."""
     import textwrap
 
     for _ in range(12):
         fig.tight_layout()
         bad = set(titles_outside(fig))
         if not bad:
-            return
+            return True
         for ax in fig.axes:
             for t in (ax.title, ax._left_title, ax._right_title):
                 if t.get_text() in bad:
@@ -73,6 +74,7 @@ def fit_titles(fig, *, min_size: float = 6.0) -> None:
                         text = t.get_text().replace("\n", " ")
                         lines = max(2, t.get_text().count("\n") + 2)
                         t.set_text(textwrap.fill(text, width=max(10, len(text) // lines + 1)))
+    return False
 
 
 def save(fig, path, caption: str, *, dpi: int = 110, layout: bool = True) -> Figure:
@@ -82,9 +84,8 @@ def save(fig, path, caption: str, *, dpi: int = 110, layout: bool = True) -> Fig
     p = plt()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if layout:
-        fit_titles(fig)
-    bad = titles_outside(fig)
+    # fit_titles has checked the titles after its last change (one draw less)
+    bad = [] if layout and fit_titles(fig) else titles_outside(fig)
     if bad:  # pragma: no cover - fit_titles wraps until it fits
         p.close(fig)
         raise RuntimeError(f"{path.name}: title does not fit the figure: {bad}")

@@ -54,7 +54,8 @@ class Executor(ABC):
 
     @abstractmethod
     def map_unordered(self, fn: Callable, tasks: list) -> Iterator[tuple[int, Any]]:
-        """Yield ``(index, fn(tasks[index]))`` as tasks finish."""
+        """Yield ``(index, fn(tasks[index]))`` as tasks finish. ``tasks`` may grow while this
+        runs: tasks the caller appends (between two results) are run too, after those before."""
 
 
 class InlineExecutor(Executor):
@@ -63,8 +64,10 @@ class InlineExecutor(Executor):
     description = "this process"
 
     def map_unordered(self, fn, tasks):
-        for i, t in enumerate(tasks):
-            yield i, fn(t)
+        i = 0
+        while i < len(tasks):  # the caller may append tasks between results
+            yield i, fn(tasks[i])
+            i += 1
 
 
 def worker_setup(initializer: Callable | None = None, args: tuple = ()) -> None:
@@ -133,14 +136,15 @@ class ProcessExecutor(Executor):
 
         if self._pool is None:
             self.__enter__()
-        # a bounded number in flight: an interruption leaves little queued work behind
-        todo = list(reversed(list(enumerate(tasks))))
+        # a bounded number in flight: an interruption leaves little queued work behind (and
+        # tasks the caller appends between results still find workers)
+        nxt = 0
         running: dict = {}
         try:
-            while todo or running:
-                while todo and len(running) < 2 * self.workers:
-                    i, t = todo.pop()
-                    running[self._pool.submit(fn, t)] = i
+            while nxt < len(tasks) or running:
+                while nxt < len(tasks) and len(running) < 2 * self.workers:
+                    running[self._pool.submit(fn, tasks[nxt])] = nxt
+                    nxt += 1
                 finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
                 for f in finished:
                     i = running.pop(f)
@@ -208,12 +212,25 @@ class DaskExecutor(Executor):
         if self.client is None:
             self.__enter__()
         tag = uuid.uuid4().hex[:8]
-        futures = [self.client.submit(_dask_call, fn, t, self._initializer, self._initargs,
-                                      key=f"task-{i}-{tag}", pure=False) for i, t in enumerate(tasks)]
-        index = {f.key: i for i, f in enumerate(futures)}
+        futures: list = []
+        index: dict = {}
+
+        def submit_new() -> list:
+            new = []
+            for i in range(len(futures), len(tasks)):  # the caller may append tasks between results
+                f = self.client.submit(_dask_call, fn, tasks[i], self._initializer, self._initargs,
+                                       key=f"task-{i}-{tag}", pure=False)
+                futures.append(f)
+                index[f.key] = i
+                new.append(f)
+            return new
+
         try:
-            for fut in as_completed(futures):
+            done = as_completed(submit_new())
+            for fut in done:
                 yield index[fut.key], fut.result()
+                for f in submit_new():
+                    done.add(f)
         finally:
             self.client.cancel([f for f in futures if not f.done()])
 

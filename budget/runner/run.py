@@ -5,18 +5,21 @@
 1. starts the executor (its worker processes import while this process works);
 2. computes the study's truths (:meth:`Study.truths`, seeded by
    ``SeedSequence(seed, spawn_key=(2**31,))``): in this process with one worker, otherwise
-   piece by piece (:meth:`Study.truth_parts`) as tasks beside the trials, so that the
-   truths' work is spread over the workers too. Their precision follows the question
+   piece by piece (:meth:`Study.truth_parts`) as tasks queued after the trials, so that the
+   truths' work is spread over the workers too and their many small pieces even out the
+   workers' ends. Their precision follows the question
    (``truth_size="adaptive"``, the default): each sampled truth is sized
    (:meth:`Study.truth_size_for`) to a standard error of :data:`TRUTH_SE_FRACTION` (a
    quarter) of the bias standard error the run will give (:func:`truth_targets`): with a
    tolerance, of the tolerance; with a number of trials ``n``, of ``s / sqrt(n)`` with
    ``s`` the spread of the first :data:`PILOT_TRIALS` trials (the run's own trials 0, 1,
-   ..., so nothing is computed twice and the size does not depend on the workers). A
+   ..., so nothing is computed twice and the size does not depend on the workers; the
+   other trials are queued behind the pilot's and run meanwhile, never waiting for it). A
    truth's standard error then adds at most ``sqrt(1 + 1/16) - 1 = 3 %`` to a bias's.
    ``truth_size="fixed"`` keeps the scenario's own sizes; ``truths=`` gives truths
    computed before (a sweep's truth shared by points);
-3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`), each trial seeded by
+3. runs trials ``0, 1, 2, ...`` in chunks (:meth:`Study.trial_batch`; as many per worker,
+   of at most :meth:`Study.chunk_trials`), each trial seeded by
    ``SeedSequence(seed, spawn_key=(k,))`` and so independent of which worker runs it and
    when; trial 0's ``extra`` is kept for the report;
 4. with a tolerance, runs batches until every bias and spread standard error is below it
@@ -338,7 +341,19 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     pilot = min(trials, PILOT_TRIALS) if trials is not None else 0
     parts: list = []
     part_results: dict[int, Any] = {}
-    started = given
+    state = {"truths": truths, "started": given}
+
+    def start_truths(tasks: list) -> None:
+        """The truths, now that their scenario is known: in this process with one worker,
+        otherwise as pieces appended to the task list (after the trials queued so far: many
+        small tasks that even out the workers' ends)."""
+        if executor.workers <= 1:
+            state["truths"] = study.truths(truth_scn, seed)
+        else:
+            parts[:] = study.truth_parts(truth_scn, seed)
+            tasks += [(study, truth_scn, seed, ("truth", i, p)) for i, p in enumerate(parts)]
+        state["started"] = True
+
     with executor if own else contextlib.nullcontext(executor):
         if progress:
             from tqdm import tqdm
@@ -348,43 +363,43 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             while True:
                 done = len(results)
                 want = (trials - done) if tolerance is None else min(batch, cap - done)
-                if truth_scn is None and not started:
-                    want = min(want, pilot)  # the pilot's spread sizes the truths
-                if not started and truth_scn is not None and executor.workers <= 1:
-                    truths = study.truths(truth_scn, seed)
-                    started = True
-                if want <= 0 and started:
+                if want <= 0:
                     break
-                ks = list(range(done, done + max(want, 0)))
-                size = max(1, min(study.chunk_trials(scenario), len(ks) // (2 * max(executor.workers, 1))))
-                chunks = [ks[i:i + size] for i in range(0, len(ks), size)]
-                tasks = [(study, scenario, seed, c) for c in chunks]
-                if not started and truth_scn is not None:
-                    # the pieces of the truths are tasks, spread over the workers beside the
-                    # trials (the same numbers: each piece draws its own streams)
-                    parts = study.truth_parts(truth_scn, seed)
-                    tasks[:0] = [(study, truth_scn, seed, ("truth", i, p)) for i, p in enumerate(parts)]
-                    started = True
+                ks = list(range(done, done + want))
+                # a fixed number of trials is queued whole: the pilot's chunks first, so that
+                # the truths' size is known early and their pieces join the queue while the
+                # other trials run (no wait between the pilot and the rest)
+                pilot_ks = ks[:pilot] if (truth_scn is None and not state["started"]) else []
+                tasks = [(study, scenario, seed, c) for c in (_chunks(pilot_ks, study.chunk_trials(scenario),
+                                                                      executor.workers)
+                                                              + _chunks(ks[len(pilot_ks):],
+                                                                        study.chunk_trials(scenario),
+                                                                        executor.workers))]
+                if not state["started"] and truth_scn is not None:
+                    start_truths(tasks)
+                # the executor reads ``tasks`` as it goes: pieces appended below are run too
                 for _, part in executor.map_unordered(_run_task, tasks):
                     if isinstance(part, _TruthPart):
                         part_results[part.index] = part.value
                         if len(part_results) == len(parts):
-                            truths = study.truths_from_parts(truth_scn, seed,
-                                                             [part_results[i] for i in range(len(parts))])
+                            state["truths"] = study.truths_from_parts(
+                                truth_scn, seed, [part_results[i] for i in range(len(parts))])
                         continue
                     for k, r in part:
                         results[k] = r
                     if bar is not None:
                         bar.update(len(part))
-                if truth_scn is None and not started:
-                    # the pilot is done: the truths' target from its spread
-                    samples, tt, _ = _collect(results)
-                    targets = truth_targets(classes, samples=samples, trial_truths=tt, trials=trials)
-                    truth_scn = sized_truths_scenario(study, scenario, seed, targets)
-                    continue
+                    if pilot_ks and truth_scn is None and all(k in results for k in pilot_ks):
+                        # the pilot is done: the truths' target from its spread (its own trials
+                        # only, whichever others have finished too)
+                        samples, tt, _ = _collect({k: results[k] for k in pilot_ks})
+                        targets = truth_targets(classes, samples=samples, trial_truths=tt, trials=trials)
+                        truth_scn = sized_truths_scenario(study, scenario, seed, targets)
+                        start_truths(tasks)
                 if tolerance is not None:
                     samples, tt, _ = _collect(results)
-                    if converged(samples, tt, tolerance) and _truths_within(samples, tt, truths, tolerance):
+                    if converged(samples, tt, tolerance) and _truths_within(samples, tt, state["truths"],
+                                                                            tolerance):
                         stopped_by = "tolerance"
                         break
                     if len(results) >= cap:
@@ -393,6 +408,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         finally:
             if bar is not None:
                 bar.close()
+    truths = state["truths"]
     if targets:
         truths = with_targets(truths, targets)
     samples, trial_truths, sigmas = _collect(results)
@@ -403,6 +419,25 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
                        sigmas=sigmas, example=results.get(0), elapsed_s=time.perf_counter() - t0,
                        executor=executor.description, aux=aux,
                        truth_size="given" if given else truth_size)
+
+
+def _chunks(ks: list, most: int, workers: int) -> list[list]:
+    """``ks`` in consecutive chunks of at most ``most`` trials, at least two per worker and a
+    multiple of the workers in number, their sizes within one of each other (so that each
+    worker gets the same share). Which trials go together never changes a result (each
+    trial draws its own streams); only how evenly the workers end."""
+    if not ks:
+        return []
+    w = max(workers, 1)
+    n = max(2 * w, w * math.ceil(len(ks) / (w * max(most, 1))))
+    n = min(n, len(ks))
+    size, extra = divmod(len(ks), n)
+    out, i = [], 0
+    for j in range(n):
+        m = size + (1 if j < extra else 0)
+        out.append(ks[i:i + m])
+        i += m
+    return out
 
 
 def _truths_within(samples: dict, trial_truths: dict, truths: dict | None, tolerance: float) -> bool:

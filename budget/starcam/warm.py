@@ -4,20 +4,25 @@ A trial needs three groups of numba kernels: the PSF stamps
 (:mod:`simcam.starcam.kernels.psf`, and the windows summed from them,
 :mod:`simcam.starcam.kernels.windows`), the detector's fixed pattern
 (:func:`simcam.kernels.detector.mean_charge_windows`) and the fused
-expose-and-centroid kernel (:mod:`budget.starcam.kernels_trial`, with the noise, random
-number and centroid kernels it calls). On a fresh install numba compiles them one after
-the other, about 10 s on one core. :func:`prewarm` splits them over two processes
-(:func:`simcam.numba_warm.compiling_in_parallel`):
+expose-and-centroid kernels (:mod:`budget.starcam.kernels_trial`: a static and a
+drifting condition's, with the noise, random number and centroid kernels they call). On
+a fresh install numba compiles them one after the other, about 9 s of one core.
+:func:`prewarm` splits them over two processes
+(:func:`simcam.numba_warm.compiling_in_parallel`) in about equal halves, each kernel
+compiled once:
 
-* a child (:func:`compile_support`) compiles the random-number kernels first, then the
-  fixed pattern and the per-window centroid kernels;
-* this process (:func:`compile_stamps_and_exposure`) compiles the stamps meanwhile, then
-  the fused kernel, whose callees it by then finds in numba's cache.
+* a child (:func:`compile_support`) compiles the random-number kernels first (the
+  fixed pattern and the noise kernels call them), the per-window centroid kernels, then
+  the drifting condition's fused kernel (with its own signature of the noise kernel);
+* this process (:func:`compile_stamps_and_exposure`) compiles the stamps meanwhile (the
+  child is still importing), then the fixed pattern, the static condition's fused
+  kernel (whose centroid callees it by then finds in numba's cache) and the kernel that
+  sums a scene's windows from its stamps.
 
 With a warm cache nothing happens. Each target calls the kernels through the functions
 a trial calls them through (which hand numba arguments of one type whatever their caller
-passes), or directly with the types the fused kernel passes, on tiny inputs: what they
-compile is what a trial then loads. ``tests/test_warm.py`` checks that after both
+passes), or compiles them with the types the fused kernels pass, on tiny inputs: what
+they compile is what a trial then loads. ``tests/test_warm.py`` checks that after both
 targets a trial and the truths compile nothing.
 """
 
@@ -53,42 +58,57 @@ def prewarm(scenario) -> None:
 
 
 def compile_support(arg: str) -> None:
-    """Child target: the random-number kernels the noise kernel calls (first: this
-    process needs them once its stamps are compiled), the fixed pattern through
-    :func:`simcam.detector.window_chain`, and the per-window centroid kernels,
-    with the types the fused kernel passes. ``arg``: JSON options (unused)."""
+    """Child target: the random-number kernels (first: the fixed pattern and the noise
+    kernels call them), the per-window centroid kernels with the types the fused kernels
+    pass them, and the drifting condition's fused kernel (option ``fused``) through
+    :func:`budget.starcam.kernels_trial.expose_centroid_drift_chain`. ``arg``: JSON options."""
+    from numba import types
+
     from budget.centroid.kernels import border_one, cog_one
     from simcam.rng import poisson_prepared, std_normal
-    from simcam.detector import DetectorParams, window_chain
-    from simcam.starcam.kernels.windows import add_stamps_windows
 
+    opts = json.loads(arg)
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
     std_normal(np.uint64(1), np.uint64(2))
     h = w = 5
-    params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
-                            adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
-    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w,
-                 params=dataclasses.replace(params, nonlinearity_beta=0.008), detector_key=np.uint64(1))
-    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
-                 detector_key=np.uint64(1))
-    # a scene's windows from its stamps, with the types simcam.starcam.render passes
-    i1 = np.zeros(1, dtype=np.int64)
-    add_stamps_windows(np.zeros((1, h, w)), np.zeros((1, 4, 4)), np.ones(1), i1, i1, i1, i1, i1, i1, 5, 5)
     win = np.zeros((h, w))
     border_one(win, np.empty(16), np.bool_(False))
     cog_one(win, 0.0, 0.0, 0.0, 1.0, False, np.inf)
+    if opts.get("fused", True):
+        f8 = types.float64  # the drifting kernel passes cog_one a literal False
+        cog_one.compile((types.Array(f8, 2, "C"), f8, f8, f8, f8, types.literal(False), f8))
+        from budget.starcam.kernels_trial import expose_centroid_drift_chain
+        from simcam.rng import child_keys
+
+        chain = _tiny_chain(h, w)
+        g = np.zeros((1, h, w))
+        expose_centroid_drift_chain(chain, g, g, np.zeros((2, 2)), child_keys(np.uint64(1), 2), dark_mean=None,
+                                    threshold_dn=np.full(1, 3.0))
+
+
+def _tiny_chain(h: int, w: int):
+    """A one-window :class:`simcam.detector.WindowChain` of the production types."""
+    from simcam.detector import WindowChain
+
+    return WindowChain(mean_e=np.full((1, h, w), 100.0), row0=np.zeros(1, dtype=np.int64),
+                       col0=np.zeros(1, dtype=np.int64), mosaic_cols=w, chip_cols=w,
+                       gain=np.ones(1), offset=np.zeros(1), read_noise=np.ones(1),
+                       full_well=np.full(1, 1e4), max_dn=4095.0, output_dtype=np.dtype(np.uint16))
 
 
 def compile_stamps_and_exposure(arg: str) -> None:
     """The serial stamp kernel through :func:`simcam.starcam.optics.render_stamps` (a
-    trial's camera renders serially), then on one tiny window the fused
-    expose-and-centroid kernel (option ``fused``) and the window exposure (option
+    trial's camera renders serially), the fixed pattern through
+    :func:`simcam.detector.window_chain`, then on one tiny window the static condition's
+    fused expose-and-centroid kernel (option ``fused``), the window exposure (option
     ``windows``: dark frames, or a method other than the centre of gravity), through
     :func:`budget.starcam.kernels_trial.expose_centroid_chain` and
-    :func:`simcam.detector.expose_windows_frames`. ``arg``: JSON options."""
-    from budget.starcam.kernels_trial import expose_centroid_chain, expose_centroid_drift_chain
+    :func:`simcam.detector.expose_windows_frames`, and a scene's windows summed from its
+    stamps. ``arg``: JSON options."""
+    from budget.starcam.kernels_trial import expose_centroid_chain
+    from simcam.detector import DetectorParams, expose_windows_frames, window_chain
     from simcam.rng import child_keys
-    from simcam.detector import WindowChain, expose_windows_frames
+    from simcam.starcam.kernels.windows import add_stamps_windows
     from simcam.starcam.optics import render_shifted_stamps, render_stamps, stamp_profiles
 
     opts = json.loads(arg)
@@ -104,16 +124,18 @@ def compile_stamps_and_exposure(arg: str) -> None:
     render_shifted_stamps(prof, x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), sigma_px=np.full(n, 0.8),
                           mean_shift_x_px=np.zeros(n), mean_shift_y_px=np.zeros(n))
     h = w = 5
-    chain = WindowChain(mean_e=np.full((1, h, w), 100.0), row0=np.zeros(1, dtype=np.int64),
-                        col0=np.zeros(1, dtype=np.int64), mosaic_cols=w, chip_cols=w,
-                        gain=np.ones(1), offset=np.zeros(1), read_noise=np.ones(1),
-                        full_well=np.full(1, 1e4), max_dn=4095.0, output_dtype=np.dtype(np.uint16))
+    params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
+                            adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w,
+                 params=dataclasses.replace(params, nonlinearity_beta=0.008), detector_key=np.uint64(1))
+    window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
+                 detector_key=np.uint64(1))
+    chain = _tiny_chain(h, w)
     keys = child_keys(np.uint64(1), 2)
     if opts.get("fused", True):
         expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
-        # a drifting condition (the world's target drift, simcam.starcam.world)
-        g = np.zeros((1, h, w))
-        expose_centroid_drift_chain(chain, g, g, np.zeros((2, 2)), keys, dark_mean=None,
-                                    threshold_dn=np.full(1, 3.0))
     if opts.get("windows", True):
         expose_windows_frames(frame_keys=keys, chain=chain, parallel=False)
+    # a scene's windows from its stamps, with the types simcam.starcam.render passes
+    i1 = np.zeros(1, dtype=np.int64)
+    add_stamps_windows(np.zeros((1, h, w)), np.zeros((1, 4, 4)), np.ones(1), i1, i1, i1, i1, i1, i1, 5, 5)
