@@ -224,10 +224,18 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
       first order ``se = sqrt(mean v / (F P W))``, and the split-half product's second-order
       term ``mean v / (F sqrt(P W T))`` (``T`` the pilot's mean square error, when positive),
       so ``F`` is the larger of ``mean v / (P W t^2)`` and ``2 mean v / (t sqrt(P W T))``;
-    * TE (:func:`budget.starcam.truth._se_mean_of_sd`): ``se = sd / sqrt(2 (F - 1) W)`` with
+    * TE, plain route (:func:`budget.starcam.truth._se_mean_of_sd`): ``se = sd / sqrt(2 (F - 1) W)`` with
       ``sd^2 = mean v W / (W - 1)`` (the scatter before the common motion was removed), so
       ``F = sd^2 / (2 W t^2) + 1``, and at least ``sd / (2 t)`` so that the sample sd's own
-      bias (``sd / (4 F)``, normal theory) stays below half the target.
+      bias (``sd / (4 F)``, normal theory) stays below half the target;
+    * TE with the control variate (:func:`budget.starcam.truth.te_truth`): ``se^2 = sum_j
+      Var(D_j) / (4 V_j F) / W^2`` (``D`` the per-frame terms of :func:`budget.starcam.truth.te_variance_cv`,
+      ``V_j`` the star's variance), both from a pilot of :data:`SIZE_PILOT_FRAMES` frames of the
+      TE target (stream ``spawn_key=(6,)``), so ``F = sum_j Var(D_j) / (4 V_j) / (W^2 t^2)``.
+
+    Where the control variates apply (:func:`budget.starcam.truth.control_variate_applies`)
+    the HSFE pilot's scatter ``v`` is that of the corrected errors, so the same formula gives
+    the far smaller sizes the variance-reduced truths need.
 
     Each is rounded up (HSFE to even), at least :data:`MIN_HSFE_TRUTH_FRAMES` /
     :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
@@ -236,7 +244,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     ask for more than the ceiling, docs/architecture.md). The truths then report their
     actual standard error, and the JSON their target beside it.
     """
-    from budget.starcam.truth import hsfe_phase_cell
+    from budget.starcam.truth import _cv_frames, control_variate_applies, hsfe_phase_cell, te_scene, te_variance_cv
 
     val = scenario.validation
     want = {c: [target_px[(c, a)] for a in AXES if (c, a) in target_px and target_px[(c, a)] > 0]
@@ -259,7 +267,19 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
             f = max(f, 2.0 * vm / (t * math.sqrt(ncell * t2)))
         f = min(max(MIN_HSFE_TRUTH_FRAMES, math.ceil(f)), val.hsfe_truth_frames)
         upd["hsfe_truth_frames"] = int(f + (f % 2))
-    if want["te"]:
+    if want["te"] and control_variate_applies(scenario):
+        t = min(want["te"])
+        cam = _camera(scenario)
+        ps6 = int(np.random.SeedSequence(ts, spawn_key=(6,)).generate_state(1)[0])
+        (x, y, flag, _, _, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
+        good = (flag == 0).all(axis=0)
+        f = 0.0
+        for c, k in ((x, kx), (y, ky)):
+            var, se_var = te_variance_cv(c[:, good], k[:, good])
+            var_d = se_var**2 * SIZE_PILOT_FRAMES
+            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t))
+        upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
+    elif want["te"]:
         t = min(want["te"])
         sd2 = float(np.max(v.mean(axis=1))) * w / max(w - 1, 1)
         f = max(sd2 / (2 * w * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
