@@ -139,13 +139,19 @@ def te_scene(camera):
     return camera.scene(Placement(layout=star_grid(scn, center_px=c.field_center_px), condition=999_001))
 
 
-def te_variance_cv(x, kappa):
-    """Per-star centroid variance from ``F`` frames with the square's control variate
-    (:mod:`budget.starcam.kernels_truth`): ``D_f = (x_f - xbar)^2 F / (F - 1) - kappa_f``, whose
-    mean is unbiased for the variance (the sample variance is, and ``E kappa = 0``);
-    returns the mean of ``D`` and its standard error ``sd(D) / sqrt(F)`` per star."""
+def te_variance_cv(x, psi, kappa):
+    """Per-star centroid variance from ``F`` frames (axis 0) with the control variates
+    (:mod:`budget.starcam.kernels_truth`): the mean over frames of
+
+    ``D_f = ((x_f - xbar)^2 - (psi_f - psibar)^2) F / (F - 1) + psi_f^2 - kappa_f``.
+
+    Unbiased: the first part's mean is the difference of two sample variances, unbiased
+    for ``Var(x) - Var(psi)``, and ``E[psi^2 - kappa] = E[psi^2] = Var(psi)`` (``E psi = 0`` and
+    ``E kappa = 0`` exactly). The centring errors of ``xbar`` and ``psibar`` nearly cancel
+    (``psi`` follows ``x``), so the ``D_f`` scatter little and ``sd(D) / sqrt(F)`` is the
+    estimate's standard error. Returns the mean of ``D`` and that standard error, per star."""
     f = x.shape[0]
-    d = (x - x.mean(axis=0)) ** 2 * (f / (f - 1.0)) - kappa
+    d = ((x - x.mean(axis=0)) ** 2 - (psi - psi.mean(axis=0)) ** 2) * (f / (f - 1.0)) + psi**2 - kappa
     return d.mean(axis=0), d.std(axis=0, ddof=1) / math.sqrt(f)
 
 
@@ -155,8 +161,8 @@ def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) ->
     Plain route: each star's sample sd (``ddof = 1``), standard error from normal theory
     (:func:`_se_mean_of_sd`). Variance-reduced route (``control_variate`` and
     :func:`control_variate_applies`; the same frames): each star's variance is the mean of
-    ``D_f = (x_f - xbar)^2 F / (F - 1) - kappa_f`` (:func:`te_variance_cv`; ``kappa`` has
-    expectation exactly 0, :mod:`budget.starcam.kernels_truth`), its sd the square root, with
+    the per-frame terms ``D_f`` of :func:`te_variance_cv` (their expectation is the variance
+    exactly: :mod:`budget.starcam.kernels_truth`), its sd the square root, with
     standard error ``se(V) / (2 sd)`` (delta method; the square root's bias,
     ``se(V)^2 / (8 sd^3)``, is a fraction ``se / (4 sd)`` of that standard error, negligible),
     and the mean over stars ``sqrt(sum_j se_j^2) / W`` (independent stars).
@@ -165,7 +171,7 @@ def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) ->
     scene = te_scene(camera)
     cv = control_variate and control_variate_applies(scn)
     if cv:
-        (x, y, flag, _, _, kx, ky), _ = _cv_frames(camera, scene, frames=frames, seed=seed)
+        (x, y, flag, px, py, kx, ky), _ = _cv_frames(camera, scene, frames=frames, seed=seed)
     elif scn.validation.centroid_method == "cog":
         # the fused expose-and-centroid kernel: the same pixels and centroids as rendering
         # the windows and centroid_cog with the same options (tests/test_protocols.py), and
@@ -182,8 +188,8 @@ def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) ->
         x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
     good = (flag == 0).all(axis=0)
     if cv:
-        vx, svx = te_variance_cv(x[:, good], kx[:, good])
-        vy, svy = te_variance_cv(y[:, good], ky[:, good])
+        vx, svx = te_variance_cv(x[:, good], px[:, good], kx[:, good])
+        vy, svy = te_variance_cv(y[:, good], py[:, good], ky[:, good])
         sx, sy = np.sqrt(np.clip(vx, 0.0, None)), np.sqrt(np.clip(vy, 0.0, None))
         w = int(good.sum())
         se_x = float(math.sqrt(np.sum((svx / (2 * sx)) ** 2)) / w)

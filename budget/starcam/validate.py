@@ -152,15 +152,17 @@ def truth_parts(scenario, *, seed: int) -> list[tuple]:
     return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
 
 
-def truth_part(scenario, *, seed: int, part: tuple):
-    """One piece of :func:`truths` (see :func:`truth_parts`)."""
+def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True):
+    """One piece of :func:`truths` (see :func:`truth_parts`); ``control_variate`` False: the
+    plain estimators (:func:`budget.starcam.truth.te_truth`, :func:`budget.starcam.truth.hsfe_truth`)."""
     from budget.starcam.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
 
     ts = _truth_seed(seed)
     val = scenario.validation
     if part[0] == "rest":
         cam = _camera(scenario)
-        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts), "lsfe_s": lsfe_s_truth(cam),
+        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate),
+                "lsfe_s": lsfe_s_truth(cam),
                 "lsfe_c1": lsfe_c1_truth(cam), "lsfe_c2": lsfe_c2_truth(scenario)}
     _, m, p = part
     if m is None:
@@ -169,10 +171,10 @@ def truth_part(scenario, *, seed: int, part: tuple):
     else:
         cam = _camera(scenario, trial_seeds(seed, m)[1])
         hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
-    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p)
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p, control_variate=control_variate)
 
 
-def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
+def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True) -> dict:
     """:func:`truths` from the results of :func:`truth_parts`, in their order."""
     from budget.starcam.truth import ClassTruth, combine, hsfe_from_cells
 
@@ -183,10 +185,11 @@ def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
     for part, r in zip(parts[1:], results[1:]):
         cells.setdefault(part[1], []).append(r)
     if not val.new_maps_per_trial:
-        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames)
+        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames,
+                                      control_variate=control_variate)
     else:
-        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames)
-              for k in range(4)]
+        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames,
+                              control_variate=control_variate) for k in range(4)]
         vals = {}
         for ax in AXES:
             h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
@@ -271,11 +274,11 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
         t = min(want["te"])
         cam = _camera(scenario)
         ps6 = int(np.random.SeedSequence(ts, spawn_key=(6,)).generate_state(1)[0])
-        (x, y, flag, _, _, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
+        (x, y, flag, px, py, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
         good = (flag == 0).all(axis=0)
         f = 0.0
-        for c, k in ((x, kx), (y, ky)):
-            var, se_var = te_variance_cv(c[:, good], k[:, good])
+        for c, p, k in ((x, px, kx), (y, py, ky)):
+            var, se_var = te_variance_cv(c[:, good], p[:, good], k[:, good])
             var_d = se_var**2 * SIZE_PILOT_FRAMES
             f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t))
         upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
@@ -287,14 +290,17 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
 
-def truths(scenario, *, seed: int) -> dict:
+def truths(scenario, *, seed: int, control_variate: bool = True) -> dict:
     """Every class's truth (:class:`budget.starcam.truth.ClassTruth`) of a validation run with ``seed``.
 
     The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
     ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
     the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
     Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
-    over its workers and get the same numbers.
+    over its workers and get the same numbers. ``control_variate`` False: the plain HSFE and
+    TE estimators on the same frames (for comparison; the runner uses the variance-reduced).
     """
     parts = truth_parts(scenario, seed=seed)
-    return truths_from_parts(scenario, seed=seed, results=[truth_part(scenario, seed=seed, part=p) for p in parts])
+    return truths_from_parts(scenario, seed=seed, control_variate=control_variate,
+                             results=[truth_part(scenario, seed=seed, part=p, control_variate=control_variate)
+                                      for p in parts])
