@@ -45,14 +45,16 @@ the tabulated range is left out of both, which keeps this). The HSFE truth subtr
 + sum_q (psi_q^2 - Var(phi_q | b_-q))`` has expectation exactly 0 too: the interior's
 terms are independent given the border (so ``E[psi_int^2 | border] = Var(phi_int | b)``, a sum
 over pixels, and ``E[psi_int psi_bord | border] = psi_bord E[psi_int | border] = 0``), and
-``E[psi_q^2 | b_-q] = Var(phi_q | b_-q)``. ``(x - E x)^2 - kappa`` then has the centroid's
-variance as expectation and a much smaller spread; only the border terms' cross products
-``psi_q psi_q'`` (two border pixels above threshold in one frame) stay in it.
+``E[psi_q^2 | b_-q] = Var(phi_q | b_-q)``. So ``psi^2 - kappa`` is an unbiased estimate of
+``Var(psi)``, and :func:`budget.starcam.truth.te_variance_cv` estimates the centroid's variance
+as ``Var(x) - Var(psi)`` from the frames (which scatter little: ``psi`` follows ``x``) plus
+that; only the border terms' cross products ``psi_q psi_q'`` (two border pixels above
+threshold in one frame) are left to the frames.
 
 ``Q``, ``M_1``, ``M_2`` are sums over the Poisson's values ``k`` of its probabilities times the
 normal's integrals ``Phi^c(u)``, ``r phi(u)``, ``r^2 (u phi(u) + Phi^c(u))``,
-``u = (G (d - 1/2 - offset) - k) / r``; the terms with ``|u| > 10`` are taken as their limits
-(an error below 1e-23 of each probability), the rest are exact sums.
+``u = (G (d - 1/2 - offset) - k) / r``; the terms with ``|u| > U_CUT`` (8) are taken as their limits
+(an error below 7e-16 of each probability), the rest are exact sums.
 """
 
 from __future__ import annotations

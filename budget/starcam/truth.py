@@ -54,6 +54,13 @@ the quantity its method claims to measure, computed from the injected physics:
 :meth:`budget.starcam.study.StarCameraStudy.truth_depends_on_effects` states this for the
 robustness runner (distortion and non-linearity change the truths; hexapod and drift do not).
 
+The noisy-frame truths (TE, HSFE) subtract from each frame a control variate of exactly
+zero mean (:mod:`budget.starcam.kernels_truth`: the centroid's first-order response to the
+frame's pixel deviates, threshold included, less its expectation given the border
+medians), on the same frames a trial's kernel gives: the same expectation, a per-frame
+scatter two to three orders of magnitude smaller, so the same standard error from far
+fewer frames (``control_variate=False``: the plain estimators, for comparison).
+
 Every truth carries its own standard error (``se_x_px``, ``se_y_px``; 0 where nothing
 is sampled), which the validator's significance test adds to that of the estimates.
 No truth calls an estimator of :mod:`budget.starcam.estimators` or the lab's spectral model
