@@ -26,7 +26,8 @@ def test_starcam_study_equals_its_trials_and_truths():
 
     scn = from_dict(tomllib.loads(TINY), source="tiny")
     study = get_study("starcam")
-    res = run_study(study, scn, trials=3, seed=5, workers=1)
+    # the scenario's own truth sizes (the adaptive sizing has its tests in tests/test_truth_sizing.py)
+    res = run_study(study, scn, trials=3, seed=5, workers=1, truth_size="fixed")
     f = 3.0 * scn.camera.scale_arcsec_per_px
     direct = [run_trial(scn, 5, k)["values"] for k in range(3)]
     assert set(res.samples) == set(direct[0])
@@ -73,7 +74,9 @@ def test_starcam_truths_spread_over_workers_are_the_same(new_maps):
     data["validation"]["new_maps_per_trial"] = new_maps
     scn = from_dict(data, source="tiny")
     study = get_study("starcam")
-    res = run_study(study, scn, trials=2, seed=4, workers=2)
+    # the scenario's own truth sizes (the sized truths spread the same way: the runner sizes
+    # the scenario first, tests/test_truth_sizing.py)
+    res = run_study(study, scn, trials=2, seed=4, workers=2, truth_size="fixed")
     whole = study._contract_truths(scn, truths(scn, seed=4))
     assert res.truths.keys() == whole.keys()
     for key, t in whole.items():

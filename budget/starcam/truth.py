@@ -54,6 +54,13 @@ the quantity its method claims to measure, computed from the injected physics:
 :meth:`budget.starcam.study.StarCameraStudy.truth_depends_on_effects` states this for the
 robustness runner (distortion and non-linearity change the truths; hexapod and drift do not).
 
+The noisy-frame truths (TE, HSFE) subtract from each frame a control variate of exactly
+zero mean (:mod:`budget.starcam.kernels_truth`: the centroid's first-order response to the
+frame's pixel deviates, threshold included, less its expectation given the border
+medians), on the same frames a trial's kernel gives: the same expectation, a per-frame
+scatter two to three orders of magnitude smaller, so the same standard error from far
+fewer frames (``control_variate=False``: the plain estimators, for comparison).
+
 Every truth carries its own standard error (``se_x_px``, ``se_y_px``; 0 where nothing
 is sampled), which the validator's significance test adds to that of the estimates.
 No truth calls an estimator of :mod:`budget.starcam.estimators` or the lab's spectral model
@@ -107,13 +114,72 @@ def _centroid(camera, win, method, scenario, *, pixels=None):
     return x.reshape(f, w), y.reshape(f, w), flag.reshape(f, w)
 
 
-def te_truth(camera, *, frames: int, seed: int) -> ClassTruth:
-    """TE truth: mean over stars of the temporal centroid sd from ``frames`` noise-only frames."""
+def control_variate_applies(scenario) -> bool:
+    """Whether the truths can use the control variates of :mod:`budget.starcam.kernels_truth`:
+    the lab's thresholded centre of gravity on frames without a dark frame subtracted (the
+    variates are built for that centroid and for integer pixels; otherwise the plain
+    estimators are used)."""
+    val = scenario.validation
+    return val.centroid_method == "cog" and not val.dark_frames
+
+
+def _cv_frames(camera, scene, *, frames: int, seed: int, prep=None):
+    """Frames of ``scene`` exposed and centroided as :func:`budget.starcam.protocols._expose_centroid`
+    does (the same frame keys, so the same pixels and centroids), with the control variates:
+    x, y, flag, psi_x, psi_y, kappa_x, kappa_y (frames, W), and the kernel's preparation."""
+    from budget.starcam.kernels_truth import cv_prepare, expose_centroid_cv
+
     scn = camera.scenario
-    plan = make_plan("te", scn)
-    c = plan.conditions[0]
-    scene = camera.scene(Placement(layout=star_grid(scn, center_px=c.field_center_px), condition=999_001))
-    if scn.validation.centroid_method == "cog":
+    chain = camera.window_chain(scene)
+    if prep is None:
+        noise = centroid_options(camera, chain.col0, scn.validation.threshold_sigma,
+                                 dark_frames=scn.validation.dark_frames)["noise_dn"]
+        prep = cv_prepare(chain, threshold_dn=float(scn.validation.threshold_sigma) * noise)
+    keys = camera.frame_keys(seed=seed, condition=scene.placement.condition, frames=frames)
+    return expose_centroid_cv(chain, keys, prep), prep
+
+
+def te_scene(camera):
+    """The TE target's scene the TE truth exposes (nominal pose, its own condition)."""
+    scn = camera.scenario
+    c = make_plan("te", scn).conditions[0]
+    return camera.scene(Placement(layout=star_grid(scn, center_px=c.field_center_px), condition=999_001))
+
+
+def te_variance_cv(x, psi, kappa):
+    """Per-star centroid variance from ``F`` frames (axis 0) with the control variates
+    (:mod:`budget.starcam.kernels_truth`): the mean over frames of
+
+    ``D_f = ((x_f - xbar)^2 - (psi_f - psibar)^2) F / (F - 1) + psi_f^2 - kappa_f``.
+
+    Unbiased: the first part's mean is the difference of two sample variances, unbiased
+    for ``Var(x) - Var(psi)``, and ``E[psi^2 - kappa] = E[psi^2] = Var(psi)`` (``E psi = 0`` and
+    ``E kappa = 0`` exactly). The centring errors of ``xbar`` and ``psibar`` nearly cancel
+    (``psi`` follows ``x``), so the ``D_f`` scatter little and ``sd(D) / sqrt(F)`` is the
+    estimate's standard error. Returns the mean of ``D`` and that standard error, per star."""
+    f = x.shape[0]
+    d = ((x - x.mean(axis=0)) ** 2 - (psi - psi.mean(axis=0)) ** 2) * (f / (f - 1.0)) + psi**2 - kappa
+    return d.mean(axis=0), d.std(axis=0, ddof=1) / math.sqrt(f)
+
+
+def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) -> ClassTruth:
+    """TE truth: mean over stars of the temporal centroid sd from ``frames`` noise-only frames.
+
+    Plain route: each star's sample sd (``ddof = 1``), standard error from normal theory
+    (:func:`_se_mean_of_sd`). Variance-reduced route (``control_variate`` and
+    :func:`control_variate_applies`; the same frames): each star's variance is the mean of
+    the per-frame terms ``D_f`` of :func:`te_variance_cv` (their expectation is the variance
+    exactly: :mod:`budget.starcam.kernels_truth`), its sd the square root, with
+    standard error ``se(V) / (2 sd)`` (delta method; the square root's bias,
+    ``se(V)^2 / (8 sd^3)``, is a fraction ``se / (4 sd)`` of that standard error, negligible),
+    and the mean over stars ``sqrt(sum_j se_j^2) / W`` (independent stars).
+    """
+    scn = camera.scenario
+    scene = te_scene(camera)
+    cv = control_variate and control_variate_applies(scn)
+    if cv:
+        (x, y, flag, px, py, kx, ky), _ = _cv_frames(camera, scene, frames=frames, seed=seed)
+    elif scn.validation.centroid_method == "cog":
         # the fused expose-and-centroid kernel: the same pixels and centroids as rendering
         # the windows and centroid_cog with the same options (tests/test_protocols.py), and
         # the kernel a trial already compiled
@@ -128,14 +194,25 @@ def te_truth(camera, *, frames: int, seed: int) -> ClassTruth:
         win = camera.render_windows(scene, frames=frames, seed=seed)
         x, y, flag = _centroid(camera, win, scn.validation.centroid_method, scn)
     good = (flag == 0).all(axis=0)
-    sx = x[:, good].std(axis=0, ddof=1)
-    sy = y[:, good].std(axis=0, ddof=1)
+    if cv:
+        vx, svx = te_variance_cv(x[:, good], px[:, good], kx[:, good])
+        vy, svy = te_variance_cv(y[:, good], py[:, good], ky[:, good])
+        sx, sy = np.sqrt(np.clip(vx, 0.0, None)), np.sqrt(np.clip(vy, 0.0, None))
+        w = int(good.sum())
+        se_x = float(math.sqrt(np.sum((svx / (2 * sx)) ** 2)) / w)
+        se_y = float(math.sqrt(np.sum((svy / (2 * sy)) ** 2)) / w)
+        route = "per-star variance less a zero-mean control variate of its square"
+    else:
+        sx = x[:, good].std(axis=0, ddof=1)
+        sy = y[:, good].std(axis=0, ddof=1)
+        se_x, se_y = _se_mean_of_sd(sx, frames), _se_mean_of_sd(sy, frames)
+        route = "per-star sample sd"
     crb_x, crb_y = cramer_rao_bound_px(camera, scene)
     return ClassTruth("te", float(sx.mean()), float(sy.mean()), {
-        "frames": frames, "stars": int(good.sum()),
+        "frames": frames, "stars": int(good.sum()), "route": route,
         "per_star_sd_x_px": sx.tolist(), "per_star_sd_y_px": sy.tolist(),
         "cramer_rao_x_px": float(np.mean(crb_x)), "cramer_rao_y_px": float(np.mean(crb_y)),
-    }, se_x_px=_se_mean_of_sd(sx, frames), se_y_px=_se_mean_of_sd(sy, frames))
+    }, se_x_px=se_x, se_y_px=se_y)
 
 
 def _se_mean_of_sd(sd, frames: int) -> float:
@@ -203,7 +280,7 @@ def _expected_at(camera, scene, col0, row0):
     return sig + scene.background_e
 
 
-def hsfe_truth(camera, *, frames: int, seed: int, chunk_frames: int = 100) -> ClassTruth:
+def hsfe_truth(camera, *, frames: int, seed: int, chunk_frames: int = 100, control_variate: bool = True) -> ClassTruth:
     """HSFE truth: rms static error of the *expected* centroid under the lab's noise.
 
     The lab always centroids noisy frames, and temporal noise dithers the centroid's
@@ -225,14 +302,23 @@ def hsfe_truth(camera, *, frames: int, seed: int, chunk_frames: int = 100) -> Cl
     the cells, and ``se(sqrt T) = se(T) / (2 sqrt T)`` (delta method). With
     ``validation.dark_frames = K`` each chunk of ``chunk_frames`` frames gets its own mean
     of ``K`` dark frames, so the dark frames' noise is averaged over too.
+
+    Variance reduction (``control_variate``, where :func:`control_variate_applies`; the same
+    frames): each frame's error less its control variate ``psi`` (:mod:`budget.starcam.kernels_truth`),
+    whose expectation is exactly 0, so each cell's expected error is unchanged and every
+    formula above holds with the corrected errors (the half-means stay independent); ``psi``
+    follows the centroid's response to the frame's noise, so the per-frame scatter, and the
+    frames a given standard error needs, drop by two to three orders of magnitude on the
+    default camera.
     """
     n = camera.scenario.validation.hsfe_phase_grid
-    cells = [hsfe_phase_cell(camera, frames=frames, seed=seed, phase=p, chunk_frames=chunk_frames)
-             for p in range(n * n)]
-    return hsfe_from_cells(camera, cells, frames=frames)
+    cells = [hsfe_phase_cell(camera, frames=frames, seed=seed, phase=p, chunk_frames=chunk_frames,
+                             control_variate=control_variate) for p in range(n * n)]
+    return hsfe_from_cells(camera, cells, frames=frames, control_variate=control_variate)
 
 
-def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames: int = 100):
+def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames: int = 100,
+                    control_variate: bool = True):
     """One sub-pixel phase of :func:`hsfe_truth` (``phase = i n + k``): the half-means of the
     centroid error of each star and axis and their variances, ``(ma, mb, va, vb)``.
 
@@ -251,6 +337,8 @@ def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames:
     pl = Placement(layout=layout, platform_dx_px=(i + 0.5) / n, platform_dy_px=(k + 0.5) / n,
                    condition=999_002)
     scene = camera.scene(pl)
+    cv = control_variate and control_variate_applies(scn)
+    prep = None
     sx = [np.zeros((2, scene.n_stars)), np.zeros((2, scene.n_stars))]
     cnt = [0, 0]
     sq = np.zeros((2, scene.n_stars))
@@ -261,7 +349,13 @@ def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames:
             m = min(chunk, frames // 2 - done)
             ss = np.random.SeedSequence(seed, spawn_key=(i * n + k, half, c))
             cseed = int(ss.generate_state(1)[0])
-            ex, ey = _noisy_errors(camera, scene, frames=m, seed=cseed)
+            if cv:
+                (x, y, flag, px, py, _, _), prep = _cv_frames(camera, scene, frames=m, seed=cseed, prep=prep)
+                _check_flags(flag)
+                ex = x - scene.truth.x_true.to_numpy()[None] - px
+                ey = y - scene.truth.y_true.to_numpy()[None] - py
+            else:
+                ex, ey = _noisy_errors(camera, scene, frames=m, seed=cseed)
             e = np.stack([ex, ey])                    # (2, m, W)
             e = e - e.mean(axis=2, keepdims=True)      # common motion removed per frame
             sx[half] += e.sum(axis=1)
@@ -276,8 +370,9 @@ def hsfe_phase_cell(camera, *, frames: int, seed: int, phase: int, chunk_frames:
     return ma, mb, var / cnt[0], var / cnt[1]
 
 
-def hsfe_from_cells(camera, cells, *, frames: int) -> ClassTruth:
-    """The HSFE truth (:func:`hsfe_truth`) from the cells of every phase, in phase order."""
+def hsfe_from_cells(camera, cells, *, frames: int, control_variate: bool = True) -> ClassTruth:
+    """The HSFE truth (:func:`hsfe_truth`) from the cells of every phase, in phase order
+    (``control_variate``: how the cells were computed, for the details)."""
     n = camera.scenario.validation.hsfe_phase_grid
     ma = np.stack([c[0] for c in cells], axis=1)   # (2, phases, W)
     mb = np.stack([c[1] for c in cells], axis=1)
@@ -293,7 +388,9 @@ def hsfe_from_cells(camera, cells, *, frames: int) -> ClassTruth:
     both = (ma + mb) / 2
     return ClassTruth("hsfe", float(t[0]), float(t[1]), {
         "phases": n * n, "stars": int(ma.shape[2]), "frames_per_phase": int(frames),
-        "route": "expected centroid of noisy frames, split-half product",
+        "route": ("expected centroid of noisy frames, split-half product"
+                  + (", less a zero-mean control variate"
+                     if control_variate and control_variate_applies(camera.scenario) else "")),
         "noise_free_route": False,
         "max_abs_x_px": float(np.abs(both[0]).max()), "max_abs_y_px": float(np.abs(both[1]).max()),
         "mean_square_x_px2": float(t2[0]), "mean_square_y_px2": float(t2[1]),
@@ -325,10 +422,14 @@ def _noisy_errors(camera, scene, *, frames: int, seed: int):
         if dark_mean is not None:
             pix = pix - dark_mean[None]
         x, y, flag = _centroid(camera, win, val.centroid_method, scn, pixels=pix)
+    _check_flags(flag)
+    return x - tx[None], y - ty[None]
+
+
+def _check_flags(flag):
     if np.any(flag != 0):
         raise ValueError("hsfe truth: a star of the HSFE target was lost in a noisy frame "
                          "(centroid flag set); the static error of its expected centroid is undefined")
-    return x - tx[None], y - ty[None]
 
 
 def _field_grid(camera, n: int, margin_px: float = 40.0):

@@ -152,15 +152,17 @@ def truth_parts(scenario, *, seed: int) -> list[tuple]:
     return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
 
 
-def truth_part(scenario, *, seed: int, part: tuple):
-    """One piece of :func:`truths` (see :func:`truth_parts`)."""
+def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True):
+    """One piece of :func:`truths` (see :func:`truth_parts`); ``control_variate`` False: the
+    plain estimators (:func:`budget.starcam.truth.te_truth`, :func:`budget.starcam.truth.hsfe_truth`)."""
     from budget.starcam.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
 
     ts = _truth_seed(seed)
     val = scenario.validation
     if part[0] == "rest":
         cam = _camera(scenario)
-        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts), "lsfe_s": lsfe_s_truth(cam),
+        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate),
+                "lsfe_s": lsfe_s_truth(cam),
                 "lsfe_c1": lsfe_c1_truth(cam), "lsfe_c2": lsfe_c2_truth(scenario)}
     _, m, p = part
     if m is None:
@@ -169,10 +171,10 @@ def truth_part(scenario, *, seed: int, part: tuple):
     else:
         cam = _camera(scenario, trial_seeds(seed, m)[1])
         hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
-    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p)
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p, control_variate=control_variate)
 
 
-def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
+def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True) -> dict:
     """:func:`truths` from the results of :func:`truth_parts`, in their order."""
     from budget.starcam.truth import ClassTruth, combine, hsfe_from_cells
 
@@ -183,10 +185,11 @@ def truths_from_parts(scenario, *, seed: int, results: list) -> dict:
     for part, r in zip(parts[1:], results[1:]):
         cells.setdefault(part[1], []).append(r)
     if not val.new_maps_per_trial:
-        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames)
+        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames,
+                                      control_variate=control_variate)
     else:
-        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames)
-              for k in range(4)]
+        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames,
+                              control_variate=control_variate) for k in range(4)]
         vals = {}
         for ax in AXES:
             h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
@@ -224,10 +227,18 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
       first order ``se = sqrt(mean v / (F P W))``, and the split-half product's second-order
       term ``mean v / (F sqrt(P W T))`` (``T`` the pilot's mean square error, when positive),
       so ``F`` is the larger of ``mean v / (P W t^2)`` and ``2 mean v / (t sqrt(P W T))``;
-    * TE (:func:`budget.starcam.truth._se_mean_of_sd`): ``se = sd / sqrt(2 (F - 1) W)`` with
+    * TE, plain route (:func:`budget.starcam.truth._se_mean_of_sd`): ``se = sd / sqrt(2 (F - 1) W)`` with
       ``sd^2 = mean v W / (W - 1)`` (the scatter before the common motion was removed), so
       ``F = sd^2 / (2 W t^2) + 1``, and at least ``sd / (2 t)`` so that the sample sd's own
-      bias (``sd / (4 F)``, normal theory) stays below half the target.
+      bias (``sd / (4 F)``, normal theory) stays below half the target;
+    * TE with the control variate (:func:`budget.starcam.truth.te_truth`): ``se^2 = sum_j
+      Var(D_j) / (4 V_j F) / W^2`` (``D`` the per-frame terms of :func:`budget.starcam.truth.te_variance_cv`,
+      ``V_j`` the star's variance), both from a pilot of :data:`SIZE_PILOT_FRAMES` frames of the
+      TE target (stream ``spawn_key=(6,)``), so ``F = sum_j Var(D_j) / (4 V_j) / (W^2 t^2)``.
+
+    Where the control variates apply (:func:`budget.starcam.truth.control_variate_applies`)
+    the HSFE pilot's scatter ``v`` is that of the corrected errors, so the same formula gives
+    the far smaller sizes the variance-reduced truths need.
 
     Each is rounded up (HSFE to even), at least :data:`MIN_HSFE_TRUTH_FRAMES` /
     :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
@@ -236,7 +247,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     ask for more than the ceiling, docs/architecture.md). The truths then report their
     actual standard error, and the JSON their target beside it.
     """
-    from budget.starcam.truth import hsfe_phase_cell
+    from budget.starcam.truth import _cv_frames, control_variate_applies, hsfe_phase_cell, te_scene, te_variance_cv
 
     val = scenario.validation
     want = {c: [target_px[(c, a)] for a in AXES if (c, a) in target_px and target_px[(c, a)] > 0]
@@ -259,7 +270,19 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
             f = max(f, 2.0 * vm / (t * math.sqrt(ncell * t2)))
         f = min(max(MIN_HSFE_TRUTH_FRAMES, math.ceil(f)), val.hsfe_truth_frames)
         upd["hsfe_truth_frames"] = int(f + (f % 2))
-    if want["te"]:
+    if want["te"] and control_variate_applies(scenario):
+        t = min(want["te"])
+        cam = _camera(scenario)
+        ps6 = int(np.random.SeedSequence(ts, spawn_key=(6,)).generate_state(1)[0])
+        (x, y, flag, px, py, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
+        good = (flag == 0).all(axis=0)
+        f = 0.0
+        for c, p, k in ((x, px, kx), (y, py, ky)):
+            var, se_var = te_variance_cv(c[:, good], p[:, good], k[:, good])
+            var_d = se_var**2 * SIZE_PILOT_FRAMES
+            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t))
+        upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
+    elif want["te"]:
         t = min(want["te"])
         sd2 = float(np.max(v.mean(axis=1))) * w / max(w - 1, 1)
         f = max(sd2 / (2 * w * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
@@ -267,14 +290,17 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
 
-def truths(scenario, *, seed: int) -> dict:
+def truths(scenario, *, seed: int, control_variate: bool = True) -> dict:
     """Every class's truth (:class:`budget.starcam.truth.ClassTruth`) of a validation run with ``seed``.
 
     The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
     ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
     the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
     Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
-    over its workers and get the same numbers.
+    over its workers and get the same numbers. ``control_variate`` False: the plain HSFE and
+    TE estimators on the same frames (for comparison; the runner uses the variance-reduced).
     """
     parts = truth_parts(scenario, seed=seed)
-    return truths_from_parts(scenario, seed=seed, results=[truth_part(scenario, seed=seed, part=p) for p in parts])
+    return truths_from_parts(scenario, seed=seed, control_variate=control_variate,
+                             results=[truth_part(scenario, seed=seed, part=p, control_variate=control_variate)
+                                      for p in parts])
