@@ -158,6 +158,8 @@ def plan_json(res) -> dict:
                          for r in res.requirements],
         "knobs": [{"field": k.field, "kind": k.kind, "low": k.low, "high": k.high, "unit": k.unit,
                    "description": k.description} for k in res.knobs],
+        "fixed": dict(getattr(res, "fixed", {}) or {}),
+        "flat_knobs": [k.field for k in getattr(res, "flat", ())],
         "feasible": res.feasible, "confirmed": res.confirmed,
         "sure": None if res.validation is None else res.sure,
         "sure_level": res.sure_level, "premium": res.premium,
