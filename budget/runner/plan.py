@@ -1,7 +1,7 @@
 """Plan a test before booking the lab: the cheapest protocol that meets the required accuracy.
 
 ``budget <study> plan [SCENARIO] --require CLASS.AXIS<=VALUE ... [--variant V]
-[--confidence C] [--budget-hours H] --json OUT --report DIR`` (Python: :func:`budget.plan`)
+[--confidence C] [--fix FIELD=VALUE ...] [--budget-hours H] --json OUT --report DIR`` (Python: :func:`budget.plan`)
 searches the protocol knobs a study declares (:meth:`Study.protocol_knobs`: frames, poses,
 faces, passes, ...) for the protocol of least lab time (:meth:`Study.lab_time_s`, summed)
 whose estimates meet every requirement, for each named protocol shape the study offers
@@ -82,6 +82,23 @@ For each shape (the scenario's own when the study names none):
    an arithmetic error) is skipped and listed;
 5. shapes: the cheapest shape's best protocol is the recommendation; the report lists
    every shape's best and its cost.
+
+Cost-flat and fixed knobs
+-------------------------
+A knob whose lab time does not change with it (a magnitude limit: more stars, no more time;
+accuracy not necessarily monotone in it) is *cost-flat* (:func:`cost_flat_knobs`: the summed
+:meth:`Study.lab_time_s` unchanged across its low, middle and high value, with the other
+knobs at the scenario's values, all low and all high). It is not in the averaging model: the
+design, the model, the frontier and the refinement run over the cost-bearing knobs, and each
+candidate of those has its cost-flat knobs set where its worst requirement ratio is least
+(:meth:`_ShapeSearch._best_flat`: per flat knob a coarse grid of :data:`FLAT_COARSE` values
+over its range, then :data:`FLAT_REFINE` steps halving the wider gap next to the best value,
+whole numbers for ``int`` knobs; screening trials, common random numbers, memoised; compared
+by :func:`_smooth_ratio`, the quantile of the errors' normal fit). The search keeps room for a
+candidate's flat search within the trial budget. ``--fix FIELD=VALUE`` (Python
+``fix={field: value}``, :func:`parse_fixes`) pins a knob: the shapes' scenarios carry it and
+the search leaves it out; where every knob is fixed or cost-flat the one protocol is run
+with its flat knobs set, and judged.
 
 Honest verdict
 --------------
@@ -504,6 +521,27 @@ def _with_values(study: Study, scenario: Any, values: dict[str, Any], *, where: 
     return study.from_dict(raw, source=where)
 
 
+def _smooth_ratio(ev: Evaluation, confidence: float) -> float:
+    """Worst ratio of a requirement's C-quantile to its bound, the quantile that of ``|b + s Z|``
+    (``b``, ``s``: the errors' mean and sd, ``Z`` standard normal): on a screening run's few
+    trials far steadier than the order statistic, so the cost-flat search compares settings by
+    their accuracy rather than by the noise of one order statistic."""
+    from scipy import optimize, stats
+
+    worst = 0.0
+    for f in ev.figures.values():
+        b, sd = abs(f["bias"]), max(f["sd"], 0.0)
+        if sd <= 0.0:
+            q = b
+        else:
+            def cover(q, b=b, sd=sd):
+                return stats.norm.cdf((q - b) / sd) - stats.norm.cdf((-q - b) / sd) - confidence
+
+            q = optimize.brentq(cover, 0.0, b + 10.0 * sd)
+        worst = max(worst, q / f["bound"])
+    return worst
+
+
 def _dotted_get(scenario: Any, key: str):
     """The value of dotted ``key`` in ``scenario``."""
     obj = scenario
@@ -710,10 +748,10 @@ class _ShapeSearch:
         per flat knob in turn (the others at their best so far, from the scenario's values), a
         coarse grid of :data:`FLAT_COARSE` values over its range, then :data:`FLAT_REFINE` steps
         each halving the wider gap next to the best value (whole numbers for ``int`` knobs), all
-        on screening trials with common random numbers. The best is the candidate: relabelled
+        on screening trials with common random numbers, compared by :func:`_smooth_ratio`. The best is the candidate: relabelled
         ``stage``, and (beyond the design) extended to a validation's trials unless decided."""
         def score(ev):
-            return math.inf if ev is None else ev.ratio
+            return math.inf if ev is None else _smooth_ratio(ev, self.o.confidence)
 
         fv = {k.field: _knob_value(k, _dotted_get(self.base, k.field)) for k in self.flat}
         best = None
