@@ -135,7 +135,8 @@ from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
-           "PlanResult", "Requirement", "cost_flat_knobs", "default_variant", "parse_fixes", "parse_requirements", "plan_command_for",
+           "PlanResult", "Requirement", "cost_flat_knobs", "default_variant", "parse_fixes", "parse_requirements",
+           "plan_command_for",
            "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
            "validation_seed"]
 
@@ -748,8 +749,9 @@ class _ShapeSearch:
         per flat knob in turn (the others at their best so far, from the scenario's values), a
         coarse grid of :data:`FLAT_COARSE` values over its range, then :data:`FLAT_REFINE` steps
         each halving the wider gap next to the best value (whole numbers for ``int`` knobs), all
-        on screening trials with common random numbers, compared by :func:`_smooth_ratio`. The best is the candidate: relabelled
-        ``stage``, and (beyond the design) extended to a validation's trials unless decided."""
+        on screening trials with common random numbers, compared by :func:`_smooth_ratio`. The
+        best is the candidate: relabelled ``stage``, and (beyond the design) extended to a
+        validation's trials unless decided."""
         def score(ev):
             return math.inf if ev is None else _smooth_ratio(ev, self.o.confidence)
 
@@ -1256,8 +1258,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
                   help="Write a report (report.md, report.html, trade_curve.png, recommended.toml).")
     @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Each protocol run on stderr (default: on a terminal).")
-    def plan(scenario, require, variant, confidence, sure, fix, budget_hours, trials, seed, workers, json_out, report_dir,
-             overwrite, progress):
+    def plan(scenario, require, variant, confidence, sure, fix, budget_hours, trials, seed, workers, json_out,
+             report_dir, overwrite, progress):
         import sys
         from pathlib import Path
 
