@@ -170,7 +170,7 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
 
 def plan(study, scenario=None, *, require=(), variant: str | None = None, confidence: float = 0.95,
          budget_hours: float | None = None, trials: int | None = None, seed: int = 0, workers: int | None = 1,
-         progress: bool = False, sure: float = 0.9):
+         progress: bool = False, sure: float = 0.9, fix=None):
     """The cheapest protocol of ``study`` (its :meth:`~budget.runner.study.Study.protocol_knobs`
     and shapes) whose ``variant`` estimates meet every requirement of ``require``
     (``"CLASS.AXIS<=VALUE"``: the ``confidence`` quantile of ``|estimate - truth|``), re-validated
@@ -178,7 +178,8 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
     ``scenario`` as for :func:`validate`. Returns a ``PlanResult`` (``answer()``,
     ``to_dataframe()``, ``to_json()``, ``write_report(folder)``, ``recommended_toml()``).
     ``workers`` defaults to 1: a plan runs many short validations. ``sure``: how sure the
-    recommended protocol is to pass the re-validation (0.5: the boundary protocol)."""
+    recommended protocol is to pass the re-validation (0.5: the boundary protocol). ``fix``:
+    knobs pinned, ``{field: value}`` (or texts ``"FIELD=VALUE"``)."""
     from budget.runner.executors import default_workers
     from budget.runner.plan import plan_protocol
 
@@ -191,7 +192,7 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
             return plan_protocol(st, scn, list(require), variant=variant, confidence=confidence,
                                  budget_hours=budget_hours, trials=trials, seed=seed,
                                  workers=default_workers() if workers is None else workers, progress=progress,
-                                 sure=sure)
+                                 sure=sure, fix=fix)
         except Exception as exc:
             hint = _broken_pool_hint(exc)
             if hint is not None:

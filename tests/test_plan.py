@@ -179,6 +179,12 @@ def test_dataframe_repr_and_html():
     (["--require", "offset.x<=0.01", "--variant", "none"], "--variant none: a reference"),
     (["--require", "offset.x<=0.01", "--variant", "bogus"], "--variant bogus: unknown"),
     ([], "give at least one requirement"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.bogus=3"], "'protocol.bogus' is not a protocol knob"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.frames=0"], "must be within [1, 100000]"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.frames=2.5"], "takes a whole number"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.frames=abc"], "'abc' is not a number"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.frames"], "expected FIELD=VALUE"),
+    (["--require", "offset.x<=0.01", "--fix", "protocol.frames=5", "--fix", "protocol.frames=6"], "fixed twice"),
     (["--require", "offset.x<=0.01", "--sure", "1.5"], "--sure 1.5: must be in [0.5, 1)"),
 ])
 def test_bad_requirements_are_one_line_errors(tmp_path, monkeypatch, capsys, args, message):
@@ -411,3 +417,54 @@ def test_run_study_uses_a_given_executor_and_leaves_it_running():
     for key, x in own.samples.items():
         np.testing.assert_array_equal(first.samples[key], x)
         np.testing.assert_array_equal(second.samples[key], x)
+
+
+# ---------------------------------------------------------------------- cost-flat and fixed knobs
+@pytest.mark.parametrize("best_window_px, expected_window", [(5.0, 5.0), (12.0, 9.0)])
+def test_a_cost_flat_knob_is_set_where_accuracy_is_best_and_the_other_knob_at_its_optimum(best_window_px,
+                                                                                            expected_window):
+    from budget.runner.plan import cost_flat_knobs
+
+    study = ToyStudy(("frames", "window"), record=True)
+    data = study.load_scenario().model_dump(mode="json", exclude_none=True)
+    data["world"]["best_window_px"] = best_window_px
+    scn = study.from_dict(data, source="test")
+    assert [k.field for k in cost_flat_knobs(study, scn, study.protocol_knobs(scn))] == ["protocol.window_px"]
+    value = 0.02
+    res = plan_protocol(study, scn, ["offset.x<=0.02"], seed=0, sure=0.5)
+    rec = res.recommended.knobs
+    # the frame noise is sigma_f sqrt(1 + ((W - W*) / W*)^2): least at W* = 5 px inside [1, 9] (the
+    # coarse grid 1, 5, 9 holds it), at the end 9 px for W* = 12 px; the neighbours the search
+    # compares differ by 3 % or more in sigma_f, beyond what common random numbers blur
+    assert rec["protocol.window_px"] == expected_window
+    assert res.to_json()["flat_knobs"] == ["protocol.window_px"]
+    # frames: the one-knob closed form at the chosen window (tolerance as in the one-knob test)
+    data["protocol"]["window_px"] = expected_window
+    at = study.from_dict(data, source="test")
+    f_star = analytic_optimum(at, value, knobs=("frames",))["frames"]
+    sf2 = at.world.sigma_frame_px ** 2 * (1 + ((expected_window - best_window_px) / best_window_px) ** 2)
+    amp = 2 * (value / stats.norm.ppf(0.975)) ** 2 / (sf2 / f_star)
+    tol = 3 * amp * _quantile_rel_se(N, C) + resolution(N)
+    assert abs(rec["protocol.frames"] / f_star - 1) <= tol, (rec, f_star, tol)
+    assert len(study.calls) == res.total_trials <= BUDGET_VALIDATIONS * N  # the flat search within the budget
+
+
+def test_fix_pins_a_knob_and_the_json_says_so(tmp_path, monkeypatch):
+    from budget.runner.cli import study_group
+    from simcam.cli_common import run_cli
+
+    _register(monkeypatch)
+    out = tmp_path / "plan.json"
+    run_cli(study_group("toy"), ["plan", "--require", "offset.x<=0.01", "--fix", "protocol.positions=40",
+                                 "--workers", "1", "--json", str(out), "--no-progress"])
+    data = json.loads(out.read_text())
+    assert data["fixed"] == {"protocol.positions": 40}
+    assert all(e["knobs"]["protocol.positions"] == 40 for e in data["evaluations"])
+    assert data["recommended"]["knobs"]["protocol.positions"] == 40
+    # every knob pinned: the one protocol, judged
+    res = plan_protocol(TOY, TOY.load_scenario(), ["offset.x<=0.01"], fix={"protocol.frames": 400,
+                                                                            "protocol.positions": 40})
+    assert res.fixed == {"protocol.frames": 400, "protocol.positions": 40}
+    assert {(e.knobs["protocol.frames"], e.knobs["protocol.positions"]) for e in res.evaluations} == {(400, 40)}
+    # s^2 = 0.05^2 / 400 + 0.01^2 / 40 = 8.75e-6: q95 = 1.96 * 0.00296 = 0.0058 px, well within 0.01
+    assert res.feasible and res.confirmed

@@ -1,7 +1,7 @@
 """Plan a test before booking the lab: the cheapest protocol that meets the required accuracy.
 
 ``budget <study> plan [SCENARIO] --require CLASS.AXIS<=VALUE ... [--variant V]
-[--confidence C] [--budget-hours H] --json OUT --report DIR`` (Python: :func:`budget.plan`)
+[--confidence C] [--fix FIELD=VALUE ...] [--budget-hours H] --json OUT --report DIR`` (Python: :func:`budget.plan`)
 searches the protocol knobs a study declares (:meth:`Study.protocol_knobs`: frames, poses,
 faces, passes, ...) for the protocol of least lab time (:meth:`Study.lab_time_s`, summed)
 whose estimates meet every requirement, for each named protocol shape the study offers
@@ -83,6 +83,23 @@ For each shape (the scenario's own when the study names none):
 5. shapes: the cheapest shape's best protocol is the recommendation; the report lists
    every shape's best and its cost.
 
+Cost-flat and fixed knobs
+-------------------------
+A knob whose lab time does not change with it (a magnitude limit: more stars, no more time;
+accuracy not necessarily monotone in it) is *cost-flat* (:func:`cost_flat_knobs`: the summed
+:meth:`Study.lab_time_s` unchanged across its low, middle and high value, with the other
+knobs at the scenario's values, all low and all high). It is not in the averaging model: the
+design, the model, the frontier and the refinement run over the cost-bearing knobs, and each
+candidate of those has its cost-flat knobs set where its worst requirement ratio is least
+(:meth:`_ShapeSearch._best_flat`: per flat knob a coarse grid of :data:`FLAT_COARSE` values
+over its range, then :data:`FLAT_REFINE` steps halving the wider gap next to the best value,
+whole numbers for ``int`` knobs; screening trials, common random numbers, memoised; compared
+by :func:`_smooth_ratio`, the quantile of the errors' normal fit). The search keeps room for a
+candidate's flat search within the trial budget. ``--fix FIELD=VALUE`` (Python
+``fix={field: value}``, :func:`parse_fixes`) pins a knob: the shapes' scenarios carry it and
+the search leaves it out; where every knob is fixed or cost-flat the one protocol is run
+with its flat knobs set, and judged.
+
 Honest verdict
 --------------
 The recommendation is re-validated on ``n`` fresh trials with fresh truths: seed
@@ -118,7 +135,8 @@ from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
-           "PlanResult", "Requirement", "default_variant", "parse_requirements", "plan_command_for",
+           "PlanResult", "Requirement", "cost_flat_knobs", "default_variant", "parse_fixes", "parse_requirements",
+           "plan_command_for",
            "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
            "validation_seed"]
 
@@ -133,6 +151,9 @@ VALIDATION_SPAWN_KEY = 2**31 + 1
 DECIDED = 0.001
 #: the search with the re-validation costs at most this many validations' trials (per shape)
 BUDGET_VALIDATIONS = 20
+#: a cost-flat knob's coarse grid (values over its range, ends included) and refinement steps
+FLAT_COARSE = 3
+FLAT_REFINE = 2
 _REQ = re.compile(r"^\s*([A-Za-z_][\w-]*)\.([A-Za-z_][\w-]*)\s*<=\s*(\S+)\s*$")
 
 
@@ -501,6 +522,35 @@ def _with_values(study: Study, scenario: Any, values: dict[str, Any], *, where: 
     return study.from_dict(raw, source=where)
 
 
+def _smooth_ratio(ev: Evaluation, confidence: float) -> float:
+    """Worst ratio of a requirement's C-quantile to its bound, the quantile that of ``|b + s Z|``
+    (``b``, ``s``: the errors' mean and sd, ``Z`` standard normal): on a screening run's few
+    trials far steadier than the order statistic, so the cost-flat search compares settings by
+    their accuracy rather than by the noise of one order statistic."""
+    from scipy import optimize, stats
+
+    worst = 0.0
+    for f in ev.figures.values():
+        b, sd = abs(f["bias"]), max(f["sd"], 0.0)
+        if sd <= 0.0:
+            q = b
+        else:
+            def cover(q, b=b, sd=sd):
+                return stats.norm.cdf((q - b) / sd) - stats.norm.cdf((-q - b) / sd) - confidence
+
+            q = optimize.brentq(cover, 0.0, b + 10.0 * sd)
+        worst = max(worst, q / f["bound"])
+    return worst
+
+
+def _dotted_get(scenario: Any, key: str):
+    """The value of dotted ``key`` in ``scenario``."""
+    obj = scenario
+    for part in key.split("."):
+        obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
+    return obj
+
+
 def _knob_value(k: Knob, x: float):
     return int(round(x)) if k.kind == "int" else float(x)
 
@@ -536,20 +586,28 @@ def _feature(k: Knob, x):
 # ---------------------------------------------------------------------- the search of one shape
 class _ShapeSearch:
     def __init__(self, oracle: _Oracle, shape: str, scn: Any, knobs: tuple[Knob, ...], budget_s: float | None,
-                 trial_cap: int):
+                 trial_cap: int, flat: tuple[Knob, ...] = (), fixed: dict | None = None):
         self.o, self.shape, self.base, self.knobs = oracle, shape, scn, knobs
         self.budget_s, self.trial_cap = budget_s, trial_cap
+        #: cost-flat knobs (set per candidate by direct evaluation, :meth:`_best_flat`) and pinned ones
+        self.flat, self.fixed = tuple(flat), dict(fixed or {})
+        self._flat_memo: dict = {}
         self.evals: list[Evaluation] = []
         self.start_trials = oracle.trials_run
         self.where = f"plan shape {shape}"
         self.exact: set[int] = set()
         #: protocols refused (scenario model, check or trials), with the reason
         self.refused: list[dict] = []
-        self._grid()
+        if self.knobs:
+            self._grid()
+        else:
+            self.points, self.costs = np.zeros((1, 0)), np.array([self._cost([])])
 
     # ---- scenarios and costs
-    def scenario(self, x) -> Any:
-        vals = {k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}
+    def scenario(self, x, flat: dict | None = None) -> Any:
+        vals = {**{k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}, **(flat or {})}
+        if not vals:
+            return self.base, vals
         return _with_values(self.o.study, self.base, vals, where=self.where), vals
 
     def _grid(self) -> None:
@@ -642,25 +700,107 @@ class _ShapeSearch:
         ...) is recorded in :attr:`refused` and skipped (None)."""
         vals = {k.field: _knob_value(k, xi) for k, xi in zip(self.knobs, x)}
         for e in self.evals:
-            if e.knobs == vals:
+            if all(e.knobs.get(f) == v for f, v in vals.items()):
                 return e
-        if any(r["knobs"] == vals for r in self.refused):
+        if any(all(r["knobs"].get(f) == v for f, v in vals.items()) for r in self.refused if not r.get("flat")):
             return None
-        try:
-            scn, vals = self.scenario(x)
-            self.o.study.check(scn, where=self.where)
-            ev = self.o.evaluate(self.shape, vals, scn, stage=stage, extend=stage != "design")
-        except (ValueError, ArithmeticError) as exc:
-            self.refused.append({"knobs": vals, "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
-            return None
+        if self.flat:
+            ev = self._best_flat(x, stage)
+            if ev is None:
+                self.refused.append({"knobs": {**vals, **self.fixed},
+                                     "error": "every setting of the cost-flat knobs refused"})
+                return None
+        else:
+            try:
+                scn, vals = self.scenario(x)
+                self.o.study.check(scn, where=self.where)
+                ev = self.o.evaluate(self.shape, {**vals, **self.fixed}, scn, stage=stage, extend=stage != "design")
+            except (ValueError, ArithmeticError) as exc:
+                self.refused.append({"knobs": {**vals, **self.fixed},
+                                     "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
+                return None
         self.evals.append(ev)
         return ev
 
+    # ---- the cost-flat knobs
+    def flat_trials(self) -> int:
+        """Trials :meth:`_best_flat` may spend on one candidate (screening trials each)."""
+        return len(self.flat) * (FLAT_COARSE + FLAT_REFINE) * screening_trials(self.o.n)
+
+    def _flat_eval(self, x, fv: dict) -> Evaluation | None:
+        """Candidate ``x`` with the cost-flat knobs at ``fv``, on screening trials (memoised; the
+        same seed as every candidate: common random numbers); None where refused."""
+        key = (tuple(_knob_value(k, xi) for k, xi in zip(self.knobs, x)), tuple(sorted(fv.items())))
+        if key not in self._flat_memo:
+            try:
+                scn, vals = self.scenario(x, fv)
+                self.o.study.check(scn, where=self.where)
+                ev = self.o.evaluate(self.shape, {**vals, **self.fixed}, scn, stage="flat search", extend=False)
+            except (ValueError, ArithmeticError) as exc:
+                self.refused.append({"knobs": {**dict(zip([k.field for k in self.knobs], key[0])), **fv,
+                                               **self.fixed}, "flat": True,
+                                     "error": str(exc).splitlines()[0] if str(exc) else type(exc).__name__})
+                ev = None
+            self._flat_memo[key] = ev
+        return self._flat_memo[key]
+
+    def _best_flat(self, x, stage) -> Evaluation | None:
+        """Candidate ``x`` with the cost-flat knobs set where its worst requirement ratio is least:
+        per flat knob in turn (the others at their best so far, from the scenario's values), a
+        coarse grid of :data:`FLAT_COARSE` values over its range, then :data:`FLAT_REFINE` steps
+        each halving the wider gap next to the best value (whole numbers for ``int`` knobs), all
+        on screening trials with common random numbers, compared by :func:`_smooth_ratio`. The
+        best is the candidate: relabelled ``stage``, and (beyond the design) extended to a
+        validation's trials unless decided."""
+        def score(ev):
+            return math.inf if ev is None else _smooth_ratio(ev, self.o.confidence)
+
+        fv = {k.field: _knob_value(k, _dotted_get(self.base, k.field)) for k in self.flat}
+        best = None
+        for k in self.flat:
+            tried: dict = {}
+
+            def at(v, k=k):
+                v = _knob_value(k, v)
+                if v not in tried:
+                    tried[v] = self._flat_eval(x, {**fv, k.field: v})
+                return v
+
+            for v in np.linspace(k.low, k.high, FLAT_COARSE):
+                at(v)
+            for _ in range(FLAT_REFINE):
+                xs = sorted(tried)
+                b = min(xs, key=lambda v: (score(tried[v]), v))
+                i = xs.index(b)
+                gaps = []
+                if i > 0:
+                    gaps.append((b - xs[i - 1], -score(tried[xs[i - 1]]), 0.5 * (b + xs[i - 1])))
+                if i + 1 < len(xs):
+                    gaps.append((xs[i + 1] - b, -score(tried[xs[i + 1]]), 0.5 * (b + xs[i + 1])))
+                new = [g for g in sorted(gaps, reverse=True) if _knob_value(k, g[2]) not in tried]
+                if not new:
+                    break
+                at(new[0][2])
+            b = min(tried, key=lambda v: (score(tried[v]), v))
+            fv[k.field] = b
+            best = tried[b]
+        if best is None:
+            return None
+        # the chosen setting is the candidate (its flat-search record becomes the candidate's)
+        best.stage = stage
+        if stage != "design" and best.trials < self.o.n and not self.o._decided(best.figures):
+            self.o.complete(best, quiet=True)
+        return best
+
     def search(self) -> dict:
         d = len(self.knobs)
+        if d == 0:  # every knob pinned or cost-flat: one protocol, its flat knobs set
+            return self._search_none()
         count = {1: 5, 2: 3}.get(d, 2)
         levels = [_levels(k, count) for k in self.knobs]
         for x in np.array(np.meshgrid(*levels, indexing="ij")).reshape(d, -1).T:
+            if self.spent() + self.flat_trials() + 2 * self.o.n > self.trial_cap:
+                break
             self.run(x, "design")
         rho = resolution(self.o.n)
         # lab time the knobs add above their cheapest setting: what the resolution applies to
@@ -669,7 +809,7 @@ class _ShapeSearch:
         tried: set = set()
         last_step_met = False
         for _ in range(100):
-            if self.spent() + 2 * self.o.n > self.trial_cap:  # room for a last completion
+            if self.spent() + self.flat_trials() + 2 * self.o.n > self.trial_cap:  # room for a last completion
                 break
             front, ratio = self.frontier(self._fit())
             if len(front) == 0:
@@ -746,6 +886,15 @@ class _ShapeSearch:
         out["boundary"] = self.boundary()
         return out
 
+    def _search_none(self) -> dict:
+        ev = self.run(np.zeros(0), "search")
+        if ev is not None:
+            self.o.complete(ev)
+        best = ev if ev is not None and ev.met and self._in_budget(ev) else None
+        return {"shape": self.shape, "best": best, "best_achievable": None if best is not None else ev,
+                "evaluations": list(self.evals), "trials": self.spent(), "refused": list(self.refused),
+                "model": None, "boundary": None}
+
     def boundary(self) -> dict | None:
         """The fitted model's cheapest protocol (frontier) whose predicted quantiles sit at the
         bounds (no ``sure`` margin): what a search judging by the measured quantile alone aims
@@ -807,6 +956,10 @@ class PlanResult:
     cpu_s: float = float("nan")
     #: how sure the search wanted the recommendation to pass the re-validation (``--sure``)
     sure_level: float = DEFAULT_SURE
+    #: knobs pinned by ``--fix`` (field -> value)
+    fixed: dict = field(default_factory=dict)
+    #: cost-flat knobs (set per candidate by direct evaluation, not in the averaging model)
+    flat: tuple = ()
 
     # ---- verdicts
     @property
@@ -913,16 +1066,18 @@ class PlanResult:
 def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | None = None,
                   confidence: float = DEFAULT_CONFIDENCE, budget_hours: float | None = None, seed: int = 0,
                   trials: int | None = None, workers: int | None = 1, progress: bool = False,
-                  sure: float = DEFAULT_SURE) -> PlanResult:
+                  sure: float = DEFAULT_SURE, fix=None) -> PlanResult:
     """Plan ``study``'s protocol on ``scenario`` (module docstring). ``requirements``: texts
     ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
     the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
     prediction bound of the quantile the re-validation will measure is within the bound
-    (:func:`prediction_bound`; 0.5: the measured quantile itself, the boundary protocol)."""
+    (:func:`prediction_bound`; 0.5: the measured quantile itself, the boundary protocol);
+    ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE`` (:func:`parse_fixes`)."""
     t0, c0 = time.perf_counter(), time.process_time()
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
         raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
+    fixed = parse_fixes(knobs, fix)
     if not (0.5 <= confidence < 1.0):
         raise UserInputError(f"--confidence {confidence}: must be in [0.5, 1)")
     if not (0.5 <= sure < 1.0):
@@ -945,19 +1100,27 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     study.prewarm(scenario)
     with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
         return _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
-                     budget_s, knobs, t0, c0, sure)
+                     budget_s, knobs, t0, c0, sure, fixed)
 
 
 def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
-          knobs, t0, c0, sure) -> PlanResult:
+          knobs, t0, c0, sure, fixed=None) -> PlanResult:
+    fixed = dict(fixed or {})
     oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure)
     oracle.prewarmed = True
     shapes = study.protocol_shapes(scenario) or {"scenario": {}}
     cap = (BUDGET_VALIDATIONS - 1) * n
+    free = tuple(k for k in knobs if k.field not in fixed)
     results = {}
+    flat_all: dict[str, Knob] = {}
     for name, overrides in shapes.items():
-        base = _with_values(study, scenario, overrides, where=f"protocol shape {name}") if overrides else scenario
-        s = _ShapeSearch(oracle, name, base, knobs, budget_s, cap).search()
+        base = _with_values(study, scenario, {**overrides, **fixed}, where=f"protocol shape {name}") \
+            if (overrides or fixed) else scenario
+        flat = cost_flat_knobs(study, base, free)
+        flat_all.update({k.field: k for k in flat})
+        cost_knobs = tuple(k for k in free if k not in flat)
+        s = _ShapeSearch(oracle, name, base, cost_knobs, budget_s, cap, flat=flat, fixed=fixed).search()
+        s["flat"] = [k.field for k in flat]
         s["overrides"] = dict(overrides)
         results[name] = s
     bests = [s["best"] for s in results.values() if s["best"] is not None]
@@ -976,7 +1139,78 @@ def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, wor
                       recommended=rec, validation=validation, best_achievable=best_ach,
                       evaluations=list(oracle.evaluations), search_trials=search_trials,
                       truth_runs=oracle.truth_runs, elapsed_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0, sure_level=sure)
+                      cpu_s=time.process_time() - c0, sure_level=sure, fixed=fixed,
+                      flat=tuple(k for k in knobs if k.field in flat_all))
+
+
+# ---------------------------------------------------------------------- fixed and cost-flat knobs
+def parse_fixes(knobs: tuple[Knob, ...], fix) -> dict[str, Any]:
+    """The knobs pinned by ``--fix FIELD=VALUE`` (texts) or ``{field: value}``, checked: the
+    field one of the study's knobs, given once, the value of the knob's kind (a whole number for
+    an ``int`` knob) within its bounds; a bad one is a :class:`UserInputError` naming it."""
+    if not fix:
+        return {}
+    by_field = {k.field: k for k in knobs}
+    items = []
+    if isinstance(fix, dict):
+        items = [(str(f), v, f"{f}={v}") for f, v in fix.items()]
+    else:
+        for t in ([fix] if isinstance(fix, str) else list(fix)):
+            f, eq, v = str(t).partition("=")
+            if not eq or not f.strip() or not v.strip():
+                raise UserInputError(f"--fix {t!r}: expected FIELD=VALUE (e.g. {knobs[0].field}={knobs[0].low:g})")
+            items.append((f.strip(), v.strip(), str(t)))
+    out: dict[str, Any] = {}
+    for f, v, t in items:
+        k = by_field.get(f)
+        if k is None:
+            raise UserInputError(f"--fix {t!r}: {f!r} is not a protocol knob; the knobs are {', '.join(by_field)}")
+        if f in out:
+            raise UserInputError(f"--fix {t!r}: {f} is fixed twice; give one value")
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            raise UserInputError(f"--fix {t!r}: {v!r} is not a number") from None
+        if isinstance(v, bool) or not math.isfinite(x):
+            raise UserInputError(f"--fix {t!r}: {v!r} is not a number")
+        if k.kind == "int":
+            if x != round(x) or (isinstance(v, str) and not re.fullmatch(r"[+-]?\d+", v)):
+                raise UserInputError(f"--fix {t!r}: {f} takes a whole number ({k.unit})")
+            x = int(round(x))
+        if not (k.low <= x <= k.high):
+            raise UserInputError(f"--fix {t!r}: {f} must be within [{k.low:g}, {k.high:g}] {k.unit}")
+        out[f] = x
+    return out
+
+
+def cost_flat_knobs(study: Study, scenario: Any, knobs: tuple[Knob, ...]) -> tuple[Knob, ...]:
+    """The knobs whose lab time does not change with them (a magnitude limit, a threshold): by
+    :meth:`Study.lab_time_s` itself, at the knob's low, middle and high value, with the other
+    knobs at the scenario's values, all low and all high; unchanged (relative 1e-9) at every
+    setting the scenario model accepts (at least one with two values) makes it cost-flat."""
+    out = []
+    for k in knobs:
+        others = [o for o in knobs if o is not k]
+        settings = [{}] + ([{o.field: _knob_value(o, o.low) for o in others},
+                            {o.field: _knob_value(o, o.high) for o in others}] if others else [])
+        vals = sorted({_knob_value(k, v) for v in (k.low, 0.5 * (k.low + k.high), k.high)})
+        flat, seen = True, 0
+        for st in settings:
+            costs = []
+            for v in vals:
+                try:
+                    scn = _with_values(study, scenario, {**st, k.field: v}, where="plan: cost-flat check")
+                    costs.append(float(sum(study.lab_time_s(scn).values())))
+                except (ValueError, ArithmeticError):
+                    continue
+            if len(costs) >= 2:
+                seen += 1
+                if max(costs) - min(costs) > 1e-9 * max(1.0, abs(max(costs))):
+                    flat = False
+                    break
+        if flat and seen and len(vals) > 1:
+            out.append(k)
+    return tuple(out)
 
 
 # ---------------------------------------------------------------------- the command
@@ -992,8 +1226,8 @@ def has_knobs(study: Study) -> bool:
 
 
 def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
-    """``plan [SCENARIO] --require ... --variant --confidence --budget-hours --trials --seed
-    --workers --json --report``; ``get_study``: how to find the study (default the registry)."""
+    """``plan [SCENARIO] --require ... --variant --confidence --sure --fix --budget-hours --trials
+    --seed --workers --json --report``; ``get_study``: how to find the study (default the registry)."""
 
     @click.command("plan", help=f"Plan the {study_name} test before booking the lab: the cheapest protocol "
                                 "(knobs and shapes the study declares) whose estimates meet every --require "
@@ -1008,6 +1242,9 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     @click.option("--sure", "sure", type=float, default=DEFAULT_SURE, show_default=True,
                   help="How sure the recommended protocol should be to meet every requirement on the real test "
                        "(the re-validation's fresh trials); 0.5: the boundary protocol.")
+    @click.option("--fix", "fix", multiple=True, metavar="FIELD=VALUE",
+                  help="Pin a protocol knob (repeat for several; FIELD one of the study's knobs, VALUE within "
+                       "its bounds): the search leaves it at VALUE.")
     @click.option("--budget-hours", "budget_hours", type=float, default=None,
                   help="Lab time allowed: protocols above it are not considered.")
     @click.option("--trials", type=click.IntRange(min=20), default=None,
@@ -1021,8 +1258,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
                   help="Write a report (report.md, report.html, trade_curve.png, recommended.toml).")
     @overwrite_option
     @click.option("--progress/--no-progress", default=None, help="Each protocol run on stderr (default: on a terminal).")
-    def plan(scenario, require, variant, confidence, sure, budget_hours, trials, seed, workers, json_out, report_dir,
-             overwrite, progress):
+    def plan(scenario, require, variant, confidence, sure, fix, budget_hours, trials, seed, workers, json_out,
+             report_dir, overwrite, progress):
         import sys
         from pathlib import Path
 
@@ -1036,6 +1273,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
         study = lookup(study_name)
         scn = study.load_scenario(scenario)
         parse_requirements(study, scn, require, variant)  # a bad requirement before any work
+        parse_fixes(tuple(study.protocol_knobs(scn)), list(fix))  # a bad --fix too
         check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)
         if progress is None:
             progress = sys.stderr.isatty()
@@ -1045,7 +1283,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
             workers = default_workers()
         res = plan_protocol(study, scn, list(require), variant=variant, confidence=confidence,
                             budget_hours=budget_hours, seed=seed, trials=trials, workers=workers, progress=progress,
-                            sure=sure)
+                            sure=sure, fix=list(fix))
         click.echo(res.answer())
         for s in res.sentences():
             click.echo(f"* {s}")

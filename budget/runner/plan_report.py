@@ -80,7 +80,10 @@ def answer_text(res) -> str:
                 f"Best achievable: {name} {_fmt(worst['quantile'])} +- {_fmt(worst['se_quantile'])} "
                 f"{next(r.unit for r in res.requirements if r.name == name)} "
                 f"(the {conf} quantile of |error|, bound {_fmt(worst['bound'])}) with {_knobs(b)} "
-                f"({b.shape}, {_hours(b.cost_s)} of lab time).")
+                f"({b.shape}, {_hours(b.cost_s)} of lab time)" +
+                ("" if worst["quantile"] > worst["bound"] or "upper" not in worst else
+                 f"; within the bound, but not {pct(worst['upper_sure'])} sure to stay there on the real test "
+                 f"(its prediction bound {_fmt(worst['upper'])}; --sure)") + ".")
     rec, val = res.recommended, res.validation
     head = (f"{st.title}: the cheapest protocol found{budget} is {_knobs(rec)}"
             f"{'' if rec.shape == 'scenario' else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
@@ -158,6 +161,8 @@ def plan_json(res) -> dict:
                          for r in res.requirements],
         "knobs": [{"field": k.field, "kind": k.kind, "low": k.low, "high": k.high, "unit": k.unit,
                    "description": k.description} for k in res.knobs],
+        "fixed": dict(getattr(res, "fixed", {}) or {}),
+        "flat_knobs": [k.field for k in getattr(res, "flat", ())],
         "feasible": res.feasible, "confirmed": res.confirmed,
         "sure": None if res.validation is None else res.sure,
         "sure_level": res.sure_level, "premium": res.premium,
@@ -342,6 +347,14 @@ def write_plan_report(res, out_dir) -> Path:
                   f"most {pct(1 - res.confidence)}" +
                   " given the re-validation (Jeffreys prior), over the truth's own uncertainty; over several "
                   "requirements the Bonferroni bound. See docs/planning.md.", ""]
+        flat, fixed = getattr(res, "flat", ()), getattr(res, "fixed", {}) or {}
+        if flat:
+            lines += ["Cost-flat knobs (their lab time does not change with them), outside the model: " +
+                      ", ".join(f"`{k.field}`" for k in flat) + "; at each protocol searched, set where the worst "
+                      "requirement is best by direct evaluation (a coarse grid and refinement, screening trials, "
+                      "stage `flat search`).", ""]
+        if fixed:
+            lines += ["Fixed (`--fix`): " + ", ".join(f"`{f}` = {v}" for f, v in fixed.items()) + ".", ""]
         (tmp / "report.md").write_text("\n".join(lines))
         write_json_atomic(tmp / "plan.json", plan_json(res))
         toml = res.recommended_toml()

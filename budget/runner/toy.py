@@ -15,6 +15,12 @@ is a reference (no estimate: the offset taken as 0). The lab time is linear in t
 
     cost = F * frame_time_s + P * move_time_s + setup_time_s     (t_f, t_m below).
 
+The centroid window ``window_px`` ``W`` (knob ``window``, 1 to 9 px) costs no lab time: a
+frame's noise is ``sigma_f sqrt(1 + ((W - W*) / W*)^2)`` (``W*``: ``best_window_px``, 5 px;
+the default window is 5 px, so the formulas below hold with ``sigma_f`` as stated), least at
+``W*`` (an interior value; a ``W*`` beyond 9 px puts the best window at the range's end). The
+formulas below hold at any window with ``sigma_f`` that of the window.
+
 Protocol shapes (``ToyStudy(shapes=True)``): ``protocol.pattern`` ``grid`` (as above) or
 ``line`` (positions along one axis: a move takes ``line_move_fraction`` of the time, but
 neighbouring positions share error, so a position's variance is ``line_position_factor``
@@ -45,7 +51,7 @@ from pydantic import Field
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth, trial_seed_sequence
 from simcam.config_base import ScenarioBase, StrictModel, ValidationSettings, load_scenario_file, validate_model
 
-__all__ = ["TOY", "TOY_ONE_KNOB", "ToyScenario", "ToyStudy", "analytic_optimum"]
+__all__ = ["TOY", "TOY_FLAT", "TOY_ONE_KNOB", "ToyScenario", "ToyStudy", "analytic_optimum"]
 
 DEFAULT_TEXT = """\
 # The planner's toy study (budget.runner.toy): one offset averaged over frames and positions.
@@ -57,11 +63,13 @@ sigma_frame_px = 0.05      # white noise of one frame
 sigma_position_px = 0.01   # offset error of one stage position (a systematic of that position)
 naive_bias_px = 0.004      # the naive variant's fixed bias
 line_position_factor = 2.0 # a line's positions share error: their variance is this many times a grid's
+best_window_px = 5.0       # the centroid window at which a frame's noise is least
 
 [protocol]
 frames = 100               # frames, spread over the positions
 positions = 4              # stage positions
 pattern = "grid"           # "grid" (positions over both axes) or "line" (along one axis)
+window_px = 5.0            # the centroid window the lab's software uses (costs no lab time)
 
 [lab]
 frame_time_s = 2.0         # one exposure and read-out
@@ -80,12 +88,14 @@ class ToyWorld(StrictModel):
     sigma_position_px: float = Field(0.01, ge=0.0)
     naive_bias_px: float = 0.004
     line_position_factor: float = Field(2.0, ge=0.0)
+    best_window_px: float = Field(5.0, gt=0.0)
 
 
 class ToyProtocol(StrictModel):
     frames: int = Field(100, ge=1)
     positions: int = Field(4, ge=1)
     pattern: Literal["grid", "line"] = "grid"
+    window_px: float = Field(5.0, gt=0.0)
 
 
 class ToyLab(StrictModel):
@@ -142,7 +152,8 @@ class ToyStudy(Study):
 
     def protocol_knobs(self, scenario: Any) -> tuple[Knob, ...]:
         all_knobs = {"frames": Knob("protocol.frames", "int", 1, 100_000, "frames", "frames averaged"),
-                     "positions": Knob("protocol.positions", "int", 1, 1000, "positions", "stage positions")}
+                     "positions": Knob("protocol.positions", "int", 1, 1000, "positions", "stage positions"),
+                     "window": Knob("protocol.window_px", "real", 1.0, 9.0, "px", "centroid window (no lab time)")}
         return tuple(all_knobs[k] for k in self.knobs)
 
     def protocol_shapes(self, scenario: Any) -> dict[str, dict[str, Any]]:
@@ -167,13 +178,21 @@ class ToyStudy(Study):
             self.calls.append((seed, k))
         w, p = scenario.world, scenario.protocol
         z1, z2 = np.random.default_rng(trial_seed_sequence(seed, k)).standard_normal(2)
-        e = w.sigma_frame_px * z1 / math.sqrt(p.frames) + _sigma_p(scenario) * z2 / math.sqrt(p.positions)
+        e = _sigma_f(scenario) * z1 / math.sqrt(p.frames) + _sigma_p(scenario) * z2 / math.sqrt(p.positions)
         est = w.offset_px + e
         return TrialResult({("offset", "debiased", "x"): est, ("offset", "naive", "x"): est + w.naive_bias_px,
                             ("offset", "none", "x"): 0.0,
                             ("frame_noise", "debiased", "x"): w.sigma_frame_px,
                             ("frame_noise", "naive", "x"): w.sigma_frame_px,
                             ("frame_noise", "none", "x"): w.sigma_frame_px})
+
+
+def _sigma_f(scenario) -> float:
+    """A frame's noise with the centroid window ``W``: ``sigma_f sqrt(1 + ((W - W*) / W*)^2)``,
+    least (``sigma_f``) at the world's best window ``W*`` (module docstring)."""
+    w = scenario.world
+    d = (scenario.protocol.window_px - w.best_window_px) / w.best_window_px
+    return w.sigma_frame_px * math.sqrt(1.0 + d * d)
 
 
 def _sigma_p(scenario) -> float:
@@ -196,26 +215,26 @@ def analytic_optimum(scenario: ToyScenario, value_px: float, confidence: float =
     from scipy import optimize, stats
 
     w, lab = scenario.world, scenario.lab
-    sp, tm = _sigma_p(scenario), _move_s(scenario)
+    sp, tm, sf = _sigma_p(scenario), _move_s(scenario), _sigma_f(scenario)
     z = float(stats.norm.ppf(0.5 + confidence / 2.0))
     if knobs == ("frames",):
         p = scenario.protocol.positions
 
         def quantile(f):
-            s = math.sqrt(w.sigma_frame_px**2 / f + sp**2 / p)
+            s = math.sqrt(sf**2 / f + sp**2 / p)
             # P(|b + s Z| <= q) = confidence
             return optimize.brentq(lambda q: stats.norm.cdf((q - bias_px) / s) - stats.norm.cdf((-q - bias_px) / s)
                                    - confidence, 0.0, abs(bias_px) + 10 * s)
 
         if bias_px == 0.0:
             v = (value_px / z) ** 2 - sp**2 / p
-            f = w.sigma_frame_px**2 / v if v > 0 else math.inf
+            f = sf**2 / v if v > 0 else math.inf
         else:
             f = optimize.brentq(lambda f: quantile(f) - value_px, 1e-6, 1e12)
         return {"frames": f, "positions": p, "cost_s": lab.setup_time_s + f * lab.frame_time_s + p * tm}
     v = (value_px / z) ** 2
-    root = (w.sigma_frame_px * math.sqrt(lab.frame_time_s) + sp * math.sqrt(tm)) / v
-    f = w.sigma_frame_px * root / math.sqrt(lab.frame_time_s)
+    root = (sf * math.sqrt(lab.frame_time_s) + sp * math.sqrt(tm)) / v
+    f = sf * root / math.sqrt(lab.frame_time_s)
     p = sp * root / math.sqrt(tm)
     return {"frames": f, "positions": p, "cost_s": lab.setup_time_s + f * lab.frame_time_s + p * tm}
 
@@ -224,3 +243,5 @@ def analytic_optimum(scenario: ToyScenario, value_px: float, confidence: float =
 TOY = ToyStudy()
 #: the one-knob toy (frames; positions as the scenario says)
 TOY_ONE_KNOB = ToyStudy(("frames",))
+#: frames and the cost-flat centroid window
+TOY_FLAT = ToyStudy(("frames", "window"))
