@@ -90,11 +90,11 @@ def answer_text(res) -> str:
     n = val.trials
     prem = res.premium
     aim = "" if prem is None or res.sure_level <= 0.5 else (
-        f" Aiming {pct(res.sure_level)} sure to pass the real test costs {prem['factor']:.2g}x the boundary "
+        f" Aiming {pct(res.sure_level)} sure to pass the real test costs {prem['factor']:.2f}x the boundary "
         f"protocol's lab time ({_knobs_text_raw(prem['boundary_knobs'])}, {_hours(prem['boundary_cost_s'])}).")
     if res.confirmed:
         tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
-                f"sure at {pct(res.sure)}).")
+                f"{_sure_text(res)}).")
     else:
         failed = [name for name, f in val.figures.items() if not f["met"]]
         why = ("the protocol sits at the boundary; take the next larger one or plan for a tighter bound"
@@ -102,8 +102,18 @@ def answer_text(res) -> str:
                f"a protocol aimed {pct(res.sure_level)} sure fails about {pct(1 - res.sure_level)} of "
                "re-validations; plan with a higher --sure or a tighter bound")
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
-                f"(sure at {pct(res.sure)}): {why}.")
+                f"({_sure_text(res)}): {why}.")
     return head + tail + aim
+
+
+def _sure_text(res) -> str:
+    """How sure the re-validation is of every requirement at once: :attr:`PlanResult.sure`, a
+    Bonferroni bound, named as such where there is more than one requirement (each
+    requirement's own sureness is in its sentence)."""
+    k = len(res.requirements)
+    if k == 1:
+        return f"sure at {pct(res.sure)}"
+    return f"sure of all {k} requirements together at {pct(res.sure)} or more (Bonferroni)"
 
 
 def findings_sentences(res) -> list[str]:
