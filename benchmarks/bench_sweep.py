@@ -2,8 +2,8 @@
 
 What it measures is the sweep machinery (processes, Dask, the store), on points that do
 every class's work at a light HSFE truth. Since the HSFE truth became the expected centroid's static error, the HSFE truth of the default
-scenario exposes ``validation.hsfe_truth_frames`` = 2000 noisy frames at each of 64
-sub-pixel phases: 15-18 s of a point's work on one core, so 24 points on 1 and 2 processes,
+scenario exposes ``validation.hsfe_truth_frames`` noisy frames at each of 64 sub-pixel phases
+(2000 before the control variate made 400 enough: 15-18 s of a point's work on one core), so 24 points on 1 and 2 processes,
 twice, took far longer than a benchmark should (the run was killed). The points here set
 ``validation.hsfe_truth_frames`` to ``--hsfe-truth-frames`` (default 100: the same route,
 its standard error sqrt(20) = 4.5x larger, about 2.1-2.3 s a point), so the figures are those of
@@ -150,7 +150,7 @@ def main() -> None:
     ap.add_argument("--dask", action="store_true", help="also a Dask LocalCluster of 2 workers")
     ap.add_argument("--trials-list", default="2,4,8,16")
     ap.add_argument("--hsfe-truth-frames", type=int, default=100,
-                    help="validation.hsfe_truth_frames of the timed points (even, >= 4; the scenario's: 2000)")
+                    help="validation.hsfe_truth_frames of the timed points (even, >= 4; the scenario's: 400)")
     ap.add_argument("--skip-throughput", action="store_true")
     ap.add_argument("--skip-trials", action="store_true")
     args = ap.parse_args()
@@ -166,7 +166,7 @@ def main() -> None:
             if args.dask:
                 configs.append(("Dask LocalCluster 2", {"dask_local": 2}))
             print(f"throughput, {args.points} truth-mode points of the default scenario with a light HSFE "
-                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 2000 make a point "
+                  f"truth ({args.hsfe_truth_frames} frames per phase; the scenario's 400 make a point "
                   f"far dearer: timed below), {args.repeat} run(s) each:", flush=True)
             rows = _throughput(path, d, args.repeat, configs)
             base_e2e, base_st = max(rows[0][1]), max(rows[0][2])

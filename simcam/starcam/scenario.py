@@ -610,7 +610,7 @@ class ValidationModel(ValidationSettings):
     threshold_sigma: Pos = 3.0
     dark_frames: Annotated[int, Field(ge=0)] = 0
     te_truth_frames: Annotated[int, Field(ge=10)] = 1000
-    hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 2000
+    hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 400
     hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
     lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
