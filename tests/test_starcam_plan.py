@@ -201,11 +201,15 @@ def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
 
 # ------------------------------------------------------------------ the planner's answer on seed 000
 #: what ``budget starcam plan docs/examples/scenarios/plan_hsfe.toml --require 'hsfe.x<=0.01'
-#: --require 'hsfe.y<=0.01' --trials 20`` (seed 0) recommends, and its re-validation did not
-#: confirm (docs/validation.md, "Planning the test"): the grid, 3 poses x 41 frames
-RECOMMENDED = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 3, "protocols.hsfe.frames": 41}
-#: the cheapest protocol the same plan measured feasible in its first design: the grid, 12 x 24
-DESIGN_FEASIBLE = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 12, "protocols.hsfe.frames": 24}
+#: --require 'hsfe.y<=0.01' --trials 60`` (seed 0, ``--sure 0.9``) recommends, re-validated by the
+#: plan itself on 60 fresh trials (docs/validation.md, "Planning the test"): the grid, 3 poses x
+#: 106 frames
+RECOMMENDED = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 3, "protocols.hsfe.frames": 106}
+#: seed 000's own counts (12 poses x 30 frames) on the grid: measured feasible in the plan's search too
+PAPER_COUNTS_ON_GRID = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 12, "protocols.hsfe.frames": 30}
+#: the boundary protocol of an earlier plan run with 20 trials a validation and no --sure margin
+#: (grid 3 x 41): its own re-validation did not confirm it
+BOUNDARY_20_TRIALS = {"protocols.hsfe.pattern": "grid", "protocols.hsfe.conditions": 3, "protocols.hsfe.frames": 41}
 REQUIRED_ARCSEC = 0.01
 CONFIDENCE = 0.95
 
@@ -247,26 +251,27 @@ def _hsfe_exceedances(protocol: dict, n: int) -> np.ndarray:
     return (np.abs(np.array(err)) > REQUIRED_ARCSEC).sum(axis=0)
 
 
-def test_the_planners_verdicts_hold_on_new_seeds():
-    """Seed 000 (the default camera, ideal world), 100 trials on seeds no plan used. The plan's
-    answer (grid 3 x 41), which its own re-validation on 20 fresh trials did not confirm,
-    misses the bound on them too (more than 5 of 100 beyond 0.01"); the protocol its design
-    measured feasible (grid 12 x 24) meets it (at most 5 of 100 beyond: the 95 % quantile of
-    |error| within 0.01")."""
+def test_the_planners_protocol_meets_the_requirement_on_new_seeds():
+    """Seed 000 (the default camera, ideal world), 100 trials on seeds no plan used (run seed
+    7919). The plan's answer (grid 3 x 106, aimed 90 % sure) meets the bound on them: at most
+    5 of 100 beyond 0.01" per axis (the 95 % quantile of |error| within it), as does seed 000's
+    own 12 x 30 on the grid. The boundary answer of a 20-trial plan without the margin (3 x 41)
+    does not: the margin is what makes the answer hold on new seeds."""
     n = 100
     allowed = _allowed_exceedances(n)
-    assert np.all(_hsfe_exceedances(DESIGN_FEASIBLE, n) <= allowed)
-    assert np.any(_hsfe_exceedances(RECOMMENDED, n) > allowed)
+    assert np.all(_hsfe_exceedances(RECOMMENDED, n) <= allowed)
+    assert np.all(_hsfe_exceedances(PAPER_COUNTS_ON_GRID, n) <= allowed)
+    assert np.any(_hsfe_exceedances(BOUNDARY_20_TRIALS, n) > allowed)
 
 
 @pytest.mark.slow
-def test_the_design_feasible_protocol_meets_the_requirement_in_full_validations():
-    """The grid 12 x 24 through the runner: every protocol, the study's own truths, 200 trials
-    on a seed no plan used."""
+def test_the_planners_protocol_meets_the_requirement_in_full_validations():
+    """The plan's answer (grid 3 x 106) through the runner: every protocol, the study's own
+    truths, 200 trials on a seed no plan used."""
     from budget.runner.run import run_study
 
     n = 200
-    res = run_study(STUDY, _planned(DESIGN_FEASIBLE), trials=n, seed=7919, workers=2)
+    res = run_study(STUDY, _planned(RECOMMENDED), trials=n, seed=7919, workers=2)
     for ax in ("x", "y"):
         e = np.asarray(res.samples[("hsfe", "improved", ax)]) - res.truths[("hsfe", ax)].value
         assert (np.abs(e) > REQUIRED_ARCSEC).sum() <= _allowed_exceedances(n), ax
