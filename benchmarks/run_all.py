@@ -98,7 +98,7 @@ at most 10 ms for the full frame with a reference list."""),
 One full seed-000 protocol trial (TE + HSFE + chromatic + distortion, about 20,000
 star-windows, centroided, published and improved estimators) on one core, best and
 median; then K trials with the worker processes, wall time including the truths and the
-workers' start-up. Targets: one trial in at most 0.1 s on one core, 1000 trials
+workers' start-up. Targets: one trial in at most 30 ms on one core (0.1 s before), 1000 trials
 in at most 2 minutes using both cores. Where a trial's time goes: the exact shot and read
 noise of the window pixels with their ADC, the border medians and the centres of gravity
 in one fused numba pass (`budget.starcam.kernels_trial`), most of it the Poisson draw; then the
@@ -111,8 +111,8 @@ and the truths' work, both measured in the same run) with a warm numba cache and
 empty one (a fresh install). The fixed-cost runs use the default scenario with
 `hsfe_truth_frames = 16`: the default's HSFE truth is many times the fixed cost in real
 work (its time is printed below), and subtracting that much, measured in another process,
-would drown the fixed cost in its noise. Targets: two workers give at least 1.7x the throughput of
-one; fixed cost at most 2 s warm and at most 8 s with an empty cache. With an empty cache
+would drown the fixed cost in its noise. Targets: two workers give at least 1.8x the throughput of
+one, and the main job ends within 5 s on 2 workers; fixed cost at most 2 s warm and at most 8 s with an empty cache. With an empty cache
 numba compiles the kernels a trial and the truths call (about 30 functions); the study's
 warm-up (`budget/starcam/warm.py`) splits them over two processes before the trials
 start, so the run waits about half their compile time."""),
@@ -123,7 +123,7 @@ in steady state (points finished after every worker finished its first), best ov
 repeats into a fresh store; and the cost of one validation point as its trial count grows
 (a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
 LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
-sub-pixel phase instead of the scenario's 2000, which make a point far dearer): the figures
+sub-pixel phase instead of the scenario's 400, which make a point dearer): the figures
 measure the machinery; one point with the full truth is timed once for scale. Target:
 at least 1.7x with 2 workers. More in [sweeps.md](sweeps.md)."""),
     "lens": ("Lens tracing", """\
