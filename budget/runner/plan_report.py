@@ -19,7 +19,6 @@ Rules of the words:
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 __all__ = ["answer_text", "findings_sentences", "plan_json", "plot_trade_curve", "summary_markdown",
@@ -308,14 +307,13 @@ def _table(res) -> list[str]:
 def write_plan_report(res, out_dir) -> Path:
     """``report.md``, ``report.html``, ``trade_curve.png``, ``plan.json`` and (where a protocol
     meets) ``recommended.toml`` into ``out_dir`` (a staged folder or a new one)."""
-    import os
     import shutil
     import sys
     import tempfile
 
     from budget.figures import figure_markdown
     from budget.runner.html import write_html
-    from simcam.cli_common import UserInputError, write_json_atomic
+    from simcam.cli_common import write_json_atomic
     from simcam.lifecycle import partial_prefix, remove_stale_partials
 
     out = Path(out_dir)
@@ -371,12 +369,9 @@ def write_plan_report(res, out_dir) -> Path:
         if toml is not None:
             (tmp / "recommended.toml").write_text(toml)
         write_html(tmp / "report.md")
-        if out.exists():
-            if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
-                shutil.rmtree(out)
-            else:
-                raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
-        os.replace(tmp, out)
+        from budget.runner.report import publish_report
+
+        publish_report(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -284,16 +284,22 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         from budget.runner.html import write_html
 
         write_html(tmp / "report.md", tmp / "report.html", title=f"{study.title}: Monte Carlo validation")
-        if out.exists():
-            if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
-                shutil.rmtree(out)  # an earlier report (or an empty folder): replaced whole
-            else:
-                from simcam.cli_common import UserInputError
-
-                raise UserInputError(f"--report {out}: exists and is not an earlier report; "
-                                     "give a new folder")
-        os.replace(tmp, out)
+        publish_report(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out / "report.md"
+
+
+def publish_report(tmp: Path, out: Path) -> None:
+    """Move a report written in full into ``tmp`` to ``out``, replacing an earlier report (or an
+    empty folder) whole; any other existing ``out`` is a user error naming ``--report``. The one
+    rule of every report folder (validate, robustness, plan)."""
+    if out.exists():
+        if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
+            shutil.rmtree(out)
+        else:
+            from simcam.cli_common import UserInputError
+
+            raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
+    os.replace(tmp, out)

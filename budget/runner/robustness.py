@@ -572,12 +572,11 @@ class RobustnessResult:
     def write_report(self, out_dir: str | Path) -> Path:
         """Write ``report.md``, ``robustness.json`` and ``scenario.toml`` into ``out_dir``
         (a temporary sibling renamed into place: never a half-written report)."""
-        import os
         import shutil
         import sys
         import tempfile
 
-        from simcam.cli_common import UserInputError, write_json_atomic
+        from simcam.cli_common import write_json_atomic
         from simcam.lifecycle import partial_prefix, remove_stale_partials
 
         out = Path(out_dir)
@@ -617,12 +616,9 @@ class RobustnessResult:
             from budget.runner.html import write_html  # its self-contained twin, report.html
 
             write_html(tmp / "report.md")
-            if out.exists():
-                if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
-                    shutil.rmtree(out)
-                else:
-                    raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
-            os.replace(tmp, out)
+            from budget.runner.report import publish_report
+
+            publish_report(tmp, out)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
