@@ -246,6 +246,13 @@ def plot_trade_curve(res, path: Path):
         if res.budget_hours is not None:
             ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.", label=f"budget {res.budget_hours:g} h")
         ax.set_xscale("log")
+        # lab time in plain numbers (0.7, 0.8, 1), not the log axis' default 7 x 10^-1
+        # (minor ticks labelled only where the axis spans less than a decade, so labels never overlap)
+        from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+        lo, hi = ax.get_xlim()
+        ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(FormatStrFormatter("%g") if hi < 10 * lo else NullFormatter())
         ax.set_yscale("log")
         ax.set_xlabel("lab time (h)")
         ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
