@@ -112,7 +112,9 @@ def _sure_text(res) -> str:
     k = len(res.requirements)
     if k == 1:
         return f"sure at {pct(res.sure)}"
-    return f"sure of all {k} requirements together at {pct(res.sure)} or more (Bonferroni)"
+    if pct(res.sure) == pct(1.0):
+        return f"sure of all {k} requirements together at {pct(1.0)} (Bonferroni)"
+    return f"sure of all {k} requirements together at {pct(res.sure)} at least (Bonferroni)"
 
 
 def findings_sentences(res) -> list[str]:
