@@ -468,3 +468,21 @@ def test_fix_pins_a_knob_and_the_json_says_so(tmp_path, monkeypatch):
     assert {(e.knobs["protocol.frames"], e.knobs["protocol.positions"]) for e in res.evaluations} == {(400, 40)}
     # s^2 = 0.05^2 / 400 + 0.01^2 / 40 = 8.75e-6: q95 = 1.96 * 0.00296 = 0.0058 px, well within 0.01
     assert res.feasible and res.confirmed
+
+
+def test_a_study_with_knobs_but_no_lab_time_is_refused_before_any_trial():
+    """The contract's default lab_time_s is empty (no lab time model); a study that declares
+    knobs but keeps it has no cost to minimise: plan refuses it, naming the hook, and runs
+    nothing."""
+    from budget.runner.study import Study
+
+    class NoCost(ToyStudy):
+        lab_time_s = Study.lab_time_s
+
+        def trial(self, scenario, seed, k):  # pragma: no cover - must not run
+            raise AssertionError("a trial ran")
+
+    study = NoCost()
+    assert study.lab_time_s(study.load_scenario()) == {}
+    with pytest.raises(TypeError, match="lab_time_s"):
+        plan_protocol(study, study.load_scenario(), ["offset.x<=0.01"], workers=1)

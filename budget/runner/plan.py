@@ -1077,6 +1077,9 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
         raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
+    if not study.lab_time_s(scenario):
+        raise TypeError(f"{type(study).__name__} declares protocol knobs but no lab time (Study.lab_time_s): "
+                        "a plan has no cost to minimise")
     fixed = parse_fixes(knobs, fix)
     if not (0.5 <= confidence < 1.0):
         raise UserInputError(f"--confidence {confidence}: must be in [0.5, 1)")

@@ -471,8 +471,9 @@ class Study(ABC):
     def lab_time_s(self, scenario: Any) -> dict[str, float]:
         """The lab time the scenario's protocol takes, in seconds, by item (``"exposure"``,
         ``"moves"``, ``"settling"``, ``"dwell"``, ...), from the scenario's own fields; the
-        planner's cost is their sum. Required where :meth:`protocol_knobs` is not empty."""
-        raise NotImplementedError(f"{type(self).__name__}: no lab time model (lab_time_s)")
+        planner's cost is their sum. Empty (the default): no lab time model, which a study with
+        :meth:`protocol_knobs` must give (``plan`` refuses it otherwise)."""
+        return {}
 
     # ------------------------------------------------------------ presentation
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:
