@@ -316,20 +316,12 @@ def _table(res) -> list[str]:
 def write_plan_report(res, out_dir) -> Path:
     """``report.md``, ``report.html``, ``trade_curve.png``, ``plan.json`` and (where a protocol
     meets) ``recommended.toml`` into ``out_dir`` (a staged folder or a new one)."""
-    import shutil
-    import sys
-    import tempfile
-
     from budget.figures import figure_markdown
     from budget.runner.html import write_html
+    from budget.runner.report import staged_report
     from simcam.cli_common import write_json_atomic
-    from simcam.lifecycle import partial_prefix, remove_stale_partials
 
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
-    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
-    try:
+    with staged_report(out_dir) as tmp:
         st = res.study
         conf = pct(res.confidence)
         figs = [plot_trade_curve(res, tmp / "trade_curve.png")]
@@ -378,10 +370,4 @@ def write_plan_report(res, out_dir) -> Path:
         if toml is not None:
             (tmp / "recommended.toml").write_text(toml)
         write_html(tmp / "report.md")
-        from budget.runner.report import publish_report
-
-        publish_report(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out / "report.md"
+    return Path(out_dir) / "report.md"

@@ -9,6 +9,7 @@ an interrupted run never leaves a half-written report that looks finished.
 from __future__ import annotations
 
 import math
+import contextlib
 import os
 
 import numpy as np
@@ -234,16 +235,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
     ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
     from simcam.cli_common import write_json_atomic
 
-    import sys
-
-    from simcam.lifecycle import partial_prefix, remove_stale_partials
-
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # a report a killed run left half-written is removed (and said so), never taken as complete
-    remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
-    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
-    try:
+    with staged_report(out_dir) as tmp:
         study = result.study
         from budget.runner.findings import findings_json, findings_markdown
 
@@ -284,17 +276,34 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         from budget.runner.html import write_html
 
         write_html(tmp / "report.md", tmp / "report.html", title=f"{study.title}: Monte Carlo validation")
+    return Path(out_dir) / "report.md"
+
+
+@contextlib.contextmanager
+def staged_report(out_dir: str | os.PathLike):
+    """The one way every report folder is written (validate, robustness, plan): a stale partial
+    report a killed run left is removed (and said so), the report is written into a temporary
+    sibling (yielded), and only when complete moved to ``out_dir`` by :func:`publish_report`;
+    on any error the temporary folder is removed, so no half-written report is left."""
+    import sys
+
+    from simcam.lifecycle import partial_prefix, remove_stale_partials
+
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
+    tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
+    try:
+        yield tmp
         publish_report(tmp, out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return out / "report.md"
 
 
 def publish_report(tmp: Path, out: Path) -> None:
     """Move a report written in full into ``tmp`` to ``out``, replacing an earlier report (or an
-    empty folder) whole; any other existing ``out`` is a user error naming ``--report``. The one
-    rule of every report folder (validate, robustness, plan)."""
+    empty folder) whole; any other existing ``out`` is a user error naming ``--report``."""
     if out.exists():
         if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
             shutil.rmtree(out)

@@ -572,18 +572,10 @@ class RobustnessResult:
     def write_report(self, out_dir: str | Path) -> Path:
         """Write ``report.md``, ``robustness.json`` and ``scenario.toml`` into ``out_dir``
         (a temporary sibling renamed into place: never a half-written report)."""
-        import shutil
-        import sys
-        import tempfile
-
+        from budget.runner.report import staged_report
         from simcam.cli_common import write_json_atomic
-        from simcam.lifecycle import partial_prefix, remove_stale_partials
 
-        out = Path(out_dir)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        remove_stale_partials(out, echo=lambda msg: print(msg, file=sys.stderr))
-        tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
-        try:
+        with staged_report(out_dir) as tmp:
             st = self.study
             effects = scenario_effects(self.scenario)
             sources = type(effects).sources()
@@ -616,13 +608,7 @@ class RobustnessResult:
             from budget.runner.html import write_html  # its self-contained twin, report.html
 
             write_html(tmp / "report.md")
-            from budget.runner.report import publish_report
-
-            publish_report(tmp, out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return out / "report.md"
+        return Path(out_dir) / "report.md"
 
 
 #: ``claim_holds`` in words (the JSON and the report carry it)

@@ -214,7 +214,7 @@ def analytic_optimum(scenario: ToyScenario, value_px: float, confidence: float =
     fixed bias (the naive variant's), for one knob only: the quantile of ``|b + s z|``."""
     from scipy import optimize, stats
 
-    w, lab = scenario.world, scenario.lab
+    lab = scenario.lab
     sp, tm, sf = _sigma_p(scenario), _move_s(scenario), _sigma_f(scenario)
     z = float(stats.norm.ppf(0.5 + confidence / 2.0))
     if knobs == ("frames",):
