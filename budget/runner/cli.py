@@ -22,13 +22,11 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     or ``fixed`` (the scenario's own truth sizes).
     """
     import sys
-    from pathlib import Path
 
     from budget.runner.findings import findings_lines
-    from budget.runner.report import format_table, world_line, write_report
+    from budget.runner.report import format_table, world_line, write_outputs, write_report
     from budget.runner.run import run_study
-    from simcam.cli_common import write_json_atomic
-    from simcam.outputs import StagedOutputs, check_run_outputs
+    from simcam.outputs import check_run_outputs
 
     if progress is None:
         progress = sys.stderr.isatty()
@@ -47,13 +45,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     click.echo("\n".join(findings_lines(res)))  # the findings in words
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
-    with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
-        if json_out:
-            write_json_atomic(staged.file(json_out), res.to_json())
-        if report_dir:
-            write_report(res, staged.folder(report_dir))
-    if report_dir:
-        click.echo(f"report: {Path(report_dir) / 'report.md'}")
+    write_outputs(res, json_out=json_out, report_dir=report_dir, write_report=write_report)
     return res
 
 

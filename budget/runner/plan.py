@@ -1264,10 +1264,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     def plan(scenario, require, variant, confidence, sure, fix, budget_hours, trials, seed, workers, json_out,
              report_dir, overwrite, progress):
         import sys
-        from pathlib import Path
 
-        from simcam.cli_common import write_json_atomic
-        from simcam.outputs import StagedOutputs, check_run_outputs
+        from simcam.outputs import check_run_outputs
 
         if get_study is None:
             from budget.runner.registry import get_study as lookup
@@ -1290,12 +1288,8 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
         click.echo(res.answer())
         for s in res.sentences():
             click.echo(f"* {s}")
-        with StagedOutputs() as staged:
-            if json_out:
-                write_json_atomic(staged.file(json_out), res.to_json())
-            if report_dir:
-                res.write_report(staged.folder(report_dir))
-        if report_dir:
-            click.echo(f"report: {Path(report_dir) / 'report.md'}")
+        from budget.runner.report import write_outputs
+
+        write_outputs(res, json_out=json_out, report_dir=report_dir)
 
     return plan

@@ -8,17 +8,18 @@ an interrupted run never leaves a half-written report that looks finished.
 
 from __future__ import annotations
 
-import math
 import contextlib
+import math
 import os
-
-import numpy as np
 import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
 
-__all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "write_report"]
+
+__all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "publish_report", "staged_report",
+           "write_outputs", "write_report"]
 
 
 def _fmt(v: float) -> str:
@@ -312,3 +313,23 @@ def publish_report(tmp: Path, out: Path) -> None:
 
             raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
     os.replace(tmp, out)
+
+
+def write_outputs(res, *, json_out, report_dir, write_report=None) -> None:
+    """A command's ``--json`` and ``--report`` together or not at all (staged, then moved into
+    place: :class:`simcam.outputs.StagedOutputs`), then the report's path on the terminal; the
+    one way validate, robustness and plan write. ``write_report(res, folder)`` defaults to
+    ``res.write_report(folder)``."""
+    import click
+
+    from simcam.cli_common import write_json_atomic
+    from simcam.outputs import StagedOutputs
+
+    with StagedOutputs() as staged:
+        if json_out:
+            write_json_atomic(staged.file(json_out), res.to_json())
+        if report_dir:
+            folder = staged.folder(report_dir)
+            (res.write_report(folder) if write_report is None else write_report(res, folder))
+    if report_dir:
+        click.echo(f"report: {Path(report_dir) / 'report.md'}")

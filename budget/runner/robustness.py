@@ -645,8 +645,7 @@ def robustness_command_for(study_name: str) -> click.Command:
         import sys
 
         from budget.runner.registry import get_study
-        from simcam.cli_common import write_json_atomic
-        from simcam.outputs import StagedOutputs, check_run_outputs
+        from simcam.outputs import check_run_outputs
 
         study = get_study(study_name)
         scn = study.load_scenario(scenario)
@@ -665,12 +664,8 @@ def robustness_command_for(study_name: str) -> click.Command:
         click.echo(res.format_table())
         for s in res.sentences():
             click.echo(f"* {s}")
-        with StagedOutputs() as staged:
-            if json_out:
-                write_json_atomic(staged.file(json_out), res.to_json())
-            if report_dir:
-                res.write_report(staged.folder(report_dir))
-        if report_dir:
-            click.echo(f"report: {Path(report_dir) / 'report.md'}")
+        from budget.runner.report import write_outputs
+
+        write_outputs(res, json_out=json_out, report_dir=report_dir)
 
     return robustness
