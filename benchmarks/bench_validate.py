@@ -6,6 +6,12 @@
   time (best), and that of the same trials in the ideal world and with the exact stamp
   route (``render.stamp_route = "exact"``);
   with the time split into rendering, centroiding and estimating;
+* the anatomy of one realistic trial: the window-pixel draws it makes (every star window
+  of every frame), the time of its expose-and-centroid kernels (all of them, timed inside
+  the trial), and the per-pixel cost of the exact sampler alone on the trial's own mean
+  charges (Poisson by table inversion below 10 e-, Hoermann's PTRS at and above, and the
+  read-noise normal; :mod:`simcam.rng`), from which the trial's random-number floor
+  follows: what no change of orchestration can remove;
 * ``--trials K`` trials (default 1000) with ``--workers W`` processes (default all
   cores), wall time, including the truth computation and worker start-up.
 
@@ -77,6 +83,7 @@ def main() -> None:
     from budget.starcam.protocols import make_plan
     from simcam.starcam.targets import calibration_grid
 
+    anatomy = trial_anatomy(scn, args.repeat)
     w_star = scn.lab.target.rows * scn.lab.target.cols
     w_cal = calibration_grid(scn).n_stars
     n_windows = sum(c.frames * (w_cal if c.target == "calibration_grid" else w_star)
@@ -97,6 +104,20 @@ def main() -> None:
             (f"{res.trials} trials, {args.workers} worker process(es), wall (truth included)", f"{total:.1f} s"),
         ],
     ))
+    print(format_table(
+        ["anatomy of one realistic trial (one core)", "value"],
+        [
+            ("window-pixel draws (pixels x frames)", f"{anatomy['draws']:,}"),
+            ("of which mean >= 10 e- (PTRS)", f"{anatomy['ptrs_fraction']:.1%}"),
+            ("expose-and-centroid kernels, CPU per trial", f"{anatomy['kernel_s'] * 1e3:.1f} ms"),
+            ("the same per draw", f"{anatomy['kernel_ns']:.1f} ns"),
+            ("exact sampler per draw: Poisson (table, mean < 10 e-)", f"{anatomy['table_ns']:.1f} ns"),
+            ("exact sampler per draw: Poisson (PTRS, mean >= 10 e-)", f"{anatomy['ptrs_ns']:.1f} ns"),
+            ("exact sampler per draw: read-noise normal", f"{anatomy['normal_ns']:.1f} ns"),
+            ("random-number floor of the trial (sampler on its draws)", f"{anatomy['floor_s'] * 1e3:.1f} ms"),
+            ("numpy Generator, the same draws (Poisson + normal), per draw", f"{anatomy['numpy_ns']:.1f} ns"),
+        ],
+    ))
     emit_result("validate", [
         figure("trial_s", "one full seed-000 protocol trial, one core, best (s)", min(times), "s",
                target=0.03, target_source="speed target, warm"),
@@ -107,10 +128,108 @@ def main() -> None:
                cpu["ideal"], "s"),
         figure("trial_exact_stamps_cpu_s", "the same trial with render.stamp_route = exact, CPU time, best (s)",
                cpu["exact"], "s"),
+        figure("trial_draws", "one realistic trial: window-pixel draws (pixels x frames)", anatomy["draws"], ""),
+        figure("trial_kernel_ms", "one realistic trial: its expose-and-centroid kernels, CPU (ms)",
+               anatomy["kernel_s"] * 1e3, "ms"),
+        figure("sampler_table_ns", "exact Poisson sampler per draw, table inversion (mean < 10 e-), on the trial's means (ns)",
+               anatomy["table_ns"], "ns"),
+        figure("sampler_ptrs_ns", "exact Poisson sampler per draw, PTRS (mean >= 10 e-), on the trial's means (ns)",
+               anatomy["ptrs_ns"], "ns"),
+        figure("trial_floor_ms", "one realistic trial: random-number floor, the exact sampler on its draws alone (ms)",
+               anatomy["floor_s"] * 1e3, "ms", peer="numpy Generator, the same draws",
+               peer_value=anatomy["numpy_ns"] * anatomy["draws"] * 1e-6),
         figure("trials_total_s", f"{res.trials} trials, {args.workers} workers, truth included (s)",
                total, "s", target=120.0 if res.trials == 1000 else None,
                target_source="project target, 1000 trials" if res.trials == 1000 else None),
     ], quick=args.quick, trials=res.trials, workers=args.workers)
+
+
+def trial_anatomy(scn, repeat: int) -> dict:
+    """Where one realistic trial's time goes (one core): the kernels' CPU timed inside the
+    trial, and the exact sampler alone (Poisson + read normal per window pixel and frame) on
+    the trial's own mean charges, by path. The mean charges are captured from the trial's
+    calls of :mod:`budget.starcam.kernels_trial` (the drifting conditions' means at their
+    first frame: the drift moves them by hundredths of a pixel, not out of their path)."""
+    import numpy as np
+    from numba import njit
+
+    import budget.starcam.kernels_trial as KT
+    from simcam.rng import poisson, std_normal
+
+    means: list = []
+    spent = [0.0]
+    wrapped = {}
+    for name in ("expose_centroid_chain", "expose_centroid_drift_chain"):
+        orig = getattr(KT, name)
+
+        def timed(chain, *a, _orig=orig, **kw):
+            frames = a[-1].shape[0] if _orig is KT.expose_centroid_drift_chain else a[0].shape[0]
+            means.append((np.ascontiguousarray(chain.mean_e, dtype=np.float64), frames))
+            c0 = time.process_time()
+            out = _orig(chain, *a, **kw)
+            spent[0] += time.process_time() - c0
+            return out
+
+        wrapped[name] = orig
+        setattr(KT, name, timed)
+    try:
+        best = None
+        for k in range(max(repeat, 3)):
+            means.clear()
+            spent[0] = 0.0
+            V.run_trial(scn, 0, 500 + k)
+            best = spent[0] if best is None else min(best, spent[0])
+        kernel_s = best
+    finally:
+        for name, orig in wrapped.items():
+            setattr(KT, name, orig)
+
+    @njit(cache=False)
+    def _sample(lam, frames, normal):
+        s = 0.0
+        for f in range(frames):
+            key = np.uint64(0x9E3779B97F4A7C15) * np.uint64(f + 1)
+            for i in range(lam.shape[0]):
+                c = np.uint64(i) << np.uint64(16)
+                s += poisson(lam[i], key, c)
+                if normal:
+                    s += std_normal(key, c + np.uint64(4096))
+        return s
+
+    def per_draw_ns(lam, frames, normal):
+        _sample(lam, 1, normal)
+        t = []
+        for _ in range(5):
+            c0 = time.perf_counter()
+            _sample(lam, frames, normal)
+            t.append(time.perf_counter() - c0)
+        return min(t) / (lam.size * frames) * 1e9
+
+    draws = sum(m.size * f for m, f in means)
+    lam = np.concatenate([m.ravel() for m, _ in means])
+    weights = np.concatenate([np.full(m.size, f, dtype=np.float64) for m, f in means])
+    lo, hi = lam[lam < 10.0], lam[lam >= 10.0]
+    ptrs_fraction = float(weights[lam >= 10.0].sum() / weights.sum())
+    frames = 30
+    table_ns = per_draw_ns(np.ascontiguousarray(lo), frames, False) if lo.size else 0.0
+    ptrs_ns = per_draw_ns(np.ascontiguousarray(hi), frames, False) if hi.size else 0.0
+    both_ns = per_draw_ns(np.ascontiguousarray(lo), frames, True) if lo.size else 0.0
+    normal_ns = max(both_ns - table_ns, 0.0)
+    floor_s = draws * ((1 - ptrs_fraction) * table_ns + ptrs_fraction * ptrs_ns + normal_ns) * 1e-9
+    # the peer: numpy's Generator (PCG64) drawing the same variates, vectorised over the
+    # trial's means (its Poisson: multiplication method below 10, PTRS at and above)
+    gen = np.random.default_rng(0)
+    tile = np.ascontiguousarray(np.tile(lam, 4))
+    t = []
+    for _ in range(5):
+        c0 = time.perf_counter()
+        gen.poisson(tile)
+        gen.standard_normal(tile.size)
+        t.append(time.perf_counter() - c0)
+    numpy_ns = min(t) / tile.size * 1e9
+    return {"numpy_ns": numpy_ns, "draws": int(draws), "ptrs_fraction": ptrs_fraction, "kernel_s": kernel_s,
+            "kernel_ns": kernel_s / draws * 1e9, "table_ns": table_ns, "ptrs_ns": ptrs_ns,
+            "normal_ns": normal_ns, "floor_s": floor_s}
 
 
 if __name__ == "__main__":

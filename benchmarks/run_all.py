@@ -102,7 +102,13 @@ workers' start-up. Targets: one trial in at most 30 ms on one core (0.1 s before
 in at most 2 minutes using both cores. Where a trial's time goes: the exact shot and read
 noise of the window pixels with their ADC, the border medians and the centres of gravity
 in one fused numba pass (`budget.starcam.kernels_trial`), most of it the Poisson draw; then the
-published and improved estimators; then tables and bookkeeping."""),
+scenes of the conditions (in the realistic world every condition's pose is new), the
+published and improved estimators, tables and bookkeeping. The anatomy table measures the
+floor under all of it: the trial's window-pixel draws (pixels x frames), the per-draw cost
+of the exact sampler alone on the trial's own mean charges (`simcam.rng`: table inversion
+below 10 e-, Hoermann's PTRS at and above, the ziggurat normal for the read noise), and
+the product, the trial's random-number floor, beside numpy's `Generator` drawing the same
+variates. A trial can be no faster than that floor while it draws these variates."""),
     "runner": ("Study machinery: start-up and workers", """\
 The README's main job (`budget validate --trials 200` on the embedded seed-000 scenario)
 end to end with 1 and with 2 worker processes (a new process each, as a user runs it), and
