@@ -189,4 +189,5 @@ def test_budget_and_infeasible_groups():
     js = bad.to_json()
     assert not bad.feasible and [g["feasible"] for g in js["groups"]] == [False, True]
     # (its quantile of 200 trials within 3 of its relative standard errors, 3 x 0.067)
-    assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(1.96 * 0.05 / math.sqrt(1e5), rel=3 * _quantile_rel_se(N, C))
+    q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
+    assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))

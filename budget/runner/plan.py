@@ -115,6 +115,36 @@ shifted by its standard error). Over several requirements, the Bonferroni bound
 the answer says so and gives the best achievable figure (the frontier's most accurate
 protocol within the budget, run).
 
+Separable plans
+---------------
+Most of a lab test is separable: each protocol's knobs change only its own classes, and lab
+time is additive. A study says so with :meth:`Study.field_classes` (for each knob and shape
+field, the classes it can change; a field not listed can change every class) and may offer
+:meth:`Study.restrict_classes` (a scenario computing only some classes). Where it declares
+field classes, :func:`decompose` links each required class to every free knob and shape field
+that can change it; the connected components over the required classes are independent
+groups (a requirement on a class every field changes, a total, makes one group: the
+whole-test plan). A knob no required class depends on is not searched: it stays at the
+scenario's value (or its ``--fix``) and the plan lists it (:attr:`PlanResult.unsearched`). A
+group's shapes are the declared shapes projected on its shape fields, those with equal
+projections collapsed into one search. Each group is searched as above with its own oracle:
+its requirements only, its candidates' trials on ``restrict_classes(candidate, group's
+classes)`` where the study can (common random numbers within the group: the same seed), its
+own budget of :data:`BUDGET_VALIDATIONS` per shape; a candidate's cost is always the lab time
+of the unrestricted scenario with every knob's current value (the other groups' at the
+scenario's). Lab time being additive and each group's fields changing only its own items, the
+groups' cheapest protocols together are the cheapest protocol meeting every requirement. The
+recommendation is their union (:func:`_union`: every group's knobs, in the declared shape that
+agrees with every group's chosen shape fields, the cheapest where several do), re-validated
+once as one protocol on fresh seeds (restricted to the union of the required classes where the
+study can) and costed by its full lab time. ``--budget-hours`` bounds the whole plan: with one
+group it bounds the search as above; with several, each group is searched without it and the
+union's lab time is checked against it (over it, no protocol within the budget meets every
+requirement: :attr:`PlanResult.over_budget`, the union as :attr:`PlanResult.best_achievable`).
+A group no protocol meets makes the plan infeasible; its best achievable figure is reported
+(the plan's: the group furthest from its bounds). Without :meth:`Study.field_classes` (the
+default) the plan is the whole-test plan, unchanged.
+
 The result, :class:`PlanResult`, writes JSON (schema ``budget.plan/1``), ``report.md`` and
 ``report.html`` with the trade curve and the recommended scenario (``recommended.toml``,
 ready for ``budget <study> validate``) (:mod:`budget.runner.plan_report`).
@@ -135,7 +165,8 @@ from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
-           "PlanResult", "Requirement", "cost_flat_knobs", "default_variant", "parse_fixes", "parse_requirements",
+           "PlanGroup", "PlanResult", "Requirement", "cost_flat_knobs", "decompose", "default_variant", "parse_fixes",
+           "parse_requirements",
            "plan_command_for",
            "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
            "validation_seed"]
@@ -1295,7 +1326,7 @@ def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict],
 
 def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
                  budget_s, knobs, t0, c0, sure, fixed) -> PlanResult:
-    """The separable plan (module docstring, Separable plans): each group searched on its own
+    """The separable plan (module docstring, "Separable plans"): each group searched on its own
     (its classes only where the study can restrict, its own trial budget per shape, common
     random numbers within it), the union of the answers re-validated as one protocol."""
     declared = study.protocol_shapes(scenario) or {"scenario": {}}

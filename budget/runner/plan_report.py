@@ -188,7 +188,8 @@ def _group_sentences(res) -> list[str]:
             ans = (f"cheapest meeting its requirements {_knobs(b)}{'' if sname == 'scenario' else f' ({sname})'}, "
                    f"{_hours(b.cost_s)} of lab time with the other knobs at the scenario's values")
         elif a is not None:
-            ans = f"no protocol meets its requirements; its most accurate, {_knobs(a)}, reaches {a.ratio:.3g} times the bound"
+            ans = (f"no protocol meets its requirements; its most accurate, {_knobs(a)}, reaches {a.ratio:.3g} "
+                   "times the bound")
         else:
             ans = "no protocol could be run"
         out.append(f"{what}: {ans}; {go['protocols']} protocols run, {go['trials']} trials "

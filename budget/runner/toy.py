@@ -380,7 +380,8 @@ class SplitToyStudy(Study):
     def protocol_shapes(self, scenario: Any) -> dict[str, dict[str, Any]]:
         if not self.shapes:
             return {}
-        return {f"b{pb}-c{pc}": {"b.pattern": pb, "c.pattern": pc} for pb in ("grid", "line") for pc in ("grid", "line")}
+        pats = ("grid", "line")
+        return {f"b{pb}-c{pc}": {"b.pattern": pb, "c.pattern": pc} for pb in pats for pc in pats}
 
     def field_classes(self, scenario: Any) -> dict[str, tuple[str, ...]]:
         if not self.separable:
@@ -447,7 +448,9 @@ def split_optimum(scenario: SplitToyScenario, protocol: str, value_px: float, co
 
     z = float(stats.norm.ppf(0.5 + confidence / 2.0))
     f = (z * split_sigma(scenario, protocol) / value_px) ** 2
-    t = getattr(scenario.lab, f"{protocol}_frame_time_s") * (1.0 if protocol == "a" else _split_time(scenario, protocol))
+    t = getattr(scenario.lab, f"{protocol}_frame_time_s")
+    if protocol != "a":
+        t *= _split_time(scenario, protocol)
     return {"frames": f, "time_s": f * t}
 
 
