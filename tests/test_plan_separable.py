@@ -191,3 +191,43 @@ def test_budget_and_infeasible_groups():
     # (its quantile of 200 trials within 3 of its relative standard errors, 3 x 0.067)
     q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
     assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))
+
+
+class _CostCheckedSplit(SplitToyStudy):
+    """The separable toy refusing a lab time of a restricted scenario (the contract: cost is
+    always the unrestricted scenario's)."""
+
+    def lab_time_s(self, scenario):
+        assert list(scenario.compute.protocols) == ["a", "b", "c"], "lab time of a restricted scenario"
+        return super().lab_time_s(scenario)
+
+
+def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(tmp_path, monkeypatch):
+    import sys
+    import types
+
+    from budget.runner import registry
+    from budget.runner.cli import study_group
+    from simcam.cli_common import run_cli
+
+    mod = types.ModuleType("tests_plan_separable_helpers")
+    mod.STUDY = _CostCheckedSplit(shapes=True)
+    monkeypatch.setitem(sys.modules, "tests_plan_separable_helpers", mod)
+    monkeypatch.setitem(registry._BY_NAME, "toy-split",
+                        registry.StudyEntry("toy-split", "tests_plan_separable_helpers:STUDY", "separable toy"))
+    out, rep = tmp_path / "plan.json", tmp_path / "rep"
+    run_cli(study_group("toy-split"), ["plan", "--require", "a.x<=0.02", "--require", "c.x<=0.01",
+                                       "--fix", "a.frames=60", "--workers", "1", "--json", str(out),
+                                       "--report", str(rep), "--no-progress"])
+    data = json.loads(out.read_text())
+    # a.frames pinned: group a has no knob left (one protocol, judged), group c searches c.frames and
+    # c.pattern's two values; b.frames and b.pattern change nothing required
+    assert [(g["name"], g["knobs"]) for g in data["groups"]] == [("a", []), ("c", ["c.frames"])]
+    assert data["unsearched_knobs"] == ["b.frames"] and data["fixed"] == {"a.frames": 60}
+    assert data["recommended"]["knobs"]["a.frames"] == 60 and data["recommended"]["knobs"]["b.frames"] == 100
+    # sigma_a / sqrt(60) x 1.96 = 0.0127 px: within 0.02 by 8 standard errors of its quantile of 200
+    # trials (relative se 0.067), far beyond the --sure margin (x1.12): feasible on any seed in practice
+    assert data["feasible"] and all(e["knobs"]["a.frames"] == 60 for e in data["evaluations"])
+    back = mod.STUDY.load_scenario(rep / "recommended.toml")
+    assert back.hash == data["recommended"]["scenario_hash"]
+    assert back.c.frames == data["recommended"]["knobs"]["c.frames"]
