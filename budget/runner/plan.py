@@ -1365,7 +1365,8 @@ def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed,
         if best is None:
             cands = [s.get("best_achievable") for s in gres.values() if s.get("best_achievable") is not None]
             ach = min(cands, key=lambda e: e.ratio) if cands else None
-        best_sname = None if best is None else next(sn for sn in g.shapes if gres[g.key(sn, several)]["best"] is best)
+        best_sname = None if best is None else next(sn for sn in g.shapes
+                                                     if gres[g.key(sn, several)]["best"] is best)
         group_out.append({"group": g, "best": best, "best_achievable": ach, "shapes": list(gres),
                           "best_shape": None if best is None else g.key(best_sname, several),
                           "best_sname": best_sname,
