@@ -1316,7 +1316,7 @@ def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict],
         gshapes, members = {}, {}
         for key, names in proj.items():
             ov = {f: shapes[names[0]][f] for f in gf if f in shapes[names[0]]}
-            label = names[0] if len(names) == 1 else ("scenario" if not ov else "|".join(names))
+            label = names[0] if len(names) == 1 else ("scenario" if not ov else " or ".join(names))
             gshapes[label], members[label] = ov, list(names)
         groups.append(PlanGroup(",".join(cls), cls, [r for r in reqs if r.cls in cls], gk, gf, gshapes, members))
     searched = {k.field for g in groups for k in g.knobs}

@@ -178,7 +178,7 @@ def _group_sentences(res) -> list[str]:
     n = res.trials_per_validation
     for go in res.groups:
         g = go["group"]
-        shapes = ", ".join(k if len(g.members[k]) == 1 or k == "|".join(g.members[k]) else
+        shapes = ", ".join(k if len(g.members[k]) == 1 or k == " or ".join(g.members[k]) else
                            f"{k} ({', '.join(g.members[k])})" for k in g.shapes)
         what = (f"Group {g.name} ({', '.join(r.text for r in g.requirements)}; knobs "
                 f"{', '.join(k.field for k in g.knobs) or 'none'}; shapes {shapes})")
@@ -436,9 +436,10 @@ def _groups_table(res) -> list[str]:
         ans = (_knobs(b) + ("" if go["best_sname"] == "scenario" else f" ({go['best_sname']})") if b is not None
                else "none meets" + ("" if a is None else f"; best {_knobs(a)}, {a.ratio:.3g} x the bound"))
         cost = _hours(b.cost_s) if b is not None else ""
-        rows.append(f"| {g.name} | {', '.join(g.classes)} | {', '.join(r.text for r in g.requirements)} | "
-                    f"{', '.join(f'`{k.field}`' for k in g.knobs) or 'none'} | {shapes} | {ans} | {cost} | "
-                    f"{go['trials']} ({go['trials'] / n:.3g}){' restricted' if go['restricted'] else ''} |")
+        cells = [g.name, ", ".join(g.classes), ", ".join(r.text for r in g.requirements),
+                 ", ".join(f"`{k.field}`" for k in g.knobs) or "none", shapes, ans, cost,
+                 f"{go['trials']} ({go['trials'] / n:.3g}){' restricted' if go['restricted'] else ''}"]
+        rows.append("| " + " | ".join(cells) + " |")
     rows += ["", "*the whole protocol's lab time with the other groups' knobs at the scenario's values; lab time "
              "is additive over the groups, so the recommendation (every group's answer) costs the scenario's lab "
              "time plus each group's change."]
