@@ -23,7 +23,16 @@ knobs, for ``--seeds`` seeds (default 8), each plan requiring ``offset.x <= --bo
 
 The last line is ``RESULT {json}`` (read by ``run_all.py``).
 
-Usage: ``python benchmarks/bench_plan.py [--seeds 8] [--bound 0.01] [--trials 200] [--sure 0.9] [--quick]``
+``--separable`` measures instead a separable plan against the whole-test plan on the separable
+toy (``budget.runner.toy.SplitToyStudy``: protocols a, b, c, each its own frames; ``a.x <= 0.01``
+and ``b.x <= 0.01``, so two groups, c's frames not searched), per seed: the trials each plan ran
+and the protocols they computed (a restricted trial computes its group's protocol only, a whole
+one all three), the answer's lab time above setup, whether the re-validation confirms, and the
+CPU time of the plan (best of 3 repeats). Its ``RESULT`` is bench ``plan-separable`` (not run
+by ``run_all.py``).
+
+Usage: ``python benchmarks/bench_plan.py [--seeds 8] [--bound 0.01] [--trials 200] [--sure 0.9] [--quick]
+[--separable]``
 """
 
 from __future__ import annotations
@@ -48,9 +57,12 @@ def main() -> None:
     ap.add_argument("--bound", type=float, default=0.01, help="offset.x bound (px)")
     ap.add_argument("--trials", type=int, default=None, help="trials of one validation (default the scenario's)")
     ap.add_argument("--sure", type=float, default=DEFAULT_SURE, help="the plan's --sure")
+    ap.add_argument("--separable", action="store_true", help="a separable plan against the joint (docstring)")
     args = ap.parse_args()
     if args.quick:
         args.seeds = min(args.seeds, 2)
+    if args.separable:
+        return separable(args)
     study = ToyStudy(record=True)
     scn = study.load_scenario()
     n = args.trials or study.default_trials(scn)
@@ -97,6 +109,50 @@ def main() -> None:
         figure("plan_cpu_over_validate", "CPU time of a plan / of one validation of its answer, best of the seeds "
                "(toy: microsecond trials, so the planner's own work)", cpu_ratio, "x"),
     ], quick=args.quick, seeds=args.seeds, bound_px=args.bound, trials=n)
+
+
+def separable(args) -> None:
+    """The separable toy's two-group plan against its whole-test plan (module docstring)."""
+    from budget.runner.toy import SplitToyStudy
+
+    reqs = [f"a.x<={args.bound}", f"b.x<={args.bound}"]
+    plan_protocol(SplitToyStudy(), SplitToyStudy().load_scenario(), reqs, seed=0, sure=args.sure)  # warm-up
+    rows, out = [], {True: [], False: []}
+    for seed in range(args.seeds):
+        for sep in (True, False):
+            cpus = []
+            for _ in range(3):
+                study = SplitToyStudy(record=True, separable=sep)
+                scn = study.load_scenario()
+                c0 = time.process_time()
+                res = plan_protocol(study, scn, reqs, seed=seed, trials=args.trials, sure=args.sure)
+                cpus.append(time.process_time() - c0)
+            work = sum(study.computed.values())
+            out[sep].append((len(study.calls), work, res.recommended.cost_s, min(cpus)))
+            k = res.recommended.knobs
+            rows.append((str(seed), "separable" if sep else "joint", str(len(res.to_json()["groups"])),
+                         f"{k['a.frames']} / {k['b.frames']} / {k['c.frames']}",
+                         f"{res.recommended.cost_s - scn.lab.setup_time_s:.0f} s", str(len(study.calls)), str(work),
+                         "yes" if res.confirmed else "no", f"{min(cpus):.2f} s"))
+    print_machine(workers=1)
+    print(f"separable toy, a.x <= {args.bound:g} px and b.x <= {args.bound:g} px at 95 %, sure {args.sure:g}; "
+          "CPU best of 3 repeats")
+    print(format_table(["seed", "plan", "groups", "frames a / b / c", "lab time above setup", "trials",
+                        "protocols computed", "confirmed", "cpu"], rows))
+
+    def med(sep, i):
+        return statistics.median(r[i] for r in out[sep])
+
+    emit_result("plan-separable", [
+        figure("plan_separable_trials_over_joint", f"trials of a two-group plan / of the joint plan, median of "
+               f"{args.seeds} seeds", med(True, 0) / med(False, 0), "x"),
+        figure("plan_separable_work_over_joint", "protocols computed by a two-group plan / by the joint plan, "
+               "median", med(True, 1) / med(False, 1), "x"),
+        figure("plan_separable_cost_over_joint", "the answer's lab time, separable / joint, median",
+               med(True, 2) / med(False, 2), "x"),
+        figure("plan_separable_cpu_over_joint", "CPU time of a plan, separable / joint (best of 3 each), median",
+               med(True, 3) / med(False, 3), "x"),
+    ], quick=args.quick, seeds=args.seeds, bound_px=args.bound)
 
 
 if __name__ == "__main__":

@@ -115,6 +115,36 @@ shifted by its standard error). Over several requirements, the Bonferroni bound
 the answer says so and gives the best achievable figure (the frontier's most accurate
 protocol within the budget, run).
 
+Separable plans
+---------------
+Most of a lab test is separable: each protocol's knobs change only its own classes, and lab
+time is additive. A study says so with :meth:`Study.field_classes` (for each knob and shape
+field, the classes it can change; a field not listed can change every class) and may offer
+:meth:`Study.restrict_classes` (a scenario computing only some classes). Where it declares
+field classes, :func:`decompose` links each required class to every free knob and shape field
+that can change it; the connected components over the required classes are independent
+groups (a requirement on a class every field changes, a total, makes one group: the
+whole-test plan). A knob no required class depends on is not searched: it stays at the
+scenario's value (or its ``--fix``) and the plan lists it (:attr:`PlanResult.unsearched`). A
+group's shapes are the declared shapes projected on its shape fields, those with equal
+projections collapsed into one search. Each group is searched as above with its own oracle:
+its requirements only, its candidates' trials on ``restrict_classes(candidate, group's
+classes)`` where the study can (common random numbers within the group: the same seed), its
+own budget of :data:`BUDGET_VALIDATIONS` per shape; a candidate's cost is always the lab time
+of the unrestricted scenario with every knob's current value (the other groups' at the
+scenario's). Lab time being additive and each group's fields changing only its own items, the
+groups' cheapest protocols together are the cheapest protocol meeting every requirement. The
+recommendation is their union (:func:`_union`: every group's knobs, in the declared shape that
+agrees with every group's chosen shape fields, the cheapest where several do), re-validated
+once as one protocol on fresh seeds (restricted to the union of the required classes where the
+study can) and costed by its full lab time. ``--budget-hours`` bounds the whole plan: with one
+group it bounds the search as above; with several, each group is searched without it and the
+union's lab time is checked against it (over it, no protocol within the budget meets every
+requirement: :attr:`PlanResult.over_budget`, the union as :attr:`PlanResult.best_achievable`).
+A group no protocol meets makes the plan infeasible; its best achievable figure is reported
+(the plan's: the group furthest from its bounds). Without :meth:`Study.field_classes` (the
+default) the plan is the whole-test plan, unchanged.
+
 The result, :class:`PlanResult`, writes JSON (schema ``budget.plan/1``), ``report.md`` and
 ``report.html`` with the trade curve and the recommended scenario (``recommended.toml``,
 ready for ``budget <study> validate``) (:mod:`budget.runner.plan_report`).
@@ -135,7 +165,8 @@ from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
-           "PlanResult", "Requirement", "cost_flat_knobs", "default_variant", "parse_fixes", "parse_requirements",
+           "PlanGroup", "PlanResult", "Requirement", "cost_flat_knobs", "decompose", "default_variant", "parse_fixes",
+           "parse_requirements",
            "plan_command_for",
            "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
            "validation_seed"]
@@ -388,6 +419,10 @@ class Evaluation:
     scenario: Any = field(default=None, repr=False)
     errors: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     truth_se: dict[str, float] = field(default_factory=dict, repr=False)
+    #: the scenario its trials ran on where the study restricted it (:meth:`Study.restrict_classes`)
+    run_scenario: Any = field(default=None, repr=False)
+    #: the sub-plan it belongs to (None: a plan that does not decompose)
+    group: str | None = None
 
     @property
     def met(self) -> bool:
@@ -401,15 +436,20 @@ class Evaluation:
     def to_json(self) -> dict:
         return {"shape": self.shape, "knobs": dict(self.knobs), "cost_s": self.cost_s,
                 "cost_items": dict(self.cost_items), "seed": self.seed, "trials": self.trials,
-                "stage": self.stage, "met": self.met, "figures": self.figures}
+                "stage": self.stage, "met": self.met, "figures": self.figures,
+                **({} if self.group is None else {"group": self.group})}
 
 
 class _Oracle:
     """Runs candidates with common random numbers and shared truths, counting trials."""
 
     def __init__(self, study, requirements, variant, confidence, seed, trials, workers, progress, executor=None,
-                 sure=None):
+                 sure=None, restrict=None, group=None):
         self.study, self.reqs, self.variant = study, requirements, variant
+        #: the classes the trials must compute (a sub-plan's; None: the whole scenario), and the sub-plan
+        self.restrict, self.group = (None if restrict is None else frozenset(restrict)), group
+        #: whether the study restricted a candidate's scenario (:meth:`Study.restrict_classes`)
+        self.restricted = False
         #: the one executor every candidate's run uses (started by :func:`plan_protocol`)
         self.executor = executor
         #: the search's level: a candidate meets when its quantile's P prediction bound is within (None: the point)
@@ -474,12 +514,15 @@ class _Oracle:
         """Run ``scn``: screening trials, then (``extend``) up to ``n`` unless they decide it;
         ``full``: ``n`` at once."""
         seed = self.seed if seed is None else seed
-        truths = self.truths_for(scn, seed)
+        run_scn = self.run_scenario(scn)
+        truths = self.truths_for(run_scn, seed)
         n0 = self.n if full else screening_trials(self.n)
-        errs, tse = self._run(scn, seed, 0, n0, truths)
+        errs, tse = self._run(run_scn, seed, 0, n0, truths)
+        # the lab time of the whole protocol, never of a restricted scenario
         items = {k: float(v) for k, v in self.study.lab_time_s(scn).items()}
         ev = Evaluation(shape, dict(knobs), float(sum(items.values())), items, seed, n0,
-                        self._figures(errs, tse, point=stage == "validation"), stage, scn, errs, tse)
+                        self._figures(errs, tse, point=stage == "validation"), stage, scn, errs, tse,
+                        run_scenario=None if run_scn is scn else run_scn, group=self.group)
         if extend and n0 < self.n and not self._decided(ev.figures):
             self.complete(ev, quiet=True)
         self.evaluations.append(ev)
@@ -490,13 +533,25 @@ class _Oracle:
         """Extend ``ev`` to ``n`` trials (trials ``ev.trials .. n - 1``, the same seed)."""
         if ev.trials >= self.n:
             return ev
-        more, _ = self._run(ev.scenario, ev.seed, ev.trials, self.n, self.truths_for(ev.scenario, ev.seed))
+        scn = ev.scenario if ev.run_scenario is None else ev.run_scenario
+        more, _ = self._run(scn, ev.seed, ev.trials, self.n, self.truths_for(scn, ev.seed))
         ev.errors = {k: np.concatenate([ev.errors[k], more[k]]) for k in ev.errors}
         ev.trials = self.n
         ev.figures = self._figures(ev.errors, ev.truth_se, point=ev.stage == "validation")
         if not quiet:
             self._echo(ev, "extended")
         return ev
+
+    def run_scenario(self, scn):
+        """The scenario a candidate's trials run on: ``scn`` restricted to the sub-plan's classes
+        where the study can (:meth:`Study.restrict_classes`), else ``scn``."""
+        if self.restrict is None:
+            return scn
+        r = self.study.restrict_classes(scn, self.restrict)
+        if r is None:
+            return scn
+        self.restricted = True
+        return r
 
     def _echo(self, ev, what=None):
         if self.progress:
@@ -556,7 +611,10 @@ def _knob_value(k: Knob, x: float):
 
 
 def _knobs_text(knobs: dict) -> str:
-    return ", ".join(f"{f.rsplit('.', 1)[-1]} {_num(v)}" for f, v in knobs.items())
+    """``frames 100, positions 4``: each knob by its last name, by its dotted field where two
+    knobs share a last name (``te.frames 10, distortion.frames 20``)."""
+    last = [f.rsplit(".", 1)[-1] for f in knobs]
+    return ", ".join(f"{f if last.count(n) > 1 else n} {_num(v)}" for f, n, v in zip(knobs, last, knobs.values()))
 
 
 def _num(v) -> str:
@@ -960,6 +1018,15 @@ class PlanResult:
     fixed: dict = field(default_factory=dict)
     #: cost-flat knobs (set per candidate by direct evaluation, not in the averaging model)
     flat: tuple = ()
+    #: the sub-plans of a separable plan (:func:`decompose`; empty: a whole-test plan), each a dict:
+    #: ``group`` (:class:`PlanGroup`), ``best`` and ``best_achievable`` (:class:`Evaluation`),
+    #: ``best_shape``, ``shapes`` (its keys in :attr:`shapes`), ``trials``, ``protocols``, ``restricted``
+    groups: list = field(default_factory=list)
+    #: knobs no required class depends on: left at the scenario's value, not searched
+    unsearched: tuple = ()
+    #: every group met its requirements but their protocols together exceed ``--budget-hours``
+    #: (:attr:`best_achievable` is that protocol)
+    over_budget: bool = False
 
     # ---- verdicts
     @property
@@ -986,12 +1053,32 @@ class PlanResult:
         bounds, in the recommended shape); None without a recommendation or a model boundary."""
         if self.recommended is None:
             return None
+        if self.groups:
+            return self._groups_premium()
         b = self.shapes.get(self.recommended.shape, {}).get("boundary")
         if not b or not b["cost_s"] > 0:
             return None
         return {"sure": self.sure_level, "factor": self.recommended.cost_s / b["cost_s"],
                 "boundary_cost_s": b["cost_s"], "boundary_knobs": dict(b["knobs"]),
                 "model_factor": b["model_sure_cost_s"] / b["cost_s"]}
+
+    def _groups_premium(self) -> dict | None:
+        """A separable plan's premium: lab time being additive over the groups, the boundary
+        protocol is the recommendation with each group's part replaced by its boundary
+        protocol's (the fitted model's, in the group's chosen shape)."""
+        rec = self.recommended
+        bound, model, knobs = rec.cost_s, rec.cost_s, dict(rec.knobs)
+        for go in self.groups:
+            b = self.shapes[go["best_shape"]].get("boundary")
+            if not b:
+                return None
+            bound -= go["best"].cost_s - b["cost_s"]
+            model -= go["best"].cost_s - b["model_sure_cost_s"]
+            knobs.update(b["knobs"])
+        if not bound > 0:
+            return None
+        return {"sure": self.sure_level, "factor": rec.cost_s / bound, "boundary_cost_s": bound,
+                "boundary_knobs": knobs, "model_factor": model / bound}
 
     @property
     def validation_seed(self) -> int:
@@ -1108,7 +1195,18 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
 
 def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
           knobs, t0, c0, sure, fixed=None) -> PlanResult:
+    """The whole-test search where the study declares no :meth:`Study.field_classes` (every
+    field may change every class), else the separable plan (:func:`_plan_groups`)."""
     fixed = dict(fixed or {})
+    if study.field_classes(scenario):
+        return _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress,
+                            pool, budget_s, knobs, t0, c0, sure, fixed)
+    return _plan_joint(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                       budget_s, knobs, t0, c0, sure, fixed)
+
+
+def _plan_joint(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                budget_s, knobs, t0, c0, sure, fixed) -> PlanResult:
     oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure)
     oracle.prewarmed = True
     shapes = study.protocol_shapes(scenario) or {"scenario": {}}
@@ -1144,6 +1242,202 @@ def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, wor
                       truth_runs=oracle.truth_runs, elapsed_s=time.perf_counter() - t0,
                       cpu_s=time.process_time() - c0, sure_level=sure, fixed=fixed,
                       flat=tuple(k for k in knobs if k.field in flat_all))
+
+
+# ---------------------------------------------------------------------- separable plans
+_UNSET = object()
+
+
+@dataclass
+class PlanGroup:
+    """One independent sub-plan (:func:`decompose`): required classes, the knobs and shape fields
+    that can change them and nothing else required, and its shapes collapsed to those that
+    differ in its shape fields."""
+
+    name: str
+    classes: tuple[str, ...]
+    requirements: list[Requirement]
+    knobs: tuple[Knob, ...]
+    shape_fields: tuple[str, ...]
+    #: collapsed shape name -> the overrides of its shape fields (the group's projection)
+    shapes: dict[str, dict[str, Any]]
+    #: collapsed shape name -> the declared shapes it stands for
+    members: dict[str, list[str]]
+
+    def key(self, shape: str, several: bool) -> str:
+        """The shape's name in the plan (``group/shape`` where the plan has several groups)."""
+        return f"{self.name}/{shape}" if several else shape
+
+
+def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict], fixed: dict | None = None
+              ) -> tuple[list[PlanGroup], tuple[Knob, ...]]:
+    """The plan's independent sub-plans and the knobs no requirement depends on.
+
+    A graph links each required class to every free knob field and shape field that can change
+    it (:meth:`Study.field_classes`; a field not listed can change every class); its connected
+    components over the required classes are the groups (in the order of the requirements).
+    A knob that changes no required class is not searched (it stays at the scenario's value,
+    or its ``--fix`` value); a group's shapes are the declared shapes projected on the group's
+    shape fields, those with equal projections collapsed into one (searched once)."""
+    fixed = dict(fixed or {})
+    fc = {f: tuple(c) for f, c in (study.field_classes(scenario) or {}).items()}
+    all_classes = [c.name for c in study.classes(scenario)]
+    req_classes = list(dict.fromkeys(r.cls for r in reqs))
+
+    def rel(f):
+        cl = fc.get(f)
+        cl = set(all_classes) if cl is None else set(cl)
+        return [c for c in req_classes if c in cl]
+
+    parent = {c: c for c in req_classes}
+
+    def find(c):
+        while parent[c] != c:
+            parent[c] = parent[parent[c]]
+            c = parent[c]
+        return c
+
+    free = [k for k in knobs if k.field not in fixed]
+    shape_fields = list(dict.fromkeys(f for ov in shapes.values() for f in ov))
+    for f in [k.field for k in free] + shape_fields:
+        r = rel(f)
+        for c in r[1:]:
+            parent[find(c)] = find(r[0])
+    roots = list(dict.fromkeys(find(c) for c in req_classes))
+    groups = []
+    for root in roots:
+        cls = tuple(c for c in req_classes if find(c) == root)
+        gk = tuple(k for k in free if rel(k.field) and find(rel(k.field)[0]) == root)
+        gf = tuple(f for f in shape_fields if rel(f) and find(rel(f)[0]) == root)
+        proj: dict[tuple, list[str]] = {}
+        for name, ov in shapes.items():
+            key = tuple((f, repr(ov.get(f, _UNSET)) if f in ov else "<unset>") for f in gf)
+            proj.setdefault(key, []).append(name)
+        gshapes, members = {}, {}
+        for key, names in proj.items():
+            ov = {f: shapes[names[0]][f] for f in gf if f in shapes[names[0]]}
+            label = names[0] if len(names) == 1 else ("scenario" if not ov else " or ".join(names))
+            gshapes[label], members[label] = ov, list(names)
+        groups.append(PlanGroup(",".join(cls), cls, [r for r in reqs if r.cls in cls], gk, gf, gshapes, members))
+    searched = {k.field for g in groups for k in g.knobs}
+    unsearched = tuple(k for k in free if k.field not in searched)
+    return groups, unsearched
+
+
+def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
+                 budget_s, knobs, t0, c0, sure, fixed) -> PlanResult:
+    """The separable plan (module docstring, "Separable plans"): each group searched on its own
+    (its classes only where the study can restrict, its own trial budget per shape, common
+    random numbers within it), the union of the answers re-validated as one protocol."""
+    declared = study.protocol_shapes(scenario) or {"scenario": {}}
+    groups, unsearched = decompose(study, scenario, reqs, knobs, declared, fixed)
+    several = len(groups) > 1
+    cap = (BUDGET_VALIDATIONS - 1) * n
+    results: dict[str, dict] = {}
+    group_out: list[dict] = []
+    evaluations: list[Evaluation] = []
+    flat_all: dict[str, Knob] = {}
+    search_trials = truth_runs = 0
+    for g in groups:
+        oracle = _Oracle(study, g.requirements, variant, confidence, seed, n, workers, progress, executor=pool,
+                         sure=sure, restrict=g.classes, group=g.name if several else None)
+        oracle.prewarmed = True
+        gres = {}
+        for sname, ov in g.shapes.items():
+            key = g.key(sname, several)
+            base = _with_values(study, scenario, {**ov, **fixed}, where=f"protocol shape {sname}") \
+                if (ov or fixed) else scenario
+            flat = cost_flat_knobs(study, base, g.knobs)
+            flat_all.update({k.field: k for k in flat})
+            cost_knobs = tuple(k for k in g.knobs if k not in flat)
+            # one group: the budget bounds its protocols as in a whole-test plan; several: the sum is checked
+            s = _ShapeSearch(oracle, key, base, cost_knobs, None if several else budget_s, cap, flat=flat,
+                             fixed=fixed).search()
+            s["flat"] = [k.field for k in flat]
+            s["overrides"] = dict(ov)
+            s["members"] = list(g.members[sname])
+            s["group"] = g.name
+            gres[key] = s
+        results.update(gres)
+        bests = [s["best"] for s in gres.values() if s["best"] is not None]
+        best = min(bests, key=lambda e: e.cost_s) if bests else None
+        ach = None
+        if best is None:
+            cands = [s.get("best_achievable") for s in gres.values() if s.get("best_achievable") is not None]
+            ach = min(cands, key=lambda e: e.ratio) if cands else None
+        best_sname = None if best is None else next(sn for sn in g.shapes
+                                                     if gres[g.key(sn, several)]["best"] is best)
+        group_out.append({"group": g, "best": best, "best_achievable": ach, "shapes": list(gres),
+                          "best_shape": None if best is None else g.key(best_sname, several),
+                          "best_sname": best_sname,
+                          "trials": oracle.trials_run, "protocols": len(oracle.evaluations),
+                          "restricted": oracle.restricted, "truth_runs": oracle.truth_runs})
+        evaluations += oracle.evaluations
+        search_trials += oracle.trials_run
+        truth_runs += oracle.truth_runs
+    rec = validation = best_ach = None
+    over_budget = False
+    if all(go["best"] is not None for go in group_out):
+        rec = _union(study, scenario, knobs, unsearched, fixed, declared, groups, group_out, n, seed)
+        if budget_s is not None and rec.cost_s > budget_s:
+            # lab time is additive over the groups: no cheaper protocol meets every requirement
+            over_budget, best_ach, rec = True, rec, None
+    else:
+        cands = [go["best_achievable"] for go in group_out if go["best"] is None and go["best_achievable"]]
+        best_ach = max(cands, key=lambda e: e.ratio) if cands else None
+    if rec is not None:
+        vor = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure,
+                      restrict=tuple(dict.fromkeys(r.cls for r in reqs)))
+        vor.prewarmed = True
+        validation = vor.evaluate(rec.shape, rec.knobs, rec.scenario, stage="validation",
+                                  seed=validation_seed(seed), full=True)
+        truth_runs += vor.truth_runs
+    return PlanResult(study=study, scenario=scenario, requirements=reqs, variant=variant, confidence=confidence,
+                      seed=seed, trials_per_validation=n, budget_hours=budget_hours, knobs=knobs, shapes=results,
+                      recommended=rec, validation=validation, best_achievable=best_ach,
+                      evaluations=evaluations, search_trials=search_trials,
+                      truth_runs=truth_runs, elapsed_s=time.perf_counter() - t0,
+                      cpu_s=time.process_time() - c0, sure_level=sure, fixed=fixed,
+                      flat=tuple(k for k in knobs if k.field in flat_all), groups=group_out,
+                      unsearched=unsearched, over_budget=over_budget)
+
+
+def _union(study, scenario, knobs, unsearched, fixed, declared, groups, group_out, n, seed) -> Evaluation:
+    """The recommendation of a separable plan: every group's answer in one protocol (its knobs,
+    the unsearched knobs at the scenario's values, the fixed ones), in the declared shape that
+    agrees with every group's chosen shape fields, the cheapest where several do (they differ
+    only in fields no requirement depends on); where none agrees, the groups' shape fields
+    together. Its figures are the groups' (search) figures; its cost the full lab time."""
+    vals = {k.field: _knob_value(k, _dotted_get(scenario, k.field)) for k in unsearched}
+    vals.update(fixed)
+    for go in group_out:
+        vals.update({f: v for f, v in go["best"].knobs.items() if f not in fixed})
+    picks, members = {}, set(declared)
+    names = []
+    for g, go in zip(groups, group_out):
+        sname = go["best_sname"]
+        picks.update(g.shapes[sname])
+        members &= set(g.members[sname])
+        names.append(sname)
+    where = "plan: the recommended protocol"
+    if members:
+        costed = []
+        for name in declared:
+            if name in members:
+                scn = _with_values(study, scenario, {**declared[name], **vals}, where=where)
+                costed.append((float(sum(study.lab_time_s(scn).values())), name, scn))
+        _, shape, scn = min(costed, key=lambda t: t[0])
+    else:
+        shape = "+".join(dict.fromkeys(names))
+        scn = _with_values(study, scenario, {**picks, **vals}, where=where)
+    items = {k: float(v) for k, v in study.lab_time_s(scn).items()}
+    figs, errs, tse = {}, {}, {}
+    for go in group_out:
+        figs.update(go["best"].figures)
+        errs.update(go["best"].errors)
+        tse.update(go["best"].truth_se)
+    knob_vals = {k.field: vals[k.field] for k in knobs if k.field in vals}
+    return Evaluation(shape, knob_vals, float(sum(items.values())), items, seed, n, figs, "search", scn, errs, tse)
 
 
 # ---------------------------------------------------------------------- fixed and cost-flat knobs

@@ -14,7 +14,13 @@ Rules of the words:
   time", where the search judged by the ``--sure`` prediction bound (F: the recommendation's
   lab time over the fitted model's cheapest protocol whose predicted quantiles equal the bounds);
 * a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
-  its best figure where none met.
+  its best figure where none met;
+* a separable plan (:attr:`PlanResult.groups`): one sentence per group (its requirements,
+  knobs and shapes searched, its answer or its best figure, the trials it spent, whether its
+  trials were restricted to its classes), one per knob no requirement depends on (left at the
+  scenario's value), and, where every group met but their protocols together exceed
+  ``--budget-hours``, "no protocol within B meets ...: the cheapest that does ... takes T"
+  (lab time being additive over the groups, none cheaper meets).
 """
 
 from __future__ import annotations
@@ -69,6 +75,12 @@ def answer_text(res) -> str:
     st = res.study
     conf = pct(res.confidence)
     budget = "" if res.budget_hours is None else f" within {res.budget_hours:g} h"
+    if res.recommended is None and getattr(res, "over_budget", False):
+        b = res.best_achievable
+        return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests): the "
+                f"cheapest that does, {_knobs(b)}{'' if b.shape == 'scenario' else f' ({b.shape})'}, takes "
+                f"{_hours(b.cost_s)} of lab time (its {len(res.groups)} independent parts' cheapest protocols "
+                "together; lab time is additive, so none cheaper meets every requirement).")
     if res.recommended is None:
         b = res.best_achievable
         if b is None:
@@ -129,7 +141,9 @@ def findings_sentences(res) -> list[str]:
                        f"fresh trials beyond it, {f['allowed']} allowed); bias {_fmt(f['bias'])} +- "
                        f"{_fmt(f['se_bias'])}, sd {_fmt(f['sd'])} +- {_fmt(f['se_sd'])}; "
                        f"sure at {pct(f['sure'])}.")
-    if len(res.shapes) > 1 or res.recommended is None:
+    if getattr(res, "groups", None):
+        out += _group_sentences(res)
+    elif len(res.shapes) > 1 or res.recommended is None:
         for name, s in res.shapes.items():
             b = s["best"]
             if b is not None:
@@ -154,6 +168,80 @@ def findings_sentences(res) -> list[str]:
                f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
                f"{res.truth_runs} truth{'' if res.truth_runs == 1 else 's'} computed (shared by protocols "
                "with the same truth identity).")
+    return out
+
+
+def _group_sentences(res) -> list[str]:
+    """A separable plan's sentences: per group, per shape of a group with several, the knobs
+    not searched (module docstring)."""
+    out = []
+    n = res.trials_per_validation
+    for go in res.groups:
+        g = go["group"]
+        shapes = ", ".join(k if len(g.members[k]) == 1 or k == " or ".join(g.members[k]) else
+                           f"{k} ({', '.join(g.members[k])})" for k in g.shapes)
+        what = (f"Group {g.name} ({', '.join(r.text for r in g.requirements)}; knobs "
+                f"{', '.join(k.field for k in g.knobs) or 'none'}; shapes {shapes})")
+        b, a = go["best"], go["best_achievable"]
+        if b is not None:
+            sname = go["best_sname"]
+            ans = (f"cheapest meeting its requirements {_knobs(b)}{'' if sname == 'scenario' else f' ({sname})'}, "
+                   f"{_hours(b.cost_s)} of lab time with the other knobs at the scenario's values")
+        elif a is not None:
+            ans = (f"no protocol meets its requirements; its most accurate, {_knobs(a)}, reaches {a.ratio:.3g} "
+                   "times the bound")
+        else:
+            ans = "no protocol could be run"
+        out.append(f"{what}: {ans}; {go['protocols']} protocols run, {go['trials']} trials "
+                   f"({go['trials'] / n:.3g} validations of {n})"
+                   f"{', each computing only its classes' if go['restricted'] else ''}.")
+        keys = go["shapes"]
+        if len(keys) > 1 and b is not None:
+            for k in keys:
+                sb = res.shapes[k]["best"]
+                if sb is None:
+                    out.append(f"Shape {k}: no protocol meets its group's requirements.")
+                elif sb is not b:
+                    out.append(f"Shape {k}: cheapest {_knobs(sb)}, {_hours(sb.cost_s)} "
+                               f"({100 * (sb.cost_s / b.cost_s - 1):.0f} % more lab time than {go['best_shape']}).")
+    for k in getattr(res, "unsearched", ()):
+        v = res.fixed.get(k.field) if k.field in (res.fixed or {}) else None
+        if v is None:
+            from budget.runner.plan import _dotted_get
+
+            v = _dotted_get(res.scenario, k.field)
+        out.append(f"Not searched: `{k.field}` ({k.description}) changes no required class; left at {v} {k.unit}.")
+    return out
+
+
+def _groups_json(res) -> list[dict]:
+    """The sub-plans (a plan that does not decompose: one, every requirement, knob and shape)."""
+    n = res.trials_per_validation
+
+    def ev(e):
+        return None if e is None else {"shape": e.shape, "knobs": dict(e.knobs), "cost_s": e.cost_s,
+                                       "met": e.met, "ratio": e.ratio}
+
+    if not getattr(res, "groups", None):
+        free = [k.field for k in res.knobs if k.field not in (res.fixed or {})]
+        return [{"name": ",".join(dict.fromkeys(r.cls for r in res.requirements)),
+                 "classes": list(dict.fromkeys(r.cls for r in res.requirements)),
+                 "requirements": [r.text for r in res.requirements], "knobs": free,
+                 "shape_fields": sorted({f for s in res.shapes.values() for f in s.get("overrides", {})}),
+                 "shapes": {k: [k] for k in res.shapes}, "restricted": False, "feasible": res.feasible,
+                 "best_shape": None if res.recommended is None else res.recommended.shape,
+                 "best": ev(res.recommended), "best_achievable": ev(res.best_achievable),
+                 "trials": res.search_trials, "validations": res.search_trials / n,
+                 "protocols": len(res.evaluations)}]
+    out = []
+    for go in res.groups:
+        g = go["group"]
+        out.append({"name": g.name, "classes": list(g.classes), "requirements": [r.text for r in g.requirements],
+                    "knobs": [k.field for k in g.knobs], "shape_fields": list(g.shape_fields),
+                    "shapes": {k: list(v) for k, v in g.members.items()}, "restricted": go["restricted"],
+                    "feasible": go["best"] is not None, "best_shape": go["best_shape"], "best": ev(go["best"]),
+                    "best_achievable": ev(go["best_achievable"]), "trials": go["trials"],
+                    "validations": go["trials"] / n, "protocols": go["protocols"]})
     return out
 
 
@@ -195,6 +283,8 @@ def plan_json(res) -> dict:
                    "validation": 0 if res.validation is None else res.validation.trials,
                    "total": res.total_trials},
         "truths_computed": res.truth_runs, "elapsed_s": res.elapsed_s, "cpu_s": res.cpu_s,
+        "groups": _groups_json(res), "unsearched_knobs": [k.field for k in getattr(res, "unsearched", ())],
+        "over_budget": bool(getattr(res, "over_budget", False)),
     }
 
 
@@ -223,8 +313,16 @@ def plot_trade_curve(res, path: Path):
     axes = axes.T
     shapes = list(res.shapes)
     markers = "osD^v<>"
+    groups = getattr(res, "groups", None) or []
+    by_req = {}  # a separable plan: each requirement's panel shows its group's shapes and protocols
+    for go in groups:
+        for rr in go["group"].requirements:
+            by_req[rr.name] = go
     for ax, r in zip(axes[0], reqs):
+        go = by_req.get(r.name)
         for j, name in enumerate(shapes):
+            if go is not None and name not in go["shapes"]:
+                continue
             m = res.shapes[name].get("model")
             lab = f"{name}: " if len(shapes) > 1 else ""
             if m and m["cost_s"]:
@@ -243,7 +341,9 @@ def plot_trade_curve(res, path: Path):
         ax.axhline(r.value, color="k", lw=1.0, ls="--", label=f"bound {_fmt(r.value)}")
         if res.validation is not None:
             f = res.validation.figures[r.name]
-            ax.errorbar([res.validation.cost_s / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
+            # a group's panel: at its part of the recommendation (the lab time its protocols are drawn at)
+            x = res.validation.cost_s if go is None or len(groups) == 1 else go["best"].cost_s
+            ax.errorbar([x / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
                         ms=13, color="crimson", zorder=4, label="recommended, re-validated")
         if res.budget_hours is not None:
             ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.", label=f"budget {res.budget_hours:g} h")
@@ -256,14 +356,18 @@ def plot_trade_curve(res, path: Path):
         ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
         ax.xaxis.set_minor_formatter(FormatStrFormatter("%g") if hi < 10 * lo else NullFormatter())
         ax.set_yscale("log")
-        ax.set_xlabel("lab time (h)")
+        ax.set_xlabel("lab time (h)" if go is None or len(groups) == 1 else
+                      "lab time (h), the other groups' knobs at the scenario's values")
         ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
-        ax.set_title(f"{r.name} ({res.variant}) against lab time")
+        ax.set_title(f"{r.name} ({res.variant}) against lab time"
+                     + ("" if go is None or len(groups) == 1 else f": group {go['group'].name}"))
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     # the caption from the numbers drawn
     parts = []
     for r in reqs:
-        evs = sorted(res.evaluations, key=lambda e: e.cost_s)
+        evs = sorted((e for e in res.evaluations if r.name in e.figures), key=lambda e: e.cost_s)
+        if not evs:
+            continue
         meets = [e for e in evs if e.met]
         s = f"{r.name}: measured from {_fmt(max(e.figures[r.name]['quantile'] for e in evs))} to " \
             f"{_fmt(min(e.figures[r.name]['quantile'] for e in evs))} {r.unit} over {_hours(evs[0].cost_s)} to " \
@@ -277,7 +381,8 @@ def plot_trade_curve(res, path: Path):
                 f = fails[-1]
                 s += f", the dearest failing below it, {_knobs(f)} at {_hours(f.cost_s)}, " \
                      f"{_fmt(f.figures[r.name]['quantile'])}"
-        floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")]
+        floors = [res.shapes[n]["model"]["floor"][r.name] for n in shapes if res.shapes[n].get("model")
+                  and r.name in res.shapes[n]["model"]["floor"]]
         if floors and min(floors) > 0:
             s += f"; the fitted model's floor (what no count removes) {_fmt(min(floors))} {r.unit}"
         elif floors:
@@ -286,6 +391,10 @@ def plot_trade_curve(res, path: Path):
     rec = "" if res.validation is None else (
         f" The star: the recommended protocol, {_knobs(res.validation)}, {_hours(res.validation.cost_s)}, "
         "re-validated on fresh trials (error bar: one standard error of the quantile).")
+    if len(groups) > 1:
+        rec += (f" Each panel shows its requirement's group ({len(groups)} independent groups) at the whole "
+                "protocol's lab time with the other groups' knobs at the scenario's values; its star at its "
+                "group's answer.")
     caption = (f"The trade curve: each marker a protocol the search ran ({len(res.evaluations)} in all, "
                f"{res.search_trials} trials with common random numbers; filled: meets every bound), each line "
                "the fitted model's best protocol at each lab time. " + "; ".join(parts) + "." + rec)
@@ -305,11 +414,38 @@ def _table(res) -> list[str]:
     if res.validation is not None:
         evs.append(res.validation)
     for e in evs:
+        # a separable plan's protocol carries its group's requirements only (the others: blank)
         cells = [e.shape, e.stage] + [str(e.knobs.get(k.field, "")) for k in res.knobs] + \
             [_hours(e.cost_s), str(e.trials)] + \
             [f"{_fmt(e.figures[r.name]['quantile'])} +- {_fmt(e.figures[r.name]['se_quantile'])}"
-             for r in res.requirements] + ["yes" if e.met else "no"]
+             if r.name in e.figures else "" for r in res.requirements] + ["yes" if e.met else "no"]
         rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
+def _groups_table(res) -> list[str]:
+    """A separable plan's groups: classes, requirements, knobs and shapes searched, its answer,
+    the trials it spent."""
+    n = res.trials_per_validation
+    rows = ["| group | classes | requirements | knobs searched | shapes searched (declared shapes) | answer | "
+            "lab time* | trials (validations) |", "|---|---|---|---|---|---|---|---|"]
+    for go in res.groups:
+        g = go["group"]
+        b, a = go["best"], go["best_achievable"]
+        shapes = "; ".join(f"{k} ({', '.join(v)})" if [k] != v else k for k, v in g.members.items())
+        ans = (_knobs(b) + ("" if go["best_sname"] == "scenario" else f" ({go['best_sname']})") if b is not None
+               else "none meets" + ("" if a is None else f"; best {_knobs(a)}, {a.ratio:.3g} x the bound"))
+        cost = _hours(b.cost_s) if b is not None else ""
+        cells = [g.name, ", ".join(g.classes), ", ".join(r.text for r in g.requirements),
+                 ", ".join(f"`{k.field}`" for k in g.knobs) or "none", shapes, ans, cost,
+                 f"{go['trials']} ({go['trials'] / n:.3g}){' restricted' if go['restricted'] else ''}"]
+        rows.append("| " + " | ".join(cells) + " |")
+    rows += ["", "*the whole protocol's lab time with the other groups' knobs at the scenario's values; lab time "
+             "is additive over the groups, so the recommendation (every group's answer) costs the scenario's lab "
+             "time plus each group's change."]
+    if getattr(res, "unsearched", ()):
+        rows += ["", "Not searched (no required class depends on them; left at the scenario's value): " +
+                 ", ".join(f"`{k.field}`" for k in res.unsearched) + "."]
     return rows
 
 
@@ -341,6 +477,13 @@ def write_plan_report(res, out_dir) -> Path:
                       + f"; total {_hours(res.recommended.cost_s)}.", "",
                       f"Ready to run: `budget {st.name} validate recommended.toml` (written beside this report).",
                       ""]
+        if getattr(res, "groups", None):
+            lines += ["## Independent sub-plans", "",
+                      f"The requirements split into {len(res.groups)} group{'s' if len(res.groups) > 1 else ''} that "
+                      "no knob or shape field links (the study's field_classes); each was searched on its own "
+                      "(its own trial budget per shape, its trials computing only its classes where the study "
+                      "can), and their answers together re-validated as one protocol.", ""] + \
+                _groups_table(res) + [""]
         lines += ["## Trade curve", "", figure_markdown(figs), "",
                   "## Every protocol run", "",
                   f"Search seed {res.seed} for every protocol (common random numbers); the re-validation "

@@ -92,7 +92,10 @@ Protocol planning (``budget <study> plan``, :mod:`budget.runner.plan`):
 :meth:`Study.protocol_knobs` (the fields a lab chooses, :class:`Knob`, with bounds; none by
 default, and then the study has no ``plan`` command), :meth:`Study.protocol_shapes` (named
 protocol geometries to compare) and :meth:`Study.lab_time_s` (the lab time of a protocol, in
-seconds by item, from the scenario's own fields: exposures, frames, moves, settling, dwells).
+seconds by item, from the scenario's own fields: exposures, frames, moves, settling, dwells);
+for a plan that splits into independent sub-plans, :meth:`Study.field_classes` (which classes
+each knob and shape field can change) and :meth:`Study.restrict_classes` (a scenario that
+computes only some classes).
 
 Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
 :meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
@@ -474,6 +477,22 @@ class Study(ABC):
         planner's cost is their sum. Empty (the default): no lab time model, which a study with
         :meth:`protocol_knobs` must give (``plan`` refuses it otherwise)."""
         return {}
+
+    def field_classes(self, scenario: Any) -> dict[str, tuple[str, ...]]:
+        """For each plannable dotted scenario field (every :attr:`Knob.field` and every field a
+        :meth:`protocol_shapes` override sets), the names of the classes (:attr:`ClassSpec.name`)
+        whose estimates or truths it can change. A field not listed may change every class.
+        The planner splits a plan into independent sub-plans along it (docs/planning.md).
+        Default: ``{}`` (every field may change every class: no decomposition)."""
+        return {}
+
+    def restrict_classes(self, scenario: Any, classes: frozenset[str]) -> Any | None:
+        """A scenario whose trials and truths compute only what the classes ``classes`` need
+        (at least those classes, with the same numbers for them as ``scenario`` on the same
+        seed), or None when the study cannot restrict (the default). The planner runs a
+        sub-plan's trials on it and still takes the lab time from the unrestricted scenario
+        (:meth:`lab_time_s` is never called on a restricted one)."""
+        return None
 
     # ------------------------------------------------------------ presentation
     def report_sections(self, result: Any, out_dir: Path) -> list[ReportSection]:

@@ -36,8 +36,25 @@ The cheapest protocol whose C-quantile of ``|e|`` is at most ``V`` is, with
   ``sqrt(lambda) = (sigma_f sqrt(t_f) + sigma_p sqrt(t_m)) / v``, so that
   ``cost* = (sigma_f sqrt(t_f) + sigma_p sqrt(t_m))^2 / v + setup`` (:func:`analytic_optimum`).
 
-It is not registered as a CLI study (it measures nothing real); tests, the docs and the
-benchmark use it through the Python API (``budget.plan(TOY, ...)``).
+The separable toy (:class:`SplitToyStudy`, :data:`SPLIT_TOY`): three independent lab
+protocols ``a``, ``b`` and ``c``, each measuring its own offset (classes ``a``, ``b``, ``c``)
+by averaging its own ``frames`` (knobs ``a.frames``, ``b.frames``, ``c.frames``), and the class
+``ab``, the sum of the ``a`` and ``b`` offsets, which depends on both. Trial ``k`` draws
+``z_a, z_b, z_c`` (standard normals, in that order, from ``SeedSequence(seed, spawn_key=(k,))``)
+whatever it computes, and the error of protocol ``p`` is ``e_p = sigma_p z_p / sqrt(F_p)``
+(``e_ab = e_a + e_b``); a frame of ``b`` or ``c`` in the ``line`` pattern has ``line_factor``
+times the variance and ``line_time_fraction`` of the time of a ``grid`` frame. The lab time is
+additive, ``setup + F_a t_a + F_b t_b + F_c t_c`` (``t_p`` the pattern's frame time), so the
+cheapest protocol meeting ``p.x <= V_p`` for each required ``p`` is, with
+``z = Phi^-1((1 + C) / 2)``, ``F_p* = (z sigma_p / V_p)^2`` for each (:func:`split_optimum`),
+and the pattern of least ``sigma_p^2 t_p`` (the line for ``b``, at the defaults: 2 x 0.25).
+It declares :meth:`Study.field_classes` (``separable=False``: none, the whole-test plan) and
+restricts (:meth:`Study.restrict_classes`: ``[compute] protocols``, the protocols whose trials
+and truths are computed; ``restrict=False``: it cannot), counting the protocols a trial
+computed in :attr:`SplitToyStudy.computed` (``record=True``).
+
+Neither is registered as a CLI study (they measure nothing real); tests, the docs and the
+benchmark use them through the Python API (``budget.plan(TOY, ...)``).
 """
 
 from __future__ import annotations
@@ -51,7 +68,8 @@ from pydantic import Field
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth, trial_seed_sequence
 from simcam.config_base import ScenarioBase, StrictModel, ValidationSettings, load_scenario_file, validate_model
 
-__all__ = ["TOY", "TOY_FLAT", "TOY_ONE_KNOB", "ToyScenario", "ToyStudy", "analytic_optimum"]
+__all__ = ["SPLIT_TOY", "TOY", "TOY_FLAT", "TOY_ONE_KNOB", "SplitToyScenario", "SplitToyStudy", "ToyScenario",
+           "ToyStudy", "analytic_optimum", "split_optimum"]
 
 DEFAULT_TEXT = """\
 # The planner's toy study (budget.runner.toy): one offset averaged over frames and positions.
@@ -239,9 +257,208 @@ def analytic_optimum(scenario: ToyScenario, value_px: float, confidence: float =
     return {"frames": f, "positions": p, "cost_s": lab.setup_time_s + f * lab.frame_time_s + p * tm}
 
 
+# ---------------------------------------------------------------------- the separable toy
+SPLIT_TEXT = """\
+# The planner's separable toy (budget.runner.toy): three independent protocols a, b and c.
+name = "toy split"
+
+[world]
+offset_a_px = 0.5          # the offset protocol a measures
+offset_b_px = -0.2         # protocol b's
+offset_c_px = 0.1          # protocol c's
+sigma_a_px = 0.05          # white noise of one frame of protocol a
+sigma_b_px = 0.04          # of protocol b (a grid frame)
+sigma_c_px = 0.02          # of protocol c (a grid frame)
+line_factor = 2.0          # a line frame's variance is this many times a grid frame's
+
+[a]
+frames = 100
+[b]
+frames = 100
+pattern = "grid"           # "grid" or "line"
+[c]
+frames = 10
+pattern = "grid"
+
+[lab]
+a_frame_time_s = 2.0
+b_frame_time_s = 3.0
+c_frame_time_s = 1.0
+line_time_fraction = 0.25  # a line frame takes this fraction of a grid frame's time
+setup_time_s = 600.0       # mounting and alignment, once
+
+[compute]
+protocols = ["a", "b", "c"] # the protocols whose trials and truths are computed
+
+[validation]
+trials = 200
+"""
+
+_PROTOCOLS = ("a", "b", "c")
+#: what each class needs computed
+_NEEDS = {"a": ("a",), "b": ("b",), "c": ("c",), "ab": ("a", "b")}
+
+
+class SplitWorld(StrictModel):
+    offset_a_px: float = 0.5
+    offset_b_px: float = -0.2
+    offset_c_px: float = 0.1
+    sigma_a_px: float = Field(0.05, ge=0.0)
+    sigma_b_px: float = Field(0.04, ge=0.0)
+    sigma_c_px: float = Field(0.02, ge=0.0)
+    line_factor: float = Field(2.0, ge=0.0)
+
+
+class SplitA(StrictModel):
+    frames: int = Field(100, ge=1)
+
+
+class SplitPatterned(StrictModel):
+    frames: int = Field(100, ge=1)
+    pattern: Literal["grid", "line"] = "grid"
+
+
+class SplitLab(StrictModel):
+    a_frame_time_s: float = Field(2.0, ge=0.0)
+    b_frame_time_s: float = Field(3.0, ge=0.0)
+    c_frame_time_s: float = Field(1.0, ge=0.0)
+    line_time_fraction: float = Field(0.25, ge=0.0)
+    setup_time_s: float = Field(600.0, ge=0.0)
+
+
+class SplitCompute(StrictModel):
+    protocols: list[Literal["a", "b", "c"]] = ["a", "b", "c"]
+
+
+class SplitToyScenario(ScenarioBase):
+    world: SplitWorld = SplitWorld()
+    a: SplitA = SplitA()
+    b: SplitPatterned = SplitPatterned()
+    c: SplitPatterned = SplitPatterned(frames=10)
+    lab: SplitLab = SplitLab()
+    compute: SplitCompute = SplitCompute()
+    validation: ValidationSettings = ValidationSettings()
+
+
+class SplitToyStudy(Study):
+    """The separable toy (module docstring). ``knobs``: the protocols whose frames are knobs;
+    ``shapes``: the four patterns of ``b`` and ``c`` (``bgrid-cgrid``, ``bgrid-cline``, ...);
+    ``separable``: declare :meth:`field_classes`; ``restrict``: support :meth:`restrict_classes`;
+    ``record``: count trials (:attr:`calls`) and the protocols each computed (:attr:`computed`)."""
+
+    name = "toy-split"
+    title = "Toy offsets of three independent protocols (planner reference)"
+    seed_document = "-"
+    variants = ("debiased",)
+    reference_variants = ()
+    scenario_module = ""
+
+    def __init__(self, knobs: tuple[str, ...] = _PROTOCOLS, *, shapes: bool = False, separable: bool = True,
+                 restrict: bool = True, record: bool = False):
+        self.knobs, self.shapes, self.separable, self.restrict = tuple(knobs), shapes, separable, restrict
+        self.record = record
+        self.calls: list[tuple[int, int]] = []
+        self.computed: dict[str, int] = {p: 0 for p in _PROTOCOLS}
+
+    def default_text(self) -> str:
+        return SPLIT_TEXT
+
+    def from_dict(self, data: dict, *, source: str) -> SplitToyScenario:
+        scn = validate_model(SplitToyScenario, data, source=source)
+        scn._source = source
+        return scn
+
+    def classes(self, scenario: Any) -> tuple[ClassSpec, ...]:
+        run = set(scenario.compute.protocols)
+        specs = [ClassSpec(p, f"offset {p}", "px", ("x",), f"the offset protocol {p} measures") for p in _PROTOCOLS]
+        specs.append(ClassSpec("ab", "offset a + b", "px", ("x",), "the sum of the a and b offsets"))
+        return tuple(c for c in specs if set(_NEEDS[c.name]) <= run)
+
+    def protocol_knobs(self, scenario: Any) -> tuple[Knob, ...]:
+        return tuple(Knob(f"{p}.frames", "int", 1, 100_000, "frames", f"frames of protocol {p}") for p in self.knobs)
+
+    def protocol_shapes(self, scenario: Any) -> dict[str, dict[str, Any]]:
+        if not self.shapes:
+            return {}
+        pats = ("grid", "line")
+        return {f"b{pb}-c{pc}": {"b.pattern": pb, "c.pattern": pc} for pb in pats for pc in pats}
+
+    def field_classes(self, scenario: Any) -> dict[str, tuple[str, ...]]:
+        if not self.separable:
+            return {}
+        return {"a.frames": ("a", "ab"), "b.frames": ("b", "ab"), "b.pattern": ("b", "ab"),
+                "c.frames": ("c",), "c.pattern": ("c",)}
+
+    def restrict_classes(self, scenario: Any, classes: frozenset[str]):
+        if not self.restrict:
+            return None
+        need = {p for c in classes for p in _NEEDS[c]}
+        data = scenario.model_dump(mode="json", exclude_none=True)
+        data["compute"] = {"protocols": [p for p in _PROTOCOLS if p in need]}
+        return self.from_dict(data, source="restricted")
+
+    def lab_time_s(self, scenario: Any) -> dict[str, float]:
+        lab = scenario.lab
+        return {"setup": lab.setup_time_s, "a": scenario.a.frames * lab.a_frame_time_s,
+                "b": scenario.b.frames * lab.b_frame_time_s * _split_time(scenario, "b"),
+                "c": scenario.c.frames * lab.c_frame_time_s * _split_time(scenario, "c")}
+
+    def truth_fields(self, scenario: Any) -> tuple[str, ...]:
+        return ("world", "compute")
+
+    def truths(self, scenario: Any, seed: int) -> dict[tuple[str, str], Truth]:
+        w = scenario.world
+        t = {"a": w.offset_a_px, "b": w.offset_b_px, "c": w.offset_c_px, "ab": w.offset_a_px + w.offset_b_px}
+        return {(c.name, "x"): Truth(t[c.name]) for c in self.classes(scenario)}
+
+    def trial(self, scenario: Any, seed: int, k: int) -> TrialResult:
+        run = tuple(scenario.compute.protocols)
+        if self.record:
+            self.calls.append((seed, k))
+            for p in run:
+                self.computed[p] += 1
+        z = np.random.default_rng(trial_seed_sequence(seed, k)).standard_normal(3)  # every trial draws all three
+        w = scenario.world
+        est = {}
+        for i, p in enumerate(_PROTOCOLS):
+            if p in run:
+                est[p] = getattr(w, f"offset_{p}_px") + split_sigma(scenario, p) * z[i] / math.sqrt(
+                    getattr(scenario, p).frames)
+        if "a" in est and "b" in est:
+            est["ab"] = est["a"] + est["b"]
+        return TrialResult({(c, "debiased", "x"): v for c, v in est.items()})
+
+
+def _split_time(scenario, p: str) -> float:
+    return scenario.lab.line_time_fraction if getattr(scenario, p).pattern == "line" else 1.0
+
+
+def split_sigma(scenario, p: str) -> float:
+    """One frame's noise of protocol ``p``: a line frame's variance ``line_factor`` times a grid's."""
+    w = scenario.world
+    s = getattr(w, f"sigma_{p}_px")
+    return s * math.sqrt(w.line_factor) if p != "a" and getattr(scenario, p).pattern == "line" else s
+
+
+def split_optimum(scenario: SplitToyScenario, protocol: str, value_px: float, confidence: float = 0.95) -> dict:
+    """The separable toy's cheapest frames of ``protocol`` whose ``confidence``-quantile of
+    ``|e_p|`` is ``value_px`` (continuous): ``F* = (z sigma_p / V)^2``, and its lab time
+    ``F* t_p`` (module docstring)."""
+    from scipy import stats
+
+    z = float(stats.norm.ppf(0.5 + confidence / 2.0))
+    f = (z * split_sigma(scenario, protocol) / value_px) ** 2
+    t = getattr(scenario.lab, f"{protocol}_frame_time_s")
+    if protocol != "a":
+        t *= _split_time(scenario, protocol)
+    return {"frames": f, "time_s": f * t}
+
+
 #: the two-knob toy (frames and positions)
 TOY = ToyStudy()
 #: the one-knob toy (frames; positions as the scenario says)
 TOY_ONE_KNOB = ToyStudy(("frames",))
 #: frames and the cost-flat centroid window
 TOY_FLAT = ToyStudy(("frames", "window"))
+#: the separable toy: protocols a, b and c, each its own frames
+SPLIT_TOY = SplitToyStudy()

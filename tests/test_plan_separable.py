@@ -1,0 +1,233 @@
+"""Separable plans (budget.runner.plan: Study.field_classes, Study.restrict_classes) against the
+separable toy (budget.runner.toy.SplitToyStudy): three independent protocols a, b, c, each
+class's error sigma_p z_p / sqrt(F_p), lab time additive, so each group's optimum is the
+closed form F_p* = (z sigma_p / V_p)^2 (split_optimum).
+
+Monte Carlo assertions use fixed seeds; each tolerance follows from the sampling distribution
+of the 95 % quantile of n = 200 trials (stated at the assertion)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from budget.runner.plan import BUDGET_VALIDATIONS, decompose, parse_requirements, plan_protocol, resolution
+from budget.runner.study import trial_seed_sequence
+from budget.runner.toy import SplitToyStudy, ToyStudy, split_optimum
+
+N = 200  # the toy's validation.trials
+C = 0.95
+
+
+def _quantile_rel_se(n: int, c: float) -> float:
+    """Relative standard error of the sample c-quantile of |e|, e ~ N(0, s^2): the asymptotic
+    sqrt(c (1 - c) / n) / f(q) with f(q) = 2 phi(z) / s the density of |e| at q = z s."""
+    z = stats.norm.ppf(0.5 + c / 2)
+    return math.sqrt(c * (1 - c) / n) / (2 * stats.norm.pdf(z) * z)
+
+
+class _OneGroupToy(ToyStudy):
+    """The two-knob toy declaring that both knobs change the offset: one group, no restriction."""
+
+    def field_classes(self, scenario):
+        return {"protocol.frames": ("offset",), "protocol.positions": ("offset",)}
+
+
+def test_a_study_without_field_classes_plans_as_before():
+    """No field_classes (every study today): the whole-test plan, its numbers as recorded on the
+    planner before decomposition existed (same seed); one group declared explicitly gives the
+    same plan to the last bit (the group path adds nothing to a plan that does not split)."""
+    study = ToyStudy()
+    res = plan_protocol(study, study.load_scenario(), ["offset.x<=0.01"], seed=0).to_json()
+    assert res["recommended"]["knobs"] == {"protocol.frames": 264, "protocol.positions": 11}
+    assert res["recommended"]["cost_s"] == 1458.0 and res["trials"]["search"] == 2400
+    assert res["validation"]["figures"]["offset.x"]["quantile"] == 0.008299552783198605
+    assert len(res["groups"]) == 1 and res["unsearched_knobs"] == [] and res["over_budget"] is False
+    one = _OneGroupToy()
+    grouped = plan_protocol(one, one.load_scenario(), ["offset.x<=0.01"], seed=0).to_json()
+    for k in ("recommended", "validation", "evaluations", "trials", "shapes", "premium", "answer"):
+        assert grouped[k] == res[k], k
+
+
+def _own_optimum(seed: int, index: int, sigma: float, value: float) -> int:
+    """The fewest frames whose 95 % quantile of |sigma z / sqrt(F)| over the search's own trials
+    0..N-1 of ``seed`` is within ``value`` (z: the trial's draw ``index``)."""
+    z = np.array([np.random.default_rng(trial_seed_sequence(seed, k)).standard_normal(3)[index] for k in range(N)])
+    q1 = np.sort(np.abs(sigma * z))[math.ceil(C * N) - 1]  # the quantile at one frame
+    return math.ceil((q1 / value) ** 2 - 1e-9)
+
+
+def test_each_group_finds_its_analytic_optimum_and_only_its_classes_are_computed():
+    study = SplitToyStudy(record=True)
+    scn = study.load_scenario()
+    res = plan_protocol(study, scn, ["a.x<=0.01", "b.x<=0.01"], seed=0, sure=0.5)  # the boundary protocol
+    assert [g["name"] for g in res.to_json()["groups"]] == ["a", "b"]
+    for i, p in enumerate(("a", "b")):
+        f_hat = res.recommended.knobs[f"{p}.frames"]
+        # F = (z sigma / q)^2: a relative error of the measured quantile moves F by twice it; 3 standard
+        # errors of the quantile of 200 trials, the cost resolution, and one frame (whole frames)
+        f_star = split_optimum(scn, p, 0.01)["frames"]
+        tol = 3 * 2 * _quantile_rel_se(N, C) + resolution(N) + 1 / f_star
+        assert abs(f_hat / f_star - 1) <= tol, (p, f_hat, f_star, tol)
+        # on the search's own trials (common random numbers): the fewest frames meeting, up to the
+        # search's resolution of the lab time above one frame
+        f_emp = _own_optimum(0, i, getattr(scn.world, f"sigma_{p}_px"), 0.01)
+        assert f_emp <= f_hat <= 1 + (f_emp - 1) * (1 + resolution(N)) + 1, (p, f_hat, f_emp)
+    # the knob no requirement depends on stays at the scenario's value, and c is never computed
+    assert res.recommended.knobs["c.frames"] == scn.c.frames and study.computed["c"] == 0
+    assert [k.field for k in res.unsearched] == ["c.frames"]
+    # each group's trials computed its own protocol only; the re-validation computed a and b
+    assert study.computed["a"] + study.computed["b"] == res.total_trials + res.validation.trials
+    # every trial counted; each group within its budget of 20 validations
+    assert len(study.calls) == res.total_trials
+    assert all(go["trials"] <= (BUDGET_VALIDATIONS - 1) * N for go in res.groups)
+    # the recommendation's cost is the whole protocol's lab time
+    assert res.recommended.cost_s == pytest.approx(sum(study.lab_time_s(res.recommended.scenario).values()),
+                                                   rel=1e-12)
+
+
+def test_the_separable_plan_computes_less_than_the_joint_plan():
+    """Two groups (a, b; c unrequired) against the whole-test plan of the same toy, seed 0: trials
+    counted by the study, and the protocols they computed (what a trial costs: a restricted trial
+    computes one protocol, a whole one three). docs/planning.md states both counts."""
+    reqs = ["a.x<=0.01", "b.x<=0.01"]
+    sep, joint = SplitToyStudy(record=True), SplitToyStudy(record=True, separable=False)
+    rs = plan_protocol(sep, sep.load_scenario(), reqs, seed=0)
+    rj = plan_protocol(joint, joint.load_scenario(), reqs, seed=0)
+    assert len(rj.to_json()["groups"]) == 1 and len(rs.to_json()["groups"]) == 2
+    assert len(sep.calls) == rs.total_trials and len(joint.calls) == rj.total_trials
+    assert sum(sep.computed.values()) < sum(joint.computed.values()), (sep.computed, joint.computed)
+    # and its answer is at least as cheap: each group searched to its own resolution
+    assert rs.recommended.cost_s <= rj.recommended.cost_s
+
+
+def test_a_class_depending_on_both_makes_one_group_as_today():
+    """ab depends on a.frames and b.frames: one group, the plan of a study without
+    field_classes (the same numbers: its trials are restricted to a and b, whose numbers do not
+    depend on c's being computed)."""
+    reqs = ["ab.x<=0.01", "a.x<=0.008"]
+    sep = SplitToyStudy(("a", "b"), record=True)
+    joint = SplitToyStudy(("a", "b"), separable=False)
+    rs = plan_protocol(sep, sep.load_scenario(), reqs, seed=1)
+    rj = plan_protocol(joint, joint.load_scenario(), reqs, seed=1)
+    js, jj = rs.to_json(), rj.to_json()
+    assert [g["classes"] for g in js["groups"]] == [["ab", "a"]] and js["groups"][0]["restricted"]
+    for k in ("recommended", "validation", "evaluations", "trials", "premium", "answer"):
+        if k == "recommended":
+            for kk in ("knobs", "cost_s", "figures"):
+                assert js[k][kk] == jj[k][kk], kk
+        else:
+            assert js[k] == jj[k], k
+    assert sep.computed["c"] == 0
+
+
+def test_knobs_no_requirement_depends_on_stay_at_the_scenario_values():
+    study = SplitToyStudy(record=True)
+    scn = study.load_scenario()
+    res = plan_protocol(study, scn, ["a.x<=0.02"], seed=2)
+    js = res.to_json()
+    assert js["unsearched_knobs"] == ["b.frames", "c.frames"]
+    assert [g["knobs"] for g in js["groups"]] == [["a.frames"]]
+    assert all(e.scenario.b.frames == scn.b.frames and e.scenario.c.frames == scn.c.frames
+               for e in res.evaluations + [res.validation])
+    assert res.recommended.knobs["b.frames"] == 100 and res.recommended.knobs["c.frames"] == 10
+    assert study.computed["b"] == study.computed["c"] == 0  # nor computed
+    assert any("Not searched: `b.frames`" in s for s in res.sentences())
+
+
+def test_shapes_differing_only_in_an_irrelevant_field_are_searched_once(tmp_path):
+    """Four declared shapes (b and c each grid or line); a and b required: group a has one shape
+    (no shape field changes a), group b two (c.pattern changes nothing required); the
+    recommendation takes b's line (cheaper per unit of variance: 2 x 0.25 < 1) and, where the
+    shapes differ only in c.pattern, the cheaper c (line)."""
+    study = SplitToyStudy(shapes=True, record=True)
+    scn = study.load_scenario()
+    groups, unsearched = decompose(study, scn, parse_requirements(study, scn, ["a.x<=0.01", "b.x<=0.01"])[0],
+                                   study.protocol_knobs(scn), study.protocol_shapes(scn))
+    assert [list(g.members.values()) for g in groups] == [
+        [["bgrid-cgrid", "bgrid-cline", "bline-cgrid", "bline-cline"]],
+        [["bgrid-cgrid", "bgrid-cline"], ["bline-cgrid", "bline-cline"]]]
+    res = plan_protocol(study, scn, ["a.x<=0.01", "b.x<=0.01"], seed=0, sure=0.5)
+    assert len(res.shapes) == 3  # three searches, not 2 x 4
+    assert all(len({e.scenario.c.pattern for e in res.evaluations if e.shape == k}) == 1 for k in res.shapes)
+    rec = res.recommended.scenario
+    assert (rec.b.pattern, rec.c.pattern) == ("line", "line") and res.recommended.shape == "bline-cline"
+    # b's line optimum: F* = (z sigma_b sqrt(2) / V)^2 (tolerance as for the analytic optimum above)
+    f_star = split_optimum(rec, "b", 0.01)["frames"]
+    tol = 3 * 2 * _quantile_rel_se(N, C) + resolution(N) + 1 / f_star
+    assert abs(res.recommended.knobs["b.frames"] / f_star - 1) <= tol
+    # the report: a table of the groups, one recommended.toml with every group's knobs and shapes
+    res.write_report(tmp_path / "rep")
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "## Independent sub-plans" in md and "| a | a | a.x<=0.01 |" in md
+    back = study.load_scenario(tmp_path / "rep" / "recommended.toml")
+    assert (back.a.frames, back.b.frames, back.b.pattern, back.c.pattern) == (
+        res.recommended.knobs["a.frames"], res.recommended.knobs["b.frames"], "line", "line")
+    data = json.loads((tmp_path / "rep" / "plan.json").read_text())
+    assert data["schema"] == "budget.plan/1" and [g["name"] for g in data["groups"]] == ["a", "b"]
+    assert data["groups"][1]["shapes"] == {"bgrid-cgrid or bgrid-cline": ["bgrid-cgrid", "bgrid-cline"],
+                                           "bline-cgrid or bline-cline": ["bline-cgrid", "bline-cline"]}
+    assert (tmp_path / "rep" / "trade_curve.png").is_file()
+
+
+def test_budget_and_infeasible_groups():
+    study = SplitToyStudy()
+    scn = study.load_scenario()
+    # the groups' cheapest protocols together exceed the budget: nothing cheaper meets (additive lab time)
+    over = plan_protocol(study, scn, ["a.x<=0.01", "b.x<=0.01"], seed=0, budget_hours=0.2)
+    assert not over.feasible and over.over_budget and over.best_achievable.cost_s > 0.2 * 3600
+    assert "no protocol within 0.2 h meets" in over.answer() and over.to_json()["over_budget"] is True
+    ok = plan_protocol(study, scn, ["a.x<=0.01", "b.x<=0.01"], seed=0, budget_hours=1.0)
+    assert ok.feasible and ok.recommended.cost_s <= 3600
+    # a.x <= 1e-4 px needs F = (1.96 x 0.05 / 1e-4)^2 ~ 1e6 frames, beyond the knob's 100000: group a
+    # is infeasible, so the plan is; its best achievable is a's (sigma_a / sqrt(1e5) x 1.96 = 3.1e-4)
+    bad = plan_protocol(study, scn, ["a.x<=0.0001", "b.x<=0.01"], seed=0)
+    js = bad.to_json()
+    assert not bad.feasible and [g["feasible"] for g in js["groups"]] == [False, True]
+    # (its quantile of 200 trials within 3 of its relative standard errors, 3 x 0.067)
+    q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
+    assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))
+
+
+class _CostCheckedSplit(SplitToyStudy):
+    """The separable toy refusing a lab time of a restricted scenario (the contract: cost is
+    always the unrestricted scenario's)."""
+
+    def lab_time_s(self, scenario):
+        assert list(scenario.compute.protocols) == ["a", "b", "c"], "lab time of a restricted scenario"
+        return super().lab_time_s(scenario)
+
+
+def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(tmp_path, monkeypatch):
+    import sys
+    import types
+
+    from budget.runner import registry
+    from budget.runner.cli import study_group
+    from simcam.cli_common import run_cli
+
+    mod = types.ModuleType("tests_plan_separable_helpers")
+    mod.STUDY = _CostCheckedSplit(shapes=True)
+    monkeypatch.setitem(sys.modules, "tests_plan_separable_helpers", mod)
+    monkeypatch.setitem(registry._BY_NAME, "toy-split",
+                        registry.StudyEntry("toy-split", "tests_plan_separable_helpers:STUDY", "separable toy"))
+    out, rep = tmp_path / "plan.json", tmp_path / "rep"
+    run_cli(study_group("toy-split"), ["plan", "--require", "a.x<=0.02", "--require", "c.x<=0.01",
+                                       "--fix", "a.frames=60", "--workers", "1", "--json", str(out),
+                                       "--report", str(rep), "--no-progress"])
+    data = json.loads(out.read_text())
+    # a.frames pinned: group a has no knob left (one protocol, judged), group c searches c.frames and
+    # c.pattern's two values; b.frames and b.pattern change nothing required
+    assert [(g["name"], g["knobs"]) for g in data["groups"]] == [("a", []), ("c", ["c.frames"])]
+    assert data["unsearched_knobs"] == ["b.frames"] and data["fixed"] == {"a.frames": 60}
+    assert data["recommended"]["knobs"]["a.frames"] == 60 and data["recommended"]["knobs"]["b.frames"] == 100
+    # sigma_a / sqrt(60) x 1.96 = 0.0127 px: within 0.02 by 8 standard errors of its quantile of 200
+    # trials (relative se 0.067), far beyond the --sure margin (x1.12): feasible on any seed in practice
+    assert data["feasible"] and all(e["knobs"]["a.frames"] == 60 for e in data["evaluations"])
+    back = mod.STUDY.load_scenario(rep / "recommended.toml")
+    assert back.hash == data["recommended"]["scenario_hash"]
+    assert back.c.frames == data["recommended"]["knobs"]["c.frames"]
