@@ -57,7 +57,10 @@ def test_knobs_and_shapes_are_scenario_fields_the_sweeps_can_set():
         for k, v in keys.items():
             set_dotted(raw, resolved, k, v, where="t")
         shaped = STUDY.from_dict(copy.deepcopy(raw), source="t")
-        assert shaped.protocols.hsfe.pattern == shape
+        # names: "<pattern>, filters <centres>" (the default plan opens both tests)
+        pattern, filters = shape.split(", filters ")
+        assert shaped.protocols.hsfe.pattern == pattern
+        assert "/".join(f"{f:g}" for f in shaped.chromatic_filters_nm()) == filters
         knobs = STUDY.protocol_knobs(shaped)
         # the same knobs in every shape (the planner searches each shape over the base's knobs)
         assert knobs == STUDY.protocol_knobs(base)
