@@ -480,9 +480,13 @@ class StarCameraStudy(Study):
                         f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
                         f"y {result.truths[('te', 'y')].value:.3f} vs {te.details['cramer_rao_y_px'] * f:.3f} "
                         f"arcsec (3 sigma).")
-        text.append("Figures from trial 0: HSFE residuals per star and step (seed 000 fig. 6), colour "
-                    "differences per corner field (fig. 7), distortion residuals before and after the cubic "
-                    "fit (fig. 8).")
+        named = [d for proto, d in (("hsfe", "HSFE residuals per star and step (seed 000 fig. 6)"),
+                                    ("chromatic", "colour differences per corner field (fig. 7)"),
+                                    ("distortion", "distortion residuals before and after the cubic fit (fig. 8)"))
+                 if proto in ex]
+        if named:
+            # only the figures of the protocols this run computed (validation.protocols)
+            text.append("Figures from trial 0: " + ", ".join(named) + ".")
         if figs:
             text.append(figure_markdown(figs))
         # the figures are placed in the text, each with its caption under it
