@@ -268,9 +268,11 @@ class StarCameraStudy(Study):
         all), the dark frames every class. In the realistic world a count also moves the
         world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift at
         their frames' times, the hexapod draws after its moves), which changes their trials'
-        draws but not their distribution (the drift's random part is stationary, its ramp
-        within a condition depends on that condition's own duration, each move's error is
-        drawn alike), so it changes no class of theirs."""
+        draws; their distribution only through the drift ramp's offset at their time, which
+        moves every image of a condition alike (the random part is stationary, the ramp within
+        a condition depends on that condition's own duration, each move's error is drawn alike;
+        the default 0.05"/h ramp moves an image by under 0.01 px over a run), which is left
+        out here."""
         lsfe_s = ("lsfe_s", "lsfe", "total")
         every = tuple(n for n, _, _ in _CLASSES)
         return {
