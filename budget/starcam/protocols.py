@@ -13,8 +13,9 @@ Plans (seed 000, section 1):
 * ``hsfe`` (1.3): ``M`` conditions, the image moved ``step_px`` along ``direction_deg``
   between consecutive conditions by the hexapod, ``N`` frames each; or, with
   ``pattern = "grid"``, a square grid of poses spanning pixels in x and y;
-* ``chromatic`` (1.4.1): the target at each corner field, behind each filter, ``N``
-  frames each (condition index = field index x number of filters + filter index);
+* ``chromatic`` (1.4.1): the target at each corner field, behind each of the test's filters
+  (``protocols.chromatic.filters_nm``, default every lab filter), ``N`` frames each
+  (condition index = field index x number of lab filters + lab filter index);
 * ``distortion`` (1.4.2): the calibrated grid target, ``N`` frames; its reference
   coordinates come with the plan.
 """
@@ -27,10 +28,11 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from simcam.starcam.scenario import Scenario
+from simcam.starcam.scenario import LAB_PROTOCOLS, Scenario
 from simcam.starcam.targets import calibration_grid, platform_offsets_px, star_grid
 
-PROTOCOLS = ("te", "hsfe", "chromatic", "distortion")
+#: the lab protocols in acquisition order (``validation.protocols`` names those a validation runs)
+PROTOCOLS = LAB_PROTOCOLS
 #: noise-stream id of each protocol: condition streams are ``1000 * id + condition``
 PROTOCOL_STREAM = {"te": 1, "hsfe": 2, "chromatic": 3, "distortion": 4}
 #: SeedSequence root of the hexapod positioning errors (run seed)
@@ -90,12 +92,16 @@ def make_plan(protocol: str, scenario: Scenario, *, seed: int = 0, dark_frames: 
         )
     elif protocol == "chromatic":
         c = p.chromatic
+        # the test's filters (protocols.chromatic.filters_nm; every lab filter by default); a
+        # condition's index is the lab's, field x number of lab filters + lab filter, so a
+        # filter's frames (their noise stream) are the same whichever other filters are taken
         filters = [f.center_nm for f in scenario.lab.filters]
+        chosen = scenario.chromatic_filters_nm()
         conds = tuple(
             Condition(i * len(filters) + k, f"{name} {fnm:g} nm", "star_grid", c.frames,
                       (float(ctr[0]), float(ctr[1])), filter_nm=fnm, field=name)
             for i, (name, ctr) in enumerate(zip(c.field_names, c.field_centers_px))
-            for k, fnm in enumerate(filters)
+            for k, fnm in enumerate(filters) if fnm in chosen
         )
     elif protocol == "distortion":
         conds = (Condition(0, "grid", "calibration_grid", p.distortion.frames),)
@@ -496,6 +502,9 @@ def lab_spectral_scenario(scenario: Scenario) -> Scenario:
         # (the plan's reference filter is named by its centre, which moves with the others)
         "protocols.chromatic.reference_filter_nm": (scenario.protocols.chromatic.reference_filter_nm
                                                     + k.filter_center_nm_error),
+        "protocols.chromatic.filters_nm": [f + k.filter_center_nm_error
+                                           for f in scenario.protocols.chromatic.filters_nm],
+        "protocols.chromatic.plan_filter_sets": [],
     })
 
 

@@ -74,10 +74,13 @@ class StarCameraStudy(Study):
         check_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
-        from budget.starcam.validate import INPUT_CLASSES
+        """Seed 000's classes that the scenario's ``validation.protocols`` compute (all seven by
+        default; :func:`budget.starcam.validate.computed_classes`)."""
+        from budget.starcam.validate import INPUT_CLASSES, computed_classes
 
+        computed = computed_classes(scenario)
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result")
-                     for n, label, desc in _CLASSES)
+                     for n, label, desc in _CLASSES if n in computed)
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
         """World effects whose magnitude changes a truth (budget.starcam.truth):
@@ -186,10 +189,10 @@ class StarCameraStudy(Study):
         improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
         their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
         a degree of freedom after each star's mean. Upper bounds are
-        about ten times seed 000's counts (a lab day). The filter set (500, 600, 800 nm:
-        two differences about the 600 nm reference, eqs 13-16) and the four corner fields
-        (whose symmetric average eqs 13-16 take) are what the chromatic estimators are
-        built on, so they are not counts to plan; the frames per field and filter are."""
+        about ten times seed 000's counts (a lab day). The chromatic test's filters are a
+        shape, not a count (:meth:`protocol_shapes`); its four corner fields (whose symmetric
+        average eqs 13-16 take) are what the chromatic estimators are built on, so they are not
+        planned; the frames per field and filter are."""
         knobs = {
             "te.frames": Knob("protocols.te.frames", "int", 2, 300, "frames",
                               "TE: frames of the static target (seed 000: >= 30)"),
@@ -207,12 +210,99 @@ class StarCameraStudy(Study):
         return tuple(knobs[name] for name in scenario.protocols.plan_knobs)
 
     def protocol_shapes(self, scenario) -> dict[str, dict]:
-        """The HSFE step patterns: seed 000's ``diagonal`` (the scenario's own poses along one
-        direction) and the ``grid`` over pixels in both axes (one pose in each row and column
-        of a grid of pitch ``1 + 1/conditions`` px unless ``grid_step_px`` is given), which
-        sees the static error the diagonal cannot; both take the same knobs (docs/validation.md, "Planning the test")."""
-        return {"diagonal": {"protocols.hsfe.pattern": "diagonal"},
-                "grid": {"protocols.hsfe.pattern": "grid"}}
+        """The shapes of the tests a plan opens (docs/validation.md, "Planning the test"), crossed:
+
+        * the HSFE step patterns, where the plan opens an HSFE count (``hsfe.frames`` or
+          ``hsfe.poses`` in ``protocols.plan_knobs``) and the validation runs HSFE: seed 000's
+          ``diagonal`` (the scenario's own poses along one direction) and the ``grid`` over
+          pixels in both axes (one pose in each row and column of a grid of pitch
+          ``1 + 1/conditions`` px unless ``grid_step_px`` is given), which sees the static error
+          the diagonal cannot;
+        * the chromatic test's filter sets (``protocols.chromatic.filters_nm``), where the plan
+          opens ``chromatic.frames`` and the validation runs the chromatic test: those of
+          ``protocols.chromatic.plan_filter_sets``, or every set of at least 2 of the lab's
+          filters that holds the reference (seed 000: 500/600, 600/800, 500/600/800), at most
+          :data:`simcam.starcam.scenario.MAX_PLAN_FILTER_SETS` (a ScenarioError naming
+          ``protocols.chromatic.plan_filter_sets`` beyond).
+
+        Names: ``"grid"`` with the HSFE patterns only (as before filter sets were shapes),
+        ``"filters 500/600"`` with the filter sets only, ``"grid, filters 500/600/800"`` with
+        both (centres in nm, ascending). A test the plan does not open keeps the scenario's
+        shape. Every shape takes the same knobs."""
+        from itertools import combinations
+
+        from simcam.config_base import ScenarioError
+        from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS
+
+        opened = set(scenario.protocols.plan_knobs)
+        run = set(scenario.validation.protocols)
+        dims: list[dict[str, dict]] = []
+        if "hsfe" in run and opened & {"hsfe.frames", "hsfe.poses"}:
+            dims.append({"diagonal": {"protocols.hsfe.pattern": "diagonal"},
+                         "grid": {"protocols.hsfe.pattern": "grid"}})
+        if "chromatic" in run and "chromatic.frames" in opened:
+            c = scenario.protocols.chromatic
+            if c.plan_filter_sets:
+                sets = [tuple(sorted(fs)) for fs in c.plan_filter_sets]
+            else:
+                ref = c.reference_filter_nm
+                others = sorted(f.center_nm for f in scenario.lab.filters if f.center_nm != ref)
+                sets = [tuple(sorted((ref,) + o)) for n in range(1, len(others) + 1)
+                        for o in combinations(others, n)]
+                if len(sets) > MAX_PLAN_FILTER_SETS:
+                    raise ScenarioError(
+                        f"{scenario.source}: protocols.chromatic.plan_filter_sets: the lab's {len(others) + 1} "
+                        f"filters give {len(sets)} sets with the reference, more than the "
+                        f"{MAX_PLAN_FILTER_SETS} a plan compares: list the sets to compare")
+            dims.append({"filters " + "/".join(f"{f:g}" for f in fs): {"protocols.chromatic.filters_nm": list(fs)}
+                         for fs in sets})
+        shapes: dict[str, dict] = {"": {}}
+        for dim in dims:
+            shapes = {(f"{a}, {b}" if a else b): {**oa, **ob} for a, oa in shapes.items() for b, ob in dim.items()}
+        return {} if shapes == {"": {}} else shapes
+
+    def field_classes(self, scenario) -> dict[str, tuple[str, ...]]:
+        """The classes each plannable field (every knob's and every shape's field) can change
+        (:meth:`budget.runner.study.Study.field_classes`): a protocol's counts and shape change
+        its own class and what is built from it (LSFE from LSFE-S and LSFE-C1, the total from
+        all), the dark frames every class. In the realistic world a count also moves the
+        world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift at
+        their frames' times, the hexapod draws after its moves), which changes their trials'
+        draws; their distribution only through the drift ramp's offset at their time, which
+        moves every image of a condition alike (the random part is stationary, the ramp within
+        a condition depends on that condition's own duration, each move's error is drawn alike;
+        the default 0.05"/h ramp moves an image by under 0.01 px over a run), which is left
+        out here."""
+        lsfe_s = ("lsfe_s", "lsfe", "total")
+        every = tuple(n for n, _, _ in _CLASSES)
+        return {
+            "protocols.te.frames": ("te", "total"),
+            "protocols.hsfe.frames": ("hsfe", "total"),
+            "protocols.hsfe.conditions": ("hsfe", "total"),
+            "protocols.hsfe.pattern": ("hsfe", "total"),
+            "protocols.chromatic.frames": lsfe_s,
+            "protocols.chromatic.filters_nm": lsfe_s,
+            "protocols.distortion.frames": ("lsfe_c1", "lsfe", "total"),
+            "validation.dark_frames": every,
+        }
+
+    def restrict_classes(self, scenario, classes: frozenset[str]):
+        """The scenario with ``validation.protocols`` = the protocols the classes need
+        (:func:`budget.starcam.validate.protocols_for`; LSFE-C2 needs none, so a set of it
+        alone runs the cheapest protocol, TE); the scenario itself when it runs just those.
+        Its trials and truths give the same numbers for those classes as the full scenario on
+        the same seed (tests/test_starcam_protocols_subset.py)."""
+        from budget.starcam.validate import CLASS_NEEDS, protocols_for
+
+        unknown = set(classes) - set(CLASS_NEEDS)
+        if unknown:
+            raise ValueError(f"restrict_classes: unknown class(es) {sorted(unknown)}")
+        need = protocols_for(classes) or ("te",)
+        if set(need) == set(scenario.validation.protocols):
+            return scenario
+        from simcam.starcam.scenario import with_updates
+
+        return with_updates(scenario, {"validation.protocols": list(need)}).with_source(scenario.source)
 
     def lab_time_s(self, scenario) -> dict[str, float]:
         """Lab seconds of the scenario's four protocols, by item, from its own fields
@@ -392,9 +482,13 @@ class StarCameraStudy(Study):
                         f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
                         f"y {result.truths[('te', 'y')].value:.3f} vs {te.details['cramer_rao_y_px'] * f:.3f} "
                         f"arcsec (3 sigma).")
-        text.append("Figures from trial 0: HSFE residuals per star and step (seed 000 fig. 6), colour "
-                    "differences per corner field (fig. 7), distortion residuals before and after the cubic "
-                    "fit (fig. 8).")
+        named = [d for proto, d in (("hsfe", "HSFE residuals per star and step (seed 000 fig. 6)"),
+                                    ("chromatic", "colour differences per corner field (fig. 7)"),
+                                    ("distortion", "distortion residuals before and after the cubic fit (fig. 8)"))
+                 if proto in ex]
+        if named:
+            # only the figures of the protocols this run computed (validation.protocols)
+            text.append("Figures from trial 0: " + ", ".join(named) + ".")
         if figs:
             text.append(figure_markdown(figs))
         # the figures are placed in the text, each with its caption under it

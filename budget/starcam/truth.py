@@ -591,7 +591,10 @@ def rss_truth(name: str, parts, details: dict | None = None) -> ClassTruth:
 
 
 def combine(t: dict) -> dict:
-    """Add the root-sum-square LSFE (S, C1, C2) and total (TE, HSFE, LSFE) to the class truths."""
-    t["lsfe"] = rss_truth("lsfe", [t["lsfe_s"], t["lsfe_c1"], t["lsfe_c2"]], {"combination": "rss of S, C1, C2"})
-    t["total"] = rss_truth("total", [t["te"], t["hsfe"], t["lsfe"]], {"combination": "rss of TE, HSFE, LSFE"})
+    """Add the root-sum-square LSFE (S, C1, C2) and total (TE, HSFE, LSFE) to the class truths,
+    each where its parts are there (a validation of some protocols computes some classes)."""
+    if all(k in t for k in ("lsfe_s", "lsfe_c1", "lsfe_c2")):
+        t["lsfe"] = rss_truth("lsfe", [t["lsfe_s"], t["lsfe_c1"], t["lsfe_c2"]], {"combination": "rss of S, C1, C2"})
+    if all(k in t for k in ("te", "hsfe", "lsfe")):
+        t["total"] = rss_truth("total", [t["te"], t["hsfe"], t["lsfe"]], {"combination": "rss of TE, HSFE, LSFE"})
     return t

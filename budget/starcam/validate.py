@@ -29,6 +29,23 @@ AXES = ("x", "y")
 INPUT_CLASSES = ("lsfe_c2",)
 #: protocol producing each measured class
 CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": "distortion"}
+#: the protocols each class needs (LSFE-C2 is an input: none; LSFE eq 31 needs S and C1, the
+#: total TE, HSFE and LSFE)
+CLASS_NEEDS = {"te": ("te",), "hsfe": ("hsfe",), "lsfe_s": ("chromatic",), "lsfe_c1": ("distortion",),
+               "lsfe_c2": (), "lsfe": ("chromatic", "distortion"), "total": PROTOCOLS}
+
+
+def computed_classes(scenario) -> tuple[str, ...]:
+    """The classes a validation of ``scenario`` computes: those whose protocols
+    (:data:`CLASS_NEEDS`) are all among ``validation.protocols``, in :data:`CLASSES` order."""
+    run = set(scenario.validation.protocols)
+    return tuple(c for c in CLASSES if set(CLASS_NEEDS[c]) <= run)
+
+
+def protocols_for(classes) -> tuple[str, ...]:
+    """The protocols (acquisition order) that the classes ``classes`` need."""
+    need = {p for c in classes for p in CLASS_NEEDS[c]}
+    return tuple(p for p in PROTOCOLS if p in need)
 
 _CACHE: dict = {}
 #: numba threads inside a trial's kernels: none. Processes are the parallelism (one worker per
@@ -90,10 +107,15 @@ def _spectral(scenario):
 
 
 def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
-    """One validation trial: every protocol through the published and improved estimators.
+    """One validation trial: every protocol of ``validation.protocols`` (default all four)
+    through the published and improved estimators.
 
-    Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}}``; with ``keep``
-    also ``"kept"``: the estimate objects and data of each protocol (for the report).
+    Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}}`` for the classes
+    :func:`computed_classes` names; with ``keep`` also ``"kept"``: the estimate objects and
+    data of each protocol (for the report). A protocol's numbers do not depend on which
+    others run: its frames draw from their own noise streams of the trial's noise seed
+    (:func:`budget.starcam.protocols.simulate`), its pose errors from the trial's seeds, and
+    the world's timeline is the whole lab run's (:mod:`simcam.starcam.world`).
     """
     noise_seed, map_seed, marker_seed = trial_seeds(seed, k)
     val = scenario.validation
@@ -101,11 +123,12 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
     ps = scenario.camera.scale_arcsec_per_px
     values: dict = {}
     kept: dict = {}
-    spectral = _spectral(scenario)
+    run = [p for p in PROTOCOLS if p in val.protocols]
+    spectral = _spectral(scenario) if "chromatic" in run else None
     with warnings.catch_warnings():
         # clipped variances and flagged stars are expected in some trials; counted via flags
         warnings.simplefilter("ignore")
-        for proto in PROTOCOLS:
+        for proto in run:
             plan = make_plan(proto, scenario, seed=noise_seed, dark_frames=val.dark_frames)
             data = simulate(plan, cam, seed=noise_seed, method=val.centroid_method,
                             threshold_sigma=val.threshold_sigma,
@@ -122,16 +145,21 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
             if keep:
                 kept[proto] = {"estimates": res, "data": data}
     c2 = scenario.lab.calibration_target.marker_error_3sigma_arcsec / 3.0 / ps
+    classes = computed_classes(scenario)
     for var in VARIANTS:
         for ax in AXES:
             values[("lsfe_c2", var, ax)] = c2
+            if "lsfe" not in classes:
+                continue
             s, c1 = values[("lsfe_s", var, ax)], values[("lsfe_c1", var, ax)]
             if var == "published":  # seed 000 eq 31: C1 and C2 added linearly
                 lsfe = math.sqrt(s**2 + (c1 + c2) ** 2)
             else:  # independent sources: root-sum-square
                 lsfe = math.sqrt(s**2 + c1**2 + c2**2)
             values[("lsfe", var, ax)] = lsfe
-            values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2 + values[("hsfe", var, ax)] ** 2 + lsfe**2)
+            if "total" in classes:
+                values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2
+                                                       + values[("hsfe", var, ax)] ** 2 + lsfe**2)
     out = {"k": k, "values": values}
     if keep:
         out["kept"] = kept
@@ -146,8 +174,12 @@ def truth_parts(scenario, *, seed: int) -> list[tuple]:
     """The independent pieces of :func:`truths`, computable anywhere and in any order:
     ``("rest",)`` (TE, LSFE-S, LSFE-C1, LSFE-C2) and one ``("hsfe", map, phase)`` per
     sub-pixel phase of the HSFE truth (``map`` None for the scenario's pixel maps, or the
-    trial 0-3 whose maps are used when ``validation.new_maps_per_trial``)."""
+    trial 0-3 whose maps are used when ``validation.new_maps_per_trial``). Only the truths of
+    the classes the scenario computes (:func:`computed_classes`): no HSFE pieces without the
+    HSFE protocol, and ``("rest",)`` holds only the computed ones of its four."""
     val = scenario.validation
+    if "hsfe" not in val.protocols:
+        return [("rest",)]
     maps = list(range(4)) if val.new_maps_per_trial else [None]
     return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
 
@@ -161,9 +193,16 @@ def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True
     val = scenario.validation
     if part[0] == "rest":
         cam = _camera(scenario)
-        return {"te": te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate),
-                "lsfe_s": lsfe_s_truth(cam),
-                "lsfe_c1": lsfe_c1_truth(cam), "lsfe_c2": lsfe_c2_truth(scenario)}
+        classes = computed_classes(scenario)
+        out = {}
+        if "te" in classes:
+            out["te"] = te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate)
+        if "lsfe_s" in classes:
+            out["lsfe_s"] = lsfe_s_truth(cam)
+        if "lsfe_c1" in classes:
+            out["lsfe_c1"] = lsfe_c1_truth(cam)
+        out["lsfe_c2"] = lsfe_c2_truth(scenario)
+        return out
     _, m, p = part
     if m is None:
         cam = _camera(scenario)
@@ -184,6 +223,8 @@ def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bo
     cells: dict = {}
     for part, r in zip(parts[1:], results[1:]):
         cells.setdefault(part[1], []).append(r)
+    if "hsfe" not in val.protocols:
+        return combine(out)
     if not val.new_maps_per_trial:
         out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames,
                                       control_variate=control_variate)
@@ -202,7 +243,7 @@ def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bo
             vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
         out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
                                  se_x_px=vals["x"][1], se_y_px=vals["y"][1])
-    return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")})
+    return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2") if k in out})
 
 
 #: noisy frames of the pilot that measures the centroid scatter the truth sizes follow

@@ -487,8 +487,30 @@ class HSFEProtocolModel(_Model):
         return tuple((k * s, ((a * k) % m) * s) for k in range(m))
 
 
+#: most filter sets ``budget starcam plan`` compares (``protocols.chromatic.plan_filter_sets``)
+MAX_PLAN_FILTER_SETS = 8
+
+
+def _filter_list(v: tuple, what: str = "") -> tuple:
+    at = f"{what}: " if what else ""
+    if len(set(v)) != len(v):
+        raise ValueError(f"{at}a filter is listed twice")
+    if len(v) < 2:
+        raise ValueError(f"{at}needs at least 2 filters (a difference to the reference filter)")
+    return v
+
+
 class ChromaticProtocolModel(_Model):
-    """Chromatic plan (seed 000 eqs 13-16): the target at each field centre, each filter."""
+    """Chromatic plan (seed 000 eqs 13-16): the target at each field centre, behind each of
+    the test's filters (``filters_nm``: centre wavelengths among ``lab.filters``; empty, the
+    default: every lab filter, seed 000's 500, 600 and 800 nm), ``frames`` frames each.
+
+    ``plan_filter_sets``: the filter sets ``budget starcam plan`` compares as protocol shapes
+    (each a list of centres as ``filters_nm``); empty (the default): every set of at least 2
+    lab filters that holds the reference, at most :data:`MAX_PLAN_FILTER_SETS` of them.
+    Membership in ``lab.filters`` and the reference are checked against the whole scenario
+    (:func:`check_chromatic_filters`).
+    """
 
     frames: Annotated[int, Field(ge=1)] = 30
     field_centers_px: Annotated[tuple[Pair, ...], Field(strict=False, min_length=1)] = (
@@ -504,6 +526,26 @@ class ChromaticProtocolModel(_Model):
         "lower-right",
     )
     reference_filter_nm: Pos = 600.0
+    filters_nm: Annotated[tuple[Pos, ...], Field(strict=False)] = ()
+    plan_filter_sets: Annotated[tuple[Annotated[tuple[Pos, ...], Field(strict=False)], ...],
+                                Field(strict=False)] = ()
+
+    @field_validator("filters_nm")
+    @classmethod
+    def _filters_nm(cls, v: tuple) -> tuple:
+        return _filter_list(v) if v else v
+
+    @field_validator("plan_filter_sets")
+    @classmethod
+    def _plan_sets(cls, v: tuple) -> tuple:
+        for k, fs in enumerate(v):
+            _filter_list(fs, f"set {k}")
+        seen = [frozenset(fs) for fs in v]
+        if len(set(seen)) != len(seen):
+            raise ValueError(f"a filter set is listed twice ({[list(fs) for fs in v]})")
+        if len(v) > MAX_PLAN_FILTER_SETS:
+            raise ValueError(f"{len(v)} filter sets: a plan compares at most {MAX_PLAN_FILTER_SETS}")
+        return v
 
     @model_validator(mode="after")
     def _names(self) -> ChromaticProtocolModel:
@@ -582,6 +624,11 @@ class ProtocolsModel(_Model):
         return v
 
 
+#: the seed-000 lab protocols, in acquisition order (``validation.protocols`` names those a
+#: validation computes; :data:`budget.starcam.protocols.PROTOCOLS`)
+LAB_PROTOCOLS = ("te", "hsfe", "chromatic", "distortion")
+
+
 class ValidationModel(ValidationSettings):
     """Monte Carlo validation settings (read by budget.starcam.validate).
 
@@ -599,7 +646,13 @@ class ValidationModel(ValidationSettings):
       ``population_mean``, the default, the mean over the population at each field point,
       since the population's common offset is calibrated at system level (seed 000); or
       ``lamp``, the lab source without filter; or a spectral type), ``field_grid``
-      points per axis for the field averages.
+      points per axis for the field averages;
+    * ``protocols``: the protocols a validation runs (default all four, :data:`LAB_PROTOCOLS`);
+      a subset computes only the classes they give (TE: te; HSFE: hsfe; chromatic: lsfe_s;
+      distortion: lsfe_c1; LSFE needs chromatic and distortion, the total all four; LSFE-C2,
+      an input, always), with the same numbers for them as a run of all four on the same seed,
+      and only those classes' truths. What the lab does is unchanged (its lab time, the
+      world's timeline): it says what is computed, not what the lab runs.
     """
 
     model_config = _Model.model_config
@@ -617,6 +670,16 @@ class ValidationModel(ValidationSettings):
     )
     calibration_spectrum: str = "population_mean"
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
+    protocols: Annotated[tuple[Literal[LAB_PROTOCOLS], ...], Field(strict=False)] = LAB_PROTOCOLS
+
+    @field_validator("protocols")
+    @classmethod
+    def _protocols(cls, v: tuple) -> tuple:
+        if not v:
+            raise ValueError(f"name at least one protocol (of {', '.join(LAB_PROTOCOLS)})")
+        if len(set(v)) != len(v):
+            raise ValueError(f"a protocol is listed twice ({list(v)})")
+        return v
 
     @model_validator(mode="after")
     def _known_types(self) -> ValidationModel:
@@ -734,6 +797,12 @@ class Scenario(ScenarioBase):
             )
         return self
 
+    def chromatic_filters_nm(self) -> tuple[float, ...]:
+        """The chromatic test's filter centres, in ``lab.filters`` order: those of
+        ``protocols.chromatic.filters_nm``, or every lab filter when it is empty."""
+        chosen = self.protocols.chromatic.filters_nm
+        return tuple(f.center_nm for f in self.lab.filters if not chosen or f.center_nm in chosen)
+
     @model_validator(mode="after")
     def _world_hexapod_once(self) -> Scenario:
         # lab.platform.positioning_noise_px and the world's hexapod repeatability describe the
@@ -792,7 +861,28 @@ def from_dict(data: dict[str, Any], *, source: str = "scenario") -> Scenario:
             raise ScenarioError(f"{source or 'scenario'}: {exc}") from None
     scn = validate_model(Scenario, data, source=source).with_source(source)
     _check_derived_finite(scn, source=source)
+    check_chromatic_filters(scn, source=source)
     return scn
+
+
+def check_chromatic_filters(scn: "Scenario", *, source: str | None = None) -> None:
+    """``protocols.chromatic.filters_nm`` and ``plan_filter_sets`` against the lab: every centre
+    one of ``lab.filters``' and every set holding ``reference_filter_nm`` (the differences of
+    eqs 13-16 are taken to it); one ScenarioError naming the field."""
+    c = scn.protocols.chromatic
+    lab = [f.center_nm for f in scn.lab.filters]
+    ref = c.reference_filter_nm
+    where = f"{source or 'scenario'}: protocols.chromatic"
+    for name, sets in (("filters_nm", [c.filters_nm] if c.filters_nm else []),
+                       ("plan_filter_sets", list(c.plan_filter_sets))):
+        for k, fs in enumerate(sets):
+            at = f"{where}.{name}" + (f" (set {k})" if name == "plan_filter_sets" else "")
+            bad = [f for f in fs if f not in lab]
+            if bad:
+                raise ScenarioError(f"{at}: {bad} not among lab.filters centres {lab}")
+            if ref not in fs:
+                raise ScenarioError(f"{at}: {list(fs)} lacks the reference filter "
+                                    f"(protocols.chromatic.reference_filter_nm = {ref:g})")
 
 
 def _check_derived_finite(scn: "Scenario", *, source: str | None) -> None:

@@ -78,9 +78,13 @@ def _conditions(scn: Scenario):
         for k in range(h.conditions):
             out.append(("hsfe", k, h.frames, (cu + k * h.step_px * math.cos(ang),
                                               cv + k * h.step_px * math.sin(ang))))
+    # the condition index is the lab's (field x number of lab filters + lab filter), whichever
+    # filters the test takes (protocols.chromatic.filters_nm), as budget.starcam.protocols.make_plan
     nf = len(scn.lab.filters)
+    chosen = scn.chromatic_filters_nm()
+    taken = [k for k, f in enumerate(scn.lab.filters) if f.center_nm in chosen]
     for i, ctr in enumerate(p.chromatic.field_centers_px):
-        for k in range(nf):
+        for k in taken:
             out.append(("chromatic", i * nf + k, p.chromatic.frames, (float(ctr[0]), float(ctr[1]))))
     out.append(("distortion", 0, p.distortion.frames, (0.0, 0.0)))
     return out

@@ -97,6 +97,11 @@ def chromatic_error(
     ``3 sigma * plate_scale`` arcsec like every other class. See docs/estimators.md
     for how this reproduces (and does not reproduce) the seed's table 1 and section 2.3.1.
 
+    Any number of filters: each filter but the reference gives one difference (``n - 1`` in
+    all), each halved as in eq 16; the "2" of eq 16 is not the seed's count of differences
+    (its table 1 gives one ``delta_bar`` per pair), so a two-filter test has one difference,
+    divided by ``2 W K`` the same way (docs/validation.md, "Planning the test").
+
     Parameters
     ----------
     table : pandas.DataFrame
@@ -271,6 +276,10 @@ def chromatic_error_population(
     population). It replaces
     the seed's "/2" and "/3" by the camera's own spectral response: the effective
     wavelengths are design data (filters, lamp, optics transmission, QE, stellar types).
+    Two filters determine the line exactly (the slope is their difference over their
+    effective-wavelength separation, so whatever else differs between them is read as
+    lateral colour, amplified by one over that separation: docs/validation.md, "Planning
+    the test"); more are a least-squares fit.
 
     Parameters
     ----------
