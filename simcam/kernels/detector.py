@@ -274,6 +274,103 @@ def expose_block(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, of
 
 
 @njit(parallel=True, cache=True)
+def fixed_pattern_maps(row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
+                       hot_dark_e, detector_key, gain_out, dark_out):
+    """The detector's fixed pattern of a block at mosaic ``(row0, col0)``, rows in parallel:
+    ``gain_out[i, j]`` the PRNU factor ``g`` (:func:`prnu_value`) and ``dark_out[i, j]`` the
+    mean dark signal ``d`` (e-, :func:`dark_value`: DSNU and hot pixels) of each pixel;
+    the same functions of ``(detector_key, pixel)``, so the same values as the chain's
+    own (:func:`_chain_chunk`). Computed once for a sequence of frames of one camera and
+    read by :func:`expose_block_maps`."""
+    h, w = gain_out.shape
+    for i in prange(h):
+        base = (row0 + i) * mosaic_cols + col0
+        for jj in range(w):
+            gain_out[i, jj] = prnu_value(detector_key, base + jj, prnu_rms)
+            dark_out[i, jj] = dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction,
+                                         hot_dark_e)
+
+
+@njit(cache=True, inline="always")
+def _frame_chunk(sig, gm, dm, out, pixel0, m, z, n, g, off, rn, fw, beta, max_signal_e, frame_key,
+                 shot_noise, read_noise, quantize, max_dn):
+    """:func:`_chain_chunk` given the pixels' fixed pattern ``gm`` (PRNU factor ``g``) and
+    ``dm`` (dark signal ``d``) from :func:`fixed_pattern_maps`: the mean charge ``S g + d``
+    (the same two operations, so the same value), then the non-linearity, Poisson draw,
+    full well, read noise and ADC exactly as there. Only the frame key's draws are made.
+    Returns 1 if a ``sig`` value is outside ``[0, max_signal_e]`` or NaN, else 0."""
+    k = sig.shape[0]
+    bad = False
+    for jj in range(k):
+        s = sig[jj]
+        bad |= not (s >= 0.0 and s <= max_signal_e)
+    for jj in range(k):
+        m[jj] = sig[jj] * gm[jj] + dm[jj]
+    if beta != 0.0:
+        for jj in range(k):
+            v = m[jj]
+            mn = v if v <= fw else fw
+            m[jj] = v * (1.0 - beta * mn / fw)
+    if shot_noise:
+        for jj in range(k):
+            n[jj] = np.float64(poisson(m[jj], frame_key, slot_counter(pixel0 + jj, SLOT_SHOT)))
+    else:
+        for jj in range(k):
+            n[jj] = m[jj]
+    for jj in range(k):
+        v = n[jj]
+        n[jj] = v if not v > fw else fw
+    if read_noise:
+        for jj in range(k):
+            z[jj] = std_normal(frame_key, slot_counter(pixel0 + jj, SLOT_READ))
+        for jj in range(k):
+            n[jj] += rn * z[jj]
+    if quantize:
+        for jj in range(k):
+            v = math.floor(n[jj] / g + off + 0.5)
+            if v < 0.0:
+                v = 0.0
+            elif v > max_dn:
+                v = max_dn
+            out[jj] = v
+    else:
+        for jj in range(k):
+            out[jj] = n[jj] / g + off
+    return 1 if bad else 0
+
+
+@njit(parallel=True, cache=True)
+def expose_block_maps(signal_e, gain_map, dark_map, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn,
+                      offset_dn, read_noise_e, full_well_e, nonlinearity_beta, max_signal_e, frame_key,
+                      shot_noise, read_noise, quantize, max_dn, out):
+    """:func:`expose_block` with the fixed pattern read from maps: ``gain_map``/``dark_map``
+    (h, w) float64, the PRNU factor and dark signal of the block's pixels
+    (:func:`fixed_pattern_maps` with the same detector key and parameters). The same
+    pixels bit for bit (:func:`_frame_chunk`); per pixel only the frame's draws (Poisson,
+    read noise). Arguments otherwise as :func:`expose_block`; returns the number of rows
+    with an invalid ``signal_e`` value."""
+    h, w = signal_e.shape
+    bad_row = np.zeros(h, dtype=np.int64)
+    for i in prange(h):
+        base = (row0 + i) * mosaic_cols + col0
+        m = np.empty(_CHUNK)
+        z = np.empty(_CHUNK)
+        n = np.empty(_CHUNK)
+        bad = 0
+        j = 0
+        while j < w:
+            chip, j_end = _chip_segment(col0, j, w, chip_cols)
+            j_end = min(j_end, j + _CHUNK)
+            bad += _frame_chunk(signal_e[i, j:j_end], gain_map[i, j:j_end], dark_map[i, j:j_end],
+                                out[i, j:j_end], base + j, m, z, n, gain_e_per_dn[chip], offset_dn[chip],
+                                read_noise_e[chip], full_well_e[chip], nonlinearity_beta, max_signal_e,
+                                frame_key, shot_noise, read_noise, quantize, max_dn)
+            j = j_end
+        bad_row[i] = bad
+    return bad_row.sum()
+
+
+@njit(parallel=True, cache=True)
 def expose_windows(signal_e, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn,
                    read_noise_e, full_well_e, prnu_rms, dark_e, dsnu_rms_e, hot_fraction,
                    hot_dark_e, frame_key, detector_key, shot_noise, read_noise, quantize,
