@@ -176,3 +176,37 @@ def test_star_camera_keeps_its_maps_and_rebuilds_them_when_the_detector_changes(
     assert np.array_equal(dark, ref)
     # not pickled with the camera (a worker rebuilds it)
     assert "_frame_maps" not in cam.__getstate__()
+
+
+def test_samplers_given_their_first_word_equal_the_generator():
+    # the per-frame pass draws the Poisson count and the read-noise normal from a first word
+    # computed in a loop of its own: the same variates as simcam.rng.poisson / std_normal
+    # (exact equality), over means on the table grid and between its levels (j / 16),
+    # at 0, near the switch to PTRS at 10, beyond it, NaN, and many counters (the normal's
+    # rejections, probability 1.2 %, and the Poisson's second word, up to 6.3 %, occur)
+    from numba import njit
+
+    from simcam.kernels.detector import _poisson_from_word, _std_normal_from_word
+    from simcam.rng import poisson, random_bits64, std_normal
+
+    @njit
+    def both(lam, key, counters, out_p, ref_p, out_z, ref_z):
+        for i in range(counters.size):
+            c = counters[i]
+            w = random_bits64(key, c)
+            out_p[i] = _poisson_from_word(lam[i], w, key, c)
+            ref_p[i] = poisson(lam[i], key, c)
+            out_z[i] = _std_normal_from_word(w, key, c)
+            ref_z[i] = std_normal(key, c)
+
+    r = np.random.default_rng(5)
+    n = 400_000
+    special = np.array([0.0, 1e-300, 1 / 16, 0.5, 1.0, 9.9375, 9.999999999, 10.0, 10.5, 1e3, -1.0, np.nan])
+    lam = np.concatenate([special, r.uniform(0.0, 12.0, n), np.round(r.uniform(0, 10, 1000) * 16) / 16])
+    counters = (np.arange(lam.size, dtype=np.uint64) << np.uint64(16)) | np.uint64(1 << 12)
+    out_p, ref_p = np.empty(lam.size, np.int64), np.empty(lam.size, np.int64)
+    out_z, ref_z = np.empty(lam.size), np.empty(lam.size)
+    for key in (key_from_seed(SEED, 9, 0), key_from_seed(SEED, 9, 1)):
+        both(lam, key, counters, out_p, ref_p, out_z, ref_z)
+        assert np.array_equal(out_p, ref_p)
+        assert np.array_equal(out_z, ref_z)
