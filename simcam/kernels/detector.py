@@ -285,16 +285,55 @@ def fixed_pattern_maps(row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e, ho
     """The detector's fixed pattern of a block at mosaic ``(row0, col0)``, rows in parallel:
     ``gain_out[i, j]`` the PRNU factor ``g`` (:func:`prnu_value`) and ``dark_out[i, j]`` the
     mean dark signal ``d`` (e-, :func:`dark_value`: DSNU and hot pixels) of each pixel;
-    the same functions of ``(detector_key, pixel)``, so the same values as the chain's
-    own (:func:`_chain_chunk`). Computed once for a sequence of frames of one camera and
-    read by :func:`expose_block_maps`."""
+    the same operations on the same variates (their first words computed in a loop of
+    their own, :func:`_std_normal_from_word`, :func:`_uniform01_from_word`), so the same
+    values as the chain's own (:func:`_chain_chunk`). Computed once for a sequence of
+    frames of one camera and read by :func:`expose_block_maps`."""
     h, w = gain_out.shape
     for i in prange(h):
         base = (row0 + i) * mosaic_cols + col0
-        for jj in range(w):
-            gain_out[i, jj] = prnu_value(detector_key, base + jj, prnu_rms)
-            dark_out[i, jj] = dark_value(detector_key, base + jj, dark_e, dsnu_rms_e, hot_fraction,
-                                         hot_dark_e)
+        wd = np.empty(_CHUNK, dtype=np.uint64)
+        j = 0
+        while j < w:
+            j_end = min(w, j + _CHUNK)
+            k = j_end - j
+            p0 = base + j
+            g = gain_out[i, j:j_end]
+            d = dark_out[i, j:j_end]
+            if prnu_rms == 0.0:
+                for jj in range(k):
+                    g[jj] = 1.0
+            else:
+                for jj in range(k):
+                    wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_PRNU))
+                for jj in range(k):
+                    gg = 1.0 + prnu_rms * _std_normal_from_word(wd[jj], detector_key,
+                                                                slot_counter(p0 + jj, SLOT_PRNU))
+                    g[jj] = gg if gg > 0.0 else 0.0
+            if dsnu_rms_e > 0.0:
+                for jj in range(k):
+                    wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_DSNU))
+                for jj in range(k):
+                    dd = dark_e + dsnu_rms_e * _std_normal_from_word(wd[jj], detector_key,
+                                                                     slot_counter(p0 + jj, SLOT_DSNU))
+                    d[jj] = 0.0 if dd < 0.0 else dd
+            else:
+                for jj in range(k):
+                    d[jj] = dark_e
+            if hot_fraction > 0.0:
+                for jj in range(k):
+                    wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_HOT))
+                for jj in range(k):
+                    if _uniform01_from_word(wd[jj]) < hot_fraction:
+                        d[jj] += hot_dark_e
+            j = j_end
+
+
+@njit(cache=True, inline="always")
+def _uniform01_from_word(word):
+    """:func:`simcam.rng.uniform01` given its word ``random_bits64(key, counter)`` (the same
+    operations: ``max(word >> 11, 1/2) * 2**-53``)."""
+    return max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53
 
 
 @njit(cache=True, inline="always")
