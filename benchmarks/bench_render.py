@@ -5,15 +5,21 @@
   DSNU, the integral non-linearity (``nonlinearity_beta`` 0.008), shot noise, read noise,
   full well, per-chip ADC; from a cached scene (PSF stamps computed once, as for a
   sequence of frames): the expected-signal image (background + stamps) and the detector
-  chain. Beside it, plain numpy doing the same noise on the same expected image with one
-  ``Generator`` (``poisson`` + ``normal`` + ADC ops, maps drawn per frame as the kernel
-  does; no non-linearity).
-* **Detector chain alone** on the cached expected image (``simcam.detector.expose``, one
-  fused numba pass per pixel), realistic (non-linearity on) and ideal (the same scenario
-  with ``nonlinearity_beta`` 0), and its **random-number floor**: the same generator
-  drawing the same variates at the same counters (PRNU and DSNU normals, the Poisson
-  count of each pixel's true mean charge, the read-noise normal), in the same chunked
-  loops over rows on the same threads, and nothing else (no arithmetic, no output frame).
+  chain, with the detector's fixed-pattern maps (PRNU, DSNU) computed on the camera's first
+  frame and kept (``StarCamera.frame_maps``: a property of the detector, 134 MB). Beside
+  it, plain numpy doing the same noise on the same expected image with one ``Generator``
+  (``poisson`` + ``normal`` + ADC ops, no non-linearity), its PRNU and DSNU maps drawn
+  once as ours are; and, labelled, with the maps drawn every frame (the old peer figure).
+* **Detector chain alone** on the cached expected image (``simcam.detector.expose`` with
+  the maps of ``simcam.detector.detector_maps`` computed once: per frame one numba pass
+  drawing only the frame's Poisson counts and read noise), realistic (non-linearity on)
+  and ideal (the same scenario with ``nonlinearity_beta`` 0); the fused chain that draws
+  the maps in every frame (``expose`` without maps, the same pixels) and the maps alone.
+  Its **random-number floor**: the frame's draws alone, with the maps precomputed (the
+  Poisson count of each pixel's true mean charge and the read-noise normal, their first
+  words in a loop of their own as the chain does), in the same chunked loops over rows on
+  the same threads, and nothing else (no arithmetic, no output frame); and the old floor,
+  labelled, which also draws the maps' PRNU and DSNU normals every frame.
 * **Scene**: computing the 25 stars' spectra, distortion, colour and PSF stamps once.
 * **Windows**: 11x11 windows (noise included) per second for 25 stars x 2000 frames,
   numba serial and threaded.
@@ -54,21 +60,32 @@ from benchmarks._common import (  # noqa: E402
     print_machine,
 )
 
-from simcam.detector import expose, window_chain  # noqa: E402
-from simcam.kernels.detector import SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, slot_counter  # noqa: E402
-from simcam.rng import poisson, std_normal, uniform01  # noqa: E402
+from simcam.detector import detector_maps, expose, window_chain  # noqa: E402
+from simcam.kernels.detector import (  # noqa: E402
+    SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, _poisson_from_word, _std_normal_from_word, slot_counter,
+)
+from simcam.rng import poisson, random_bits64, std_normal, uniform01  # noqa: E402
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
 from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402
 
 
-def numpy_frame(expected_e: np.ndarray, scn, seed: int) -> np.ndarray:
-    """The same detector chain in plain numpy (one Generator)."""
+def numpy_maps(shape, scn, seed: int):
+    """numpy's PRNU factor and dark signal (DSNU) of the detector."""
+    rng = np.random.default_rng(seed)
+    det = scn.detector
+    prnu = np.clip(1.0 + det.prnu_rms * rng.standard_normal(shape), 0, None)
+    dark = np.clip(det.dark_current_e_per_s * scn.camera.exposure_s + det.dsnu_rms_e * rng.standard_normal(shape), 0, None)
+    return prnu, dark
+
+
+def numpy_frame(expected_e: np.ndarray, scn, seed: int, maps=None) -> np.ndarray:
+    """The same detector chain in plain numpy (one Generator); ``maps`` from
+    :func:`numpy_maps` (computed once), else drawn in this frame."""
     rng = np.random.default_rng(seed)
     det = scn.detector
     rows, cols = expected_e.shape
-    prnu = np.clip(1.0 + det.prnu_rms * rng.standard_normal((rows, cols)), 0, None)
-    dark = np.clip(det.dark_current_e_per_s * scn.camera.exposure_s + det.dsnu_rms_e * rng.standard_normal((rows, cols)), 0, None)
+    prnu, dark = numpy_maps((rows, cols), scn, seed + 10**9) if maps is None else maps
     e = rng.poisson(expected_e * prnu + dark).astype(np.float64)
     out = np.empty((rows, cols), dtype=np.uint16)
     cc = det.chip_cols
@@ -82,7 +99,7 @@ def numpy_frame(expected_e: np.ndarray, scn, seed: int) -> np.ndarray:
 
 @njit(parallel=True)
 def _draws_floor(mean_e, mosaic_cols, prnu, dsnu, hot, frame_key, detector_key, sums):
-    """The random numbers of a full frame alone: per pixel the draws the detector chain
+    """The old floor (the maps drawn every frame): the random numbers of a full frame alone: per pixel the draws the detector chain
     makes (PRNU and DSNU normals, hot-pixel uniform when ``hot``, the Poisson count of the
     pixel's mean charge ``mean_e``, the read-noise normal) with the same generator, keys
     and counters, in 512-pixel chunks of rows on numba threads as the chain does; the sum
@@ -106,6 +123,30 @@ def _draws_floor(mean_e, mosaic_cols, prnu, dsnu, hot, frame_key, detector_key, 
                 acc += poisson(mean_e[i, j], frame_key, slot_counter(base + j, SLOT_SHOT))
             for j in range(j0, j1):
                 acc += std_normal(frame_key, slot_counter(base + j, SLOT_READ))
+        sums[i] = acc
+
+
+@njit(parallel=True)
+def _frame_draws_floor(mean_e, mosaic_cols, frame_key, sums):
+    """The random numbers of one frame with the maps precomputed: per pixel the Poisson
+    count of its mean charge ``mean_e`` and the read-noise normal, as the per-frame pass
+    draws them (first words in a loop of their own, then the samplers given their word),
+    in 512-pixel chunks of rows on numba threads; the sum of each row's draws into ``sums``."""
+    h, w = mean_e.shape
+    for i in prange(h):
+        base = i * mosaic_cols
+        acc = 0.0
+        wp = np.empty(512, dtype=np.uint64)
+        wr = np.empty(512, dtype=np.uint64)
+        for j0 in range(0, w, 512):
+            j1 = min(w, j0 + 512)
+            for j in range(j0, j1):
+                wp[j - j0] = random_bits64(frame_key, slot_counter(base + j, SLOT_SHOT))
+                wr[j - j0] = random_bits64(frame_key, slot_counter(base + j, SLOT_READ))
+            for j in range(j0, j1):
+                acc += _poisson_from_word(mean_e[i, j], wp[j - j0], frame_key, slot_counter(base + j, SLOT_SHOT))
+            for j in range(j0, j1):
+                acc += _std_normal_from_word(wr[j - j0], frame_key, slot_counter(base + j, SLOT_READ))
         sums[i] = acc
 
 
@@ -152,6 +193,10 @@ def main() -> None:
         return cam.render_frame(scene, frame=next(counter), seed=1, expected_e=exp)
 
     expected = cam.expected_frame_e(scene)
+    # a fresh camera's first frame computes the maps (kept for the next frames)
+    cam_first = StarCamera(scn)
+    first_peak_mb = peak_traced_mb(lambda: cam_first.render_frame(scene, frame=0, seed=1, expected_e=expected))
+    del cam_first
     full = best_of_wall_cpu(sim_frame, repeat=args.repeat)
 
     # the detector chain alone (realistic and ideal) and the random numbers alone
@@ -159,14 +204,22 @@ def main() -> None:
     ideal = dataclasses.replace(params, nonlinearity_beta=0.0)
     rows_, cols_ = expected.shape
 
-    def chain(p):
+    def make_maps():
+        return detector_maps(shape=(rows_, cols_), row0=0, col0=0, mosaic_cols=cols_, params=params,
+                             detector_key=cam.detector_key)
+
+    maps_s = best_of_wall_cpu(make_maps, repeat=max(2, args.repeat // 2))
+    maps = make_maps()  # the same for the ideal scenario (beta does not enter the maps)
+
+    def chain(p, m=None):
         return lambda: expose(signal_e=expected, row0=0, col0=0, mosaic_cols=cols_,
                               chip_cols=cam.mosaic.chip_cols, params=p,
                               frame_key=cam.frame_key(seed=1, condition=0, frame=next(counter)),
-                              detector_key=cam.detector_key)
+                              detector_key=cam.detector_key, maps=m)
 
-    chain_real = best_of_wall_cpu(chain(params), repeat=args.repeat)
-    chain_ideal = best_of_wall_cpu(chain(ideal), repeat=args.repeat)
+    chain_real = best_of_wall_cpu(chain(params, maps), repeat=args.repeat)
+    chain_ideal = best_of_wall_cpu(chain(ideal, maps), repeat=args.repeat)
+    chain_fused = best_of_wall_cpu(chain(params), repeat=args.repeat)
     mean_e = window_chain(signal_e=expected[None], row0=[0], col0=[0], mosaic_cols=cols_,
                           chip_cols=cam.mosaic.chip_cols, params=params,
                           detector_key=cam.detector_key).mean_e[0]
@@ -177,8 +230,13 @@ def main() -> None:
                      params.hot_pixel_fraction > 0.0, cam.frame_key(seed=1, condition=0, frame=next(counter)),
                      cam.detector_key, sums)
 
-    floor_s = best_of_wall_cpu(floor, repeat=args.repeat)
-    nump = best_of_wall_cpu(lambda: numpy_frame(expected, scn, next(counter)), repeat=max(2, args.repeat // 2))
+    old_floor_s = best_of_wall_cpu(floor, repeat=args.repeat)
+    floor_s = best_of_wall_cpu(lambda: _frame_draws_floor(mean_e, cols_, cam.frame_key(
+        seed=1, condition=0, frame=next(counter)), sums), repeat=args.repeat)
+    nmaps = numpy_maps(expected.shape, scn, 7)
+    nump = best_of_wall_cpu(lambda: numpy_frame(expected, scn, next(counter), nmaps), repeat=max(2, args.repeat // 2))
+    del nmaps
+    nump_every = best_of_wall_cpu(lambda: numpy_frame(expected, scn, next(counter)), repeat=max(2, args.repeat // 2))
     peak_mb = peak_traced_mb(sim_frame)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     sim_frame()
@@ -221,18 +279,30 @@ def main() -> None:
         [
             ("full frame 2048x4096 (2 x 2048^2), 25 stars, realistic chain: expected image + detector",
              f"{full[0] * 1e3:.0f} ms", f"{full[1] * 1e3:.0f} ms"),
-            ("detector chain alone, realistic (non-linearity on)", f"{chain_real[0] * 1e3:.0f} ms",
-             f"{chain_real[1] * 1e3:.0f} ms"),
-            ("detector chain alone, ideal (non-linearity off)", f"{chain_ideal[0] * 1e3:.0f} ms",
-             f"{chain_ideal[1] * 1e3:.0f} ms"),
-            ("random-number floor: the chain's draws alone", f"{floor_s[0] * 1e3:.0f} ms",
-             f"{floor_s[1] * 1e3:.0f} ms"),
-            ("same noise, plain numpy Generator", f"{nump[0] * 1e3:.0f} ms", f"{nump[1] * 1e3:.0f} ms"),
+            ("detector chain alone, realistic (non-linearity on), maps computed once: per frame",
+             f"{chain_real[0] * 1e3:.0f} ms", f"{chain_real[1] * 1e3:.0f} ms"),
+            ("detector chain alone, ideal (non-linearity off), maps computed once: per frame",
+             f"{chain_ideal[0] * 1e3:.0f} ms", f"{chain_ideal[1] * 1e3:.0f} ms"),
+            ("detector maps alone (PRNU factor, dark signal; once per camera)", f"{maps_s[0] * 1e3:.0f} ms",
+             f"{maps_s[1] * 1e3:.0f} ms"),
+            ("detector chain alone, realistic, fused: maps drawn every frame", f"{chain_fused[0] * 1e3:.0f} ms",
+             f"{chain_fused[1] * 1e3:.0f} ms"),
+            ("random-number floor: the frame's draws alone (Poisson + read normal, maps precomputed)",
+             f"{floor_s[0] * 1e3:.0f} ms", f"{floor_s[1] * 1e3:.0f} ms"),
+            ("old random-number floor: the frame's and the maps' draws (every frame)",
+             f"{old_floor_s[0] * 1e3:.0f} ms", f"{old_floor_s[1] * 1e3:.0f} ms"),
+            ("same noise, plain numpy Generator, maps drawn once: per frame", f"{nump[0] * 1e3:.0f} ms",
+             f"{nump[1] * 1e3:.0f} ms"),
+            ("same noise, plain numpy Generator, maps drawn every frame (old peer)",
+             f"{nump_every[0] * 1e3:.0f} ms", f"{nump_every[1] * 1e3:.0f} ms"),
             ("scene: spectra, distortion, colour, 25 PSF stamps", f"{scene_s[0] * 1e3:.1f} ms",
              f"{scene_s[1] * 1e3:.1f} ms"),
             ("first scene in this process (JIT cache load)", f"{first_scene * 1e3:.0f} ms", ""),
             *[(a, b, c_) for a, b, c_ in rows],
-            ("peak memory, one full frame (tracemalloc)", f"{peak_mb:.0f} MB", ""),
+            ("peak memory, one full frame, maps kept (tracemalloc)", f"{peak_mb:.0f} MB", ""),
+            ("peak memory, a camera's first full frame, maps computed in it (tracemalloc)",
+             f"{first_peak_mb:.0f} MB", ""),
+            ("detector maps kept by the camera", f"{maps.nbytes / 1e6:.0f} MB", ""),
             ("max RSS growth over one full frame", f"{rss_growth:.0f} MB", ""),
             *peer_rows,
         ],
@@ -240,19 +310,25 @@ def main() -> None:
     gstat = None if galsim is not None else "not installed"
     what = "full 2048x4096 frame, 25 stars, every detector effect of the realistic world (wall ms)"
     emit_result("render", [
-        figure("full_frame_ms", what, full[0] * 1e3, "ms", peer="plain numpy Generator (same noise)",
-               peer_value=nump[0] * 1e3, target=150.0, target_source="project target"),
+        figure("full_frame_ms", what, full[0] * 1e3, "ms",
+               peer="plain numpy Generator (same noise, maps drawn once)", peer_value=nump[0] * 1e3, target=150.0, target_source="project target"),
         figure("full_frame_vs_galsim_ms", what, full[0] * 1e3, "ms",
                peer="GalSim 25 Airy stars + CCDNoise", peer_value=None if gal is None else gal[0] * 1e3,
                peer_status=gstat, target=150.0, target_source="project target"),
-        figure("chain_ms", "detector chain alone, full 2048x4096 frame, realistic (wall ms)",
-               chain_real[0] * 1e3, "ms", peer="random-number floor (the chain's draws alone)",
+        figure("chain_ms", "detector chain alone, full 2048x4096 frame, realistic, maps computed once: "
+               "per frame (wall ms)", chain_real[0] * 1e3, "ms",
+               peer="random-number floor (the frame's draws alone, maps precomputed)",
                peer_value=floor_s[0] * 1e3, target=60.0, target_source="project target"),
-        figure("chain_ideal_ms", "detector chain alone, full 2048x4096 frame, ideal (wall ms)",
-               chain_ideal[0] * 1e3, "ms", peer="random-number floor (the chain's draws alone)",
+        figure("chain_ideal_ms", "detector chain alone, full 2048x4096 frame, ideal, maps computed once: "
+               "per frame (wall ms)", chain_ideal[0] * 1e3, "ms",
+               peer="random-number floor (the frame's draws alone, maps precomputed)",
                peer_value=floor_s[0] * 1e3, target=60.0, target_source="project target"),
-        figure("chain_cpu_ms", "detector chain alone, realistic (CPU ms, all threads)",
+        figure("chain_cpu_ms", "detector chain alone, realistic, maps computed once (CPU ms, all threads)",
                chain_real[1] * 1e3, "ms", peer="random-number floor (CPU ms)", peer_value=floor_s[1] * 1e3),
+        figure("chain_fused_ms", "detector chain alone, realistic, fused: maps drawn every frame (wall ms)",
+               chain_fused[0] * 1e3, "ms", peer="old random-number floor (the frame's and the maps' draws)",
+               peer_value=old_floor_s[0] * 1e3),
+        figure("chain_maps_ms", "detector maps alone, once per camera (wall ms)", maps_s[0] * 1e3, "ms"),
         figure("scene_ms", "scene: 25 stars' spectra, distortion, colour, PSF stamps (ms)",
                scene_s[0] * 1e3, "ms", peer="GalSim 25 Airy stars drawn (monochromatic)",
                peer_value=None if gal_stars is None else gal_stars[0] * 1e3, peer_status=gstat),
@@ -260,8 +336,10 @@ def main() -> None:
                "windows/s", better="higher", target=100_000, target_source="project target"),
         figure("windows_per_s_threads", "noisy 11x11 windows per second, numba threads",
                rate_threads, "windows/s", better="higher", target=100_000, target_source="project target"),
-        figure("peak_mb", "peak memory, one full frame (MB, tracemalloc)", peak_mb, "MB",
+        figure("peak_mb", "peak memory, one full frame, maps kept (MB, tracemalloc)", peak_mb, "MB",
                target=300.0, target_source="project target"),
+        figure("first_frame_peak_mb", "peak memory, a camera's first full frame, maps computed in it "
+               "(MB, tracemalloc)", first_peak_mb, "MB", target=300.0, target_source="project target"),
     ], quick=args.quick, galsim=galsim.__version__ if galsim else None)
 
 

@@ -69,20 +69,30 @@ The embedded seed-000 scenario: a full 2048 x 4096 two-chip frame with the 25-st
 and every detector effect (PRNU, dark + DSNU, shot, read, full well, per-chip ADC), from a
 cached scene (PSF stamps computed once, as for a sequence of frames), beside plain numpy
 doing the same noise with one `Generator`, and beside GalSim drawing 25 Airy stars and
-adding its CCD noise on a frame of the same size. The scene (spectra, distortion, colour
-and 25 exact pixel-integrated PSF stamps), noisy 11x11 windows per second
-(`render_windows`, serial and threaded), and the peak memory of one full frame.
-Targets: a full frame in at most 0.15 s, at least 100,000 windows per second,
-peak memory under 300 MB. GalSim's CCD noise and pyxel do fewer or other effects than our
+adding its CCD noise on a frame of the same size. The detector's PRNU and DSNU maps are
+computed once per camera (134 MB, kept) and each frame draws only its own noise; numpy's
+maps likewise once (its every-frame figure kept, labelled). The detector chain alone per
+frame (realistic and ideal), the maps alone, the fused chain drawing the maps every frame,
+and the random-number floor: the frame's draws alone (Poisson + read normal, maps
+precomputed; the old floor with the maps' draws too, labelled). The scene (spectra,
+distortion, colour and 25 exact pixel-integrated PSF stamps), noisy 11x11 windows per
+second (`render_windows`, serial and threaded), and the peak memory of one full frame
+with the maps kept and of a camera's first frame that computes them.
+Targets: a full frame in at most 0.15 s, the detector chain alone in at most 60 ms, at
+least 100,000 windows per second, peak memory under 300 MB. GalSim's CCD noise and pyxel do fewer or other effects than our
 chain; they are the peers the project names, not the same computation."""),
     "detector_noise": ("Simulator: detector chain alone", """\
 The detector chain alone on a full 2048 x 4096 two-chip mosaic (PRNU, dark + DSNU + hot
 pixels, Poisson shot noise, full-well clip, read noise, per-chip gain/offset ADC to
-uint16), simcam's counter-based numba kernel with all threads and with one, beside plain
-numpy doing the same with one `Generator`, GalSim's `CCDNoise` (shot + read noise + gain
-only) on the same expected image, and one pyxel 3 exposure of a CMOS of the same size
-through an 11-model pipeline (configuration built in code in the script). CPU time (all
-threads) is the steadier measure on a shared machine; wall time is what a user waits."""),
+uint16), simcam's counter-based numba kernel with all threads and with one, per frame with
+the detector's maps (PRNU, DSNU, hot pixels) computed once (`detector_maps`, the marginal
+frame; the first frame with the maps, the maps alone, and the fused chain that draws them
+every frame, labelled), beside plain numpy doing the same with one `Generator` (its maps
+drawn once; its every-frame figure kept, labelled), GalSim's `CCDNoise` (shot + read noise
++ gain only) on the same expected image, and one pyxel 3 exposure of a CMOS of the same size
+through an 11-model pipeline (configuration built in code in the script). Target: 60 ms
+per frame. CPU time (all threads) is the steadier measure on a shared machine; wall time
+is what a user waits."""),
     "centroid": ("Centroiding", """\
 The same noisy 11x11 windows (Gaussian PSF sigma 1 px, 2e4 e-, background 100 e-, read
 noise 5 e-) through each method: our CoG (given or border-median background), IWCoG and

@@ -26,7 +26,9 @@ from simcam.rng import MAX_PIXEL_INDEX, _as_key
 
 __all__ = [
     "DetectorParameterError",
+    "DetectorMaps",
     "DetectorParams",
+    "detector_maps",
     "expose",
     "expose_windows",
     "prnu_map",
@@ -267,9 +269,109 @@ def apply_nonlinearity(mean_e: np.ndarray, *, col0, chip_cols: int, params: Dete
     return out[0] if squeeze else out
 
 
+def _fixed_pattern_fields(params: DetectorParams) -> tuple[float, ...]:
+    """The parameters the fixed-pattern maps depend on (PRNU, dark, DSNU, hot pixels)."""
+    return (params.prnu_rms, params.dark_e, params.dsnu_rms_e, params.hot_pixel_fraction,
+            params.hot_pixel_dark_e)
+
+
+@dataclass(frozen=True, eq=False)
+class DetectorMaps:
+    """The fixed pattern of a block of the mosaic, computed once for many frames.
+
+    ``gain`` (h, w) float64 is the PRNU factor ``g = max(0, 1 + prnu_rms z1)`` and ``dark_e``
+    (h, w) float64 the mean dark signal ``d = max(0, dark_e + dsnu_rms_e z2)`` (plus
+    ``hot_pixel_dark_e`` on the hot pixels) of each pixel: the values the chain draws
+    per pixel from the detector key (:func:`simcam.kernels.detector.prnu_value`,
+    :func:`simcam.kernels.detector.dark_value`), so :func:`expose` with ``maps`` gives the
+    same pixels bit for bit while drawing only the frame's noise. Memory: 16 bytes per
+    pixel (134 MB for a 2048 x 4096 mosaic). Built by :func:`detector_maps`; the key
+    fields (``detector_key``, ``fixed``: the five fixed-pattern parameters, the block's
+    origin and ``mosaic_cols``) are checked by :func:`expose` against its own arguments,
+    so a map is never used for another detector or block.
+    """
+
+    gain: np.ndarray
+    dark_e: np.ndarray
+    row0: int
+    col0: int
+    mosaic_cols: int
+    detector_key: np.uint64
+    fixed: tuple[float, ...]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(h, w)`` of the block."""
+        return self.gain.shape
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the two maps, bytes."""
+        return self.gain.nbytes + self.dark_e.nbytes
+
+    def matches(self, *, params: DetectorParams, detector_key, mosaic_cols) -> bool:
+        """Whether these maps are those of ``params`` and ``detector_key`` on this mosaic."""
+        _, dk = _keys(0, detector_key)
+        return (dk == self.detector_key and int(mosaic_cols) == self.mosaic_cols
+                and _fixed_pattern_fields(params) == self.fixed)
+
+
+def detector_maps(*, shape, row0, col0, mosaic_cols, params: DetectorParams, detector_key) -> DetectorMaps:
+    """The fixed-pattern maps (PRNU factor and dark signal) of a block, for :func:`expose`.
+
+    One numba pass, rows in parallel (:func:`simcam.kernels.detector.fixed_pattern_maps`).
+    A sequence of frames of one camera builds them once (e.g. for the whole mosaic,
+    ``shape=(rows, cols)`` at ``(0, 0)``) and passes them to every :func:`expose` call.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(h, w)`` of the block.
+    row0, col0 : int
+        Mosaic origin of the block.
+    mosaic_cols : int
+        Mosaic width in columns.
+    params : DetectorParams
+        Detector parameters (``prnu_rms``, ``dark_e``, ``dsnu_rms_e``, ``hot_pixel_*`` are used).
+    detector_key : int or numpy.uint64
+        Key of the detector's fixed maps.
+
+    Returns
+    -------
+    DetectorMaps
+    """
+    h, w, r0, c0, mc = _block_args(shape, row0, col0, mosaic_cols)
+    if not isinstance(params, DetectorParams):
+        _fail("params", "must be a DetectorParams", type(params).__name__)
+    _, dk = _keys(0, detector_key)
+    gain = np.empty((h, w))
+    dark = np.empty((h, w))
+    if gain.size:
+        _k.fixed_pattern_maps(r0, c0, mc, *(float(v) for v in _fixed_pattern_fields(params)), dk, gain, dark)
+    return DetectorMaps(gain, dark, r0, c0, mc, dk, _fixed_pattern_fields(params))
+
+
+def _maps_view(maps, *, r0, c0, h, w, mosaic_cols, params, detector_key):
+    """The part of ``maps`` under the block ``[r0, r0 + h) x [c0, c0 + w)``; an error if the
+    maps are another detector's (key or fixed-pattern parameters) or do not cover it."""
+    if not isinstance(maps, DetectorMaps):
+        _fail("maps", "must be a DetectorMaps (simcam.detector.detector_maps)", type(maps).__name__)
+    if not maps.matches(params=params, detector_key=detector_key, mosaic_cols=mosaic_cols):
+        _fail("maps", "were made for another detector key, fixed-pattern parameters or mosaic width",
+              (int(maps.detector_key), maps.fixed, maps.mosaic_cols))
+    mh, mw = maps.shape
+    i0, j0 = r0 - maps.row0, c0 - maps.col0
+    if i0 < 0 or j0 < 0 or i0 + h > mh or j0 + w > mw:
+        _fail("maps", f"cover rows [{maps.row0}, {maps.row0 + mh}) x cols [{maps.col0}, {maps.col0 + mw}), "
+              f"not the block at ({r0}, {c0}) of {h} x {w}", (maps.row0, maps.col0, mh, mw))
+    if (i0, j0, h, w) == (0, 0, mh, mw):
+        return maps.gain, maps.dark_e
+    return maps.gain[i0:i0 + h, j0:j0 + w], maps.dark_e[i0:i0 + h, j0:j0 + w]
+
+
 def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
            frame_key, detector_key, shot_noise=True, read_noise=True,
-           quantize=True) -> np.ndarray:
+           quantize=True, maps: DetectorMaps | None = None) -> np.ndarray:
     """Turn expected electrons of a block of mosaic pixels into detector output.
 
     Per pixel (Janesick 2007; EMVA 1288 linear model): ``n = Poisson(mu)`` with
@@ -306,6 +408,12 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
     quantize : bool
         Round and clip to ADC codes (uint16 or uint32); off: float64 DN, only the full
         well applied.
+    maps : DetectorMaps, optional
+        The fixed pattern (PRNU factor, dark signal) of a block covering this one, from
+        :func:`detector_maps` with the same ``detector_key``, parameters and
+        ``mosaic_cols`` (checked): the pass then reads it instead of drawing it
+        (:func:`simcam.kernels.detector.expose_block_maps`), with the same pixels bit for
+        bit. For a sequence of frames of one camera.
 
     Returns
     -------
@@ -326,16 +434,25 @@ def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorPara
     mc, cc = _check_geometry(rows_hi=r0 + h, cols_lo=c0, cols_hi=c0 + w, mosaic_cols=mosaic_cols,
                              chip_cols=chip_cols, params=params)
     fk, dk = _keys(frame_key, detector_key)
+    if maps is not None:
+        gmap, dmap = _maps_view(maps, r0=r0, c0=c0, h=h, w=w, mosaic_cols=mc, params=params,
+                                detector_key=dk)
     out = np.empty((h, w), dtype=params.output_dtype if quantize else np.float64)
     if sig.size:
         g, off, rn, fw = params._chip_arrays()
         # one pass per pixel: fixed pattern, non-linearity (the linear camera at beta = 0),
         # temporal noise and ADC; the same pixels as the window route (window_chain and
         # expose_windows_frames) bit for bit
-        bad_rows = _k.expose_block(sig, r0, c0, mc, cc, g, off, rn, fw, params.prnu_rms, params.dark_e,
-                                   params.dsnu_rms_e, params.hot_pixel_fraction, params.hot_pixel_dark_e,
-                                   params.nonlinearity_beta, MAX_SIGNAL_E, fk, dk, bool(shot_noise),
-                                   bool(read_noise), bool(quantize), float(params.max_dn), out)
+        if maps is None:
+            bad_rows = _k.expose_block(sig, r0, c0, mc, cc, g, off, rn, fw, params.prnu_rms, params.dark_e,
+                                       params.dsnu_rms_e, params.hot_pixel_fraction, params.hot_pixel_dark_e,
+                                       params.nonlinearity_beta, MAX_SIGNAL_E, fk, dk, bool(shot_noise),
+                                       bool(read_noise), bool(quantize), float(params.max_dn), out)
+        else:
+            # the fixed pattern read from the maps (the same values): only the frame's draws
+            bad_rows = _k.expose_block_maps(sig, gmap, dmap, r0, c0, mc, cc, g, off, rn, fw,
+                                            params.nonlinearity_beta, MAX_SIGNAL_E, fk, bool(shot_noise),
+                                            bool(read_noise), bool(quantize), float(params.max_dn), out)
         if bad_rows:
             _signal_range_error()
     return out

@@ -25,6 +25,7 @@ import pytest
 from simcam import rng as rng_mod
 from simcam.detector import (
     DetectorParams,
+    detector_maps,
     dsnu_map,
     expose,
     expose_windows_frames,
@@ -101,6 +102,11 @@ def test_full_frame_equals_the_window_route(beta, quantize):
                                     parallel=parallel)[0]
         for k, (a, b) in enumerate(origins):
             assert np.array_equal(win[k], full[a:a + h, b:b + w])
+    # the fixed pattern computed once (detector_maps, here of a larger block) and read by
+    # the per-frame pass: the same frame
+    maps = detector_maps(shape=(60, 200), row0=row0 - 10, col0=col0 - 30, mosaic_cols=MOSAIC_COLS,
+                         params=p, detector_key=DET_KEY)
+    assert np.array_equal(_expose(sig, row0, col0, p, quantize=quantize, maps=maps), full)
     # float32 input: the same pixels as float64 holding the same values
     s32 = sig.astype(np.float32)
     assert np.array_equal(_expose(s32, row0, col0, p, quantize=quantize),
@@ -213,7 +219,7 @@ def test_one_full_frame_standardised_residuals_are_unit_normal():
 
 _CHILD = r"""
 import hashlib, numpy as np, numba
-from simcam.detector import DetectorParams, expose
+from simcam.detector import DetectorParams, detector_maps, expose
 from simcam.rng import key_from_seed
 p = DetectorParams(gain_e_per_dn=(4.0, 6.0), offset_dn=(100.0, 200.0), read_noise_e=(3.0, 4.0),
                    full_well_e=(5e4, 6e4), adc_bits=16, prnu_rms=0.02, dark_e=20.0, dsnu_rms_e=3.0,
@@ -221,17 +227,23 @@ p = DetectorParams(gain_e_per_dn=(4.0, 6.0), offset_dn=(100.0, 200.0), read_nois
 y, x = np.mgrid[0:256, 0:4096]
 sig = 30.0 + 2e4 * np.exp(-((y - 128.3) ** 2 + (x % 97 - 40.2) ** 2) / 8.0)
 h = hashlib.sha256()
+maps = detector_maps(shape=sig.shape, row0=900, col0=0, mosaic_cols=4096, params=p,
+                     detector_key=key_from_seed(5, 0))
 for q in (True, False):
-    h.update(expose(signal_e=sig, row0=900, col0=0, mosaic_cols=4096, chip_cols=2048, params=p,
-                    frame_key=key_from_seed(5, 1, 2), detector_key=key_from_seed(5, 0),
-                    quantize=q).tobytes())
+    kw = dict(signal_e=sig, row0=900, col0=0, mosaic_cols=4096, chip_cols=2048, params=p,
+              frame_key=key_from_seed(5, 1, 2), detector_key=key_from_seed(5, 0), quantize=q)
+    out = expose(**kw)
+    h.update(out.tobytes())
+    # the route through the maps (computed on this thread count too): the same frame
+    assert np.array_equal(expose(**kw, maps=maps), out), "maps route differs"
 print(numba.get_num_threads(), h.hexdigest())
 """
 
 
 def test_full_frame_does_not_depend_on_the_thread_count():
     # the same frame in processes whose numba pool has 1 and 2 threads (numba runs more
-    # threads than cores, time-sliced, so this holds on a one-core machine too)
+    # threads than cores, time-sliced, so this holds on a one-core machine too), through
+    # the fused chain and through the maps (the child checks the two agree)
     digests = {}
     for n in (1, 2):
         run = subprocess.run([sys.executable, "-c", _CHILD], env=dict(os.environ, NUMBA_NUM_THREADS=str(n)),

@@ -30,7 +30,7 @@ import pandas as pd
 
 from simcam.starcam import optics
 from simcam.config_base import ScenarioError
-from simcam.detector import DetectorParams, expose, expose_windows_frames, window_chain
+from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
 from simcam.starcam.geometry import Mosaic
 from simcam.rng import child_keys, key_from_seed
 from simcam.starcam.scenario import Scenario
@@ -581,6 +581,25 @@ class StarCamera:
         return Windows(pixels=pixels, col0=col0, row0=row0, truth=scene.truth,
                        frame_index=np.arange(first_frame, first_frame + frames))
 
+    def frame_maps(self):
+        """The detector's fixed pattern over the whole mosaic (:func:`simcam.detector.detector_maps`),
+        computed on the first full frame and kept for the next ones (16 bytes per pixel: 134 MB
+        for 2 x 2048^2); rebuilt should ``detector_params`` or ``detector_key`` change. Not
+        pickled (a worker process rebuilds it)."""
+        rows, cols = self.mosaic.shape
+        maps = self.__dict__.get("_frame_maps")
+        if maps is None or maps.shape != (rows, cols) or not maps.matches(
+                params=self.detector_params, detector_key=self.detector_key, mosaic_cols=cols):
+            maps = detector_maps(shape=(rows, cols), row0=0, col0=0, mosaic_cols=cols,
+                                 params=self.detector_params, detector_key=self.detector_key)
+            self._frame_maps = maps
+        return maps
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_frame_maps", None)
+        return state
+
     def render_frame(
         self,
         scene: Scene,
@@ -603,7 +622,7 @@ class StarCamera:
         return expose(
             signal_e=expected_e, row0=0, col0=0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
             params=self.detector_params, frame_key=key, detector_key=self.detector_key,
-            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize,
+            shot_noise=shot_noise, read_noise=read_noise, quantize=quantize, maps=self.frame_maps(),
         )
 
 
