@@ -90,6 +90,9 @@ __all__ = [
     "pixel_counter",
     "random_bits64",
     "uniform01",
+    "uniform01_from_word",
+    "std_normal_from_word",
+    "poisson_from_word",
     "std_normal_ppf",
     "std_normal",
     "poisson",
@@ -357,8 +360,15 @@ def uniform01(key, counter):
         (Midpoints ``(k + 1/2) * 2**-53`` would need 54 significant bits above 1/2 and
         round to 1.)
     """
-    b = random_bits64(key, counter) >> _S11
-    return max(np.float64(np.int64(b)), 0.5) * _TWO_M53
+    return uniform01_from_word(random_bits64(key, counter))
+
+
+@njit(cache=True, inline="always")
+def uniform01_from_word(word):
+    """:func:`uniform01` of the word ``word = random_bits64(key, counter)``: ``max(word >> 11,
+    1/2) * 2**-53``. For kernels that compute a run of words first, in a loop the compiler
+    vectorises (the SplitMix64 multiplies), and the variates after it."""
+    return max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53
 
 
 @njit(cache=True)
@@ -444,9 +454,16 @@ def std_normal(key, counter):
     float
         Standard normal deviate.
     """
-    r = random_bits64(key, counter)
-    idx = np.int64(r & _U8_MASK)
-    r = r >> _S8
+    return std_normal_from_word(random_bits64(key, counter), key, counter)
+
+
+@njit(cache=True, inline="always")
+def std_normal_from_word(word, key, counter):
+    """:func:`std_normal` at ``(key, counter)`` given its first word ``word =
+    random_bits64(key, counter)`` (the ziggurat's fast path on it; a rejection continues at
+    ``counter + 1``, ...), as :func:`uniform01_from_word`."""
+    idx = np.int64(word & _U8_MASK)
+    r = word >> _S8
     sign = 1.0 - 2.0 * np.float64(np.int64(r & _S1))  # branch-free: +1 or -1
     rabs = (r >> _S1) & _U52_MASK
     x = np.float64(np.int64(rabs)) * _ZIG_WI[idx] * sign
@@ -576,33 +593,50 @@ def poisson_setup(lam):
     return _PM_PTRS, 0, 0.0, b, -0.059 + 0.02483 * b, 0.9277 - 3.6224 / (b - 2.0)
 
 
+@njit(cache=True, inline="always")
+def _poisson_table_word(j, r, word, key, counter):
+    """The table path of :func:`poisson` (``0 < lam < 10``: level ``j``, residual mean ``r``)
+    given its first word ``word = random_bits64(key, counter)``."""
+    u = max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53  # as uniform01
+    k = _PT_GUIDE_TABLE[j, np.int64(u * _PT_GUIDE)]
+    while u > _PT_CDF[j, k]:
+        k += 1
+    if r > 0.0:
+        low = np.float64(np.int64(word & _LOW11_MASK))
+        if (low + 1.0) * _INV_2048 > 1.0 - r:  # else X1 = 0 (u1 <= 1 - r <= exp(-r))
+            u1 = (low + uniform01(key, np.uint64(counter) + _ONE_U64)) * _INV_2048
+            if u1 > 1.0 - r:
+                p = math.exp(-r)
+                cdf = p
+                m = 0
+                while u1 > cdf:
+                    m += 1
+                    p *= r * (_INV_K[m] if m < 64 else 1.0 / m)
+                    nxt = cdf + p
+                    if nxt == cdf:  # remaining tail mass below double rounding
+                        break
+                    cdf = nxt
+                k += m
+    return k
+
+
+@njit(cache=True, inline="always")
+def poisson_from_word(lam, word, key, counter):
+    """:func:`poisson` ``(lam, key, counter)`` given its first word ``word =
+    random_bits64(key, counter)``, as :func:`uniform01_from_word`: the table path
+    (``0 < lam < 10``) on that word; any other mean (PTRS, 0, NaN, huge) by :func:`poisson`
+    itself, which draws its own words."""
+    if not (lam > 0.0 and lam < POISSON_PTRS_MIN_LAM):
+        return poisson(lam, key, counter)
+    j = np.int64(lam * POISSON_TABLE_LEVELS_PER_E)
+    return _poisson_table_word(j, lam - j * (1.0 / POISSON_TABLE_LEVELS_PER_E), word, key, counter)
+
+
 @njit(cache=True)
 def poisson_prepared(lam, mode, j, r, b, a, vr, key, counter):
     """Poisson(lam) draw at ``counter`` given ``poisson_setup(lam)`` (see :func:`poisson`)."""
     if mode == _PM_TABLE:
-        c = np.uint64(counter)
-        word = random_bits64(key, c)
-        u = max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53  # as uniform01
-        k = _PT_GUIDE_TABLE[j, np.int64(u * _PT_GUIDE)]
-        while u > _PT_CDF[j, k]:
-            k += 1
-        if r > 0.0:
-            low = np.float64(np.int64(word & _LOW11_MASK))
-            if (low + 1.0) * _INV_2048 > 1.0 - r:  # else X1 = 0 (u1 <= 1 - r <= exp(-r))
-                u1 = (low + uniform01(key, c + _ONE_U64)) * _INV_2048
-                if u1 > 1.0 - r:
-                    p = math.exp(-r)
-                    cdf = p
-                    m = 0
-                    while u1 > cdf:
-                        m += 1
-                        p *= r * (_INV_K[m] if m < 64 else 1.0 / m)
-                        nxt = cdf + p
-                        if nxt == cdf:  # remaining tail mass below double rounding
-                            break
-                        cdf = nxt
-                    k += m
-        return k
+        return _poisson_table_word(j, r, random_bits64(key, np.uint64(counter)), key, counter)
     if mode == _PM_ZERO:
         return 0
     if mode == _PM_HUGE:

@@ -186,8 +186,10 @@ def test_samplers_given_their_first_word_equal_the_generator():
     # rejections, probability 1.2 %, and the Poisson's second word, up to 6.3 %, occur)
     from numba import njit
 
-    from simcam.kernels.detector import _poisson_from_word, _std_normal_from_word, _uniform01_from_word
     from simcam.rng import poisson, random_bits64, std_normal, uniform01
+    from simcam.rng import poisson_from_word as _poisson_from_word
+    from simcam.rng import std_normal_from_word as _std_normal_from_word
+    from simcam.rng import uniform01_from_word as _uniform01_from_word
 
     @njit
     def both(lam, key, counters, out_p, ref_p, out_z, ref_z):

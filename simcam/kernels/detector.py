@@ -43,12 +43,18 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from simcam.rng import SLOT_BITS, DRAW_BITS, poisson, poisson_prepared, poisson_setup, random_bits64, std_normal, uniform01
-# the generator's tables and constants, for the samplers given their first word (below)
-from simcam.rng import (  # noqa: E402
-    _INV_2048, _INV_K, _LOW11_MASK, _ONE_U64, _PT_CDF, _PT_GUIDE, _PT_GUIDE_TABLE, _S1, _S8, _S11,
-    _TWO_M53, _U8_MASK, _U52_MASK, _ZIG_KI, _ZIG_WI, POISSON_PTRS_MIN_LAM, POISSON_TABLE_LEVELS_PER_E,
-    _std_normal_reject,
+from simcam.rng import (
+    SLOT_BITS,
+    DRAW_BITS,
+    poisson,
+    poisson_from_word,
+    poisson_prepared,
+    poisson_setup,
+    random_bits64,
+    std_normal,
+    std_normal_from_word,
+    uniform01,
+    uniform01_from_word,
 )
 
 SLOT_PRNU = 0
@@ -286,7 +292,7 @@ def fixed_pattern_maps(row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e, ho
     ``gain_out[i, j]`` the PRNU factor ``g`` (:func:`prnu_value`) and ``dark_out[i, j]`` the
     mean dark signal ``d`` (e-, :func:`dark_value`: DSNU and hot pixels) of each pixel;
     the same operations on the same variates (their first words computed in a loop of
-    their own, :func:`_std_normal_from_word`, :func:`_uniform01_from_word`), so the same
+    their own, :func:`simcam.rng.std_normal_from_word`, :func:`simcam.rng.uniform01_from_word`), so the same
     values as the chain's own (:func:`_chain_chunk`). Computed once for a sequence of
     frames of one camera and read by :func:`expose_block_maps`."""
     h, w = gain_out.shape
@@ -307,14 +313,14 @@ def fixed_pattern_maps(row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e, ho
                 for jj in range(k):
                     wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_PRNU))
                 for jj in range(k):
-                    gg = 1.0 + prnu_rms * _std_normal_from_word(wd[jj], detector_key,
+                    gg = 1.0 + prnu_rms * std_normal_from_word(wd[jj], detector_key,
                                                                 slot_counter(p0 + jj, SLOT_PRNU))
                     g[jj] = gg if gg > 0.0 else 0.0
             if dsnu_rms_e > 0.0:
                 for jj in range(k):
                     wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_DSNU))
                 for jj in range(k):
-                    dd = dark_e + dsnu_rms_e * _std_normal_from_word(wd[jj], detector_key,
+                    dd = dark_e + dsnu_rms_e * std_normal_from_word(wd[jj], detector_key,
                                                                      slot_counter(p0 + jj, SLOT_DSNU))
                     d[jj] = 0.0 if dd < 0.0 else dd
             else:
@@ -324,71 +330,9 @@ def fixed_pattern_maps(row0, col0, mosaic_cols, prnu_rms, dark_e, dsnu_rms_e, ho
                 for jj in range(k):
                     wd[jj] = random_bits64(detector_key, slot_counter(p0 + jj, SLOT_HOT))
                 for jj in range(k):
-                    if _uniform01_from_word(wd[jj]) < hot_fraction:
+                    if uniform01_from_word(wd[jj]) < hot_fraction:
                         d[jj] += hot_dark_e
             j = j_end
-
-
-@njit(cache=True, inline="always")
-def _uniform01_from_word(word):
-    """:func:`simcam.rng.uniform01` given its word ``random_bits64(key, counter)`` (the same
-    operations: ``max(word >> 11, 1/2) * 2**-53``)."""
-    return max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53
-
-
-@njit(cache=True, inline="always")
-def _poisson_from_word(lam, word, key, counter):
-    """:func:`simcam.rng.poisson` ``(lam, key, counter)`` given ``word = random_bits64(key,
-    counter)``, its first word: the table path of :func:`simcam.rng.poisson_setup` and
-    :func:`simcam.rng.poisson_prepared` written out with the word passed in (the same
-    operations in the same order, so the same count); any other mean (``lam >= 10``, ``<= 0``,
-    NaN) goes to :func:`simcam.rng.poisson` itself. The words of a chunk of pixels are
-    computed first in a loop of their own, which the compiler vectorises (the SplitMix64
-    multiplies), the branchy search after it. ``tests/test_detector_maps.py`` checks it
-    against :func:`simcam.rng.poisson` (a change of the generator's table path must be
-    made here too)."""
-    if not (lam > 0.0 and lam < POISSON_PTRS_MIN_LAM):
-        return poisson(lam, key, counter)
-    j = np.int64(lam * POISSON_TABLE_LEVELS_PER_E)
-    r = lam - j * (1.0 / POISSON_TABLE_LEVELS_PER_E)
-    u = max(np.float64(np.int64(word >> _S11)), 0.5) * _TWO_M53  # as uniform01
-    k = _PT_GUIDE_TABLE[j, np.int64(u * _PT_GUIDE)]
-    while u > _PT_CDF[j, k]:
-        k += 1
-    if r > 0.0:
-        low = np.float64(np.int64(word & _LOW11_MASK))
-        if (low + 1.0) * _INV_2048 > 1.0 - r:  # else X1 = 0 (u1 <= 1 - r <= exp(-r))
-            c = np.uint64(counter)
-            u1 = (low + uniform01(key, c + _ONE_U64)) * _INV_2048
-            if u1 > 1.0 - r:
-                p = math.exp(-r)
-                cdf = p
-                m = 0
-                while u1 > cdf:
-                    m += 1
-                    p *= r * (_INV_K[m] if m < 64 else 1.0 / m)
-                    nxt = cdf + p
-                    if nxt == cdf:  # remaining tail mass below double rounding
-                        break
-                    cdf = nxt
-                k += m
-    return k
-
-
-@njit(cache=True, inline="always")
-def _std_normal_from_word(word, key, counter):
-    """:func:`simcam.rng.std_normal` ``(key, counter)`` given ``word = random_bits64(key,
-    counter)``: its ziggurat fast path written out with the word passed in, the rejection
-    by :func:`simcam.rng._std_normal_reject` (the same value; tested as
-    :func:`_poisson_from_word`)."""
-    idx = np.int64(word & _U8_MASK)
-    r = word >> _S8
-    sign = 1.0 - 2.0 * np.float64(np.int64(r & _S1))
-    rabs = (r >> _S1) & _U52_MASK
-    x = np.float64(np.int64(rabs)) * _ZIG_WI[idx] * sign
-    if rabs < _ZIG_KI[idx]:
-        return x
-    return _std_normal_reject(key, np.uint64(counter), idx, x, sign)
 
 
 @njit(cache=True, inline="always")
@@ -411,7 +355,7 @@ def _frame_chunk(sig, gm, dm, out, pixel0, m, z, n, wp, wr, g, off, rn, fw, beta
     (the same two operations, so the same value), then the non-linearity, Poisson draw,
     full well, read noise and ADC as there. Only the frame key's draws are made, their
     first words (``wp``, ``wr``: uint64 scratch) in a loop of their own
-    (:func:`_poisson_from_word`, :func:`_std_normal_from_word`: the same variates).
+    (:func:`simcam.rng.poisson_from_word`, :func:`simcam.rng.std_normal_from_word`: the same variates).
     Returns 1 if a ``sig`` value is outside ``[0, max_signal_e]`` or NaN, else 0."""
     k = sig.shape[0]
     bad = False
@@ -437,7 +381,7 @@ def _frame_chunk(sig, gm, dm, out, pixel0, m, z, n, wp, wr, g, off, rn, fw, beta
             wr[jj] = random_bits64(frame_key, slot_counter(pixel0 + jj, SLOT_READ))
     if shot_noise:
         for jj in range(k):
-            v = np.float64(_poisson_from_word(m[jj], wp[jj], frame_key, slot_counter(pixel0 + jj, SLOT_SHOT)))
+            v = np.float64(poisson_from_word(m[jj], wp[jj], frame_key, slot_counter(pixel0 + jj, SLOT_SHOT)))
             n[jj] = v if not v > fw else fw
     else:
         for jj in range(k):
@@ -446,7 +390,7 @@ def _frame_chunk(sig, gm, dm, out, pixel0, m, z, n, wp, wr, g, off, rn, fw, beta
     # read noise n + rn z (the sum rounded as in _chain_chunk's n += rn z), then the ADC
     if read_noise:
         for jj in range(k):
-            z[jj] = _std_normal_from_word(wr[jj], frame_key, slot_counter(pixel0 + jj, SLOT_READ))
+            z[jj] = std_normal_from_word(wr[jj], frame_key, slot_counter(pixel0 + jj, SLOT_READ))
         if quantize:
             for jj in range(k):
                 out[jj] = _adc(n[jj] + rn * z[jj], g, off, max_dn)
