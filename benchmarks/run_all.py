@@ -123,8 +123,9 @@ in steady state, best over the repeats into a fresh store. Steady state counts a
 point's work: the runner splits each truth into pieces and runs them as tasks of their
 own before the points; from the moment as many tasks (of either kind) have finished as
 there are workers (start-up, imports and JIT warm-up behind), the rate is the points
-finished after it (a point when its last task is) over the time to the last point; and the cost of one validation point as its trial count grows
-(a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
+finished after it (a point when its last task is) over the time to the last point. Also
+the cost of one validation point as its trial count grows (a least-squares line: fixed
+cost plus cost per trial); in a full run also on a Dask
 LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
 sub-pixel phase instead of the scenario's 400, which make a point dearer): the figures
 measure the machinery; one point with the full truth is timed once for scale. Target:
