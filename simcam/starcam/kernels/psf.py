@@ -260,6 +260,8 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
                 ex_re[a, k] = t
             _phase_ramp(phy, 1.0, K + 1, ey_re[a], ey_im[a])
         drow = disc[i if disc.shape[0] > 1 else 0]
+        row_re = np.empty(nq)
+        row_im = np.empty(nq)
         for qy in range(K + 1):
             q_y = qy % L
             if qy != 0 and q_y == 0:
@@ -270,23 +272,35 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
                 kxlim = K
             k_lo = K + (1 if qy == 0 else -kxlim)
             k_hi = K + kxlim + 1
+            # the row's sums over wavelengths, wavelength outer, frequency inner: each
+            # frequency's sum takes its terms in the same order as one frequency at a
+            # time, so the same bits, as independent sums the processor overlaps
+            for k in range(k_lo, k_hi):
+                row_re[k] = 0.0
+                row_im[k] = 0.0
+            for a in range(na):
+                eyr = ey_re[a, qy]
+                eyi = ey_im[a, qy]
+                if is_airy:
+                    j = act[a]
+                    for k in range(k_lo, k_hi):
+                        qx = k - K
+                        c = chat[j, qx * qx + qy * qy]
+                        if c == 0.0:
+                            continue
+                        row_re[k] += c * (ex_re[a, k] * eyr - ex_im[a, k] * eyi)
+                        row_im[k] += c * (ex_re[a, k] * eyi + ex_im[a, k] * eyr)
+                else:  # c = 1: a product by 1.0 is exact, so it is left out
+                    for k in range(k_lo, k_hi):
+                        row_re[k] += ex_re[a, k] * eyr - ex_im[a, k] * eyi
+                        row_im[k] += ex_re[a, k] * eyi + ex_im[a, k] * eyr
             for k in range(k_lo, k_hi):
                 qx = k - K
                 if qx != 0 and qx % L == 0:
                     continue
                 r2 = qx * qx + qy * qy
-                re = 0.0
-                im = 0.0
-                for a in range(na):
-                    c = chat[act[a], r2] if is_airy else 1.0
-                    if c == 0.0:
-                        continue
-                    eyr = ey_re[a, qy]
-                    eyi = ey_im[a, qy]
-                    re += c * (ex_re[a, k] * eyr - ex_im[a, k] * eyi)
-                    im += c * (ex_re[a, k] * eyi + ex_im[a, k] * eyr)
                 f = _sinc(qx / L) * sy_ * drow[r2]
-                out[i, qy, Kp + qx] = complex(f * re, f * im)
+                out[i, qy, Kp + qx] = complex(f * row_re[k], f * row_im[k])
 
 
 @njit(cache=True)
