@@ -135,9 +135,13 @@ start, so the run waits about half their compile time."""),
     "sweep": ("Sweeps", """\
 Truth-mode points of the default camera (PSF width x PRNU; each point a new camera:
 scenes, stamps and every class's truth) on 1 and 2 local worker processes, end to end and
-in steady state (points finished after every worker finished its first), best over the
-repeats into a fresh store; and the cost of one validation point as its trial count grows
-(a least-squares line: fixed cost plus cost per trial); in a full run also on a Dask
+in steady state, best over the repeats into a fresh store. Steady state counts all of a
+point's work: the runner splits each truth into pieces and runs them as tasks of their
+own before the points; from the moment as many tasks (of either kind) have finished as
+there are workers (start-up, imports and JIT warm-up behind), the rate is the points
+finished after it (a point when its last task is) over the time to the last point. Also
+the cost of one validation point as its trial count grows (a least-squares line: fixed
+cost plus cost per trial); in a full run also on a Dask
 LocalCluster of 2 workers. The points use a light HSFE truth (100 noisy frames per
 sub-pixel phase instead of the scenario's 400, which make a point dearer): the figures
 measure the machinery; one point with the full truth is timed once for scale. Target:

@@ -121,20 +121,23 @@ def cv_tables(mean_e, chip, gain, offset, read_noise, dlo, nd, out_q, out_m1, ou
     ``E P^2 = mu^2 + mu``. ``M_1 = E[(P + r z) 1] - mu Q``, ``M_2 = E[(P + r z)^2 1] - 2 mu E[(P + r z) 1] + mu^2 Q``.
     """
     n, h, w = mean_e.shape
+    # the normal's tables depend on the chip and d only: kept while they stay the same
+    # (from one window to the next too: most windows share their chip and d range)
+    last = -1
+    last_dl = 0
+    klo = 0
+    khi = 0
+    t0 = np.empty((0, 0))
+    t1 = np.empty((0, 0))
+    t2 = np.empty((0, 0))
     for k in range(n):
         dl = dlo[k]
-        last = -1
-        klo = 0
-        khi = 0
-        t0 = np.empty((0, 0))
-        t1 = np.empty((0, 0))
-        t2 = np.empty((0, 0))
         for j in range(w):
             c = chip[k, j]
             g = gain[c]
             off = offset[c]
             r = read_noise[c]
-            if c != last:
+            if c != last or dl != last_dl:
                 klo = max(0, int(math.floor(g * (dl - 0.5 - off) - U_CUT * r)))
                 khi = max(0, int(math.ceil(g * (dl + nd - 1 - 0.5 - off) + U_CUT * r)))
                 t0 = np.empty((nd, khi - klo + 1))
@@ -142,6 +145,7 @@ def cv_tables(mean_e, chip, gain, offset, read_noise, dlo, nd, out_q, out_m1, ou
                 t2 = np.empty((nd, khi - klo + 1))
                 _normal_table(g, off, r, dl, nd, klo, khi, t0, t1, t2)
                 last = c
+                last_dl = dl
             pm = np.zeros(khi + 1)
             for i in range(h):
                 mu = mean_e[k, i, j]
@@ -173,7 +177,32 @@ def cv_tables(mean_e, chip, gain, offset, read_noise, dlo, nd, out_q, out_m1, ou
                 inband = 0.0
                 for kk in range(klo, khi + 1):
                     inband += pm[kk]
-                for di in range(nd):
+                # two d at a time: six independent sums, each over k in the same order as
+                # one d at a time (the same bits), which the processor overlaps
+                for di in range(0, nd - 1, 2):
+                    s0 = u0
+                    s1 = u1
+                    s2 = u2 + r * r * u0
+                    q0 = u0
+                    q1 = u1
+                    q2 = u2 + r * r * u0
+                    if inband > 0.0:
+                        for kk in range(klo, khi + 1):
+                            p = pm[kk]
+                            s0 += p * t0[di, kk - klo]
+                            s1 += p * t1[di, kk - klo]
+                            s2 += p * t2[di, kk - klo]
+                            q0 += p * t0[di + 1, kk - klo]
+                            q1 += p * t1[di + 1, kk - klo]
+                            q2 += p * t2[di + 1, kk - klo]
+                    out_q[k, i, j, di] = s0
+                    out_m1[k, i, j, di] = s1 - mu * s0
+                    out_m2[k, i, j, di] = s2 - 2.0 * mu * s1 + mu * mu * s0
+                    out_q[k, i, j, di + 1] = q0
+                    out_m1[k, i, j, di + 1] = q1 - mu * q0
+                    out_m2[k, i, j, di + 1] = q2 - 2.0 * mu * q1 + mu * mu * q0
+                if nd % 2:
+                    di = nd - 1
                     s0 = u0
                     s1 = u1
                     s2 = u2 + r * r * u0

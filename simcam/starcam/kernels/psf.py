@@ -221,10 +221,16 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
     :func:`folded_stamp_spectra` without its position phase and without its Gaussian
     factor, which :func:`shifted_stamp_spectra` applies for the star's actual position and
     width. Other entries are left as they are (zero-filled on entry).
+
+    Wavelengths of zero weight are skipped: their terms are signed zeros (the weight
+    multiplies the x ramp), and adding a zero to the running sum, which starts at +0 and
+    can never become -0 (round to nearest), leaves it as it is: the result is the same bit
+    for bit, at the cost of the wavelengths a filter passes.
     """
     n = shift_x.shape[0]
     n_l = weights.shape[1]
     Kp = out.shape[2] // 2
+    act = np.empty(n_l, dtype=np.int64)
     for i in range(n):
         qm = qmax[i]
         K = int(math.floor(qm))
@@ -232,22 +238,30 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
             K = Kp
         qmax2 = qm * qm
         nq = 2 * K + 1
-        ex_re = np.empty((n_l, nq))
-        ex_im = np.empty((n_l, nq))
-        ey_re = np.empty((n_l, K + 1))
-        ey_im = np.empty((n_l, K + 1))
+        na = 0
         for j in range(n_l):
+            if weights[i, j] != 0.0:
+                act[na] = j
+                na += 1
+        ex_re = np.empty((na, nq))
+        ex_im = np.empty((na, nq))
+        ey_re = np.empty((na, K + 1))
+        ey_im = np.empty((na, K + 1))
+        for a in range(na):
+            j = act[a]
             phx = -2.0 * math.pi * shift_x[i, j] / L
             phy = -2.0 * math.pi * shift_y[i, j] / L
-            _phase_ramp(phx, weights[i, j], nq, ex_re[j], ex_im[j])
+            _phase_ramp(phx, weights[i, j], nq, ex_re[a], ex_im[a])
             c0 = math.cos(-phx * K)
             s0 = math.sin(-phx * K)
             for k in range(nq):
-                t = ex_re[j, k] * c0 - ex_im[j, k] * s0
-                ex_im[j, k] = ex_re[j, k] * s0 + ex_im[j, k] * c0
-                ex_re[j, k] = t
-            _phase_ramp(phy, 1.0, K + 1, ey_re[j], ey_im[j])
+                t = ex_re[a, k] * c0 - ex_im[a, k] * s0
+                ex_im[a, k] = ex_re[a, k] * s0 + ex_im[a, k] * c0
+                ex_re[a, k] = t
+            _phase_ramp(phy, 1.0, K + 1, ey_re[a], ey_im[a])
         drow = disc[i if disc.shape[0] > 1 else 0]
+        row_re = np.empty(nq)
+        row_im = np.empty(nq)
         for qy in range(K + 1):
             q_y = qy % L
             if qy != 0 and q_y == 0:
@@ -258,23 +272,35 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
                 kxlim = K
             k_lo = K + (1 if qy == 0 else -kxlim)
             k_hi = K + kxlim + 1
+            # the row's sums over wavelengths, wavelength outer, frequency inner: each
+            # frequency's sum takes its terms in the same order as one frequency at a
+            # time, so the same bits, as independent sums the processor overlaps
+            for k in range(k_lo, k_hi):
+                row_re[k] = 0.0
+                row_im[k] = 0.0
+            for a in range(na):
+                eyr = ey_re[a, qy]
+                eyi = ey_im[a, qy]
+                if is_airy:
+                    j = act[a]
+                    for k in range(k_lo, k_hi):
+                        qx = k - K
+                        c = chat[j, qx * qx + qy * qy]
+                        if c == 0.0:
+                            continue
+                        row_re[k] += c * (ex_re[a, k] * eyr - ex_im[a, k] * eyi)
+                        row_im[k] += c * (ex_re[a, k] * eyi + ex_im[a, k] * eyr)
+                else:  # c = 1: a product by 1.0 is exact, so it is left out
+                    for k in range(k_lo, k_hi):
+                        row_re[k] += ex_re[a, k] * eyr - ex_im[a, k] * eyi
+                        row_im[k] += ex_re[a, k] * eyi + ex_im[a, k] * eyr
             for k in range(k_lo, k_hi):
                 qx = k - K
                 if qx != 0 and qx % L == 0:
                     continue
                 r2 = qx * qx + qy * qy
-                re = 0.0
-                im = 0.0
-                for j in range(n_l):
-                    c = chat[j, r2] if is_airy else 1.0
-                    if c == 0.0:
-                        continue
-                    eyr = ey_re[j, qy]
-                    eyi = ey_im[j, qy]
-                    re += c * (ex_re[j, k] * eyr - ex_im[j, k] * eyi)
-                    im += c * (ex_re[j, k] * eyi + ex_im[j, k] * eyr)
                 f = _sinc(qx / L) * sy_ * drow[r2]
-                out[i, qy, Kp + qx] = complex(f * re, f * im)
+                out[i, qy, Kp + qx] = complex(f * row_re[k], f * row_im[k])
 
 
 @njit(cache=True)
