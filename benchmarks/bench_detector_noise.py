@@ -115,20 +115,26 @@ def numpy_maps(shape=(ROWS, COLS)):
 
 def numpy_frame_maps(sig: np.ndarray, frame: int, maps) -> np.ndarray:
     """numpy, maps given: per frame Poisson + full well + read normal + ADC only."""
-    p = PARAMS
     g_map, dark = maps
     rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, frame)))
+    lam = sig * g_map
+    lam += dark
+    e = rng.poisson(lam).astype(np.float64)
+    del lam
+    return _numpy_read_adc(rng, e)
+
+
+def _numpy_read_adc(rng, e: np.ndarray) -> np.ndarray:
+    """numpy's full well, read noise and per-chip ADC of the charge ``e`` (float64, the
+    Poisson counts; modified in place)."""
+    p = PARAMS
     chip = np.arange(COLS) // CHIP_COLS
     g = np.asarray(p.gain_e_per_dn)[chip]
     off = np.asarray(p.offset_dn)[chip]
     rn = np.asarray(p.read_noise_e)[chip]
     fw = np.asarray(p.full_well_e)[chip]
-    lam = sig * g_map
-    lam += dark
-    e = rng.poisson(lam).astype(np.float64)
-    del lam
     np.minimum(e, fw, out=e)
-    noise = rng.standard_normal(sig.shape)
+    noise = rng.standard_normal(e.shape)
     noise *= rn
     e += noise
     del noise
@@ -143,11 +149,6 @@ def numpy_frame(sig: np.ndarray, frame: int) -> np.ndarray:
     """numpy drawing the maps in every frame too (the old peer figure)."""
     p = PARAMS
     rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, frame)))
-    chip = np.arange(COLS) // CHIP_COLS
-    g = np.asarray(p.gain_e_per_dn)[chip]
-    off = np.asarray(p.offset_dn)[chip]
-    rn = np.asarray(p.read_noise_e)[chip]
-    fw = np.asarray(p.full_well_e)[chip]
     lam = rng.standard_normal(sig.shape)
     lam *= p.prnu_rms
     lam += 1.0
@@ -162,16 +163,7 @@ def numpy_frame(sig: np.ndarray, frame: int) -> np.ndarray:
     del dark
     e = rng.poisson(lam).astype(np.float64)
     del lam
-    np.minimum(e, fw, out=e)
-    noise = rng.standard_normal(sig.shape)
-    noise *= rn
-    e += noise
-    del noise
-    e /= g
-    e += off + 0.5
-    np.floor(e, out=e)
-    np.clip(e, 0, p.max_dn, out=e)
-    return e.astype(np.uint16)
+    return _numpy_read_adc(rng, e)
 
 
 def galsim_frame(galsim, sig: np.ndarray, frame: int):

@@ -517,14 +517,9 @@ def _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, fra
         v = fw
     if read_noise:
         v += rn * std_normal(frame_key, slot_counter(pixel, SLOT_READ))
-    v = v / g + off
     if quantize:
-        v = math.floor(v + 0.5)
-        if v < 0.0:
-            v = 0.0
-        elif v > max_dn:
-            v = max_dn
-    return v
+        return _adc(v, g, off, max_dn)
+    return v / g + off
 
 
 @njit(cache=True, inline="always")
