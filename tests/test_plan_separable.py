@@ -234,3 +234,23 @@ def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(t
     back = mod.STUDY.load_scenario(rep / "recommended.toml")
     assert back.hash == data["recommended"]["scenario_hash"]
     assert back.c.frames == data["recommended"]["knobs"]["c.frames"]
+
+
+def test_collapsed_shape_labels_name_what_the_members_share():
+    """A collapsed shape's label: its members' common comma-separated name parts, else its
+    shape fields' values; '(any)' where no shape field touches the group; unique, no '|'."""
+    from budget.runner.plan import _collapsed_labels
+
+    shapes = {f"{p}, filters {f}": {"h.pattern": p, "c.filters": f}
+              for p in ("grid", "diagonal") for f in ("500/600", "600/800", "500/600/800")}
+    by_pattern = [[n for n in shapes if n.startswith(p)] for p in ("grid", "diagonal")]
+    assert _collapsed_labels(by_pattern, ("h.pattern",), shapes) == ["grid", "diagonal"]
+    by_filters = [[n for n in shapes if n.endswith(f"filters {f}")] for f in ("500/600", "600/800", "500/600/800")]
+    assert _collapsed_labels(by_filters, ("c.filters",), shapes) == ["filters 500/600", "filters 600/800",
+                                                                     "filters 500/600/800"]
+    assert _collapsed_labels([list(shapes)], (), shapes) == ["(any)"]
+    # no common part: the field's value; a field name shared by two fields: the full field
+    odd = {"a|1": {"x.p": 1, "y.p": 2}, "b": {"x.p": 1, "y.p": 2}, "c": {"x.p": 3, "y.p": 2}, "d": {"x.p": 3, "y.p": 2}}
+    labels = _collapsed_labels([["a|1", "b"], ["c", "d"]], ("x.p", "y.p"), odd)
+    assert labels == ["x.p 1, y.p 2", "x.p 3, y.p 2"]
+    assert _collapsed_labels([["a|1"], ["c", "d"]], ("x.p",), odd) == ["a/1", "p 3"]
