@@ -113,7 +113,9 @@ exceedance count, averaged over the truth's own uncertainty (Gauss-Hermite over 
 shifted by its standard error). Over several requirements, the Bonferroni bound
 ``1 - sum (1 - sure_r)``. Where no protocol (within the budget) meets every requirement,
 the answer says so and gives the best achievable figure (the frontier's most accurate
-protocol within the budget, run).
+protocol within the budget, run): the protocol run whose worst requirement the fitted model
+predicts lowest (:meth:`_ShapeSearch._most_accurate`; not by prediction bounds, which widen
+with fewer trials), completed to a validation's trials.
 
 Separable plans
 ---------------
@@ -127,7 +129,9 @@ groups (a requirement on a class every field changes, a total, makes one group: 
 whole-test plan). A knob no required class depends on is not searched: it stays at the
 scenario's value (or its ``--fix``) and the plan lists it (:attr:`PlanResult.unsearched`). A
 group's shapes are the declared shapes projected on its shape fields, those with equal
-projections collapsed into one search. Each group is searched as above with its own oracle:
+projections collapsed into one search, labelled by what its members share
+(:func:`_collapsed_labels`: their common comma-separated name parts, else the shape fields'
+values; ``(any)`` where no shape field touches the group). Each group is searched as above with its own oracle:
 its requirements only, its candidates' trials on ``restrict_classes(candidate, group's
 classes)`` where the study can (common random numbers within the group: the same seed), its
 own budget of :data:`BUDGET_VALIDATIONS` per shape; a candidate's cost is always the lab time
