@@ -194,6 +194,12 @@ def test_budget_and_infeasible_groups():
     # (its quantile of 200 trials within 3 of its relative standard errors, 3 x 0.067)
     q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
     assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))
+    # no floor (every count averages a's error down): the sentence names the most accurate protocol
+    # by the fitted model, the knob's largest count, with its measured figure and trial count
+    assert bad.best_achievable.knobs["a.frames"] == 100000
+    group_a = next(s for s in bad.sentences() if s.startswith("Group a "))
+    assert "the most accurate by the fitted model, frames 100000 measured a.x" in group_a
+    assert f"({N} trials)" in group_a and "fitted floor" not in group_a
 
 
 class _CostCheckedSplit(SplitToyStudy):
