@@ -169,8 +169,11 @@ def test_shapes_differing_only_in_an_irrelevant_field_are_searched_once(tmp_path
         res.recommended.knobs["a.frames"], res.recommended.knobs["b.frames"], "line", "line")
     data = json.loads((tmp_path / "rep" / "plan.json").read_text())
     assert data["schema"] == "budget.plan/1" and [g["name"] for g in data["groups"]] == ["a", "b"]
-    assert data["groups"][1]["shapes"] == {"bgrid-cgrid or bgrid-cline": ["bgrid-cgrid", "bgrid-cline"],
-                                           "bline-cgrid or bline-cline": ["bline-cgrid", "bline-cline"]}
+    # collapsed shapes labelled by what their members share (names with no common part: the
+    # group's shape field's value); the JSON keeps the declared members
+    assert data["groups"][0]["shapes"] == {"(any)": ["bgrid-cgrid", "bgrid-cline", "bline-cgrid", "bline-cline"]}
+    assert data["groups"][1]["shapes"] == {"pattern grid": ["bgrid-cgrid", "bgrid-cline"],
+                                           "pattern line": ["bline-cgrid", "bline-cline"]}
     assert (tmp_path / "rep" / "trade_curve.png").is_file()
 
 
@@ -191,6 +194,12 @@ def test_budget_and_infeasible_groups():
     # (its quantile of 200 trials within 3 of its relative standard errors, 3 x 0.067)
     q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
     assert bad.best_achievable.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))
+    # no floor (every count averages a's error down): the sentence names the most accurate protocol
+    # by the fitted model, the knob's largest count, with its measured figure and trial count
+    assert bad.best_achievable.knobs["a.frames"] == 100000
+    group_a = next(s for s in bad.sentences() if s.startswith("Group a "))
+    assert "the most accurate by the fitted model, frames 100000 measured a.x" in group_a
+    assert f"({N} trials)" in group_a and "fitted floor" not in group_a
 
 
 class _CostCheckedSplit(SplitToyStudy):
@@ -231,3 +240,23 @@ def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(t
     back = mod.STUDY.load_scenario(rep / "recommended.toml")
     assert back.hash == data["recommended"]["scenario_hash"]
     assert back.c.frames == data["recommended"]["knobs"]["c.frames"]
+
+
+def test_collapsed_shape_labels_name_what_the_members_share():
+    """A collapsed shape's label: its members' common comma-separated name parts, else its
+    shape fields' values; '(any)' where no shape field touches the group; unique, no '|'."""
+    from budget.runner.plan import _collapsed_labels
+
+    shapes = {f"{p}, filters {f}": {"h.pattern": p, "c.filters": f}
+              for p in ("grid", "diagonal") for f in ("500/600", "600/800", "500/600/800")}
+    by_pattern = [[n for n in shapes if n.startswith(p)] for p in ("grid", "diagonal")]
+    assert _collapsed_labels(by_pattern, ("h.pattern",), shapes) == ["grid", "diagonal"]
+    by_filters = [[n for n in shapes if n.endswith(f"filters {f}")] for f in ("500/600", "600/800", "500/600/800")]
+    assert _collapsed_labels(by_filters, ("c.filters",), shapes) == ["filters 500/600", "filters 600/800",
+                                                                     "filters 500/600/800"]
+    assert _collapsed_labels([list(shapes)], (), shapes) == ["(any)"]
+    # no common part: the field's value; a field name shared by two fields: the full field
+    odd = {"a|1": {"x.p": 1, "y.p": 2}, "b": {"x.p": 1, "y.p": 2}, "c": {"x.p": 3, "y.p": 2}, "d": {"x.p": 3, "y.p": 2}}
+    labels = _collapsed_labels([["a|1", "b"], ["c", "d"]], ("x.p", "y.p"), odd)
+    assert labels == ["x.p 1, y.p 2", "x.p 3, y.p 2"]
+    assert _collapsed_labels([["a|1"], ["c", "d"]], ("x.p",), odd) == ["a/1", "p 3"]

@@ -113,7 +113,9 @@ exceedance count, averaged over the truth's own uncertainty (Gauss-Hermite over 
 shifted by its standard error). Over several requirements, the Bonferroni bound
 ``1 - sum (1 - sure_r)``. Where no protocol (within the budget) meets every requirement,
 the answer says so and gives the best achievable figure (the frontier's most accurate
-protocol within the budget, run).
+protocol within the budget, run): the protocol run whose worst requirement the fitted model
+predicts lowest (:meth:`_ShapeSearch._most_accurate`; not by prediction bounds, which widen
+with fewer trials), completed to a validation's trials.
 
 Separable plans
 ---------------
@@ -127,7 +129,9 @@ groups (a requirement on a class every field changes, a total, makes one group: 
 whole-test plan). A knob no required class depends on is not searched: it stays at the
 scenario's value (or its ``--fix``) and the plan lists it (:attr:`PlanResult.unsearched`). A
 group's shapes are the declared shapes projected on its shape fields, those with equal
-projections collapsed into one search. Each group is searched as above with its own oracle:
+projections collapsed into one search, labelled by what its members share
+(:func:`_collapsed_labels`: their common comma-separated name parts, else the shape fields'
+values; ``(any)`` where no shape field touches the group). Each group is searched as above with its own oracle:
 its requirements only, its candidates' trials on ``restrict_classes(candidate, group's
 classes)`` where the study can (common random numbers within the group: the same seed), its
 own budget of :data:`BUDGET_VALIDATIONS` per shape; a candidate's cost is always the lab time
@@ -935,7 +939,7 @@ class _ShapeSearch:
             if len(front):
                 self.run(self.points[front[-1]], "best achievable")
             cands = [e for e in self.evals if self._in_budget(e)]
-            best_a = min(cands, key=lambda e: e.ratio) if cands else None
+            best_a = self._most_accurate(cands)
             if best_a is not None:
                 self.o.complete(best_a)  # its figure on a validation's trials
             out["best_achievable"] = best_a
@@ -984,6 +988,21 @@ class _ShapeSearch:
                              for r in self.o.reqs},
                 "floor": {r.name: float(math.sqrt(max(coefs[r.name][0], 0.0))) for r in self.o.reqs},
                 "b": {r.name: {k.field: float(b) for k, b in zip(self.knobs, coefs[r.name][1:])} for r in self.o.reqs}}
+
+    def _most_accurate(self, cands: list[Evaluation]) -> Evaluation | None:
+        """The most accurate protocol run (no protocol meets): by the fitted model's worst
+        predicted quantile over its bound (no ``sure`` margin), which pools every protocol's
+        trials, ties by the measured quantile. Not by the measured prediction bounds: those
+        widen with fewer trials, so a protocol screened on a few trials would lose to a less
+        accurate one run on more (docs/planning.md, "Infeasible plans")."""
+        if not cands:
+            return None
+        if not self.knobs:
+            return min(cands, key=lambda e: max(f["quantile"] / f["bound"] for f in e.figures.values()))
+        pts = np.array([[float(e.knobs[k.field]) for k in self.knobs] for e in cands])
+        pred = self.predicted_ratio(self._fit(), pts, margin=1.0)
+        point = [max(f["quantile"] / f["bound"] for f in e.figures.values()) for e in cands]
+        return cands[min(range(len(cands)), key=lambda i: (round(float(pred[i]), 9), point[i]))]
 
     def _in_budget(self, e: Evaluation) -> bool:
         return self.budget_s is None or e.cost_s <= self.budget_s
@@ -1314,14 +1333,45 @@ def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict],
             key = tuple((f, repr(ov.get(f, _UNSET)) if f in ov else "<unset>") for f in gf)
             proj.setdefault(key, []).append(name)
         gshapes, members = {}, {}
-        for key, names in proj.items():
+        labels = _collapsed_labels(list(proj.values()), gf, shapes)
+        for (key, names), label in zip(proj.items(), labels):
             ov = {f: shapes[names[0]][f] for f in gf if f in shapes[names[0]]}
-            label = names[0] if len(names) == 1 else ("scenario" if not ov else " or ".join(names))
             gshapes[label], members[label] = ov, list(names)
         groups.append(PlanGroup(",".join(cls), cls, [r for r in reqs if r.cls in cls], gk, gf, gshapes, members))
     searched = {k.field for g in groups for k in g.knobs}
     unsearched = tuple(k for k in free if k.field not in searched)
     return groups, unsearched
+
+
+def _collapsed_labels(projs: list[list[str]], gf: tuple, shapes: dict) -> list[str]:
+    """A label per collapsed shape of one group, by what its declared members share (module
+    docstring, "Separable plans"): one member keeps its name; several, the comma-separated parts
+    of the name common to every member ("diagonal" for "diagonal, filters 500/600" and "diagonal,
+    filters 600/800"), else the group's shape fields' values ("pattern diagonal"); a group no
+    shape field touches (one collapsed shape of every declared one) is "(any)". Labels are unique
+    within the group and hold no "|" (a markdown cell); the JSON keeps the members."""
+    if len(projs) == 1 and len(projs[0]) > 1 and not gf:
+        return ["(any)"]
+
+    def common(names):
+        parts = [[p.strip() for p in n.split(",")] for n in names]
+        return ", ".join(p for p in parts[0] if p and all(p in q for q in parts[1:]))
+
+    last = [f.rsplit(".", 1)[-1] for f in gf]
+    short = {f: (s if last.count(s) == 1 else f) for f, s in zip(gf, last)}  # "pattern", or the field where two share it
+
+    def by_fields(names):
+        ov = shapes[names[0]]
+        return ", ".join(f"{short[f]} {ov[f] if f in ov else 'unset'}".replace("|", "/") for f in gf)
+
+    first = [n[0].replace("|", "/") if len(n) == 1 else (common(n).replace("|", "/") or by_fields(n))
+             for n in projs]
+    if len(set(first)) == len(first) and all(first):
+        return first
+    second = [n[0].replace("|", "/") if len(n) == 1 else by_fields(n) for n in projs]
+    if len(set(second)) == len(second) and all(second):
+        return second
+    return [f"{lab or 'shape'} ({i + 1})" for i, lab in enumerate(second)]
 
 
 def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,

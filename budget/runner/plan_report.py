@@ -78,7 +78,7 @@ def answer_text(res) -> str:
     if res.recommended is None and getattr(res, "over_budget", False):
         b = res.best_achievable
         return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests): the "
-                f"cheapest that does, {_knobs(b)}{'' if b.shape == 'scenario' else f' ({b.shape})'}, takes "
+                f"cheapest that does, {_knobs(b)}{'' if _is_any(b.shape) else f' ({b.shape})'}, takes "
                 f"{_hours(b.cost_s)} of lab time (its {len(res.groups)} independent parts' cheapest protocols "
                 "together; lab time is additive, so none cheaper meets every requirement).")
     if res.recommended is None:
@@ -97,7 +97,7 @@ def answer_text(res) -> str:
                  f"(its prediction bound {_fmt(worst['upper'])}; --sure)") + ".")
     rec, val = res.recommended, res.validation
     head = (f"{st.title}: the cheapest protocol found{budget} is {_knobs(rec)}"
-            f"{'' if rec.shape == 'scenario' else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
+            f"{'' if _is_any(rec.shape) else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
     n = val.trials
     prem = res.premium
     aim = "" if prem is None or res.sure_level <= 0.5 else (
@@ -171,39 +171,68 @@ def findings_sentences(res) -> list[str]:
     return out
 
 
+def _is_any(sname: str) -> bool:
+    """The shape label of a plan or group no shape field touches (no shape to name)."""
+    return sname in ("scenario", "(any)") or sname.endswith("/(any)")
+
+
+def _floor(res, go) -> tuple | None:
+    """An infeasible group's requirement the fitted model puts out of reach of every count:
+    ``(requirement, floor, all_within)`` for the requirement whose smallest floor over the
+    group's shapes is furthest above its bound (None where every floor is below its bound);
+    ``all_within``: every protocol run has that requirement's quantile within two standard
+    errors of the floor (its shape's)."""
+    worst = None
+    for r in go["group"].requirements:
+        fl = {k: res.shapes[k]["model"]["floor"].get(r.name) for k in go["shapes"]
+              if res.shapes[k].get("model") and res.shapes[k]["model"]["floor"].get(r.name) is not None}
+        if not fl or min(fl.values()) < r.value:
+            continue
+        if worst is None or min(fl.values()) / r.value > worst[1] / worst[0].value:
+            evs = [e for e in res.evaluations if e.shape in fl and r.name in e.figures]
+            within = bool(evs) and all(abs(e.figures[r.name]["quantile"] - fl[e.shape])
+                                       <= 2 * e.figures[r.name]["se_quantile"] for e in evs)
+            worst = (r, min(fl.values()), within)
+    return worst
+
+
 def _group_sentences(res) -> list[str]:
     """A separable plan's sentences: per group, per shape of a group with several, the knobs
     not searched (module docstring)."""
     out = []
-    n = res.trials_per_validation
     for go in res.groups:
         g = go["group"]
-        shapes = ", ".join(k if len(g.members[k]) == 1 or k == " or ".join(g.members[k]) else
-                           f"{k} ({', '.join(g.members[k])})" for k in g.shapes)
-        what = (f"Group {g.name} ({', '.join(r.text for r in g.requirements)}; knobs "
-                f"{', '.join(k.field for k in g.knobs) or 'none'}; shapes {shapes})")
+        keys = go["shapes"]
+        shapes = "" if len(g.shapes) < 2 else f"; shapes {', '.join(g.shapes)}"
+        what = f"Group {g.name} ({', '.join(r.text for r in g.requirements)}{shapes})"
         b, a = go["best"], go["best_achievable"]
         if b is not None:
             sname = go["best_sname"]
-            ans = (f"cheapest meeting its requirements {_knobs(b)}{'' if sname == 'scenario' else f' ({sname})'}, "
-                   f"{_hours(b.cost_s)} of lab time with the other knobs at the scenario's values")
+            ans = f"{_knobs(b)}{'' if _is_any(sname) else f' ({sname})'}, {_hours(b.cost_s)} of lab time"
         elif a is not None:
-            ans = (f"no protocol meets its requirements; its most accurate, {_knobs(a)}, reaches {a.ratio:.3g} "
-                   "times the bound")
+            fl = _floor(res, go)
+            worst = max(a.figures, key=lambda n: a.figures[n]["quantile"] / a.figures[n]["bound"])
+            f = a.figures[worst]
+            meas = (f"{_knobs(a)} measured {worst} {_fmt(f['quantile'])} +- {_fmt(f['se_quantile'])} "
+                    f"({a.trials} trials)")
+            if fl is not None:
+                r, v, within = fl
+                ans = (f"no count reaches {r.text}: the fitted floor is {_fmt(v)} {r.unit}, what no count removes"
+                       + (" (every protocol run within two standard errors of it)" if within else
+                          f"; the most accurate by the fitted model, {meas}"))
+            else:
+                ans = f"none meets; the most accurate by the fitted model, {meas}, bound {_fmt(f['bound'])}"
         else:
             ans = "no protocol could be run"
-        out.append(f"{what}: {ans}; {go['protocols']} protocols run, {go['trials']} trials "
-                   f"({go['trials'] / n:.3g} validations of {n})"
-                   f"{', each computing only its classes' if go['restricted'] else ''}.")
-        keys = go["shapes"]
+        out.append(f"{what}: {ans}; {go['protocols']} protocols, {go['trials']} trials.")
         if len(keys) > 1 and b is not None:
             for k in keys:
                 sb = res.shapes[k]["best"]
                 if sb is None:
-                    out.append(f"Shape {k}: no protocol meets its group's requirements.")
+                    out.append(f"Shape {k}: none meets.")
                 elif sb is not b:
-                    out.append(f"Shape {k}: cheapest {_knobs(sb)}, {_hours(sb.cost_s)} "
-                               f"({100 * (sb.cost_s / b.cost_s - 1):.0f} % more lab time than {go['best_shape']}).")
+                    out.append(f"Shape {k}: {_knobs(sb)}, {_hours(sb.cost_s)} "
+                               f"({100 * (sb.cost_s / b.cost_s - 1):.0f} % more lab time).")
     for k in getattr(res, "unsearched", ()):
         v = res.fixed.get(k.field) if k.field in (res.fixed or {}) else None
         if v is None:
@@ -307,10 +336,11 @@ def plot_trade_curve(res, path: Path):
 
     from budget.figures import plt, save
 
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
     p = plt()
     reqs = res.requirements
-    fig, axes = p.subplots(len(reqs), 1, figsize=(8.6, 4.2 * len(reqs)), squeeze=False)
-    axes = axes.T
     shapes = list(res.shapes)
     markers = "osD^v<>"
     groups = getattr(res, "groups", None) or []
@@ -318,50 +348,77 @@ def plot_trade_curve(res, path: Path):
     for go in groups:
         for rr in go["group"].requirements:
             by_req[rr.name] = go
-    for ax, r in zip(axes[0], reqs):
-        go = by_req.get(r.name)
-        for j, name in enumerate(shapes):
-            if go is not None and name not in go["shapes"]:
-                continue
-            m = res.shapes[name].get("model")
-            lab = f"{name}: " if len(shapes) > 1 else ""
-            if m and m["cost_s"]:
-                ax.plot(np.array(m["cost_s"]) / 3600, m["quantile"][r.name], lw=1.2, color=f"C{j}",
-                        label=f"{lab}model, best protocol per lab time")
-            evs = [e for e in res.evaluations if e.shape == name]
-            if not evs:
-                continue
-            c = np.array([e.cost_s / 3600 for e in evs])
-            q = np.array([e.figures[r.name]["quantile"] for e in evs])
-            met = np.array([e.met for e in evs])
-            ax.scatter(c[met], q[met], marker=markers[j % len(markers)], color=f"C{j}", zorder=3,
-                       label=f"{lab}run: meets all")
-            ax.scatter(c[~met], q[~met], marker=markers[j % len(markers)], facecolors="none", edgecolors=f"C{j}",
-                       zorder=3, label=f"{lab}run: fails one")
-        ax.axhline(r.value, color="k", lw=1.0, ls="--", label=f"bound {_fmt(r.value)}")
+    # the grid: one row per group (its requirements across), else the requirements three to a row
+    if len(groups) > 1:
+        rows = [[r for r in reqs if by_req.get(r.name) is go] for go in groups]
+    else:
+        rows = [reqs[i:i + 3] for i in range(0, len(reqs), 3)]
+    rows = [row[i:i + 3] for row in rows for i in range(0, len(row), 3) if row]
+    ncols = max(len(row) for row in rows)
+    fig, axes = p.subplots(len(rows), ncols, figsize=(3.4 * ncols + 2.4, 2.9 * len(rows) + 0.6), squeeze=False,
+                           layout="constrained")
+    for ri, row in enumerate(rows):
+        go = by_req.get(row[0].name)
+        names = [n for n in shapes if go is None or n in go["shapes"]]
+        for ci in range(len(row), ncols):
+            axes[ri][ci].set_visible(False)
+        for ci, r in enumerate(row):
+            ax = axes[ri][ci]
+            for name in names:
+                j = shapes.index(name)
+                m = res.shapes[name].get("model")
+                if m and m["cost_s"]:
+                    ax.plot(np.array(m["cost_s"]) / 3600, m["quantile"][r.name], lw=1.2, color=f"C{j}")
+                evs = [e for e in res.evaluations if e.shape == name]
+                if not evs:
+                    continue
+                c = np.array([e.cost_s / 3600 for e in evs])
+                q = np.array([e.figures[r.name]["quantile"] for e in evs])
+                met = np.array([e.met for e in evs])
+                mk = markers[j % len(markers)]
+                ax.scatter(c[met], q[met], marker=mk, s=22, color=f"C{j}", zorder=3)
+                ax.scatter(c[~met], q[~met], marker=mk, s=22, facecolors="none", edgecolors=f"C{j}", zorder=3)
+            ax.axhline(r.value, color="k", lw=1.0, ls="--")
+            if res.validation is not None:
+                f = res.validation.figures[r.name]
+                # a group's panel: at its part of the recommendation (the lab time its protocols are drawn at)
+                x = res.validation.cost_s if go is None or len(groups) == 1 else go["best"].cost_s
+                ax.errorbar([x / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
+                            ms=11, color="crimson", zorder=4)
+            if res.budget_hours is not None:
+                ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            # lab time in plain numbers (0.7, 0.8, 1), not the log axis' default 7 x 10^-1
+            # (minor ticks labelled only where the axis spans less than a decade, thinned so
+            # labels never overlap)
+            lo, hi = ax.get_xlim()
+            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+            ax.xaxis.set_minor_formatter(FormatStrFormatter("%g") if hi < 3 * lo else NullFormatter())
+            ax.tick_params(labelsize=7)
+            ax.set_xlabel("lab time (h)", fontsize=8)
+            if ci == 0:
+                ax.set_ylabel(f"{pct(res.confidence)} quantile of |error|\n({r.unit})", fontsize=8)
+            ax.set_title(r.name if go is None or len(groups) == 1 else f"{r.name} (group {go['group'].name})",
+                         fontsize=9)
+        # one legend per row, right of its last panel: a line and marker per shape (filled: meets
+        # every bound; open: fails one), the bound, the re-validated recommendation
+        handles = [Line2D([], [], color=f"C{shapes.index(n)}", marker=markers[shapes.index(n) % len(markers)],
+                          lw=1.2, ms=5, label=n.split("/", 1)[-1] if go is not None else n)
+                   for n in names if len(names) > 1]
+        handles += [Line2D([], [], color="grey", lw=1.2, label="fitted model"),
+                    Line2D([], [], color="grey", marker="o", lw=0, ms=5, label="run: meets all"),
+                    Line2D([], [], color="grey", marker="o", lw=0, ms=5, mfc="none", label="run: fails one"),
+                    Line2D([], [], color="k", ls="--", lw=1.0, label="bound")]
         if res.validation is not None:
-            f = res.validation.figures[r.name]
-            # a group's panel: at its part of the recommendation (the lab time its protocols are drawn at)
-            x = res.validation.cost_s if go is None or len(groups) == 1 else go["best"].cost_s
-            ax.errorbar([x / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*",
-                        ms=13, color="crimson", zorder=4, label="recommended, re-validated")
+            handles.append(Line2D([], [], color="crimson", marker="*", lw=0, ms=9, label="recommended,\nre-validated"))
         if res.budget_hours is not None:
-            ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.", label=f"budget {res.budget_hours:g} h")
-        ax.set_xscale("log")
-        # lab time in plain numbers (0.7, 0.8, 1), not the log axis' default 7 x 10^-1
-        # (minor ticks labelled only where the axis spans less than a decade, so labels never overlap)
-        from matplotlib.ticker import FormatStrFormatter, NullFormatter
-
-        lo, hi = ax.get_xlim()
-        ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
-        ax.xaxis.set_minor_formatter(FormatStrFormatter("%g") if hi < 10 * lo else NullFormatter())
-        ax.set_yscale("log")
-        ax.set_xlabel("lab time (h)" if go is None or len(groups) == 1 else
-                      "lab time (h), the other groups' knobs at the scenario's values")
-        ax.set_ylabel(f"{pct(res.confidence)} quantile of |error| ({r.unit})")
-        ax.set_title(f"{r.name} ({res.variant}) against lab time"
-                     + ("" if go is None or len(groups) == 1 else f": group {go['group'].name}"))
-        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+            handles.append(Line2D([], [], color="grey", ls="-.", lw=1.0, label=f"budget {res.budget_hours:g} h"))
+        axes[ri][len(row) - 1].legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.03, 1.0),
+                                      borderaxespad=0.0, title="shape" if len(names) > 1 else None,
+                                      title_fontsize=7)
+    fig.suptitle(f"{res.variant} estimates against lab time" + ("" if len(groups) < 2 else ", a row per group"),
+                 fontsize=9)
     # the caption from the numbers drawn
     parts = []
     for r in reqs:
@@ -398,7 +455,7 @@ def plot_trade_curve(res, path: Path):
     caption = (f"The trade curve: each marker a protocol the search ran ({len(res.evaluations)} in all, "
                f"{res.search_trials} trials with common random numbers; filled: meets every bound), each line "
                "the fitted model's best protocol at each lab time. " + "; ".join(parts) + "." + rec)
-    return save(fig, path, caption)
+    return save(fig, path, caption, layout=False)
 
 
 def summary_markdown(res) -> str:
@@ -432,9 +489,12 @@ def _groups_table(res) -> list[str]:
     for go in res.groups:
         g = go["group"]
         b, a = go["best"], go["best_achievable"]
-        shapes = "; ".join(f"{k} ({', '.join(v)})" if [k] != v else k for k, v in g.members.items())
-        ans = (_knobs(b) + ("" if go["best_sname"] == "scenario" else f" ({go['best_sname']})") if b is not None
-               else "none meets" + ("" if a is None else f"; best {_knobs(a)}, {a.ratio:.3g} x the bound"))
+        # a collapsed shape: its label and how many declared shapes it stands for (the JSON lists them)
+        shapes = "; ".join(k if len(v) == 1 or _is_any(k) else f"{k} ({len(v)} declared)" for k, v in g.members.items())
+        fl = _floor(res, go) if b is None else None
+        ans = (_knobs(b) + ("" if _is_any(go["best_sname"]) else f" ({go['best_sname']})") if b is not None
+               else "none meets" + (f"; floor {_fmt(fl[1])} > {_fmt(fl[0].value)} ({fl[0].name})" if fl is not None
+                                    else "" if a is None else f"; most accurate {_knobs(a)}"))
         cost = _hours(b.cost_s) if b is not None else ""
         cells = [g.name, ", ".join(g.classes), ", ".join(r.text for r in g.requirements),
                  ", ".join(f"`{k.field}`" for k in g.knobs) or "none", shapes, ans, cost,
