@@ -62,9 +62,11 @@ from benchmarks._common import (  # noqa: E402
 
 from simcam.detector import detector_maps, expose, window_chain  # noqa: E402
 from simcam.kernels.detector import (  # noqa: E402
-    SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, _poisson_from_word, _std_normal_from_word, slot_counter,
+    SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, slot_counter,
 )
-from simcam.rng import poisson, random_bits64, std_normal, uniform01  # noqa: E402
+from simcam.rng import (  # noqa: E402
+    poisson, poisson_from_word, random_bits64, std_normal, std_normal_from_word, uniform01,
+)
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
 from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402
@@ -144,9 +146,9 @@ def _frame_draws_floor(mean_e, mosaic_cols, frame_key, sums):
                 wp[j - j0] = random_bits64(frame_key, slot_counter(base + j, SLOT_SHOT))
                 wr[j - j0] = random_bits64(frame_key, slot_counter(base + j, SLOT_READ))
             for j in range(j0, j1):
-                acc += _poisson_from_word(mean_e[i, j], wp[j - j0], frame_key, slot_counter(base + j, SLOT_SHOT))
+                acc += poisson_from_word(mean_e[i, j], wp[j - j0], frame_key, slot_counter(base + j, SLOT_SHOT))
             for j in range(j0, j1):
-                acc += _std_normal_from_word(wr[j - j0], frame_key, slot_counter(base + j, SLOT_READ))
+                acc += std_normal_from_word(wr[j - j0], frame_key, slot_counter(base + j, SLOT_READ))
         sums[i] = acc
 
 

@@ -159,3 +159,13 @@ def test_readme_block_takes_the_main_job_time_from_the_runner():
 def test_the_readme_carries_the_generated_block_once():
     text = (run_all.ROOT / "README.md").read_text(encoding="utf-8")
     run_all.rewrite_block(text, "x")  # raises when the markers are missing or doubled
+
+
+@pytest.mark.parametrize("path", sorted(run_all.HERE.glob("bench_*.py")), ids=lambda p: p.stem)
+def test_every_benchmark_imports(path):
+    # a benchmark that cannot import fails only when run_all runs it; importing it (its
+    # module-level imports of the project included, main() not run) catches a renamed or
+    # removed name in the test suite instead
+    import importlib
+
+    importlib.import_module(f"benchmarks.{path.stem}")
