@@ -441,3 +441,35 @@ def test_truths_shared_across_points_equal_truths_computed_per_point(tmp_path):
     np.testing.assert_array_equal(t.isel({"lab.knowledge.qe_peak_nm_error": 0}).values,
                                   t.isel({"lab.knowledge.qe_peak_nm_error": 1}).values)
     assert not np.array_equal(t.isel({"optics.psf.sigma0_px": 0}).values, t.isel({"optics.psf.sigma0_px": 1}).values)
+
+
+def test_truth_pieces_give_the_same_truths_however_they_are_batched(tmp_path, monkeypatch):
+    """share_truths runs a truth's pieces in runs of consecutive pieces, their length set by
+    the worker count: one piece per task and a few long runs give identical truths (each
+    piece is a pure function of the scenario, the seed and the piece)."""
+    import budget.sweeps.run as R
+    from budget.runner.executors import InlineExecutor
+    from budget.sweeps.execute import SweepRunner
+    from budget.sweeps.run import plan_tasks, share_truths
+
+    tasks, _ = plan_tasks(load_sweep(_write(tmp_path, SHARED)))
+    seen = {}
+    for name, per_worker in (("one piece a task", 10**6), ("long runs", 1)):
+        monkeypatch.setattr(R, "TRUTH_TASKS_PER_WORKER", per_worker)
+        lengths = []
+        runner = SweepRunner(InlineExecutor())
+        orig = runner.run
+
+        def run(part_tasks, _orig=orig, _lengths=lengths):
+            _lengths.extend(len(t.parts) for t in part_tasks)
+            return _orig(part_tasks)
+
+        runner.run = run
+        out, n = share_truths(runner, tasks)
+        assert n == 2
+        seen[name] = (out, lengths)
+    assert set(seen["one piece a task"][1]) == {1} and max(seen["long runs"][1]) > 1
+    for a, b in zip(seen["one piece a task"][0], seen["long runs"][0]):
+        assert a.truths.keys() == b.truths.keys()
+        for k in a.truths:
+            assert a.truths[k] == b.truths[k], k

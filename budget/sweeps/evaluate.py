@@ -21,7 +21,7 @@ Truths shared among points: a point's truths depend on the fields its study name
 seed of its truth-relevant swept values only, so points that differ only in fields the
 truths cannot see have one truth seed; the point seed itself when every swept field is
 truth-relevant). The sweep engine (:mod:`budget.sweeps.run`) computes each distinct truth
-once, piece by piece (:class:`TruthPartTask`, :func:`evaluate_truth_part`), and hands it to
+once, in runs of pieces (:class:`TruthPartTask`, :func:`evaluate_truth_part`), and hands it to
 every point that has it (``PointTask.truths``); a point given no truths computes its own
 with its truth seed, the same numbers. A sweep's truths have the scenario's own sizes
 (``truth_size = "fixed"``), or, when its points stop at a tolerance, sizes for a quarter of
@@ -144,14 +144,15 @@ class PointTask:
 
 @dataclass(frozen=True)
 class TruthPartTask:
-    """One piece (:meth:`Study.truth_parts`) of a truth shared by sweep points."""
+    """A run of consecutive pieces (:meth:`Study.truth_parts`) of a truth shared by sweep
+    points: pieces ``index .. index + len(parts) - 1`` of truth ``group``."""
 
     group: int
     index: int
     kind: str
     scenario: Any  # the truths' scenario (sized: :func:`truths_scenario`)
     truth_seed: int
-    part: Any
+    parts: tuple
 
 
 def truth_relevant(fields: tuple[str, ...] | None, key: str) -> bool:
@@ -190,11 +191,13 @@ def truths_scenario(study, task) -> tuple[Any, dict]:
 
 
 def evaluate_truth_part(task: TruthPartTask) -> TruthPartTask:
-    """One piece of a shared truth: the task with ``part`` replaced by its result."""
+    """A run of pieces of a shared truth: the task with ``parts`` replaced by their results
+    (each piece a pure function of the scenario, the truth seed and the piece, so how the
+    pieces are batched changes no number)."""
     from dataclasses import replace
 
     study = study_for_kind(task.kind)
-    return replace(task, part=study.truth_part(task.scenario, task.truth_seed, task.part))
+    return replace(task, parts=tuple(study.truth_part(task.scenario, task.truth_seed, p) for p in task.parts))
 
 
 @dataclass

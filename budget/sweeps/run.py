@@ -19,6 +19,7 @@ Python API::
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -88,12 +89,17 @@ def plan_tasks(sweep: Sweep) -> tuple[list, list]:
     return grid, sens
 
 
+#: a shared truth's pieces run as about this many tasks per worker (runs of consecutive pieces)
+TRUTH_TASKS_PER_WORKER = 8
+
+
 def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]:
     """The tasks with their truths (``PointTask.truths``), each distinct truth computed once.
 
     Points whose truth-relevant fields (:func:`budget.runner.study.truth_identity`), truth
     seed and truth sizing are equal share one truth; its pieces (:meth:`Study.truth_parts`)
-    run as tasks on ``runner``'s workers. ``share=False`` computes one per point (the same
+    run as tasks on ``runner``'s workers, in runs of consecutive pieces (about
+    :data:`TRUTH_TASKS_PER_WORKER` tasks per worker in all). ``share=False`` computes one per point (the same
     numbers: tests). Returns the tasks and the number of truths computed.
     """
     from dataclasses import replace
@@ -116,11 +122,17 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
             scn, targets = truths_scenario(study, t)
             groups[key] = (len(groups), scn, targets, study.truth_parts(scn, t.truth_seed), t.truth_seed)
         keys.append(key)
-    part_tasks = [TruthPartTask(g, j, tasks[0].kind, scn, seed, p)
-                  for g, scn, _, parts, seed in groups.values() for j, p in enumerate(parts)]
+    # the pieces in runs of consecutive pieces of one truth, about TRUTH_TASKS_PER_WORKER runs
+    # per worker in all: a task per piece would be thousands of tasks of milliseconds (16 camera
+    # points x 65 pieces), whose scheduling and scenario pickling a Dask scheduler pays per task
+    n_pieces = sum(len(parts) for _, _, _, parts, _ in groups.values())
+    run_len = max(1, math.ceil(n_pieces / (TRUTH_TASKS_PER_WORKER * max(1, runner.workers))))
+    part_tasks = [TruthPartTask(g, j, tasks[0].kind, scn, seed, tuple(parts[j:j + run_len]))
+                  for g, scn, _, parts, seed in groups.values() for j in range(0, len(parts), run_len)]
     got: dict = {}
     for res in runner.run(part_tasks):
-        got.setdefault(res.group, {})[res.index] = res.part
+        for k, part in enumerate(res.parts):
+            got.setdefault(res.group, {})[res.index + k] = part
     truths = {}
     for key, (g, scn, targets, parts, seed) in groups.items():
         t = study.truths_from_parts(scn, seed, [got[g][j] for j in range(len(parts))])
