@@ -18,16 +18,10 @@ from scipy import stats
 from budget.runner.plan import BUDGET_VALIDATIONS, decompose, parse_requirements, plan_protocol, resolution
 from budget.runner.study import trial_seed_sequence
 from budget.runner.toy import SplitToyStudy, ToyStudy, split_optimum
+from plan_stats import quantile_rel_se as _quantile_rel_se
 
 N = 200  # the toy's validation.trials
 C = 0.95
-
-
-def _quantile_rel_se(n: int, c: float) -> float:
-    """Relative standard error of the sample c-quantile of |e|, e ~ N(0, s^2): the asymptotic
-    sqrt(c (1 - c) / n) / f(q) with f(q) = 2 phi(z) / s the density of |e| at q = z s."""
-    z = stats.norm.ppf(0.5 + c / 2)
-    return math.sqrt(c * (1 - c) / n) / (2 * stats.norm.pdf(z) * z)
 
 
 class _OneGroupToy(ToyStudy):
