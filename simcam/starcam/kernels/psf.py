@@ -19,6 +19,27 @@ import math
 import numpy as np
 from numba import njit, prange
 
+
+@njit(cache=True, inline="always")
+def _extent(qm, Kp):
+    """A star's frequency extent on a lattice of half-width ``Kp``: ``K = min(floor(qm), Kp)``
+    (``|q| <= K`` along each axis), ``qm^2`` and the row length ``2 K + 1``."""
+    K = int(math.floor(qm))
+    if K > Kp:
+        K = Kp
+    return K, qm * qm, 2 * K + 1
+
+
+@njit(cache=True, inline="always")
+def _row_range(qmax2, qy, K):
+    """Columns ``k_lo .. k_hi - 1`` (``qx = k - K``) of row ``qy`` inside the disc ``qx^2 + qy^2
+    <= qmax2`` on the Hermitian half plane (``qx > 0`` on ``qy = 0``)."""
+    kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
+    if kxlim > K:
+        kxlim = K
+    return K + (1 if qy == 0 else -kxlim), K + kxlim + 1
+
+
 @njit(cache=True)
 def _sinc(t):
     if t == 0.0:
@@ -99,11 +120,7 @@ def _one_star_spectrum(pos_x, pos_y, shift_x, shift_y, weight, sigma, qmax, cuto
         if sy_ == 0.0:
             continue
         # qx range inside the disc qx^2 + qy^2 <= qmax^2, Hermitian half plane
-        kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
-        if kxlim > K:
-            kxlim = K
-        k_lo = K + (1 if qy == 0 else -kxlim)
-        k_hi = K + kxlim + 1
+        k_lo, k_hi = _row_range(qmax2, qy, K)
         if k_lo >= k_hi:
             continue
         for k in range(k_lo, k_hi):
@@ -233,11 +250,7 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
     act = np.empty(n_l, dtype=np.int64)
     for i in range(n):
         qm = qmax[i]
-        K = int(math.floor(qm))
-        if K > Kp:
-            K = Kp
-        qmax2 = qm * qm
-        nq = 2 * K + 1
+        K, qmax2, nq = _extent(qm, Kp)
         na = 0
         for j in range(n_l):
             if weights[i, j] != 0.0:
@@ -267,11 +280,7 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
             if qy != 0 and q_y == 0:
                 continue  # exact zero of the pixel transfer function
             sy_ = _sinc(qy / L)
-            kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
-            if kxlim > K:
-                kxlim = K
-            k_lo = K + (1 if qy == 0 else -kxlim)
-            k_hi = K + kxlim + 1
+            k_lo, k_hi = _row_range(qmax2, qy, K)
             # the row's sums over wavelengths, wavelength outer, frequency inner: each
             # frequency's sum takes its terms in the same order as one frequency at a
             # time, so the same bits, as independent sums the processor overlaps
@@ -323,11 +332,7 @@ def shifted_stamp_spectra(prof, qmax, zero, pos_x, pos_y, sigma, L, out):
     row = np.empty(L, dtype=np.complex128)
     for i in range(n):
         qm = qmax[i]
-        K = int(math.floor(qm))
-        if K > Kp:
-            K = Kp
-        qmax2 = qm * qm
-        nq = 2 * K + 1
+        K, qmax2, nq = _extent(qm, Kp)
         gfac = -2.0 * math.pi * math.pi * sigma[i] * sigma[i] / (L * L)
         ex_re = np.empty(nq)
         ex_im = np.empty(nq)
@@ -348,11 +353,7 @@ def shifted_stamp_spectra(prof, qmax, zero, pos_x, pos_y, sigma, L, out):
         A[:, :] = 0.0
         pi_ = prof[i]
         for qy in range(K + 1):
-            kxlim = int(math.floor(math.sqrt(max(qmax2 - qy * qy, 0.0))))
-            if kxlim > K:
-                kxlim = K
-            k_lo = K + (1 if qy == 0 else -kxlim)
-            k_hi = K + kxlim + 1
+            k_lo, k_hi = _row_range(qmax2, qy, K)
             if k_lo >= k_hi:
                 continue
             row[:] = 0.0
