@@ -67,6 +67,22 @@ def _phase_ramp(phase, weight, n, re, im):
         cr = t
 
 
+@njit(cache=True, inline="always")
+def _ramps(phx, phy, weight, K, ex_re, ex_im, ey_re, ey_im):
+    """One wavelength's phase ramps: ``weight exp(i phx q)`` for ``q = -K .. K`` into
+    ``ex_re``/``ex_im`` (the ramp from 0, turned by ``exp(-i phx K)`` to start at ``-K``) and
+    ``exp(i phy q)`` for ``q = 0 .. K`` into ``ey_re``/``ey_im`` (:func:`_phase_ramp`)."""
+    nq = 2 * K + 1
+    _phase_ramp(phx, weight, nq, ex_re, ex_im)
+    c0 = math.cos(-phx * K)
+    s0 = math.sin(-phx * K)
+    for k in range(nq):
+        t = ex_re[k] * c0 - ex_im[k] * s0
+        ex_im[k] = ex_re[k] * s0 + ex_im[k] * c0
+        ex_re[k] = t
+    _phase_ramp(phy, 1.0, K + 1, ey_re, ey_im)
+
+
 @njit(cache=True)
 def _one_star_spectrum(pos_x, pos_y, shift_x, shift_y, weight, sigma, qmax, cutoff,
                        is_airy, chat, disc, acc):
@@ -84,15 +100,7 @@ def _one_star_spectrum(pos_x, pos_y, shift_x, shift_y, weight, sigma, qmax, cuto
     for j in range(n_l):
         phx = -2.0 * math.pi * (pos_x + shift_x[j]) / L
         phy = -2.0 * math.pi * (pos_y + shift_y[j]) / L
-        # q = -K..K: start the ramp at -K
-        _phase_ramp(phx, weight[j], nq, ex_re[j], ex_im[j])
-        c0 = math.cos(-phx * K)
-        s0 = math.sin(-phx * K)
-        for k in range(nq):
-            t = ex_re[j, k] * c0 - ex_im[j, k] * s0
-            ex_im[j, k] = ex_re[j, k] * s0 + ex_im[j, k] * c0
-            ex_re[j, k] = t
-        _phase_ramp(phy, 1.0, K + 1, ey_re[j], ey_im[j])
+        _ramps(phx, phy, weight[j], K, ex_re[j], ex_im[j], ey_re[j], ey_im[j])
     sinc_tab = np.empty(nq)
     fold = np.empty(nq, dtype=np.int64)  # folded (aliased) index of each q
     for k in range(nq):
@@ -264,14 +272,7 @@ def stamp_profiles(shift_x, shift_y, weights, qmax, cutoff, is_airy, chat, disc,
             j = act[a]
             phx = -2.0 * math.pi * shift_x[i, j] / L
             phy = -2.0 * math.pi * shift_y[i, j] / L
-            _phase_ramp(phx, weights[i, j], nq, ex_re[a], ex_im[a])
-            c0 = math.cos(-phx * K)
-            s0 = math.sin(-phx * K)
-            for k in range(nq):
-                t = ex_re[a, k] * c0 - ex_im[a, k] * s0
-                ex_im[a, k] = ex_re[a, k] * s0 + ex_im[a, k] * c0
-                ex_re[a, k] = t
-            _phase_ramp(phy, 1.0, K + 1, ey_re[a], ey_im[a])
+            _ramps(phx, phy, weights[i, j], K, ex_re[a], ex_im[a], ey_re[a], ey_im[a])
         drow = disc[i if disc.shape[0] > 1 else 0]
         row_re = np.empty(nq)
         row_im = np.empty(nq)
