@@ -97,10 +97,12 @@ def simcam_frame(sig: np.ndarray, frame: int, maps=None) -> np.ndarray:
                   detector_key=key_from_seed(7, 0), maps=maps)
 
 
-def numpy_maps(shape=(ROWS, COLS)):
-    """numpy's PRNU factor and dark signal (DSNU + hot pixels), drawn once."""
+def numpy_maps(shape=(ROWS, COLS), rng=None):
+    """numpy's PRNU factor and dark signal (DSNU + hot pixels), drawn once (from ``rng``,
+    default the maps' own stream)."""
     p = PARAMS
-    rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(0,)))
+    if rng is None:
+        rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(0,)))
     g = rng.standard_normal(shape)
     g *= p.prnu_rms
     g += 1.0
@@ -113,10 +115,11 @@ def numpy_maps(shape=(ROWS, COLS)):
     return g, dark
 
 
-def numpy_frame_maps(sig: np.ndarray, frame: int, maps) -> np.ndarray:
+def numpy_frame_maps(sig: np.ndarray, frame: int, maps, rng=None) -> np.ndarray:
     """numpy, maps given: per frame Poisson + full well + read normal + ADC only."""
     g_map, dark = maps
-    rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, frame)))
+    if rng is None:
+        rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, frame)))
     lam = sig * g_map
     lam += dark
     e = rng.poisson(lam).astype(np.float64)
@@ -146,24 +149,10 @@ def _numpy_read_adc(rng, e: np.ndarray) -> np.ndarray:
 
 
 def numpy_frame(sig: np.ndarray, frame: int) -> np.ndarray:
-    """numpy drawing the maps in every frame too (the old peer figure)."""
-    p = PARAMS
+    """numpy drawing the maps in every frame too (the old peer figure): :func:`numpy_maps`
+    and :func:`numpy_frame_maps` from the frame's one stream."""
     rng = np.random.default_rng(np.random.SeedSequence(7, spawn_key=(1, frame)))
-    lam = rng.standard_normal(sig.shape)
-    lam *= p.prnu_rms
-    lam += 1.0
-    np.maximum(lam, 0.0, out=lam)
-    lam *= sig
-    dark = rng.standard_normal(sig.shape)
-    dark *= p.dsnu_rms_e
-    dark += p.dark_e
-    np.maximum(dark, 0.0, out=dark)
-    dark[rng.random(sig.shape) < p.hot_pixel_fraction] += p.hot_pixel_dark_e
-    lam += dark
-    del dark
-    e = rng.poisson(lam).astype(np.float64)
-    del lam
-    return _numpy_read_adc(rng, e)
+    return numpy_frame_maps(sig, frame, numpy_maps(sig.shape, rng), rng)
 
 
 def galsim_frame(galsim, sig: np.ndarray, frame: int):
