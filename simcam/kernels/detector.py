@@ -48,6 +48,7 @@ from simcam.rng import (
     DRAW_BITS,
     poisson,
     poisson_from_word,
+    poisson_from_words,
     poisson_prepared,
     poisson_setup,
     random_bits64,
@@ -580,6 +581,49 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
 
 
 @njit(cache=True)
+def noise_adc_window(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn, read_noise_e,
+                     full_well_e, frame_key, max_dn, words, scratch):
+    """:func:`noise_adc_frames` of one frame with shot and read noise, quantised (the chain of a
+    Monte Carlo trial's windows): ``mean[h, w]`` (e-, C-contiguous) at mosaic ``(row0, col0)``
+    into ``out[h, w]`` (float64, C-contiguous), the same value per pixel, in passes over the
+    block: the words of the pixels' Poisson and read-noise draws in one loop the compiler
+    vectorises (the SplitMix64 multiplies), the counts from them
+    (:func:`simcam.rng.poisson_from_words`: PTRS means together), then, chip by chip, the
+    full well, read noise (:func:`simcam.rng.std_normal_from_word`) and ADC
+    (:func:`_noise_adc_prepared`'s operations in its order). ``words``: uint64 scratch
+    (3, h w); ``scratch``: int64 scratch of 2 h w."""
+    h, w = mean.shape
+    shot_counter = words[0]
+    shot_word = words[1]
+    read_word = words[2]
+    for i in range(h):
+        base = (row0 + i) * mosaic_cols + col0
+        for j in range(w):
+            p = i * w + j
+            c = slot_counter(base + j, SLOT_SHOT)
+            shot_counter[p] = c
+            shot_word[p] = random_bits64(frame_key, c)
+            read_word[p] = random_bits64(frame_key, slot_counter(base + j, SLOT_READ))
+    poisson_from_words(mean.reshape(h * w), shot_word, frame_key, shot_counter, out.reshape(h * w), scratch)
+    j = 0
+    while j < w:
+        chip, j_end = _chip_segment(col0, j, w, chip_cols)
+        g = gain_e_per_dn[chip]
+        off = offset_dn[chip]
+        rn = read_noise_e[chip]
+        fw = full_well_e[chip]
+        for i in range(h):
+            base = (row0 + i) * mosaic_cols + col0
+            for jj in range(j, j_end):
+                v = out[i, jj]
+                if v > fw:
+                    v = fw
+                z = std_normal_from_word(read_word[i * w + jj], frame_key, slot_counter(base + jj, SLOT_READ))
+                out[i, jj] = _adc(v + rn * z, g, off, max_dn)
+        j = j_end
+
+
+@njit(cache=True)
 def _store_window(src, out, k):
     """``out[:, k] = src`` for a window's frames ``src`` (F, h, w) float64; ``out`` is
     (F, n, h, w) of the output dtype (the quantised values are whole numbers in
@@ -600,8 +644,7 @@ def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per
     ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
     ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
     Each window goes through a float64 scratch (F, h, w), so :func:`noise_adc_frames` has
-    one signature whatever the output dtype (the fused Monte Carlo kernel calls it with
-    the same one): numba compiles it once.
+    one signature whatever the output dtype: numba compiles it once.
     """
     n, h, w = mean_e.shape
     for kk in prange(n):
