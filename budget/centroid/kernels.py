@@ -234,6 +234,22 @@ def cog_one(win, x0, y0, b, t, subtract_threshold, saturation):
     return x0 + sx / sw, y0 + sy / sw, flux, flag
 
 
+@njit(cache=True, inline="always")
+def border_cog_one(win, buf, x0, y0, t):
+    """:func:`cog_one` of one window ``win`` (h, w) over its border median (:func:`border_one`,
+    ``buf`` its scratch), ``t`` above it, without threshold subtraction or saturation flag;
+    `FLAG_LOST` as well when the median or ``t`` is not finite (an infinite ``t``: no pixel
+    counts). Returns ``(x, y, flux, flag)``."""
+    b, _ = border_one(win, buf, np.bool_(False))
+    pre = 0
+    if not (math.isfinite(b) and math.isfinite(t)):
+        pre = FLAG_LOST
+        if not math.isfinite(t):
+            t = np.inf
+    x, y, flux, flag = cog_one(win, x0, y0, b, t, False, np.inf)
+    return x, y, flux, flag | pre
+
+
 @njit(cache=True)
 def thresholded_cog(windows, x0, y0, background, threshold, subtract_threshold,
                     saturation, out_x, out_y, out_flux, out_flag):

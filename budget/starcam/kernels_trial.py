@@ -6,7 +6,8 @@ dark subtraction and :func:`budget.centroid.core.centroid_windows` (thresholded 
 gravity, border background, given threshold) give, bit for bit: each pixel by
 :func:`simcam.kernels.detector.noise_adc_window`, the same value as the windows' pixel
 kernel (:func:`simcam.kernels.detector.noise_adc_frames`) in one frame, and the same
-per-window centroid functions (:func:`budget.centroid.kernels.border_one`,
+per-window centroid (:func:`budget.centroid.kernels.border_cog_one`: the border median of
+:func:`budget.centroid.kernels.border_one`, the centre of gravity of
 :func:`budget.centroid.kernels.cog_one`). What it saves is memory traffic: a window
 lives in a scratch buffer of ``h * w`` doubles instead of passing through a
 (frames, windows, h, w) array, its float64 copy and the concatenation of all
@@ -19,12 +20,10 @@ orchestration is in :func:`budget.starcam.protocols.simulate`.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
-from budget.centroid.kernels import FLAG_LOST, border_one, cog_one
+from budget.centroid.kernels import border_cog_one
 from simcam.kernels.detector import noise_adc_window
 
 
@@ -43,9 +42,8 @@ def _expose_centroid_one(mean, win, words, scratch, buf, k, f, row0, col0, mosai
                          out_flag):
     """Window ``k`` in frame ``f`` (key ``frame_key``) from its mean charge ``mean`` (h, w; e-):
     exposed into ``win`` (shot and read noise, quantised), less ``dark_mean[k]`` if given,
-    centroided (border median background, ``threshold[k]`` above it, no threshold
-    subtraction, no saturation flag) into ``out_*[f, k]``; the scratch from
-    :func:`_window_scratch`."""
+    centroided (:func:`budget.centroid.kernels.border_cog_one`: border median background,
+    ``threshold[k]`` above it) into ``out_*[f, k]``; the scratch from :func:`_window_scratch`."""
     h, w = win.shape
     noise_adc_window(mean, win, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
                      frame_key, max_dn, words, scratch)
@@ -53,18 +51,8 @@ def _expose_centroid_one(mean, win, words, scratch, buf, k, f, row0, col0, mosai
         for i in range(h):
             for j in range(w):
                 win[i, j] = win[i, j] - dark_mean[k, i, j]
-    b, _ = border_one(win, buf, np.bool_(False))
-    thr = threshold[k]
-    pre = 0
-    if not (math.isfinite(b) and math.isfinite(thr)):
-        pre = FLAG_LOST
-        if not math.isfinite(thr):
-            thr = np.inf
-    x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr, False, np.inf)
-    out_x[f, k] = x
-    out_y[f, k] = y
-    out_flux[f, k] = fl
-    out_flag[f, k] = flag | pre
+    out_x[f, k], out_y[f, k], out_flux[f, k], out_flag[f, k] = border_cog_one(win, buf, np.float64(col0[k]),
+                                                                             np.float64(row0[k]), threshold[k])
 
 
 @njit(cache=True)

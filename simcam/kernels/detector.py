@@ -531,6 +531,14 @@ def _chip_segment(col0, j, w, chip_cols):
     return chip, min(w, (chip + 1) * chip_cols - col0)
 
 
+@njit(cache=True, inline="always")
+def _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e):
+    """The end of the run of columns from ``j`` on one chip (:func:`_chip_segment`) and that
+    chip's gain, offset, read noise and full well."""
+    chip, j_end = _chip_segment(col0, j, w, chip_cols)
+    return j_end, gain_e_per_dn[chip], offset_dn[chip], read_noise_e[chip], full_well_e[chip]
+
+
 @njit(cache=True)
 def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                    offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
@@ -540,11 +548,7 @@ def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_
     base = row * mosaic_cols + col0
     j = 0
     while j < w:
-        chip, j_end = _chip_segment(col0, j, w, chip_cols)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
         for jj in range(j, j_end):
             out_row[jj] = _noise_adc_pixel(mean_row[jj], base + jj, g, off, rn, fw, frame_key,
                                            shot_noise, read_noise, quantize, max_dn)
@@ -563,11 +567,7 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     nf = frame_keys.shape[0]
     j = 0
     while j < w:
-        chip, j_end = _chip_segment(col0, j, w, chip_cols)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
         for i in range(h):
             base = (row0 + i) * mosaic_cols + col0
             for jj in range(j, j_end):
@@ -607,11 +607,7 @@ def noise_adc_window(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     poisson_from_words(mean.reshape(h * w), shot_word, frame_key, shot_counter, out.reshape(h * w), scratch)
     j = 0
     while j < w:
-        chip, j_end = _chip_segment(col0, j, w, chip_cols)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
         for i in range(h):
             base = (row0 + i) * mosaic_cols + col0
             for jj in range(j, j_end):
