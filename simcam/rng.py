@@ -93,6 +93,7 @@ __all__ = [
     "uniform01_from_word",
     "std_normal_from_word",
     "poisson_from_word",
+    "poisson_from_words",
     "std_normal_ppf",
     "std_normal",
     "poisson",
@@ -589,8 +590,56 @@ def poisson_setup(lam):
     if lam < POISSON_PTRS_MIN_LAM:
         j = np.int64(lam * POISSON_TABLE_LEVELS_PER_E)
         return _PM_TABLE, j, lam - j * (1.0 / POISSON_TABLE_LEVELS_PER_E), 0.0, 0.0, 0.0
+    b, a, vr = _ptrs_constants(lam)
+    return _PM_PTRS, 0, 0.0, b, a, vr
+
+
+@njit(cache=True, inline="always")
+def _ptrs_constants(lam):
+    """PTRS constants of the mean ``lam`` (Hoermann 1993): ``b = 0.931 + 2.53 sqrt(lam)``,
+    ``a = -0.059 + 0.02483 b``, ``v_r = 0.9277 - 3.6224 / (b - 2)``."""
     b = 0.931 + 2.53 * math.sqrt(lam)
-    return _PM_PTRS, 0, 0.0, b, -0.059 + 0.02483 * b, 0.9277 - 3.6224 / (b - 2.0)
+    return b, -0.059 + 0.02483 * b, 0.9277 - 3.6224 / (b - 2.0)
+
+
+@njit(cache=True, inline="always")
+def _ptrs_trial(lam, b, a, word_u, word_v):
+    """One PTRS trial on the words at counters ``c`` and ``c + 1``: the candidate
+    ``kf = floor((2 a / us + b) u + lam + 0.43)`` (a float), ``us = 0.5 - |u|`` and ``v``,
+    with ``u`` and ``v`` the uniforms of the two words (:func:`uniform01_from_word`, ``u``
+    less 0.5)."""
+    u = uniform01_from_word(word_u) - 0.5
+    v = uniform01_from_word(word_v)
+    us = 0.5 - abs(u)
+    return math.floor((2.0 * a / us + b) * u + lam + 0.43), us, v
+
+
+@njit(cache=True, inline="always")
+def _ptrs_squeeze(us, v, vr):
+    """PTRS's squeeze: the trial is accepted without the density (``us >= 0.07``, ``v <= v_r``)."""
+    return (us >= 0.07) & (v <= vr)
+
+
+@njit(cache=True, inline="always")
+def _ptrs_outside(kf, us, v):
+    """PTRS's quick rejection: ``kf < 0``, or ``us < 0.013`` and ``v > us``."""
+    return (kf < 0.0) | ((us < 0.013) & (v > us))
+
+
+@njit(cache=True, inline="always")
+def _ptrs_log_constants(lam, b):
+    """``log(lam)`` and ``log(1 / alpha) = log(1.1239 + 1.1328 / (b - 3.4))``, the constants of
+    PTRS's density test (:func:`_ptrs_density`)."""
+    return math.log(lam), math.log(1.1239 + 1.1328 / (b - 3.4))
+
+
+@njit(cache=True, inline="always")
+def _ptrs_density(lam, b, a, kf, us, v, loglam, log_invalpha):
+    """PTRS's density test of a trial that neither the squeeze accepted nor the quick test
+    rejected: ``log(v) + log(1 / alpha) - log(a / us^2 + b) <= -lam + kf log(lam) - log(kf!)``,
+    the left side with one logarithm."""
+    return (math.log(v / (a / (us * us) + b)) + log_invalpha
+            <= -lam + kf * loglam - log_factorial(kf))
 
 
 @njit(cache=True, inline="always")
@@ -646,23 +695,73 @@ def poisson_prepared(lam, mode, j, r, b, a, vr, key, counter):
     log_invalpha = 0.0
     setup_done = False
     while True:
-        u = uniform01(key, c) - 0.5
-        v = uniform01(key, c + _ONE_U64)
+        kf, us, v = _ptrs_trial(lam, b, a, random_bits64(key, c), random_bits64(key, c + _ONE_U64))
         c += np.uint64(2)
-        us = 0.5 - abs(u)
-        kf = math.floor((2.0 * a / us + b) * u + lam + 0.43)
-        if us >= 0.07 and v <= vr:  # squeeze: accepted without the density (~86 %)
+        if _ptrs_squeeze(us, v, vr):
             return np.int64(kf)
-        if kf < 0.0 or (us < 0.013 and v > us):
+        if _ptrs_outside(kf, us, v):
             continue
         if not setup_done:  # constants of the exact test, only when needed
-            loglam = math.log(lam)
-            log_invalpha = math.log(1.1239 + 1.1328 / (b - 3.4))
+            loglam, log_invalpha = _ptrs_log_constants(lam, b)
             setup_done = True
-        # log(v) + log(invalpha) - log(a/us^2 + b), with one logarithm
-        if (math.log(v / (a / (us * us) + b)) + log_invalpha
-                <= -lam + kf * loglam - log_factorial(kf)):
+        if _ptrs_density(lam, b, a, kf, us, v, loglam, log_invalpha):
             return np.int64(kf)
+
+
+@njit(cache=True)
+def poisson_from_words(lam, words, key, counters, out, scratch):
+    """:func:`poisson` ``(lam[i], key, counters[i])`` for every ``i``, as float64 (whole
+    numbers, exact) into ``out``, given each first word ``words[i] = random_bits64(key,
+    counters[i])``; ``scratch``: int64, at least ``2 n``.
+
+    The same variates, drawn in another order: each mean below 10 (and 0, NaN, huge) by
+    :func:`poisson_from_word` on its word, the PTRS means (``10 <= lam <= POISSON_MAX_LAM``,
+    :func:`poisson_prepared`) together, in rounds of one trial each (round ``r`` on the
+    words at ``counters[i] + 2 r`` and ``+ 2 r + 1``: the trials each one makes alone). A
+    round decides every pending trial's squeeze and quick rejection in one pass without
+    branches, then the density tests of the rest in a pass of their own (three logarithms
+    each; near ``lam = 10``, where ``v_r`` is small, almost half the trials), so that the
+    processor overlaps independent draws instead of mispredicting each one's branches; the
+    trials neither accepted make the next round.
+    """
+    n = lam.shape[0]
+    pending = scratch[:n]
+    dense = scratch[n:2 * n]
+    n_pending = 0
+    for i in range(n):
+        m = lam[i]
+        if m >= POISSON_PTRS_MIN_LAM and m <= POISSON_MAX_LAM:
+            pending[n_pending] = i
+            n_pending += 1
+        else:
+            out[i] = np.float64(poisson_from_word(m, words[i], key, counters[i]))
+    step = np.uint64(0)
+    while n_pending > 0:
+        n_dense = 0
+        n_next = 0
+        for q in range(n_pending):
+            i = pending[q]
+            b, a, vr = _ptrs_constants(lam[i])
+            c = np.uint64(counters[i]) + step
+            kf, us, v = _ptrs_trial(lam[i], b, a, random_bits64(key, c), random_bits64(key, c + _ONE_U64))
+            out[i] = np.float64(np.int64(kf))
+            sq = _ptrs_squeeze(us, v, vr)
+            outside = _ptrs_outside(kf, us, v)
+            dense[n_dense] = i
+            n_dense += (not sq) & (not outside)
+            pending[n_next] = i  # n_next <= q: the pending list compacted in place
+            n_next += (not sq) & outside
+        for q in range(n_dense):
+            i = dense[q]
+            m = lam[i]
+            b, a, _ = _ptrs_constants(m)
+            c = np.uint64(counters[i]) + step
+            kf, us, v = _ptrs_trial(m, b, a, random_bits64(key, c), random_bits64(key, c + _ONE_U64))
+            loglam, log_invalpha = _ptrs_log_constants(m, b)
+            pending[n_next] = i
+            n_next += not _ptrs_density(m, b, a, kf, us, v, loglam, log_invalpha)
+        n_pending = n_next
+        step += np.uint64(2)
 
 
 # --------------------------------------------------------------------------------------

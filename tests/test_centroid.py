@@ -332,6 +332,25 @@ def test_border_background_matches_numpy_on_random_windows():
         assert sig[q] == pytest.approx(1.482602218505602 * np.median(np.abs(b - m)), abs=1e-12)
 
 
+def test_median_by_counting_equals_selection():
+    # _median counts positive whole values spanning less than MEDIAN_COUNT_SPAN (ADC codes)
+    # and selects otherwise: the same number as selection and numpy either way, odd and even
+    # counts, ties, spans at the limit, fractions, zeros and negative values
+    from budget.centroid.kernels import MEDIAN_COUNT_SPAN, _median, _median_select
+
+    g = np.random.default_rng(8)
+    span = MEDIAN_COUNT_SPAN
+    cases = [g.integers(90, 130, m).astype(float) for m in (1, 2, 3, 39, 40, 41)]
+    cases += [np.r_[100.0, 100.0 + span - 1, g.integers(100, 100 + span, 38)],  # counted
+              np.r_[100.0, 100.0 + span, g.integers(100, 100 + span, 38)],  # selected: span too wide
+              g.integers(0, 20, 40).astype(float),  # zeros: selected
+              g.integers(-20, 20, 40).astype(float),
+              g.integers(90, 130, 40) + 0.5, g.normal(100.0, 3.0, 40), np.full(40, 7.0)]
+    for v in cases:
+        got = _median(v.copy(), v.size)
+        assert got == _median_select(v.copy(), v.size) == np.median(v)
+
+
 def _frame_with_stars(seed, *, big_star=False):
     rng = np.random.default_rng(seed)
     rows, cols = 300, 400

@@ -139,6 +139,36 @@ def test_full_frame_equals_the_chain_rebuilt_from_rng_primitives():
     assert np.allclose(_expose(sig, row0, col0, p, quantize=False), v, rtol=1e-15, atol=0)
 
 
+def test_one_frame_window_kernel_equals_the_windows_kernel():
+    # noise_adc_window (a Monte Carlo trial's windows: one frame, shot and read noise,
+    # quantised) gives the pixels noise_adc_frames gives in each frame: a window across the
+    # chip boundary, means in every Poisson path (0, table, PTRS just above 10 and far
+    # above), over the full well and over the ADC range
+    from simcam.kernels.detector import noise_adc_frames, noise_adc_window
+
+    h, w = 11, 13
+    row0, col0 = 700, CHIP_COLS - 6
+    g = np.random.default_rng(4)
+    mean = np.concatenate([np.zeros(5), g.uniform(0.0, 10.0, 60), g.uniform(10.0, 10.5, 40),
+                           10.0 ** g.uniform(1.0, 5.5, h * w - 105)])
+    g.shuffle(mean)
+    mean = mean.reshape(h, w)
+    gain, offset, read_noise, full_well = np.array([4.0, 6.0]), np.array([100.0, 200.0]), np.array([3.0, 4.0]), \
+        np.array([5e4, 6e4])
+    keys = np.array([key_from_seed(SEED, 1, f) for f in range(4)], dtype=np.uint64)
+    frames = np.empty((keys.size, h, w))
+    noise_adc_frames(mean, frames, row0, col0, MOSAIC_COLS, CHIP_COLS, gain, offset, read_noise, full_well, keys,
+                     True, True, True, 4095.0)
+    assert (frames == 4095.0).any() and (frames < 4095.0).any()
+    win = np.empty((h, w))
+    words = np.empty((3, h * w), dtype=np.uint64)
+    scratch = np.empty(2 * h * w, dtype=np.int64)
+    for f, key in enumerate(keys):
+        noise_adc_window(mean, win, row0, col0, MOSAIC_COLS, CHIP_COLS, gain, offset, read_noise, full_well, key,
+                         4095.0, words, scratch)
+        assert np.array_equal(win, frames[f])
+
+
 def test_noise_free_frame_is_the_nonlinear_transfer_curve_quantised():
     # without temporal noise the output is the non-linearity's expected curve through the
     # ADC: DN = clip(floor(mu / K + offset + 0.5)), mu from the maps (numpy, independent)

@@ -285,6 +285,23 @@ def test_poisson_table_levels_and_residuals():
     assert stats.kstest(v, stats.uniform.cdf).pvalue > P_MIN
 
 
+def test_poisson_from_words_draws_what_poisson_draws():
+    # the batched sampler (table means on their words, PTRS means in rounds of one trial,
+    # the rest by poisson itself) gives each mean the variate poisson gives it, on every
+    # path: table means, PTRS means just above 10 (half their trials reach the density
+    # test, some several trials) and far above, 0, NaN, above POISSON_MAX_LAM, +inf
+    g = np.random.default_rng(5)
+    lam = np.concatenate([g.uniform(0.0, 10.0, 600), g.uniform(10.0, 10.5, 600), 10.0 ** g.uniform(1, 15, 300),
+                          [0.0, -1.0, np.nan, 10.0, 9.999999999999998, rng.POISSON_MAX_LAM, 1e16, np.inf]])
+    g.shuffle(lam)
+    counters = _slots(lam.size, 1) + np.uint64(5 << 16)
+    words = np.array([rng.random_bits64(KEY, c) for c in counters], dtype=np.uint64)
+    out = np.full(lam.size, -1.0)
+    rng.poisson_from_words(lam, words, KEY, counters, out, np.empty(2 * lam.size, dtype=np.int64))
+    expected = [float(rng.poisson(m, KEY, c)) for m, c in zip(lam, counters)]
+    assert np.array_equal(out, expected)
+
+
 def test_poisson_zero_mean_and_tiny_mean():
     c = _slots(1000, 1)
     assert np.all(rng.poisson_array(lam=0.0, key=KEY, counter=c) == 0)

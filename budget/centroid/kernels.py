@@ -60,7 +60,7 @@ def border_one(win, buf, with_sigma):
     False the MAD is skipped (sigma returned as NaN): callers that know the noise need
     only the median. Both are NaN when the border holds no finite pixel. The median is
     the exact order statistic (the mean of the two middle values for an even count), by
-    selection instead of sorting (:func:`_median_select`).
+    counting or selection instead of sorting (:func:`_median`).
 
     Callers inside numba pass ``np.bool_(...)``, not a bare ``True``/``False``: numba types
     a constant argument as a literal and would compile one specialisation per value.
@@ -89,12 +89,58 @@ def border_one(win, buf, with_sigma):
                 m += 1
     if m == 0:
         return np.nan, np.nan
-    med = _median_select(buf, m)
+    med = _median(buf, m)
     if not with_sigma:
         return med, np.nan
     for q in range(m):
         buf[q] = abs(buf[q] - med)
-    return med, 1.482602218505602 * _median_select(buf, m)
+    return med, 1.482602218505602 * _median(buf, m)
+
+
+#: Largest spread (max - min) of whole values that :func:`_median` counts instead of selecting.
+MEDIAN_COUNT_SPAN = 64
+
+
+@njit(cache=True)
+def _median(buf, m):
+    """Median of the finite values ``buf[:m]`` (may reorder them), as :func:`_median_select`.
+
+    When they are positive whole numbers spanning less than `MEDIAN_COUNT_SPAN` (a window
+    border's ADC codes: read noise and sky spread them over some tens of DN), by counting:
+    a histogram of the values, then its cumulative count up to the two middle order
+    statistics, ``min + d`` each (exact: the values are whole numbers, so the differences
+    ``d`` and their sums are). Otherwise by selection. The order statistics are the same
+    numbers whichever way they are found (positive: no signed zero to tell apart), so the
+    median is the same to the bit; counting avoids selection's unpredictable branches.
+    """
+    lo = buf[0]
+    hi = buf[0]
+    whole = True
+    for q in range(m):
+        v = buf[q]
+        lo = min(lo, v)
+        hi = max(hi, v)
+        whole &= v == math.floor(v)
+    if not (whole and lo > 0.0 and hi - lo < MEDIAN_COUNT_SPAN):
+        return _median_select(buf, m)
+    counts = np.zeros(np.int64(hi - lo) + 1, dtype=np.int64)
+    for q in range(m):
+        counts[np.int64(buf[q] - lo)] += 1
+    # seen: how many values are <= lo + d; order statistic q (0-based) is the first lo + d
+    # with seen > q
+    k = m // 2
+    d = 0
+    seen = counts[0]
+    while seen <= k - 1:
+        d += 1
+        seen += counts[d]
+    below = d
+    while seen <= k:
+        d += 1
+        seen += counts[d]
+    if m % 2 == 1:
+        return lo + d
+    return 0.5 * ((lo + below) + (lo + d))
 
 
 @njit(cache=True)
@@ -186,6 +232,22 @@ def cog_one(win, x0, y0, b, t, subtract_threshold, saturation):
     if pi == 0 or pj == 0 or pi == h - 1 or pj == w - 1:
         flag |= FLAG_EDGE
     return x0 + sx / sw, y0 + sy / sw, flux, flag
+
+
+@njit(cache=True, inline="always")
+def border_cog_one(win, buf, x0, y0, t):
+    """:func:`cog_one` of one window ``win`` (h, w) over its border median (:func:`border_one`,
+    ``buf`` its scratch), ``t`` above it, without threshold subtraction or saturation flag;
+    `FLAG_LOST` as well when the median or ``t`` is not finite (an infinite ``t``: no pixel
+    counts). Returns ``(x, y, flux, flag)``."""
+    b, _ = border_one(win, buf, np.bool_(False))
+    pre = 0
+    if not (math.isfinite(b) and math.isfinite(t)):
+        pre = FLAG_LOST
+        if not math.isfinite(t):
+            t = np.inf
+    x, y, flux, flag = cog_one(win, x0, y0, b, t, False, np.inf)
+    return x, y, flux, flag | pre
 
 
 @njit(cache=True)

@@ -3,11 +3,13 @@
 :func:`expose_centroid_frames` gives, for each (frame, window), exactly what
 :func:`simcam.detector.expose_windows_frames` followed by the float64 conversion, the
 dark subtraction and :func:`budget.centroid.core.centroid_windows` (thresholded centre of
-gravity, border or given background, given threshold) give, bit for bit, because it
-calls the same pixel kernel (:func:`simcam.kernels.detector.noise_adc_frames`) and the same
-per-window centroid functions (:func:`budget.centroid.kernels.border_one`,
+gravity, border background, given threshold) give, bit for bit: each pixel by
+:func:`simcam.kernels.detector.noise_adc_window`, the same value as the windows' pixel
+kernel (:func:`simcam.kernels.detector.noise_adc_frames`) in one frame, and the same
+per-window centroid (:func:`budget.centroid.kernels.border_cog_one`: the border median of
+:func:`budget.centroid.kernels.border_one`, the centre of gravity of
 :func:`budget.centroid.kernels.cog_one`). What it saves is memory traffic: a window
-lives in a scratch buffer of ``frames * h * w`` doubles instead of passing through a
+lives in a scratch buffer of ``h * w`` doubles instead of passing through a
 (frames, windows, h, w) array, its float64 copy and the concatenation of all
 conditions. ``tests/test_protocols.py`` checks the equality.
 
@@ -18,22 +20,47 @@ orchestration is in :func:`budget.starcam.protocols.simulate`.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
-from budget.centroid.kernels import FLAG_LOST, border_one, cog_one
-from simcam.kernels.detector import noise_adc_frames
+from budget.centroid.kernels import border_cog_one
+from simcam.kernels.detector import noise_adc_window
+
+
+@njit(cache=True, inline="always")
+def _window_scratch(h, w):
+    """Scratch of one (h, w) window's exposure and centroid: its mean charge and its pixels,
+    the words and index lists of :func:`simcam.kernels.detector.noise_adc_window`, and the
+    border of :func:`budget.centroid.kernels.border_one`."""
+    return (np.empty((h, w)), np.empty((h, w)), np.empty((3, h * w), dtype=np.uint64),
+            np.empty(2 * h * w, dtype=np.int64), np.empty(2 * w + 2 * max(h - 2, 0)))
+
+
+@njit(cache=True, inline="always")
+def _expose_centroid_one(mean, win, words, scratch, buf, k, f, row0, col0, mosaic_cols, chip_cols, gain, offset,
+                         read_noise, full_well, frame_key, max_dn, dark_mean, threshold, out_x, out_y, out_flux,
+                         out_flag):
+    """Window ``k`` in frame ``f`` (key ``frame_key``) from its mean charge ``mean`` (h, w; e-):
+    exposed into ``win`` (shot and read noise, quantised), less ``dark_mean[k]`` if given,
+    centroided (:func:`budget.centroid.kernels.border_cog_one`: border median background,
+    ``threshold[k]`` above it) into ``out_*[f, k]``; the scratch from :func:`_window_scratch`."""
+    h, w = win.shape
+    noise_adc_window(mean, win, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+                     frame_key, max_dn, words, scratch)
+    if dark_mean.shape[0]:
+        for i in range(h):
+            for j in range(w):
+                win[i, j] = win[i, j] - dark_mean[k, i, j]
+    out_x[f, k], out_y[f, k], out_flux[f, k], out_flag[f, k] = border_cog_one(win, buf, np.float64(col0[k]),
+                                                                             np.float64(row0[k]), threshold[k])
 
 
 @njit(cache=True)
-def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset,
-                                  read_noise, full_well, frame_keys, shot_noise, read_noise_on,
-                                  quantize, max_dn, dark_mean, border_background, background,
-                                  threshold, subtract_threshold, saturation,
-                                  out_x, out_y, out_flux, out_flag):
-    """Expose ``n`` windows in ``F`` frames and centroid each (see module docstring).
+def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+                                  frame_keys, max_dn, dark_mean, threshold, out_x, out_y, out_flux, out_flag):
+    """Expose ``n`` windows in ``F`` frames and centroid each (see module docstring):
+    shot and read noise, quantised; border median background, no threshold subtraction,
+    no saturation flag. Window by window, frame by frame (:func:`_expose_centroid_one`).
 
     Parameters
     ----------
@@ -44,56 +71,31 @@ def expose_centroid_frames_serial(mean_e, row0, col0, mosaic_cols, chip_cols, ga
     mosaic_cols, chip_cols, gain, offset, read_noise, full_well, max_dn
         The chain's geometry and per-chip constants.
     frame_keys : uint64 (F,)
-    shot_noise, read_noise_on, quantize : bool
     dark_mean : float64 (n, h, w) or (0, h, w)
         Mean star-free window (DN) subtracted from every frame; empty: none.
-    border_background : bool
-        Background from the border median (else ``background[k]``).
-    background, threshold : float64 (n,)
-        Given background (unused with ``border_background``) and threshold above it (DN).
-    subtract_threshold : bool
-    saturation : float
+    threshold : float64 (n,)
+        Threshold above the background (DN).
     out_x, out_y, out_flux : float64 (F, n)
     out_flag : int64 (F, n)
     """
     n, h, w = mean_e.shape
-    wins = np.empty((frame_keys.shape[0], h, w))
-    buf = np.empty(2 * w + 2 * max(h - 2, 0))
-    nf = frame_keys.shape[0]
+    mean, win, words, scratch, buf = _window_scratch(h, w)
     for k in range(n):
-        noise_adc_frames(mean_e[k], wins, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset,
-                         read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize, max_dn)
-        for f in range(nf):
-            win = wins[f]
-            if dark_mean.shape[0]:
-                for i in range(h):
-                    for j in range(w):
-                        win[i, j] = win[i, j] - dark_mean[k, i, j]
-            if border_background:
-                b, _ = border_one(win, buf, np.bool_(False))
-            else:
-                b = background[k]
-            thr = threshold[k]
-            pre = 0
-            if not (math.isfinite(b) and math.isfinite(thr)):
-                pre = FLAG_LOST
-                if not math.isfinite(thr):
-                    thr = np.inf
-            x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr,
-                                     subtract_threshold, saturation)
-            out_x[f, k] = x
-            out_y[f, k] = y
-            out_flux[f, k] = fl
-            out_flag[f, k] = flag | pre
+        for i in range(h):
+            for j in range(w):
+                mean[i, j] = mean_e[k, i, j]
+        for f in range(frame_keys.shape[0]):
+            _expose_centroid_one(mean, win, words, scratch, buf, k, f, row0, col0, mosaic_cols, chip_cols, gain,
+                                 offset, read_noise, full_well, frame_keys[f], max_dn, dark_mean, threshold, out_x,
+                                 out_y, out_flux, out_flag)
 
 
 @njit(cache=True)
 def expose_centroid_drift_serial(mean_e, grad_u, grad_v, drift, row0, col0, mosaic_cols, chip_cols, gain,
                                  offset, read_noise, full_well, frame_keys, max_dn, dark_mean, threshold,
-                                 out_x, out_y, out_flag, out_flux):
-    """:func:`expose_centroid_frames_serial` (shot and read noise, quantised, border
-    background, no threshold subtraction, no saturation flag) for an image that drifts
-    within the condition: frame ``f`` of window ``k`` is exposed from its own mean charge
+                                 out_x, out_y, out_flux, out_flag):
+    """:func:`expose_centroid_frames_serial` for an image that drifts within the condition:
+    frame ``f`` of window ``k`` is exposed from its own mean charge
     ``max(mean_e[k] + drift[f, 0] grad_u[k] + drift[f, 1] grad_v[k], 0)``
     (:meth:`simcam.starcam.render.StarCamera.drift_chain`), evaluated with the same
     operations in the same order as numpy's
@@ -103,47 +105,24 @@ def expose_centroid_drift_serial(mean_e, grad_u, grad_v, drift, row0, col0, mosa
     array per frame.
     """
     n, h, w = mean_e.shape
-    nf = frame_keys.shape[0]
-    m = np.empty((h, w))
-    wins = np.empty((1, h, w))
-    buf = np.empty(2 * w + 2 * max(h - 2, 0))
-    for f in range(nf):
-        du = drift[f, 0]
-        dv = drift[f, 1]
-        keys = frame_keys[f:f + 1]
-        for k in range(n):
+    mean, win, words, scratch, buf = _window_scratch(h, w)
+    for k in range(n):
+        for f in range(frame_keys.shape[0]):
+            du = drift[f, 0]
+            dv = drift[f, 1]
             for i in range(h):
                 for j in range(w):
                     v = mean_e[k, i, j] + du * grad_u[k, i, j]
                     v = v + dv * grad_v[k, i, j]
-                    m[i, j] = v if v > 0.0 else 0.0
-            noise_adc_frames(m, wins, row0[k], col0[k], mosaic_cols, chip_cols, gain, offset,
-                             read_noise, full_well, keys, True, True, True, max_dn)
-            win = wins[0]
-            if dark_mean.shape[0]:
-                for i in range(h):
-                    for j in range(w):
-                        win[i, j] = win[i, j] - dark_mean[k, i, j]
-            b, _ = border_one(win, buf, np.bool_(False))
-            thr = threshold[k]
-            pre = 0
-            if not (math.isfinite(b) and math.isfinite(thr)):
-                pre = FLAG_LOST
-                if not math.isfinite(thr):
-                    thr = np.inf
-            x, y, fl, flag = cog_one(win, np.float64(col0[k]), np.float64(row0[k]), b, thr, False, np.inf)
-            out_x[f, k] = x
-            out_y[f, k] = y
-            out_flux[f, k] = fl
-            out_flag[f, k] = flag | pre
+                    mean[i, j] = v if v > 0.0 else 0.0
+            _expose_centroid_one(mean, win, words, scratch, buf, k, f, row0, col0, mosaic_cols, chip_cols, gain,
+                                 offset, read_noise, full_well, frame_keys[f], max_dn, dark_mean, threshold, out_x,
+                                 out_y, out_flux, out_flag)
 
 
 @njit(parallel=True, cache=True)
-def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset,
-                           read_noise, full_well, frame_keys, shot_noise, read_noise_on,
-                           quantize, max_dn, dark_mean, border_background, background,
-                           threshold, subtract_threshold, saturation,
-                           out_x, out_y, out_flux, out_flag):
+def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, offset, read_noise, full_well,
+                           frame_keys, max_dn, dark_mean, threshold, out_x, out_y, out_flux, out_flag):
     """Threaded twin of :func:`expose_centroid_frames_serial`: windows in parallel, each
     window by the serial kernel on its own one-window arrays (contiguous copies, so the
     serial kernel is called with the types it was compiled for and not compiled again).
@@ -159,10 +138,8 @@ def expose_centroid_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain, off
         ofl = np.zeros((nf, 1), dtype=np.int64)
         expose_centroid_frames_serial(np.ascontiguousarray(mean_e[k:k + 1]), np.ascontiguousarray(row0[k:k + 1]),
                                       np.ascontiguousarray(col0[k:k + 1]), mosaic_cols, chip_cols, gain, offset,
-                                      read_noise, full_well, frame_keys, shot_noise, read_noise_on, quantize,
-                                      max_dn, dm, border_background, np.ascontiguousarray(background[k:k + 1]),
-                                      np.ascontiguousarray(threshold[k:k + 1]), subtract_threshold, saturation,
-                                      ox, oy, of, ofl)
+                                      read_noise, full_well, frame_keys, max_dn, dm,
+                                      np.ascontiguousarray(threshold[k:k + 1]), ox, oy, of, ofl)
         for f in range(nf):
             out_x[f, k] = ox[f, 0]
             out_y[f, k] = oy[f, 0]
@@ -183,8 +160,8 @@ def expose_centroid_chain(chain, keys, *, dark_mean, threshold_dn, parallel: boo
     dm = np.zeros((0, h, w)) if dark_mean is None else np.array(dark_mean, dtype=np.float64)
     kern = expose_centroid_frames if parallel else expose_centroid_frames_serial
     kern(chain.mean_e, chain.row0, chain.col0, chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset,
-         chain.read_noise, chain.full_well, keys, True, True, True, chain.max_dn, dm, True, np.zeros(W),
-         np.array(threshold_dn, dtype=np.float64), False, np.inf, out_x, out_y, out_f, out_flag)
+         chain.read_noise, chain.full_well, keys, chain.max_dn, dm, np.array(threshold_dn, dtype=np.float64),
+         out_x, out_y, out_f, out_flag)
     return out_x, out_y, out_f, out_flag
 
 
@@ -203,5 +180,5 @@ def expose_centroid_drift_chain(chain, grad_u, grad_v, drift, keys, *, dark_mean
                                  np.ascontiguousarray(drift, dtype=np.float64), chain.row0, chain.col0,
                                  chain.mosaic_cols, chain.chip_cols, chain.gain, chain.offset, chain.read_noise,
                                  chain.full_well, keys, chain.max_dn, dm,
-                                 np.array(threshold_dn, dtype=np.float64), out_x, out_y, out_flag, out_f)
+                                 np.array(threshold_dn, dtype=np.float64), out_x, out_y, out_f, out_flag)
     return out_x, out_y, out_f, out_flag

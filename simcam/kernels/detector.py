@@ -48,6 +48,7 @@ from simcam.rng import (
     DRAW_BITS,
     poisson,
     poisson_from_word,
+    poisson_from_words,
     poisson_prepared,
     poisson_setup,
     random_bits64,
@@ -530,6 +531,14 @@ def _chip_segment(col0, j, w, chip_cols):
     return chip, min(w, (chip + 1) * chip_cols - col0)
 
 
+@njit(cache=True, inline="always")
+def _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e):
+    """The end of the run of columns from ``j`` on one chip (:func:`_chip_segment`) and that
+    chip's gain, offset, read noise and full well."""
+    chip, j_end = _chip_segment(col0, j, w, chip_cols)
+    return j_end, gain_e_per_dn[chip], offset_dn[chip], read_noise_e[chip], full_well_e[chip]
+
+
 @njit(cache=True)
 def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_per_dn,
                    offset_dn, read_noise_e, full_well_e, frame_key, shot_noise, read_noise,
@@ -539,11 +548,7 @@ def _noise_adc_row(mean_row, out_row, row, col0, mosaic_cols, chip_cols, gain_e_
     base = row * mosaic_cols + col0
     j = 0
     while j < w:
-        chip, j_end = _chip_segment(col0, j, w, chip_cols)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
         for jj in range(j, j_end):
             out_row[jj] = _noise_adc_pixel(mean_row[jj], base + jj, g, off, rn, fw, frame_key,
                                            shot_noise, read_noise, quantize, max_dn)
@@ -562,11 +567,7 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     nf = frame_keys.shape[0]
     j = 0
     while j < w:
-        chip, j_end = _chip_segment(col0, j, w, chip_cols)
-        g = gain_e_per_dn[chip]
-        off = offset_dn[chip]
-        rn = read_noise_e[chip]
-        fw = full_well_e[chip]
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
         for i in range(h):
             base = (row0 + i) * mosaic_cols + col0
             for jj in range(j, j_end):
@@ -576,6 +577,45 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
                     out[f, i, jj] = _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, base + jj, g, off,
                                                         rn, fw, frame_keys[f], shot_noise, read_noise,
                                                         quantize, max_dn)
+        j = j_end
+
+
+@njit(cache=True)
+def noise_adc_window(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_dn, offset_dn, read_noise_e,
+                     full_well_e, frame_key, max_dn, words, scratch):
+    """:func:`noise_adc_frames` of one frame with shot and read noise, quantised (the chain of a
+    Monte Carlo trial's windows): ``mean[h, w]`` (e-, C-contiguous) at mosaic ``(row0, col0)``
+    into ``out[h, w]`` (float64, C-contiguous), the same value per pixel, in passes over the
+    block: the words of the pixels' Poisson and read-noise draws in one loop the compiler
+    vectorises (the SplitMix64 multiplies), the counts from them
+    (:func:`simcam.rng.poisson_from_words`: PTRS means together), then, chip by chip, the
+    full well, read noise (:func:`simcam.rng.std_normal_from_word`) and ADC
+    (:func:`_noise_adc_prepared`'s operations in its order). ``words``: uint64 scratch
+    (3, h w); ``scratch``: int64 scratch of 2 h w."""
+    h, w = mean.shape
+    shot_counter = words[0]
+    shot_word = words[1]
+    read_word = words[2]
+    for i in range(h):
+        base = (row0 + i) * mosaic_cols + col0
+        for j in range(w):
+            p = i * w + j
+            c = slot_counter(base + j, SLOT_SHOT)
+            shot_counter[p] = c
+            shot_word[p] = random_bits64(frame_key, c)
+            read_word[p] = random_bits64(frame_key, slot_counter(base + j, SLOT_READ))
+    poisson_from_words(mean.reshape(h * w), shot_word, frame_key, shot_counter, out.reshape(h * w), scratch)
+    j = 0
+    while j < w:
+        j_end, g, off, rn, fw = _chip_run(col0, j, w, chip_cols, gain_e_per_dn, offset_dn, read_noise_e, full_well_e)
+        for i in range(h):
+            base = (row0 + i) * mosaic_cols + col0
+            for jj in range(j, j_end):
+                v = out[i, jj]
+                if v > fw:
+                    v = fw
+                z = std_normal_from_word(read_word[i * w + jj], frame_key, slot_counter(base + jj, SLOT_READ))
+                out[i, jj] = _adc(v + rn * z, g, off, max_dn)
         j = j_end
 
 
@@ -600,8 +640,7 @@ def expose_windows_frames(mean_e, row0, col0, mosaic_cols, chip_cols, gain_e_per
     ``mean_e`` (n, h, w) from :func:`mean_charge_windows`; ``frame_keys`` (F,) uint64;
     ``out`` (F, n, h, w). Pixel values equal :func:`expose_windows` with each frame key.
     Each window goes through a float64 scratch (F, h, w), so :func:`noise_adc_frames` has
-    one signature whatever the output dtype (the fused Monte Carlo kernel calls it with
-    the same one): numba compiles it once.
+    one signature whatever the output dtype: numba compiles it once.
     """
     n, h, w = mean_e.shape
     for kk in prange(n):
