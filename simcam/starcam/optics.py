@@ -552,7 +552,16 @@ CUBIC_MONOMIALS = ("1", "x", "y", "x^2", "xy", "y^2", "x^3", "x^2y", "xy^2", "y^
 
 def _monomials(x, y):
     one = np.ones_like(x)
-    return (one, x, y, x * x, x * y, y * y, x * x * x, x * x * y, x * y * y, y * y * y)
+    xx, xy, yy = x * x, x * y, y * y  # x * x * y is (x * x) * y: the same products
+    return (one, x, y, xx, xy, yy, xx * x, xx * y, xy * y, yy * y)
+
+
+def _terms(coeffs, monomials):
+    """``sum_k c_k m_k`` over the non-zero coefficients (Python's ``sum``, from 0). A zero
+    coefficient's term is a signed zero, and adding one leaves the running sum as it is (the
+    sum starts at +0 and round to nearest makes -0 only of two -0 terms, so it is never -0):
+    the same values as the full sum for finite monomials, without computing what is zero."""
+    return sum(c * m for c, m in zip(coeffs, monomials) if c != 0.0)
 
 
 def _monomials_dx(x, y):
@@ -607,21 +616,25 @@ class CubicDistortion(_Distortion):
         """The zero distortion."""
         return cls(r_norm_px=r_norm_px)
 
-    def _map(self, u, v):
+    def _map(self, u, v, jacobian=True):
         rn = self.r_norm_px
+        cx, cy = self.coeffs_x, self.coeffs_y
         x = u / rn
         y = v / rn
-        m = _monomials(x, y)
-        mx = _monomials_dx(x, y)
-        my = _monomials_dy(x, y)
-        cx, cy = self.coeffs_x, self.coeffs_y
-        du = sum(c * t for c, t in zip(cx, m))
-        dv = sum(c * t for c, t in zip(cy, m))
+        # monomials only for a polynomial that has terms (the embedded default's is zero)
+        nonzero = any(cx) or any(cy)
+        m = _monomials(x, y) if nonzero else ()
+        du = _terms(cx, m)
+        dv = _terms(cy, m)
+        if not jacobian:
+            return u + du, v + dv, None
+        mx = _monomials_dx(x, y) if nonzero else ()
+        my = _monomials_dy(x, y) if nonzero else ()
         jac = np.empty(u.shape + (2, 2))
-        jac[..., 0, 0] = 1.0 + sum(c * t for c, t in zip(cx, mx)) / rn
-        jac[..., 0, 1] = sum(c * t for c, t in zip(cx, my)) / rn
-        jac[..., 1, 0] = sum(c * t for c, t in zip(cy, mx)) / rn
-        jac[..., 1, 1] = 1.0 + sum(c * t for c, t in zip(cy, my)) / rn
+        jac[..., 0, 0] = 1.0 + _terms(cx, mx) / rn
+        jac[..., 0, 1] = _terms(cx, my) / rn
+        jac[..., 1, 0] = _terms(cy, mx) / rn
+        jac[..., 1, 1] = 1.0 + _terms(cy, my) / rn
         return u + du, v + dv, jac
 
 
@@ -657,10 +670,10 @@ class CompositeDistortion(_Distortion):
             cubic=CubicDistortion.identity(r_norm_px=r_norm_px),
         )
 
-    def _map(self, u, v):
-        bu, bv, jb = self.brown_conrady._map(u, v)
-        cu, cv, jc = self.cubic._map(bu, bv)
-        return cu, cv, np.matmul(jc, jb)
+    def _map(self, u, v, jacobian=True):
+        bu, bv, jb = self.brown_conrady._map(u, v, jacobian)
+        cu, cv, jc = self.cubic._map(bu, bv, jacobian)
+        return cu, cv, (np.matmul(jc, jb) if jacobian else None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -701,11 +714,13 @@ class HigherOrderRadialDistortion(_Distortion):
             object.__setattr__(self, name, _finite_float(name, getattr(self, name)))
         object.__setattr__(self, "r_corner_px", _positive_float("r_corner_px", self.r_corner_px))
 
-    def _map(self, u, v):
-        bu, bv, jb = self.base._map(u, v)
+    def _map(self, u, v, jacobian=True):
+        bu, bv, jb = self.base._map(u, v, jacobian)
         rc = self.r_corner_px
         q = (u * u + v * v) / (rc * rc)
         g = (self.a5_px * q * q + self.a7_px * q * q * q) / rc
+        if not jacobian:
+            return bu + u * g, bv + v * g, None
         gp = (2.0 * self.a5_px * q + 3.0 * self.a7_px * q * q) / rc * 2.0 / (rc * rc)
         jac = jb.copy()
         jac[..., 0, 0] += g + gp * u * u
