@@ -13,8 +13,9 @@ airy_cutoff_cyc_per_px
     Incoherent diffraction cutoff ``pixel_pitch / (wavelength * f_number)``.
 psf_sigma_px
     Parametric PSF width over the field.
-lateral_colour_shift_px
-    Chromatic lateral displacement (radial lateral colour + uniform prism-like term).
+lateral_colour_shift_px, lateral_colour
+    Chromatic lateral displacement (radial lateral colour + uniform prism-like term); its
+    model at fixed wavelengths, for many positions.
 BrownConradyDistortion, CubicDistortion, CompositeDistortion, HigherOrderRadialDistortion
     Geometric distortion with analytic Jacobian and Newton inverse (the Brown-Conrady model,
     the shared forward/inverse machinery and the errors live in :mod:`simcam.distortion`,
@@ -56,6 +57,8 @@ __all__ = [
     "render_shifted_stamps",
     "psf_sigma_px",
     "lateral_colour_shift_px",
+    "LateralColour",
+    "lateral_colour",
     "CUBIC_MONOMIALS",
     "BrownConradyDistortion",
     "CubicDistortion",
@@ -505,17 +508,60 @@ def lateral_colour_shift_px(
     du_px, dv_px : ndarray, shape (n, n_l)
         Displacement of each wavelength's image relative to the reference, px.
     """
-    wl = _finite_array("wavelength_nm", wavelength_nm)
-    if wl.ndim != 1:
-        raise OpticsError(f"wavelength_nm: expected shape (n_l,), got {wl.shape}")
-    if np.any(wl <= 0):
-        raise OpticsError("wavelength_nm: must be > 0")
+    colour = lateral_colour(wavelength_nm=wavelength_nm, ref_wavelength_nm=ref_wavelength_nm,
+                            radial_coeffs=radial_coeffs, uniform_x_coeffs=uniform_x_coeffs,
+                            uniform_y_coeffs=uniform_y_coeffs, r_norm_px=r_norm_px)
     u = _finite_array("u_px", u_px)
     v = _finite_array("v_px", v_px)
     if u.ndim != 1:
         raise OpticsError(f"u_px: expected shape (n,), got {u.shape}")
     if v.shape != u.shape:
         raise OpticsError(f"v_px: shape {v.shape} differs from u_px {u.shape}")
+    return colour.shift_px(u, v)
+
+
+@dataclass(frozen=True)
+class LateralColour:
+    """The model of :func:`lateral_colour_shift_px` at fixed wavelengths (:func:`lateral_colour`):
+    its polynomials in ``dl`` evaluated once, so that :meth:`shift_px` costs a few products per
+    star (a renderer's scenes share their spectrum's wavelengths)."""
+
+    r_norm_px: float
+    #: ``c[k-1][m]`` of a radial polynomial that depends on the field (more than one column), else None
+    field_table: np.ndarray | None
+    #: ``P_r(dl)`` (1, n_l); with a field table the powers ``dl^k`` (K, n_l)
+    radial: np.ndarray
+    uniform_x: np.ndarray  # P_x(dl), (1, n_l)
+    uniform_y: np.ndarray  # P_y(dl), (1, n_l)
+
+    def shift_px(self, u, v):
+        """``(du_px, dv_px)`` (n, n_l) of images at focal ``u``, ``v`` (n,) px (validated float64
+        arrays; :func:`lateral_colour_shift_px` checks them)."""
+        rn = self.r_norm_px
+        pr = self.radial
+        if self.field_table is not None:
+            # P_r(dl, r) = sum_k dl^k sum_m c_km s^m with s = (r / r_norm)^2, per star
+            s = (u * u + v * v) / (rn * rn)
+            pr = (np.power.outer(s, np.arange(self.field_table.shape[1])) @ self.field_table.T) @ pr
+        return (u / rn)[:, None] * pr + self.uniform_x, (v / rn)[:, None] * pr + self.uniform_y
+
+
+def lateral_colour(*, wavelength_nm, ref_wavelength_nm: float, radial_coeffs=(), uniform_x_coeffs=(),
+                   uniform_y_coeffs=(), r_norm_px: float) -> LateralColour:
+    """The lateral colour of :func:`lateral_colour_shift_px` (same arguments, without the
+    positions) at the wavelengths ``wavelength_nm``: ``LateralColour.shift_px(u, v)`` then gives
+    the same values as :func:`lateral_colour_shift_px` at ``(u, v)``.
+
+    Raises
+    ------
+    OpticsError
+        An argument is non-finite, of the wrong shape or out of range.
+    """
+    wl = _finite_array("wavelength_nm", wavelength_nm)
+    if wl.ndim != 1:
+        raise OpticsError(f"wavelength_nm: expected shape (n_l,), got {wl.shape}")
+    if np.any(wl <= 0):
+        raise OpticsError("wavelength_nm: must be > 0")
     lref = _positive_float("ref_wavelength_nm", ref_wavelength_nm)
     rn = _positive_float("r_norm_px", r_norm_px)
     cx = _coeff_tuple("uniform_x_coeffs", uniform_x_coeffs)
@@ -525,21 +571,16 @@ def lateral_colour_shift_px(
     if table.ndim > 2 or (table.ndim == 2 and table.shape[1] == 0):
         raise OpticsError(f"radial_coeffs: expected a sequence or a table with rows of equal length >= 1, "
                           f"got shape {table.shape}")
+    field_table = None
     if table.ndim == 2 and table.shape[1] > 1:
-        # P_r(dl, r) = sum_k dl^k sum_m c_km s^m with s = (r / r_norm)^2, per star
-        s = (u * u + v * v) / (rn * rn)
-        a = np.power.outer(s, np.arange(table.shape[1])) @ table.T  # (n, K)
-        dlp = np.power.outer(dl, np.arange(1, table.shape[0] + 1)).T  # (K, n_l)
-        pr = a @ dlp
+        field_table = table
+        radial = np.power.outer(dl, np.arange(1, table.shape[0] + 1)).T  # (K, n_l)
     elif table.ndim == 2:
-        pr = _poly_no_constant(dl, tuple(float(c) for c in table[:, 0]))[None, :]
+        radial = _poly_no_constant(dl, tuple(float(c) for c in table[:, 0]))[None, :]
     else:
-        pr = _poly_no_constant(dl, _coeff_tuple("radial_coeffs", radial_coeffs))[None, :]
-    px = _poly_no_constant(dl, cx)[None, :]
-    py = _poly_no_constant(dl, cy)[None, :]
-    du = (u / rn)[:, None] * pr + px
-    dv = (v / rn)[:, None] * pr + py
-    return du, dv
+        radial = _poly_no_constant(dl, _coeff_tuple("radial_coeffs", table))[None, :]
+    return LateralColour(r_norm_px=rn, field_table=field_table, radial=radial,
+                         uniform_x=_poly_no_constant(dl, cx)[None, :], uniform_y=_poly_no_constant(dl, cy)[None, :])
 
 
 # ----------------------------------------------------------------------------------------

@@ -317,19 +317,26 @@ class StarCamera:
         return hit
 
     def _lateral_colour(self, wl, ud, vd):
-        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions."""
-        scn = self.scenario
-        lc = scn.optics.lateral_colour
-        return optics.lateral_colour_shift_px(
-            wavelength_nm=wl,
-            u_px=ud,
-            v_px=vd,
-            ref_wavelength_nm=lc.ref_wavelength_nm,
-            radial_coeffs=tuple(lc.radial_px_per_nm),
-            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
-            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
-            r_norm_px=scn.optics.r_norm_px,
-        )
+        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions
+        ``ud``, ``vd`` (float64 (W,)): :func:`simcam.starcam.optics.lateral_colour_shift_px`, its
+        model at the wavelengths ``wl`` kept per wavelength set (:func:`simcam.starcam.optics.lateral_colour`)."""
+        key = wl.tobytes()
+        cache = self.__dict__.setdefault("_lateral_colour_models", {})
+        model = cache.get(key)
+        if model is None:
+            scn = self.scenario
+            lc = scn.optics.lateral_colour
+            if len(cache) >= 64:
+                cache.clear()
+            model = cache[key] = optics.lateral_colour(
+                wavelength_nm=wl,
+                ref_wavelength_nm=lc.ref_wavelength_nm,
+                radial_coeffs=tuple(lc.radial_px_per_nm),
+                uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+                uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
+                r_norm_px=scn.optics.r_norm_px,
+            )
+        return model.shift_px(ud, vd)
 
     def profile_node(self, placement: Placement) -> tuple[float, float]:
         """The pose whose stamp profiles serve ``placement`` (``render.stamp_route = "profile"``):
