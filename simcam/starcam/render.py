@@ -406,10 +406,7 @@ class StarCamera:
                 "move lab.target_center_px or the protocol's field centres"
             )
         # reference-wavelength position in the coordinates of the chip the image lands on
-        xr, yr = np.empty(W), np.empty(W)
-        for k in np.unique(chip):
-            sel = chip == k
-            xr[sel], yr[sel] = self.mosaic._chip_coords(ud[sel], vd[sel], int(k))
+        xr, yr = self.mosaic._chip_coords(ud, vd, chip)
         sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
         sig = optics.psf_sigma_px(
             u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
