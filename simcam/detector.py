@@ -34,8 +34,6 @@ __all__ = [
     "prnu_map",
     "dsnu_map",
     "apply_nonlinearity",
-    "WindowMaps",
-    "window_maps",
 ]
 
 #: Largest accepted expected signal per pixel (e-): far above any full well, and small
@@ -594,86 +592,22 @@ def dsnu_map(*, shape, row0, col0, mosaic_cols, params: DetectorParams,
 
 def _fixed_pattern_block(signal_e: float, shape, row0, col0, mosaic_cols, params, detector_key, *,
                          dark: bool) -> np.ndarray:
-    """``S g + d`` (e-) of a block with uniform signal ``signal_e`` (:func:`_fixed_pattern_windows`
-    of one window)."""
+    """``S g + d`` (e-) of a block with uniform signal ``signal_e``, by the window
+    fixed-pattern kernel :func:`simcam.kernels.detector.mean_charge_windows` (one
+    kernel for numba to compile, not one per map); ``dark=False`` leaves the dark signal
+    out (``d = 0``), ``True`` the PRNU (``g = 1``)."""
     h, w, r0, c0, mc = _block_args(shape, row0, col0, mosaic_cols)
     if not isinstance(params, DetectorParams):
         _fail("params", "must be a DetectorParams", type(params).__name__)
     _, dk = _keys(0, detector_key)
-    return _fixed_pattern_windows(signal_e, (h, w), np.array([r0], dtype=np.int64), np.array([c0], dtype=np.int64),
-                                  mc, params, dk, dark=dark)[0]
-
-
-def _fixed_pattern_windows(signal_e: float, shape, row0, col0, mosaic_cols: int, params, detector_key, *,
-                           dark: bool) -> np.ndarray:
-    """``S g + d`` (e-) of ``n`` windows of ``shape`` at mosaic origins ``row0``, ``col0``
-    (validated (n,) int64) with uniform signal ``signal_e``, by the window fixed-pattern
-    kernel :func:`simcam.kernels.detector.mean_charge_windows` (one kernel for numba to
-    compile, not one per map); ``dark=False`` leaves the dark signal out (``d = 0``), ``True``
-    the PRNU (``g = 1``)."""
-    out = np.empty((row0.shape[0],) + tuple(shape))
+    out = np.empty((1, h, w))
     if out.size:
         prnu = 0.0 if dark else params.prnu_rms
         d = (params.dark_e, params.dsnu_rms_e, params.hot_pixel_fraction, params.hot_pixel_dark_e) if dark \
             else (0.0, 0.0, 0.0, 0.0)
-        _k.mean_charge_windows(np.full(out.shape, signal_e), row0, col0, mosaic_cols, float(prnu),
-                               *(float(v) for v in d), detector_key, out)
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class WindowMaps:
-    """The fixed pattern of a set of ``n`` windows, computed once for many window chains.
-
-    ``gain`` (n, h, w) is the PRNU factor ``g`` and ``dark_e`` (n, h, w) the dark signal ``d``
-    of each pixel (:class:`DetectorMaps` for windows instead of a block): :func:`window_chain`
-    with ``maps`` computes the mean charge ``S g + d`` from them, the kernel's operations on
-    the kernel's values, so the same chain bit for bit, without drawing the pattern again.
-    Built by :func:`window_maps`; the key fields (the origins ``row0``, ``col0``, ``mosaic_cols``,
-    ``detector_key`` and ``fixed``, the five fixed-pattern parameters) are checked by
-    :func:`window_chain` against its own arguments.
-    """
-
-    gain: np.ndarray
-    dark_e: np.ndarray
-    row0: np.ndarray
-    col0: np.ndarray
-    mosaic_cols: int
-    detector_key: np.uint64
-    fixed: tuple[float, ...]
-
-
-def _window_origins(row0, col0, n: int, h: int, w: int, *, mosaic_cols, chip_cols,
-                    params: DetectorParams) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """Validated (n,) int64 window origins inside the mosaic; returns (row0, col0, mosaic_cols, chip_cols)."""
-    r0 = np.ascontiguousarray(np.asarray(row0), dtype=np.int64)
-    c0 = np.ascontiguousarray(np.asarray(col0), dtype=np.int64)
-    if r0.shape != (n,) or c0.shape != (n,):
-        _fail("row0/col0", f"must be {n} integers (one per window)", (r0.shape, c0.shape))
-    if n and (r0.min() < 0 or c0.min() < 0):
-        _fail("row0/col0", "must be >= 0", (int(r0.min()), int(c0.min())))
-    mc, cc = _check_geometry(rows_hi=int(r0.max()) + h if n else 0,
-                             cols_lo=int(c0.min()) if n else 0,
-                             cols_hi=int(c0.max()) + w if n else 0,
-                             mosaic_cols=mosaic_cols, chip_cols=chip_cols, params=params)
-    return r0, c0, mc, cc
-
-
-def window_maps(*, shape, row0, col0, mosaic_cols, chip_cols, params: DetectorParams, detector_key) -> WindowMaps:
-    """The fixed pattern (PRNU factor and dark signal) of windows of ``shape`` (h, w) at mosaic
-    origins ``row0``, ``col0`` (n,), for :func:`window_chain` (same geometry arguments): the
-    values :func:`simcam.kernels.detector.mean_charge_windows` draws per pixel, by that kernel
-    (``1 g + 0`` and ``0 1 + d``, both exact)."""
-    if np.ndim(shape) != 1 or len(shape) != 2:
-        _fail("shape", "must be (rows, cols)", shape)
-    h = _int_arg("shape[0]", shape[0], minimum=0)
-    w = _int_arg("shape[1]", shape[1], minimum=0)
-    r0, c0, mc, _ = _window_origins(row0, col0, np.size(row0), h, w, mosaic_cols=mosaic_cols, chip_cols=chip_cols,
-                                    params=params)
-    _, dk = _keys(0, detector_key)
-    gain = _fixed_pattern_windows(1.0, (h, w), r0, c0, mc, params, dk, dark=False)
-    dark = _fixed_pattern_windows(0.0, (h, w), r0, c0, mc, params, dk, dark=True)
-    return WindowMaps(gain, dark, r0, c0, mc, dk, _fixed_pattern_fields(params))
+        _k.mean_charge_windows(np.full((1, h, w), signal_e), np.array([r0], dtype=np.int64),
+                               np.array([c0], dtype=np.int64), mc, float(prnu), *(float(v) for v in d), dk, out)
+    return out[0]
 
 
 @dataclass(frozen=True)
@@ -702,38 +636,31 @@ class WindowChain:
 
 
 def window_chain(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,
-                 detector_key, maps: WindowMaps | None = None) -> WindowChain:
-    """Validate a window batch and evaluate its fixed pattern once (see :class:`WindowChain`).
-
-    ``maps``: the windows' fixed pattern from :func:`window_maps` with the same origins,
-    detector key, parameters and ``mosaic_cols`` (checked): the mean charge is then ``S g + d``
-    of its values (the same chain bit for bit), for windows that recur (a Monte Carlo
-    trial's conditions keep their window origins from trial to trial).
-    """
+                 detector_key) -> WindowChain:
+    """Validate a window batch and evaluate its fixed pattern once (see :class:`WindowChain`)."""
     sig = _signal(signal_e, 3)
     n, h, w = sig.shape
-    r0, c0, mc, cc = _window_origins(row0, col0, n, h, w, mosaic_cols=mosaic_cols, chip_cols=chip_cols,
-                                     params=params)
+    r0 = np.ascontiguousarray(np.asarray(row0), dtype=np.int64)
+    c0 = np.ascontiguousarray(np.asarray(col0), dtype=np.int64)
+    if r0.shape != (n,) or c0.shape != (n,):
+        _fail("row0/col0", f"must be {n} integers (one per window)", (r0.shape, c0.shape))
+    if n and (r0.min() < 0 or c0.min() < 0):
+        _fail("row0/col0", "must be >= 0", (int(r0.min()), int(c0.min())))
+    mc, cc = _check_geometry(rows_hi=int(r0.max()) + h if n else 0,
+                             cols_lo=int(c0.min()) if n else 0,
+                             cols_hi=int(c0.max()) + w if n else 0,
+                             mosaic_cols=mosaic_cols, chip_cols=chip_cols, params=params)
     _, dk = _keys(0, detector_key)
     mean = np.empty_like(sig, dtype=np.float64)
-    if maps is not None:
-        if not (isinstance(maps, WindowMaps) and maps.gain.shape == sig.shape and dk == maps.detector_key
-                and mc == maps.mosaic_cols and _fixed_pattern_fields(params) == maps.fixed
-                and np.array_equal(r0, maps.row0) and np.array_equal(c0, maps.col0)):
-            _fail("maps", "must be the WindowMaps (simcam.detector.window_maps) of these windows, detector key, "
-                  "fixed-pattern parameters and mosaic width", type(maps).__name__)
-        # the kernel's S * g + d (a product and a sum, each rounded once), on its g and d
-        np.multiply(sig, maps.gain, out=mean)
-        np.add(mean, maps.dark_e, out=mean)
-    elif sig.size:
+    if sig.size:
         _k.mean_charge_windows(sig, r0, c0, mc, float(params.prnu_rms), float(params.dark_e),
                                float(params.dsnu_rms_e), float(params.hot_pixel_fraction),
                                float(params.hot_pixel_dark_e), dk, mean)
-    if sig.size and params.nonlinearity_beta != 0.0:
-        # apply_nonlinearity in place (the kernel reads each pixel before writing it):
-        # no second full-size array for a full frame
-        _k.nonlinearity_windows(mean, c0, int(cc), np.asarray(params.full_well_e, dtype=np.float64),
-                                float(params.nonlinearity_beta), mean)
+        if params.nonlinearity_beta != 0.0:
+            # apply_nonlinearity in place (the kernel reads each pixel before writing it):
+            # no second full-size array for a full frame
+            _k.nonlinearity_windows(mean, c0, int(cc), np.asarray(params.full_well_e, dtype=np.float64),
+                                    float(params.nonlinearity_beta), mean)
     g, off, rn, fw = params._chip_arrays()
     return WindowChain(mean, r0, c0, mc, cc, g, off, rn, fw, float(params.max_dn), params.output_dtype)
 

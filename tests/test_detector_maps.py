@@ -2,9 +2,8 @@
 read per frame (``expose(..., maps=...)``): the maps against the PRNU factor and dark signal
 rebuilt in numpy from the generator's primitives (an independent path), the frames bit for
 bit against the fused chain that draws the maps itself, and the key check that keeps a map
-from being used for another detector, parameter set or block; the same for a set of windows
-(:func:`simcam.detector.window_maps`, ``window_chain(..., maps=...)``). No random assertion
-here: every comparison is exact (the same functions of the keys and the pixel index).
+from being used for another detector, parameter set or block. No random assertion here:
+every comparison is exact (the same functions of the keys and the pixel index).
 """
 
 from __future__ import annotations
@@ -19,13 +18,10 @@ from simcam.detector import (
     DetectorMaps,
     DetectorParameterError,
     DetectorParams,
-    WindowMaps,
     detector_maps,
     dsnu_map,
     expose,
     prnu_map,
-    window_chain,
-    window_maps,
 )
 from simcam.rng import key_from_seed
 
@@ -147,59 +143,6 @@ def test_maps_of_another_detector_or_block_are_refused():
     with pytest.raises(DetectorParameterError, match="signal_e"):
         _expose(bad, 100, 100, p, fk, dk, maps=m)
     assert isinstance(m, DetectorMaps)
-
-
-WINDOWS = dict(row0=np.array([0, 37, 500, 90]), col0=np.array([2040, 0, 1990, 4085]))  # astride chips, edges
-
-
-def _window_chain(sig, p, dk, **kw):
-    return window_chain(signal_e=sig, mosaic_cols=MOSAIC_COLS, chip_cols=CHIP_COLS, params=p, detector_key=dk,
-                        **{**WINDOWS, **kw})
-
-
-def test_window_maps_are_the_block_maps_of_each_window():
-    p = _params()
-    dk = key_from_seed(SEED, 9)
-    wm = window_maps(shape=(11, 11), mosaic_cols=MOSAIC_COLS, chip_cols=CHIP_COLS, params=p, detector_key=dk,
-                     **WINDOWS)
-    assert isinstance(wm, WindowMaps) and wm.gain.shape == wm.dark_e.shape == (4, 11, 11)
-    for j, (r0, c0) in enumerate(zip(WINDOWS["row0"], WINDOWS["col0"])):
-        m = _maps((11, 11), int(r0), int(c0), p, dk)
-        assert np.array_equal(wm.gain[j], m.gain) and np.array_equal(wm.dark_e[j], m.dark_e)
-
-
-@pytest.mark.parametrize("beta", [0.05, 0.0])
-def test_window_chain_through_maps_equals_the_chain_that_draws_them(beta):
-    # float64 and float32 signals, zero (lamp-off) windows; with and without the
-    # non-linearity that follows the fixed pattern
-    p = _params(nonlinearity_beta=beta)
-    for dseed in (1, 2):
-        dk = key_from_seed(SEED, dseed)
-        wm = window_maps(shape=(11, 11), mosaic_cols=MOSAIC_COLS, chip_cols=CHIP_COLS, params=p, detector_key=dk,
-                         **WINDOWS)
-        for sig in (_signal((4, 11, 11), seed=dseed), _signal((4, 11, 11)).astype(np.float32), np.zeros((4, 11, 11))):
-            ref = _window_chain(sig, p, dk)
-            got = _window_chain(sig, p, dk, maps=wm)
-            assert np.array_equal(got.mean_e.view(np.uint64), ref.mean_e.view(np.uint64))
-            assert np.array_equal(got.row0, ref.row0) and np.array_equal(got.col0, ref.col0)
-
-
-def test_window_maps_of_other_windows_or_another_detector_are_refused():
-    p = _params()
-    dk = key_from_seed(SEED, 3)
-    wm = window_maps(shape=(11, 11), mosaic_cols=MOSAIC_COLS, chip_cols=CHIP_COLS, params=p, detector_key=dk,
-                     **WINDOWS)
-    sig = _signal((4, 11, 11))
-    cases = [dict(dk=key_from_seed(SEED, 4)), dict(p=dataclasses.replace(p, dsnu_rms_e=2.0)),
-             dict(kw=dict(row0=WINDOWS["row0"] + 1)), dict(sig=_signal((4, 9, 9))),
-             dict(kw=dict(maps=_maps((11, 11), 0, 0, p, dk)))]
-    for case in cases:
-        kw = {"maps": wm, **case.get("kw", {})}
-        with pytest.raises(DetectorParameterError, match="maps"):
-            _window_chain(case.get("sig", sig), case.get("p", p), case.get("dk", dk), **kw)
-    # the per-frame parameters (gain, offset, read noise, full well, non-linearity) may change
-    p2 = dataclasses.replace(p, gain_e_per_dn=(3.0, 5.0), nonlinearity_beta=0.0)
-    assert np.array_equal(_window_chain(sig, p2, dk, maps=wm).mean_e, _window_chain(sig, p2, dk).mean_e)
 
 
 def test_star_camera_keeps_its_maps_and_rebuilds_them_when_the_detector_changes():

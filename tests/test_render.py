@@ -189,37 +189,3 @@ def test_scene_cache_reuses_images_when_only_the_reference_changes():
     assert not np.array_equal(second.truth.x_reference, first.truth.x_reference)
     np.testing.assert_array_equal(cam.render_windows(second, frames=2, seed=5).pixels,
                                   StarCamera(scn).render_windows(fresh, frames=2, seed=5).pixels)
-
-
-def test_window_chains_reuse_the_fixed_pattern_of_recurring_windows(camera):
-    # two poses a few hundredths of a pixel apart: new scenes, the same windows. Their chains
-    # read the camera's kept fixed pattern (simcam.detector.window_maps) and equal the chain
-    # that draws it; the lamp-off chain is one object; another detector key is not served
-    # the old pattern
-    from simcam.detector import window_chain
-
-    lay = star_grid(camera.scenario)
-    a = camera.scene(Placement(layout=lay, platform_dx_px=0.01, condition=11))
-    b = camera.scene(Placement(layout=lay, platform_dx_px=0.03, condition=11))
-    assert not np.array_equal(a.stamps, b.stamps)
-    _, cols = camera.mosaic.shape
-
-    def drawn(cam, scene, dark=False):
-        sig, col0, row0 = cam.expected_windows_e(scene)
-        return window_chain(signal_e=np.zeros_like(sig) if dark else sig, row0=row0, col0=col0, mosaic_cols=cols,
-                            chip_cols=cam.mosaic.chip_cols, params=cam.detector_params,
-                            detector_key=cam.detector_key).mean_e
-
-    ca, cb = camera.window_chain(a), camera.window_chain(b)
-    assert np.array_equal(ca.col0, cb.col0) and np.array_equal(ca.row0, cb.row0)
-    for scene, chain in ((a, ca), (b, cb)):
-        assert np.array_equal(chain.mean_e.view(np.uint64), drawn(camera, scene).view(np.uint64))
-    da = camera.window_chain(a, dark=True)
-    assert camera.window_chain(b, dark=True) is da
-    assert np.array_equal(da.mean_e.view(np.uint64), drawn(camera, a, dark=True).view(np.uint64))
-    other = StarCamera(camera.scenario)
-    other.__dict__.update({k: v for k, v in camera.__dict__.items() if k == "_window_patterns"})
-    other.detector_key = np.uint64(12345)
-    c = other.scene(a.placement)
-    assert np.array_equal(other.window_chain(c).mean_e, drawn(other, c))
-    assert not np.array_equal(other.window_chain(c).mean_e, ca.mean_e)

@@ -30,8 +30,7 @@ import pandas as pd
 
 from simcam.starcam import optics
 from simcam.config_base import ScenarioError
-from simcam.detector import (DetectorParams, detector_maps, expose, expose_windows_frames, window_chain,
-                             window_maps)
+from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
 from simcam.starcam.geometry import Mosaic
 from simcam.rng import child_keys, key_from_seed
 from simcam.starcam.scenario import Scenario
@@ -228,7 +227,10 @@ class StarCamera:
                         p, platform_dx_px=p.platform_dx_px + dx, platform_dy_px=p.platform_dy_px + dy),
                         profile_node=self.profile_node(p))
                 sig = _expected_windows_at(self, sc, chain.col0, chain.row0)
-                out.append(self._window_chain_at(sig, chain.col0, chain.row0).mean_e)
+                _, cols = self.mosaic.shape
+                out.append(window_chain(signal_e=sig, row0=chain.row0, col0=chain.col0, mosaic_cols=cols,
+                                        chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                                        detector_key=self.detector_key).mean_e)
             grads = ((out[0] - out[1]) / (2 * step_px), (out[2] - out[3]) / (2 * step_px))
             if len(cache) > 1024:
                 cache.clear()
@@ -527,45 +529,15 @@ class StarCamera:
         name = "_chain_dark" if dark else "_chain"
         cached = scene.__dict__.get(name)
         if cached is None:
+            sig, col0, row0 = self.expected_windows_e(scene)
             if dark:
-                # the same for every scene with these windows: kept with their fixed pattern
-                col0, row0 = self.window_origins(scene)
-                entry = self._window_pattern(col0, row0)
-                cached = entry.get("dark")
-                if cached is None:
-                    w = self.scenario.render.window_px
-                    cached = entry["dark"] = self._window_chain_at(np.zeros((scene.n_stars, w, w)), col0, row0)
-            else:
-                cached = self._window_chain_at(*self.expected_windows_e(scene))
+                sig = np.zeros_like(sig)
+            _, cols = self.mosaic.shape
+            cached = window_chain(signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
+                                  chip_cols=self.mosaic.chip_cols, params=self.detector_params,
+                                  detector_key=self.detector_key)
             object.__setattr__(scene, name, cached)
         return cached
-
-    def _window_pattern(self, col0, row0) -> dict:
-        """The fixed pattern of windows at mosaic origins ``col0``, ``row0``
-        (:func:`simcam.detector.window_maps`, under ``"maps"``) and their lamp-off chain (under
-        ``"dark"`` once computed), kept per origin set (the last 256, about 12 MB): a trial's
-        conditions keep their windows from trial to trial when their scenes are new), and per
-        detector (parameters and key: a caller may give the camera another)."""
-        key = (col0.tobytes(), row0.tobytes(), self.detector_params, int(self.detector_key))
-        cache = self.__dict__.setdefault("_window_patterns", {})
-        entry = cache.get(key)
-        if entry is None:
-            if len(cache) >= 256:
-                cache.pop(next(iter(cache)))
-            w = self.scenario.render.window_px
-            _, cols = self.mosaic.shape
-            entry = cache[key] = {"maps": window_maps(
-                shape=(w, w), row0=row0, col0=col0, mosaic_cols=cols, chip_cols=self.mosaic.chip_cols,
-                params=self.detector_params, detector_key=self.detector_key)}
-        return entry
-
-    def _window_chain_at(self, signal_e, col0, row0):
-        """The window chain (:func:`simcam.detector.window_chain`) of noise-free windows
-        ``signal_e`` at mosaic origins ``col0``, ``row0``, with their kept fixed pattern."""
-        _, cols = self.mosaic.shape
-        return window_chain(signal_e=signal_e, row0=row0, col0=col0, mosaic_cols=cols,
-                            chip_cols=self.mosaic.chip_cols, params=self.detector_params,
-                            detector_key=self.detector_key, maps=self._window_pattern(col0, row0)["maps"])
 
     def frame_keys(self, *, seed: int, condition: int, frames: int, first_frame: int = 0,
                    dark: bool = False) -> np.ndarray:
