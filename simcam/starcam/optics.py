@@ -430,7 +430,7 @@ def psf_sigma_px(*, u_px, v_px, sigma0_px: float, sigma_r2_px: float, r_norm_px:
     except ValueError:
         raise OpticsError(f"v_px: shape {v.shape} does not broadcast with u_px {u.shape}") from None
     sigma = s0 + s2 * r2
-    if np.any(sigma <= 0):
+    if (sigma <= 0).any():
         raise OpticsError("sigma_r2_px: gives sigma <= 0 in part of the field")
     return sigma
 
