@@ -177,7 +177,14 @@ class DetectorParams:
         return np.dtype(np.uint16 if self.adc_bits <= 16 else np.uint32)
 
     def _chip_arrays(self):
-        return tuple(np.asarray(getattr(self, n), dtype=np.float64) for n in _PER_CHIP)
+        """The per-chip parameters as float64 arrays (gain, offset, read noise, full well), made
+        once per parameter set (the fields are frozen) and shared by the chains built from it,
+        which only read them."""
+        arrays = self.__dict__.get("_chip_arrays_f8")
+        if arrays is None:
+            arrays = self.__dict__["_chip_arrays_f8"] = tuple(np.asarray(getattr(self, n), dtype=np.float64)
+                                                              for n in _PER_CHIP)
+        return arrays
 
 
 def _int_arg(name: str, value, *, minimum: int) -> int:

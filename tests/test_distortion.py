@@ -16,6 +16,7 @@ from simcam.starcam.optics import (
     BrownConradyDistortion,
     CompositeDistortion,
     CubicDistortion,
+    HigherOrderRadialDistortion,
     NonInvertibleDistortionError,
     OpticsError,
 )
@@ -127,6 +128,30 @@ def test_identity_maps_every_point_to_itself():
         iu, iv = d.inverse(u_px=u, v_px=v)
         np.testing.assert_array_equal(iu, u)
         np.testing.assert_array_equal(iv, v)
+
+
+def test_positions_without_the_jacobian_are_those_with_it():
+    # forward and displacement skip the Jacobian (and a cubic its zero coefficients' terms):
+    # the same positions bit for bit as the full map, signed zeros included
+    u = np.concatenate([np.linspace(-2048.0, 2048.0, 41), [0.0, -0.0, 1e-300]])
+    v = np.concatenate([np.linspace(1024.0, -1024.0, 41), [-0.0, 0.0, -1e-300]])
+    sparse = (0.0, 0.4, 0.0, 0.0, -0.3, 0.0, 0.0, 0.0, 0.2, 0.0)
+    models = [realistic_composite(), realistic_composite(scale=0.0), CubicDistortion.identity(r_norm_px=R_NORM),
+              CubicDistortion(coeffs_x=sparse, coeffs_y=sparse[::-1], r_norm_px=R_NORM),
+              HigherOrderRadialDistortion(base=realistic_composite(scale=0.0), a5_px=1.47, a7_px=0.081,
+                                          r_corner_px=2290.0)]
+    for d in models:
+        fu, fv, jac = d._map(u, v)
+        assert jac.shape == u.shape + (2, 2)
+        gu, gv = d.forward(u_px=u, v_px=v)
+        assert gu.tobytes() == fu.tobytes() and gv.tobytes() == fv.tobytes()
+        du, dv = d.displacement(u_px=u, v_px=v)
+        assert du.tobytes() == (fu - u).tobytes() and dv.tobytes() == (fv - v).tobytes()
+    # a zero coefficient adds nothing: the sparse cubic equals the sum over all ten monomials
+    x, y = u / R_NORM, v / R_NORM
+    monomials = (np.ones_like(x), x, y, x * x, x * y, y * y, x * x * x, x * x * y, x * y * y, y * y * y)
+    fu, _ = models[3].forward(u_px=u, v_px=v)
+    assert fu.tobytes() == (u + sum(c * m for c, m in zip(sparse, monomials))).tobytes()
 
 
 # ---------------------------------------------------------------------- Jacobian, inverse

@@ -438,3 +438,22 @@ def test_lateral_colour_rejects_bad_input():
         lateral_colour_shift_px(**dict(base, v_px=[0.0, 1.0]))
     with pytest.raises(OpticsError, match="ref_wavelength_nm"):
         lateral_colour_shift_px(**dict(base, ref_wavelength_nm=-1.0))
+
+
+def test_lateral_colour_model_at_fixed_wavelengths_equals_the_shift_function():
+    # the model built once per wavelength set (what StarCamera keeps) gives, at any
+    # positions, the shifts of lateral_colour_shift_px bit for bit: the three forms of the
+    # radial polynomial (none, a sequence, a table that depends on the field)
+    from simcam.starcam.optics import lateral_colour
+
+    wl = np.linspace(400.0, 1000.0, 61)
+    rng = np.random.default_rng(3)
+    u, v = rng.uniform(-2000, 2000, 25), rng.uniform(-1000, 1000, 25)
+    for radial in ((), (1e-4, -2e-7), [[1e-4, 3e-5, -1e-6], [2e-7, 0.0, 1e-8]]):
+        kw = dict(wavelength_nm=wl, ref_wavelength_nm=600.0, radial_coeffs=radial, uniform_x_coeffs=(6e-4,),
+                  uniform_y_coeffs=(3.5e-5, 1e-8), r_norm_px=2048.0)
+        model = lateral_colour(**kw)
+        for uu, vv in ((u, v), (v[:7], u[:7])):
+            du, dv = lateral_colour_shift_px(u_px=uu, v_px=vv, **kw)
+            mu, mv = model.shift_px(uu, vv)
+            assert du.tobytes() == mu.tobytes() and dv.tobytes() == mv.tobytes()

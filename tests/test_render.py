@@ -189,3 +189,31 @@ def test_scene_cache_reuses_images_when_only_the_reference_changes():
     assert not np.array_equal(second.truth.x_reference, first.truth.x_reference)
     np.testing.assert_array_equal(cam.render_windows(second, frames=2, seed=5).pixels,
                                   StarCamera(scn).render_windows(fresh, frames=2, seed=5).pixels)
+
+
+def test_scene_keeps_lateral_colour_per_wavelength_set_and_chip_coordinates_per_star(camera):
+    # the camera's lateral-colour model is kept per wavelength set (two filters, interleaved,
+    # each equal to the shift function), and a scene's reference positions are each star's
+    # chip coordinates, exactly as chip by chip (the calibration grid lands on both chips)
+    from simcam.starcam import optics
+    from simcam.starcam.targets import calibration_grid
+
+    scn = camera.scenario
+    lc = scn.optics.lateral_colour
+    u, v = np.linspace(-1900.0, 1900.0, 9), np.linspace(900.0, -900.0, 9)
+    for filt in (None, scn.lab.filters[0].center_nm, None, scn.lab.filters[-1].center_nm):
+        wl = camera._spectrum(filt)[0]
+        got = camera._lateral_colour(wl, u, v)
+        ref = optics.lateral_colour_shift_px(
+            wavelength_nm=wl, u_px=u, v_px=v, ref_wavelength_nm=lc.ref_wavelength_nm,
+            radial_coeffs=tuple(lc.radial_px_per_nm), uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm), r_norm_px=scn.optics.r_norm_px)
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(got, ref))
+    lay = calibration_grid(scn)
+    sc = camera.scene(Placement(layout=lay, platform_dx_px=0.3, platform_roll_rad=1e-5, condition=21))
+    assert set(sc.chip.tolist()) == {0, 1}
+    ud, vd = camera.distortion.forward(u_px=lay.u_px + 0.3 - 1e-5 * lay.v_px, v_px=lay.v_px + 1e-5 * lay.u_px)
+    for k in (0, 1):
+        sel = sc.chip == k
+        xr, yr = camera.mosaic._chip_coords(ud[sel], vd[sel], k)
+        assert xr.tobytes() == sc.x_ref_chip[sel].tobytes() and yr.tobytes() == sc.y_ref_chip[sel].tobytes()

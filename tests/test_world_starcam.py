@@ -281,6 +281,33 @@ def test_gauss_markov_drift_is_stationary():
     assert abs(x.std(ddof=1) - 0.03) < 4 * 0.03 / math.sqrt(2 * 800)
 
 
+def test_gauss_markov_drift_is_the_written_out_recursion_whatever_timelines_came_before():
+    # the coefficients a_k, b_k are kept per timeline: two time constants interleaved, each
+    # bit for bit the recursion x_k = a_k x_{k-1} + b_k z_k on the trial's own draws
+    # (SeedSequence(seed, spawn_key=(STREAM_DRIFT,)): the direction, then the normals)
+    from simcam.starcam.world import STREAM_DRIFT, _conditions
+
+    for tau in (600.0, 77.0, 600.0):
+        scn = with_updates(_ideal(), {"world.effects.drift_random_arcsec": 0.03, "world.drift_time_constant_s": tau})
+        got = drift_px(scn, 5)
+        tl = timeline(scn)
+        t = np.concatenate([frame_times_s(scn, pr, i) for pr, i, _, _ in _conditions(scn)])
+        rng = np.random.default_rng(np.random.SeedSequence(5, spawn_key=(STREAM_DRIFT,)))
+        rng.uniform(0.0, 2.0 * math.pi)
+        z = rng.normal(0.0, 1.0, (t.size, 2))
+        g = np.empty_like(z)
+        g[0] = 0.03 * z[0]
+        for k in range(1, t.size):
+            a = math.exp(-(t[k] - t[k - 1]) / tau)
+            g[k] = a * g[k - 1] + 0.03 * math.sqrt(max(0.0, 1.0 - a * a)) * z[k]
+        d = (0.0 + g) / scn.camera.scale_arcsec_per_px  # no ramp: rate 0 in the ideal world
+        start = 0
+        for pr, i, _, _ in _conditions(scn):
+            n = tl[(pr, i)][2]
+            assert got[(pr, i)].tobytes() == d[start:start + n].tobytes()
+            start += n
+
+
 def test_a_ramp_inflates_the_te_variance_by_a2_n_n_plus_1_over_12(monkeypatch):
     """A ramp of ``a`` px/frame adds ``a f`` to frame f's image, so each star's expected sample
     variance over N frames becomes ``sigma^2 + a^2 N (N + 1) / 12`` (the sample variance of

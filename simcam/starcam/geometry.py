@@ -17,6 +17,7 @@ with ``(x_c, y_c)`` chip pixel coordinates and ``R`` the counter-clockwise rotat
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -54,13 +55,21 @@ class Mosaic:
         """Mosaic array shape (rows, cols)."""
         return self.chip_rows, self.chip_cols * self.n_chips
 
+    @cached_property
+    def _rotation_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """``cos`` and ``sin`` of each chip's rotation (computed on first use; the fields are
+        not changed after construction)."""
+        return np.cos(self.rotation_rad), np.sin(self.rotation_rad)
+
     def _chip_coords(self, u, v, k):
-        """Chip ``k``'s pixel coordinates of focal points (no bounds check)."""
+        """Chip ``k``'s pixel coordinates of focal points (no bounds check); ``k`` an int, or
+        an int array of one chip per point."""
         x0 = (self.chip_cols - 1) / 2.0
         y0 = (self.chip_rows - 1) / 2.0
         du = u - self.center_u_px[k]
         dv = v - self.center_v_px[k]
-        c, s = np.cos(self.rotation_rad[k]), np.sin(self.rotation_rad[k])
+        cos, sin = self._rotation_cos_sin
+        c, s = cos[k], sin[k]
         return x0 + c * du + s * dv, y0 - s * du + c * dv
 
     def focal_to_chip(self, u_px, v_px, *, margin_px: float = 0.0):
@@ -105,7 +114,8 @@ class Mosaic:
     def vector_to_chip(self, du_px, dv_px, chip):
         """Rotate a focal-plane displacement into chip pixel axes (for lateral-colour shifts)."""
         chip = np.asarray(chip, dtype=int)
-        c, s = np.cos(self.rotation_rad[chip]), np.sin(self.rotation_rad[chip])
+        cos, sin = self._rotation_cos_sin
+        c, s = cos[chip], sin[chip]
         # broadcast chip over trailing axes of du/dv
         while c.ndim < np.ndim(du_px):
             c, s = c[..., None], s[..., None]

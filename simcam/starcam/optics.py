@@ -13,8 +13,9 @@ airy_cutoff_cyc_per_px
     Incoherent diffraction cutoff ``pixel_pitch / (wavelength * f_number)``.
 psf_sigma_px
     Parametric PSF width over the field.
-lateral_colour_shift_px
-    Chromatic lateral displacement (radial lateral colour + uniform prism-like term).
+lateral_colour_shift_px, lateral_colour
+    Chromatic lateral displacement (radial lateral colour + uniform prism-like term); its
+    model at fixed wavelengths, for many positions.
 BrownConradyDistortion, CubicDistortion, CompositeDistortion, HigherOrderRadialDistortion
     Geometric distortion with analytic Jacobian and Newton inverse (the Brown-Conrady model,
     the shared forward/inverse machinery and the errors live in :mod:`simcam.distortion`,
@@ -56,6 +57,8 @@ __all__ = [
     "render_shifted_stamps",
     "psf_sigma_px",
     "lateral_colour_shift_px",
+    "LateralColour",
+    "lateral_colour",
     "CUBIC_MONOMIALS",
     "BrownConradyDistortion",
     "CubicDistortion",
@@ -427,7 +430,7 @@ def psf_sigma_px(*, u_px, v_px, sigma0_px: float, sigma_r2_px: float, r_norm_px:
     except ValueError:
         raise OpticsError(f"v_px: shape {v.shape} does not broadcast with u_px {u.shape}") from None
     sigma = s0 + s2 * r2
-    if np.any(sigma <= 0):
+    if (sigma <= 0).any():
         raise OpticsError("sigma_r2_px: gives sigma <= 0 in part of the field")
     return sigma
 
@@ -505,17 +508,60 @@ def lateral_colour_shift_px(
     du_px, dv_px : ndarray, shape (n, n_l)
         Displacement of each wavelength's image relative to the reference, px.
     """
-    wl = _finite_array("wavelength_nm", wavelength_nm)
-    if wl.ndim != 1:
-        raise OpticsError(f"wavelength_nm: expected shape (n_l,), got {wl.shape}")
-    if np.any(wl <= 0):
-        raise OpticsError("wavelength_nm: must be > 0")
+    colour = lateral_colour(wavelength_nm=wavelength_nm, ref_wavelength_nm=ref_wavelength_nm,
+                            radial_coeffs=radial_coeffs, uniform_x_coeffs=uniform_x_coeffs,
+                            uniform_y_coeffs=uniform_y_coeffs, r_norm_px=r_norm_px)
     u = _finite_array("u_px", u_px)
     v = _finite_array("v_px", v_px)
     if u.ndim != 1:
         raise OpticsError(f"u_px: expected shape (n,), got {u.shape}")
     if v.shape != u.shape:
         raise OpticsError(f"v_px: shape {v.shape} differs from u_px {u.shape}")
+    return colour.shift_px(u, v)
+
+
+@dataclass(frozen=True)
+class LateralColour:
+    """The model of :func:`lateral_colour_shift_px` at fixed wavelengths (:func:`lateral_colour`):
+    its polynomials in ``dl`` evaluated once, so that :meth:`shift_px` costs a few products per
+    star (a renderer's scenes share their spectrum's wavelengths)."""
+
+    r_norm_px: float
+    #: ``c[k-1][m]`` of a radial polynomial that depends on the field (more than one column), else None
+    field_table: np.ndarray | None
+    #: ``P_r(dl)`` (1, n_l); with a field table the powers ``dl^k`` (K, n_l)
+    radial: np.ndarray
+    uniform_x: np.ndarray  # P_x(dl), (1, n_l)
+    uniform_y: np.ndarray  # P_y(dl), (1, n_l)
+
+    def shift_px(self, u, v):
+        """``(du_px, dv_px)`` (n, n_l) of images at focal ``u``, ``v`` (n,) px (validated float64
+        arrays; :func:`lateral_colour_shift_px` checks them)."""
+        rn = self.r_norm_px
+        pr = self.radial
+        if self.field_table is not None:
+            # P_r(dl, r) = sum_k dl^k sum_m c_km s^m with s = (r / r_norm)^2, per star
+            s = (u * u + v * v) / (rn * rn)
+            pr = (np.power.outer(s, np.arange(self.field_table.shape[1])) @ self.field_table.T) @ pr
+        return (u / rn)[:, None] * pr + self.uniform_x, (v / rn)[:, None] * pr + self.uniform_y
+
+
+def lateral_colour(*, wavelength_nm, ref_wavelength_nm: float, radial_coeffs=(), uniform_x_coeffs=(),
+                   uniform_y_coeffs=(), r_norm_px: float) -> LateralColour:
+    """The lateral colour of :func:`lateral_colour_shift_px` (same arguments, without the
+    positions) at the wavelengths ``wavelength_nm``: ``LateralColour.shift_px(u, v)`` then gives
+    the same values as :func:`lateral_colour_shift_px` at ``(u, v)``.
+
+    Raises
+    ------
+    OpticsError
+        An argument is non-finite, of the wrong shape or out of range.
+    """
+    wl = _finite_array("wavelength_nm", wavelength_nm)
+    if wl.ndim != 1:
+        raise OpticsError(f"wavelength_nm: expected shape (n_l,), got {wl.shape}")
+    if np.any(wl <= 0):
+        raise OpticsError("wavelength_nm: must be > 0")
     lref = _positive_float("ref_wavelength_nm", ref_wavelength_nm)
     rn = _positive_float("r_norm_px", r_norm_px)
     cx = _coeff_tuple("uniform_x_coeffs", uniform_x_coeffs)
@@ -525,21 +571,16 @@ def lateral_colour_shift_px(
     if table.ndim > 2 or (table.ndim == 2 and table.shape[1] == 0):
         raise OpticsError(f"radial_coeffs: expected a sequence or a table with rows of equal length >= 1, "
                           f"got shape {table.shape}")
+    field_table = None
     if table.ndim == 2 and table.shape[1] > 1:
-        # P_r(dl, r) = sum_k dl^k sum_m c_km s^m with s = (r / r_norm)^2, per star
-        s = (u * u + v * v) / (rn * rn)
-        a = np.power.outer(s, np.arange(table.shape[1])) @ table.T  # (n, K)
-        dlp = np.power.outer(dl, np.arange(1, table.shape[0] + 1)).T  # (K, n_l)
-        pr = a @ dlp
+        field_table = table
+        radial = np.power.outer(dl, np.arange(1, table.shape[0] + 1)).T  # (K, n_l)
     elif table.ndim == 2:
-        pr = _poly_no_constant(dl, tuple(float(c) for c in table[:, 0]))[None, :]
+        radial = _poly_no_constant(dl, tuple(float(c) for c in table[:, 0]))[None, :]
     else:
-        pr = _poly_no_constant(dl, _coeff_tuple("radial_coeffs", radial_coeffs))[None, :]
-    px = _poly_no_constant(dl, cx)[None, :]
-    py = _poly_no_constant(dl, cy)[None, :]
-    du = (u / rn)[:, None] * pr + px
-    dv = (v / rn)[:, None] * pr + py
-    return du, dv
+        radial = _poly_no_constant(dl, _coeff_tuple("radial_coeffs", table))[None, :]
+    return LateralColour(r_norm_px=rn, field_table=field_table, radial=radial,
+                         uniform_x=_poly_no_constant(dl, cx)[None, :], uniform_y=_poly_no_constant(dl, cy)[None, :])
 
 
 # ----------------------------------------------------------------------------------------
@@ -552,7 +593,16 @@ CUBIC_MONOMIALS = ("1", "x", "y", "x^2", "xy", "y^2", "x^3", "x^2y", "xy^2", "y^
 
 def _monomials(x, y):
     one = np.ones_like(x)
-    return (one, x, y, x * x, x * y, y * y, x * x * x, x * x * y, x * y * y, y * y * y)
+    xx, xy, yy = x * x, x * y, y * y  # x * x * y is (x * x) * y: the same products
+    return (one, x, y, xx, xy, yy, xx * x, xx * y, xy * y, yy * y)
+
+
+def _terms(coeffs, monomials):
+    """``sum_k c_k m_k`` over the non-zero coefficients (Python's ``sum``, from 0). A zero
+    coefficient's term is a signed zero, and adding one leaves the running sum as it is (the
+    sum starts at +0 and round to nearest makes -0 only of two -0 terms, so it is never -0):
+    the same values as the full sum for finite monomials, without computing what is zero."""
+    return sum(c * m for c, m in zip(coeffs, monomials) if c != 0.0)
 
 
 def _monomials_dx(x, y):
@@ -607,21 +657,25 @@ class CubicDistortion(_Distortion):
         """The zero distortion."""
         return cls(r_norm_px=r_norm_px)
 
-    def _map(self, u, v):
+    def _map(self, u, v, jacobian=True):
         rn = self.r_norm_px
+        cx, cy = self.coeffs_x, self.coeffs_y
         x = u / rn
         y = v / rn
-        m = _monomials(x, y)
-        mx = _monomials_dx(x, y)
-        my = _monomials_dy(x, y)
-        cx, cy = self.coeffs_x, self.coeffs_y
-        du = sum(c * t for c, t in zip(cx, m))
-        dv = sum(c * t for c, t in zip(cy, m))
+        # monomials only for a polynomial that has terms (the embedded default's is zero)
+        nonzero = any(cx) or any(cy)
+        m = _monomials(x, y) if nonzero else ()
+        du = _terms(cx, m)
+        dv = _terms(cy, m)
+        if not jacobian:
+            return u + du, v + dv, None
+        mx = _monomials_dx(x, y) if nonzero else ()
+        my = _monomials_dy(x, y) if nonzero else ()
         jac = np.empty(u.shape + (2, 2))
-        jac[..., 0, 0] = 1.0 + sum(c * t for c, t in zip(cx, mx)) / rn
-        jac[..., 0, 1] = sum(c * t for c, t in zip(cx, my)) / rn
-        jac[..., 1, 0] = sum(c * t for c, t in zip(cy, mx)) / rn
-        jac[..., 1, 1] = 1.0 + sum(c * t for c, t in zip(cy, my)) / rn
+        jac[..., 0, 0] = 1.0 + _terms(cx, mx) / rn
+        jac[..., 0, 1] = _terms(cx, my) / rn
+        jac[..., 1, 0] = _terms(cy, mx) / rn
+        jac[..., 1, 1] = 1.0 + _terms(cy, my) / rn
         return u + du, v + dv, jac
 
 
@@ -657,10 +711,10 @@ class CompositeDistortion(_Distortion):
             cubic=CubicDistortion.identity(r_norm_px=r_norm_px),
         )
 
-    def _map(self, u, v):
-        bu, bv, jb = self.brown_conrady._map(u, v)
-        cu, cv, jc = self.cubic._map(bu, bv)
-        return cu, cv, np.matmul(jc, jb)
+    def _map(self, u, v, jacobian=True):
+        bu, bv, jb = self.brown_conrady._map(u, v, jacobian)
+        cu, cv, jc = self.cubic._map(bu, bv, jacobian)
+        return cu, cv, (np.matmul(jc, jb) if jacobian else None)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -701,11 +755,13 @@ class HigherOrderRadialDistortion(_Distortion):
             object.__setattr__(self, name, _finite_float(name, getattr(self, name)))
         object.__setattr__(self, "r_corner_px", _positive_float("r_corner_px", self.r_corner_px))
 
-    def _map(self, u, v):
-        bu, bv, jb = self.base._map(u, v)
+    def _map(self, u, v, jacobian=True):
+        bu, bv, jb = self.base._map(u, v, jacobian)
         rc = self.r_corner_px
         q = (u * u + v * v) / (rc * rc)
         g = (self.a5_px * q * q + self.a7_px * q * q * q) / rc
+        if not jacobian:
+            return bu + u * g, bv + v * g, None
         gp = (2.0 * self.a5_px * q + 3.0 * self.a7_px * q * q) / rc * 2.0 / (rc * rc)
         jac = jb.copy()
         jac[..., 0, 0] += g + gp * u * u

@@ -32,6 +32,7 @@ from simcam.starcam import optics
 from simcam.config_base import ScenarioError
 from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
 from simcam.starcam.geometry import Mosaic
+from simcam.starcam.kernels.windows import add_stamps_windows
 from simcam.rng import child_keys, key_from_seed
 from simcam.starcam.scenario import Scenario
 from simcam.starcam.sources import SourceSpectra
@@ -85,7 +86,8 @@ class Scene:
     stamps: np.ndarray  # (W, L, L) flux fractions
     stamp_col0: np.ndarray  # chip px of stamps[:, 0, 0]
     stamp_row0: np.ndarray
-    #: the truth table's columns (name -> (W,) array), in the table's order
+    #: the truth table's columns (name -> (W,) array, or a scalar for a column that is the same
+    #: for every star), in the table's order
     truth_columns: dict = field(repr=False, compare=False)
     background_e: float = 0.0
 
@@ -317,19 +319,26 @@ class StarCamera:
         return hit
 
     def _lateral_colour(self, wl, ud, vd):
-        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions."""
-        scn = self.scenario
-        lc = scn.optics.lateral_colour
-        return optics.lateral_colour_shift_px(
-            wavelength_nm=wl,
-            u_px=ud,
-            v_px=vd,
-            ref_wavelength_nm=lc.ref_wavelength_nm,
-            radial_coeffs=tuple(lc.radial_px_per_nm),
-            uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
-            uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
-            r_norm_px=scn.optics.r_norm_px,
-        )
+        """Lateral-colour shifts (focal px, (W, n_l)) of images at distorted focal positions
+        ``ud``, ``vd`` (float64 (W,)): :func:`simcam.starcam.optics.lateral_colour_shift_px`, its
+        model at the wavelengths ``wl`` kept per wavelength set (:func:`simcam.starcam.optics.lateral_colour`)."""
+        key = wl.tobytes()
+        cache = self.__dict__.setdefault("_lateral_colour_models", {})
+        model = cache.get(key)
+        if model is None:
+            scn = self.scenario
+            lc = scn.optics.lateral_colour
+            if len(cache) >= 64:
+                cache.clear()
+            model = cache[key] = optics.lateral_colour(
+                wavelength_nm=wl,
+                ref_wavelength_nm=lc.ref_wavelength_nm,
+                radial_coeffs=tuple(lc.radial_px_per_nm),
+                uniform_x_coeffs=tuple(lc.uniform_x_px_per_nm),
+                uniform_y_coeffs=tuple(lc.uniform_y_px_per_nm),
+                r_norm_px=scn.optics.r_norm_px,
+            )
+        return model.shift_px(ud, vd)
 
     def profile_node(self, placement: Placement) -> tuple[float, float]:
         """The pose whose stamp profiles serve ``placement`` (``render.stamp_route = "profile"``):
@@ -399,10 +408,7 @@ class StarCamera:
                 "move lab.target_center_px or the protocol's field centres"
             )
         # reference-wavelength position in the coordinates of the chip the image lands on
-        xr, yr = np.empty(W), np.empty(W)
-        for k in np.unique(chip):
-            sel = chip == k
-            xr[sel], yr[sel] = self.mosaic._chip_coords(ud[sel], vd[sel], int(k))
+        xr, yr = self.mosaic._chip_coords(ud, vd, chip)
         sx, sy = self.mosaic.vector_to_chip(su, sv, chip)
         sig = optics.psf_sigma_px(
             u_px=ud, v_px=vd, sigma0_px=scn.optics.psf.sigma0_px,
@@ -436,16 +442,16 @@ class StarCamera:
                 "y_ideal": y_ideal,
                 "x_reference": x_refm,
                 "y_reference": y_refm,
-                "platform_dx_px": np.full(W, placement.platform_dx_px),
-                "platform_dy_px": np.full(W, placement.platform_dy_px),
+                "platform_dx_px": placement.platform_dx_px,
+                "platform_dy_px": placement.platform_dy_px,
                 "distortion_dx_px": ud - u0,
                 "distortion_dy_px": vd - v0,
                 "chromatic_dx_px": chrom_u,
                 "chromatic_dy_px": chrom_v,
-                "electrons": np.full(W, electrons),
+                "electrons": electrons,
                 "psf_sigma_px": sig,
-                "filter_nm": np.full(W, np.nan if placement.filter_nm is None else placement.filter_nm),
-                "condition": np.full(W, placement.condition),
+                "filter_nm": np.nan if placement.filter_nm is None else placement.filter_nm,
+                "condition": placement.condition,
             }
         )
         scene = Scene(
@@ -628,8 +634,6 @@ class StarCamera:
 
 def _expected_windows_at(camera: StarCamera, scene: Scene, col0, row0) -> np.ndarray:
     """Noise-free photo-electrons of ``scene`` in windows at given mosaic origins."""
-    from simcam.starcam.kernels.windows import add_stamps_windows
-
     w = camera.scenario.render.window_px
     sig = np.full((scene.n_stars, w, w), scene.background_e, dtype=np.float64)
     cc = camera.mosaic.chip_cols

@@ -147,6 +147,25 @@ def hexapod_pose_errors(scn: Scenario, seed: int) -> dict:
     return out
 
 
+_GM_STEPS: dict = {}
+
+
+def _gauss_markov_steps(t_s: np.ndarray, tau_s: float, sigma: float) -> tuple[list, list]:
+    """The exact discretisation of the Gauss-Markov drift between frame times ``t_s``
+    (module docstring): ``a_k = exp(-(t_k - t_{k-1}) / tau)`` and ``b_k = sigma sqrt(1 - a_k^2)``,
+    k >= 1, as Python floats. They depend on the timeline only, not on the trial's draws:
+    kept per timeline (the last 16)."""
+    key = (t_s.tobytes(), float(tau_s), float(sigma))
+    hit = _GM_STEPS.get(key)
+    if hit is None:
+        if len(_GM_STEPS) >= 16:
+            _GM_STEPS.clear()
+        tl = t_s.tolist()
+        a = [math.exp(-(tl[k] - tl[k - 1]) / tau_s) for k in range(1, len(tl))]
+        hit = _GM_STEPS[key] = (a, [sigma * math.sqrt(max(0.0, 1.0 - ak * ak)) for ak in a])
+    return hit
+
+
 def drift_px(scn: Scenario, seed: int) -> dict:
     """``{(protocol, condition): (frames, 2) array}``: the target drift (px, u and v) at each
     frame's mid-exposure time (module docstring). None when both drift magnitudes are 0."""
@@ -167,16 +186,16 @@ def drift_px(scn: Scenario, seed: int) -> dict:
     phi = rng.uniform(0.0, 2.0 * math.pi)
     z = rng.normal(0.0, 1.0, (t.size, 2))
     ramp = (rate / 3600.0) * t[:, None] * np.array([math.cos(phi), math.sin(phi)])[None, :]
-    tau = scn.world.drift_time_constant_s
     # the recursion on Python floats (the same IEEE operations in the same order as on
-    # numpy rows, a microsecond less per frame)
-    tl, zu, zv = t.tolist(), z[:, 0].tolist(), z[:, 1].tolist()
-    gu, gv = [sig * zu[0]], [sig * zv[0]]
-    for k in range(1, t.size):
-        a = math.exp(-(tl[k] - tl[k - 1]) / tau)
-        b = sig * math.sqrt(max(0.0, 1.0 - a * a))
-        gu.append(a * gu[-1] + b * zu[k])
-        gv.append(a * gv[-1] + b * zv[k])
+    # numpy rows, a microsecond less per frame), its coefficients kept per timeline
+    zu, zv = z[:, 0].tolist(), z[:, 1].tolist()
+    pu, pv = sig * zu[0], sig * zv[0]
+    gu, gv = [pu], [pv]
+    for a, b, u, v in zip(*_gauss_markov_steps(t, scn.world.drift_time_constant_s, sig), zu[1:], zv[1:]):
+        pu = a * pu + b * u
+        pv = a * pv + b * v
+        gu.append(pu)
+        gv.append(pv)
     gm = np.column_stack([gu, gv])
     d = (ramp + gm) / scale
     out = {}
