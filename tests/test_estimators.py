@@ -508,7 +508,7 @@ def test_target_marker_error_round_trips_and_scales():
 def test_per_star_statistics_match_pandas_groupby():
     # the array implementation against pandas' groupby (independent code): sorted groups,
     # counts, means and ddof variances, singletons giving NaN variance
-    from budget.starcam.estimators.common import _per_star_stats
+    from budget.starcam.estimators.common import _per_star_stats, _Rows
 
     rng = np.random.default_rng(8)
     n = 500
@@ -518,7 +518,7 @@ def test_per_star_statistics_match_pandas_groupby():
                    ignore_index=True)
     for by in (["star"], ["star", "condition"]):
         for ddof in (0, 1):
-            got = _per_star_stats(df, by, ddof)
+            got = _per_star_stats(_Rows({c: df[c].to_numpy() for c in df.columns}), by, ddof).to_frame()
             g = df.groupby(by, sort=True)
             ref = pd.DataFrame({"n": g["x"].count(), "mean_x": g["x"].mean(), "mean_y": g["y"].mean(),
                                 "var_x": g["x"].var(ddof=ddof), "var_y": g["y"].var(ddof=ddof)}).reset_index()

@@ -19,23 +19,24 @@ from .results import HsfeEstimate
 
 @_memo_last
 def _hsfe_stats(table, *, what: str, log: _Log):
-    """Good rows and per-(star, condition) statistics of an HSFE table (shared by variants)."""
-    df, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
-                         key=("star", "condition", "frame"), what=what, log=log)
-    return df, n_bad, _per_star_stats(df, ["star", "condition"], 1)
+    """Stars of the table, good rows and per-(star, condition) statistics of an HSFE table
+    (shared by variants)."""
+    rows, good, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
+                                 key=("star", "condition", "frame"), what=what, log=log)
+    return rows["star"], good, n_bad, _per_star_stats(good, ["star", "condition"], 1)
 
 
 def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
-    df, n_bad, st = _hsfe_stats(table, what=what, log=log)
-    conditions = np.sort(df["condition"].unique())
+    table_stars, df, n_bad, st = _hsfe_stats(table, what=what, log=log)
+    conditions = np.unique(df["condition"])
     m = conditions.size
     if m < 2:
         raise UserInputError(f"{what}: needs at least 2 conditions, got {m} ({conditions.tolist()})")
     # st has one row per (star, condition), sorted by (star, condition)
-    st_star = st["star"].to_numpy()
-    keep = st["n"].to_numpy() >= need_frames
+    st_star = st["star"]
+    keep = st["n"] >= need_frames
     kept_stars, n_conditions = np.unique(st_star[keep], return_counts=True)
-    all_stars = np.unique(table["star"].to_numpy())
+    all_stars = np.unique(table_stars)
     complete = kept_stars[n_conditions == m]
     dropped = np.setdiff1d(all_stars, complete)
     if dropped.size:
@@ -48,7 +49,7 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     sel = keep & np.isin(st_star, complete)
 
     def mat(col):
-        return st[col].to_numpy(float)[sel].reshape(w, m)
+        return np.asarray(st[col], dtype=float)[sel].reshape(w, m)
 
     return (df, n_bad, complete, conditions, mat("mean_x"), mat("mean_y"),
             mat("var_x"), mat("var_y"), mat("n"), int(dropped.size))
