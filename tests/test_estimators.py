@@ -537,3 +537,22 @@ def test_duplicate_key_check_matches_pandas():
         df = pd.DataFrame({"a": rng.integers(0, 4, n), "f": rng.choice(["n", "s", "e"], n),
                            "b": rng.integers(0, 3, n).astype(float)})
         assert _has_duplicate_keys(df, ("a", "f", "b")) == bool(df.duplicated(subset=["a", "f", "b"]).any())
+
+
+def test_linear_unique_equals_numpy_unique():
+    # the presence-table unique of integer keys against numpy.unique: values, dtype, inverse,
+    # for signed and unsigned keys of small and large range (the latter sorted by numpy)
+    from budget.starcam.estimators.common import _unique
+
+    rng = np.random.default_rng(3)
+    for dtype in (np.int64, np.int32, np.uint8, np.uint64):
+        for n in (1, 2, 100, 5000):
+            for span in (1, 3, 50, 10**6):
+                a = rng.integers(0, min(span, np.iinfo(dtype).max), n).astype(dtype)
+                if np.issubdtype(dtype, np.signedinteger):
+                    a = a - dtype(25)
+                u, inv = np.unique(a, return_inverse=True)
+                got_u, got_inv = _unique(a, return_inverse=True)
+                assert got_u.dtype == u.dtype and np.array_equal(got_u, u)
+                assert got_inv.dtype == inv.dtype and np.array_equal(got_inv, inv)
+                assert np.array_equal(_unique(a), u)

@@ -13,7 +13,7 @@ import pandas as pd
 
 from simcam.cli_common import UserInputError
 
-from .common import _check_plate_scale, _Log, _memo_last, _prepare, _Rows
+from .common import _check_plate_scale, _Log, _memo_last, _prepare, _Rows, _unique
 from .results import ChromaticEstimate
 
 
@@ -66,9 +66,9 @@ def _chromatic_means(table, *, reference_filter_nm, what, log) -> _FilterMeans:
             raise UserInputError(f"{what}: reference_filter_nm={ref} is not in the data's filters {filters.tolist()}")
     # per (field, star) and filter: mean x, y and count, by bincount on integer codes
     # (every (field, star) pair of the table is kept, sorted, NaN where a filter is missing)
-    s_uni, s_codes = np.unique(rows["star"], return_inverse=True)
+    s_uni, s_codes = _unique(rows["star"], return_inverse=True)
     n_s = len(s_uni)
-    present = np.unique(rows["field"] * n_s + s_codes.reshape(-1))        # sorted by (field, star)
+    present = _unique(rows["field"] * n_s + s_codes.reshape(-1))        # sorted by (field, star)
     point_field, point_star = present // n_s, s_uni[present % n_s]
     row = np.searchsorted(present, df["field"] * n_s + np.searchsorted(s_uni, df["star"]))
     col = np.searchsorted(filters, df["filter_nm"])

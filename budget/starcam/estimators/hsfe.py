@@ -13,7 +13,7 @@ import pandas as pd
 
 from simcam.cli_common import UserInputError
 
-from .common import _check_plate_scale, _Log, _memo_last, _per_star_stats, _prepare
+from .common import _check_plate_scale, _Log, _memo_last, _per_star_stats, _prepare, _unique
 from .results import HsfeEstimate
 
 
@@ -28,7 +28,7 @@ def _hsfe_stats(table, *, what: str, log: _Log):
 
 def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     table_stars, df, n_bad, st = _hsfe_stats(table, what=what, log=log)
-    conditions = np.unique(df["condition"])
+    conditions = _unique(df["condition"])
     m = conditions.size
     if m < 2:
         raise UserInputError(f"{what}: needs at least 2 conditions, got {m} ({conditions.tolist()})")
@@ -36,7 +36,7 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     st_star = st["star"]
     keep = st["n"] >= need_frames
     kept_stars, n_conditions = np.unique(st_star[keep], return_counts=True)
-    all_stars = np.unique(table_stars)
+    all_stars = _unique(table_stars)
     complete = kept_stars[n_conditions == m]
     dropped = np.setdiff1d(all_stars, complete)
     if dropped.size:
