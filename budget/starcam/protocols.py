@@ -132,7 +132,8 @@ class ProtocolData:
     ``rows`` holds the centroid table as arrays, what the estimators compute on
     (:class:`budget.starcam.estimators.common._Rows`; the Monte Carlo validator passes them
     to :func:`estimate`), and ``centroids`` the same table as a DataFrame, built on first
-    use. ``truth_parts`` holds each condition's truth table with its condition index and
+    use; so do ``reference_rows`` and ``reference`` the distortion grid's reference
+    coordinates (:func:`reference_table`). ``truth_parts`` holds each condition's truth table with its condition index and
     field label; the ``truth`` table (one row per star and condition) is assembled from them
     on first use (the Monte Carlo validator never needs it).
     """
@@ -140,7 +141,7 @@ class ProtocolData:
     protocol: str
     rows: object
     truth_parts: list
-    reference: pd.DataFrame | None = None
+    reference_rows: object = None
     plan: AcquisitionPlan | None = None
     windows: dict = field(default_factory=dict)
     camera: object = None
@@ -152,6 +153,16 @@ class ProtocolData:
         cached = self.__dict__.get("_centroids")
         if cached is None:
             cached = self.__dict__["_centroids"] = self.rows.to_frame()
+        return cached
+
+    @property
+    def reference(self) -> pd.DataFrame | None:
+        """The reference coordinates ``star, x_ref, y_ref`` (distortion protocol; else None)."""
+        if self.reference_rows is None:
+            return None
+        cached = self.__dict__.get("_reference")
+        if cached is None:
+            cached = self.__dict__["_reference"] = self.reference_rows.to_frame()
         return cached
 
     @property
@@ -218,12 +229,18 @@ def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None 
     The ideal projection of the calibrated point positions (nominal chip layout is the
     camera's own), including the marker calibration error (seed 000 C2).
     """
+    return _reference_points(scenario, camera, marker_seed=marker_seed).to_frame()
+
+
+def _reference_points(scenario: Scenario, camera=None, *, marker_seed: int | None = None):
+    """:func:`reference_table` as the estimators' rows (:class:`budget.starcam.estimators.common._Rows`)."""
+    from budget.starcam.estimators.common import _Rows
     from simcam.starcam.geometry import Mosaic
 
     lay = calibration_grid(scenario, marker_seed=marker_seed)
     mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
     _, x, y = mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-    return pd.DataFrame({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
+    return _Rows({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
 
 
 def simulate(
@@ -339,7 +356,7 @@ def simulate(
         # the camera reports its centroids through its own distortion correction
         # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
         table["x"], table["y"] = camera.report_positions(table["x"], table["y"])
-    ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
+    ref = _reference_points(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
     return ProtocolData(plan.protocol, _Rows(table, field_labels), truths, ref, plan, wins, camera)
 
 
@@ -440,7 +457,7 @@ def estimate(
     centroids: Any,
     *,
     plate_scale_arcsec: float,
-    reference: pd.DataFrame | None = None,
+    reference: Any = None,
     reference_filter_nm: float | None = None,
     marker_3sigma_arcsec: float = 0.0,
     spectral: dict | None = None,
@@ -461,8 +478,8 @@ def estimate(
     own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
     The same function serves simulated and real tables: a DataFrame is checked
     (:func:`budget.starcam.estimators.common._checked_rows`); the rows of a simulated protocol
-    (:attr:`ProtocolData.rows`, which the Monte Carlo validator passes) meet those checks by
-    construction and go to the same estimators unchecked.
+    (:attr:`ProtocolData.rows` and ``reference_rows``, which the Monte Carlo validator
+    passes) meet those checks by construction and go to the same estimators unchecked.
     """
     from budget.starcam import estimators as E
 

@@ -133,7 +133,7 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
             data = simulate(plan, cam, seed=noise_seed, method=val.centroid_method,
                             threshold_sigma=val.threshold_sigma,
                             marker_seed=marker_seed if val.new_markers_per_trial else None)
-            res = estimate(proto, data.rows, plate_scale_arcsec=ps, reference=data.reference,
+            res = estimate(proto, data.rows, plate_scale_arcsec=ps, reference=data.reference_rows,
                            reference_filter_nm=scenario.protocols.chromatic.reference_filter_nm,
                            marker_3sigma_arcsec=scenario.lab.calibration_target.marker_error_3sigma_arcsec,
                            spectral=spectral, extra_variants=keep,
