@@ -556,3 +556,17 @@ def test_linear_unique_equals_numpy_unique():
                 assert got_u.dtype == u.dtype and np.array_equal(got_u, u)
                 assert got_inv.dtype == inv.dtype and np.array_equal(got_inv, inv)
                 assert np.array_equal(_unique(a), u)
+
+
+def test_result_tables_are_built_on_first_access_and_pickle():
+    # the estimators hand their tables over as builders (a Monte Carlo trial reads only the
+    # sigmas); read, pickled, copied or serialised, a result gives the same table
+    import copy
+    import pickle
+
+    r = high_spatial_frequency_error(_hsfe_hand_table(), plate_scale_arcsec=PS)
+    assert not isinstance(r.__dict__["residuals"], pd.DataFrame)
+    for other in (pickle.loads(pickle.dumps(r)), copy.deepcopy(r)):
+        pd.testing.assert_frame_equal(other.residuals, r.residuals, check_exact=True)
+    assert r.residuals is r.residuals
+    assert r.to_dict()["residuals"] == r.residuals.to_dict(orient="records")

@@ -6,6 +6,7 @@ population through the camera's spectral response instead of "/2" and "/3"
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -156,9 +157,8 @@ def chromatic_error(
         rows.append({"pair": f"{hi}-{lo}", "filter_short_nm": lo, "filter_long_nm": hi,
                      "delta_bar_x_px": dxb, "delta_bar_y_px": dyb,
                      "delta_bar_x_arcsec": dxb * ps, "delta_bar_y_arcsec": dyb * ps})
-    pt = pd.DataFrame(rows)
-    mx = float(pt["delta_bar_x_px"].abs().max())
-    my = float(pt["delta_bar_y_px"].abs().max())
+    mx = float(np.max(np.abs([r["delta_bar_x_px"] for r in rows])))
+    my = float(np.max(np.abs([r["delta_bar_y_px"] for r in rows])))
     return ChromaticEstimate(
         quantity="LSFE-S", method="published", equations="seed 000 eqs 13-16, section 1.4.1",
         sigma_x_px=mx / spectrum_factor, sigma_y_px=my / spectrum_factor, plate_scale_arcsec=ps,
@@ -173,7 +173,7 @@ def chromatic_error(
                  "reference_filter_nm": fm.ref, "n_filters": int(fm.filters.size),
                  "n_fields": int(k), "n_field_star_pairs": int(n_pts),
                  "spectrum_factor": float(spectrum_factor)},
-        pairs=pt,
+        pairs=partial(pd.DataFrame, rows),
     )
 
 
@@ -252,9 +252,8 @@ def chromatic_error_decomposed(
                      "fit_residual_rms_px": float(np.sqrt(np.mean(res**2))),
                      "rms_x_px": float(np.sqrt(np.mean(mod_x**2))),
                      "rms_y_px": float(np.sqrt(np.mean(mod_y**2)))})
-    pt = pd.DataFrame(rows)
-    sx = float(pt["rms_x_px"].max()) / (2.0 * spectrum_factor)
-    sy = float(pt["rms_y_px"].max()) / (2.0 * spectrum_factor)
+    sx = float(np.max([r["rms_x_px"] for r in rows])) / (2.0 * spectrum_factor)
+    sy = float(np.max([r["rms_y_px"] for r in rows])) / (2.0 * spectrum_factor)
     per_field = fm.stars_per_field()
     k = per_field.size
     return ChromaticEstimate(
@@ -265,7 +264,7 @@ def chromatic_error_decomposed(
         details={"reference_filter_nm": fm.ref, "optical_axis_x_px": ax0, "optical_axis_y_px": ay0,
                  "mean_field_radius_px": rmean, "n_fields": int(k),
                  "spectrum_factor": float(spectrum_factor)},
-        pairs=pt,
+        pairs=partial(pd.DataFrame, rows),
     )
 
 
@@ -334,7 +333,6 @@ def chromatic_error_population(
     bx = (pinv @ np.ascontiguousarray(fm.mean_x.T))[1]
     by = (pinv @ np.ascontiguousarray(fm.mean_y.T))[1]
     dl = lam_p - float(calibration_wavelength_nm)
-    per = pd.DataFrame({"field": fm.field(), "star": fm.star, "b_x_px_per_nm": bx, "b_y_px_per_nm": by})
     # Per field, the slope is averaged over its stars (lateral colour varies little across
     # one target); the mean square of that average is debiased by its sampling variance
     # s_b^2 / W (temporal noise in the filter means), clipped at 0.
@@ -358,5 +356,6 @@ def chromatic_error_population(
                  "population_wavelengths_nm": lam_p.tolist(),
                  "filter_effective_wavelengths_nm": lam_f.tolist(),
                  "mean_slope_x_px_per_nm": float(bx.mean()), "mean_slope_y_px_per_nm": float(by.mean())},
-        pairs=per,
+        pairs=partial(pd.DataFrame, {"field": fm.field(), "star": fm.star, "b_x_px_per_nm": bx,
+                                     "b_y_px_per_nm": by}),
     )

@@ -115,8 +115,7 @@ def _cubic_fit(x0, y0, *values, what):
 def _distortion_core(table, reference, *, condition, what, log):
     """The steps every LSFE-C1 variant shares (eqs 17-20, 25-26): the residuals per point
     ``star, x_ref, y_ref, dx_px, dy_px, fit_x_px, fit_y_px, ddx_px, ddy_px,
-    var_mean_x_px2, var_mean_y_px2`` as rows and as a table, rows excluded, points
-    excluded, fewest frames."""
+    var_mean_x_px2, var_mean_y_px2`` (rows), rows excluded, points excluded, fewest frames."""
     st, n_bad = _point_means(table, condition=condition, what=what, log=log)
     x0, y0, dx, dy, lost = _residuals_to_reference(st, _reference_rows(reference, what), what=what, log=log)
     fx, fy = _cubic_fit(x0, y0, dx, dy, what=what)
@@ -125,7 +124,7 @@ def _distortion_core(table, reference, *, condition, what, log):
                     "ddx_px": dx - fx, "ddy_px": dy - fy,  # eqs 25-26
                     # temporal variance of each point's N-frame mean
                     "var_mean_x_px2": st["var_x"] / st["n"], "var_mean_y_px2": st["var_y"] / st["n"]})
-    return points, points.to_frame(), n_bad, len(lost), int(st["n"].min())
+    return points, n_bad, len(lost), int(st["n"].min())
 
 
 def _sample_variance(d) -> float:
@@ -157,22 +156,21 @@ def _root_of_difference(a2: float, b2: float, axis: str, flags: list, log: _Log,
 
 
 def _c1_points(table, reference, condition, log, *, min_points=0):
-    points, table, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                           what=_WHAT, log=log)
+    points, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition, what=_WHAT, log=log)
     if min_points:
         _need_points(len(points), min_points, _WHAT)
-    return points, (table, n_bad, n_excl, n_min)
+    return points, (n_bad, n_excl, n_min)
 
 
-def _c1_estimate(sig, *, method, equations, ps, counts, flags, log, details) -> DistortionEstimate:
-    """The estimate of a variant from its sigmas and what :func:`_c1_points` counted."""
-    resid, n_bad, n_excl, n_min = counts
+def _c1_estimate(sig, *, method, equations, ps, points, counts, flags, log, details) -> DistortionEstimate:
+    """The estimate of a variant from its sigmas and what :func:`_c1_points` gave."""
+    n_bad, n_excl, n_min = counts
     return DistortionEstimate(
         quantity="LSFE-C1", method=method, equations=equations,
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
-        n_stars=len(resid), n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
+        n_stars=len(points), n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
         n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
-        details=details, residuals=resid,
+        details=details, residuals=points.to_frame,
     )
 
 
@@ -223,7 +221,7 @@ def distortion_residual_error(
         details[f"sigma_dd{ax}_px"] = sdd
         sig[ax] = _root_of_difference(sd**2, sdd**2, ax, flags, log, _WHAT)   # eqs 29-30
     return _c1_estimate(sig, method="published", equations="seed 000 eqs 17-30", ps=ps,
-                        counts=counts, flags=flags, log=log, details=details)
+                        points=points, counts=counts, flags=flags, log=log, details=details)
 
 
 def distortion_residual_error_dof(
@@ -263,7 +261,7 @@ def distortion_residual_error_dof(
         details[f"sigma_fit_residual_{ax}_px"] = math.sqrt(sres2)
         sig[ax] = _root_of_difference(sd2, sres2, ax, flags, log, _WHAT)
     return _c1_estimate(sig, method="fit-dof", equations="docs/estimators.md (distortion, W-10)",
-                        ps=ps, counts=counts, flags=flags, log=log, details=details)
+                        ps=ps, points=points, counts=counts, flags=flags, log=log, details=details)
 
 
 def distortion_calibration_residual(
@@ -326,7 +324,7 @@ def _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_ar
         details[name] = math.sqrt(v)
         details[f"temporal_variance_of_means_{ax}_px2"] = noise2
         sig[ax] = _root_of_difference(v, sm2 + noise2, ax, flags, log, _WHAT)
-    return _c1_estimate(sig, method=method, equations=equations, ps=ps, counts=counts, flags=flags,
+    return _c1_estimate(sig, method=method, equations=equations, ps=ps, points=points, counts=counts, flags=flags,
                         log=log, details=details)
 
 

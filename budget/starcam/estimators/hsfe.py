@@ -6,6 +6,7 @@ itself rather than its consecutive differences (:func:`high_spatial_frequency_er
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -106,7 +107,7 @@ def high_spatial_frequency_error(table: pd.DataFrame, *, plate_scale_arcsec: flo
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
-        residuals=_residual_table(stars, conds, dx, dy),
+        residuals=partial(_residual_table, stars, conds, dx, dy),
     )
 
 
@@ -174,7 +175,7 @@ def high_spatial_frequency_error_debiased(
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, flags=tuple(flags),
         warnings=tuple(log.messages), details=details,
-        residuals=_residual_table(stars, conds, resid["x"], resid["y"]),
+        residuals=partial(_residual_table, stars, conds, resid["x"], resid["y"]),
     )
 
 
@@ -235,5 +236,5 @@ def high_spatial_frequency_error_static(
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, flags=tuple(flags),
         warnings=tuple(log.messages), details=details,
-        residuals=_residual_table(stars, conds, resid["x"], resid["y"]),
+        residuals=partial(_residual_table, stars, conds, resid["x"], resid["y"]),
     )
