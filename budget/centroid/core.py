@@ -699,10 +699,11 @@ def centroid_gaussian_fit(
 def _warn_flags(flag: np.ndarray, star: np.ndarray, frame: np.ndarray, *, stacklevel: int = 3) -> None:
     """One :class:`CentroidWarning` per flag bit set in ``flag``, naming the ``star`` and
     ``frame`` of its first five rows."""
+    bits = int(np.bitwise_or.reduce(flag))
     for bit, text in _FLAG_TEXT.items():
-        hit = np.flatnonzero((flag & int(bit)) != 0)
-        if not hit.size:
+        if not bits & int(bit):
             continue
+        hit = np.flatnonzero((flag & int(bit)) != 0)
         examples = ", ".join(f"(star={int(star[i])}, frame={int(frame[i])})" for i in hit[:5])
         more = "" if hit.size <= 5 else f" and {hit.size - 5} more"
         warnings.warn(

@@ -84,10 +84,24 @@ def _camera_key(scenario) -> str:
     return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
 
 
+#: the last scenario object's keys (:func:`_scenario_keys`)
+_KEYS: dict = {}
+
+
+def _scenario_keys(scenario) -> tuple[str, str]:
+    """(:func:`_camera_key`, ``scenario.hash``) of ``scenario``, kept for the last scenario
+    object: scenarios are frozen models, and a run's trials share one (two JSON dumps
+    and hashes fewer per trial)."""
+    hit = _KEYS.get("last")
+    if hit is None or hit[0] is not scenario:
+        hit = _KEYS["last"] = (scenario, _camera_key(scenario), scenario.hash)
+    return hit[1], hit[2]
+
+
 def _camera(scenario, detector_seed=None):
     from simcam.starcam.render import StarCamera
 
-    key = (_camera_key(scenario), detector_seed)
+    key = (_scenario_keys(scenario)[0], detector_seed)
     cam = _CACHE.get(key)
     if cam is None:
         if len(_CACHE) > 4:
@@ -100,7 +114,7 @@ def _camera(scenario, detector_seed=None):
 def _spectral(scenario):
     from budget.starcam.protocols import spectral_design
 
-    key = ("spectral", scenario.hash)
+    key = ("spectral", _scenario_keys(scenario)[1])
     if key not in _CACHE:
         _CACHE[key] = spectral_design(scenario)
     return _CACHE[key]
