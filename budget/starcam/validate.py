@@ -77,31 +77,28 @@ def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
 TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
 
 
+#: the last scenario object and its camera key (:func:`_camera_key`)
+_LAST_CAMERA_KEY: dict = {}
+
+
 def _camera_key(scenario) -> str:
+    """The scenario's hash with the truth sizes set to 0 (:data:`TRUTH_SIZE_FIELDS`), kept for
+    the last scenario object: scenarios are frozen, and a run's trials share one (a model
+    copy, a JSON dump and a SHA-256 fewer per trial)."""
     from simcam.config_base import model_hash
 
-    fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
-    return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
-
-
-#: the last scenario object's keys (:func:`_scenario_keys`)
-_KEYS: dict = {}
-
-
-def _scenario_keys(scenario) -> tuple[str, str]:
-    """(:func:`_camera_key`, ``scenario.hash``) of ``scenario``, kept for the last scenario
-    object: scenarios are frozen models, and a run's trials share one (two JSON dumps
-    and hashes fewer per trial)."""
-    hit = _KEYS.get("last")
+    hit = _LAST_CAMERA_KEY.get("last")
     if hit is None or hit[0] is not scenario:
-        hit = _KEYS["last"] = (scenario, _camera_key(scenario), scenario.hash)
-    return hit[1], hit[2]
+        fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
+        key = model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
+        hit = _LAST_CAMERA_KEY["last"] = (scenario, key)
+    return hit[1]
 
 
 def _camera(scenario, detector_seed=None):
     from simcam.starcam.render import StarCamera
 
-    key = (_scenario_keys(scenario)[0], detector_seed)
+    key = (_camera_key(scenario), detector_seed)
     cam = _CACHE.get(key)
     if cam is None:
         if len(_CACHE) > 4:
@@ -114,7 +111,7 @@ def _camera(scenario, detector_seed=None):
 def _spectral(scenario):
     from budget.starcam.protocols import spectral_design
 
-    key = ("spectral", _scenario_keys(scenario)[1])
+    key = ("spectral", scenario.hash)
     if key not in _CACHE:
         _CACHE[key] = spectral_design(scenario)
     return _CACHE[key]
