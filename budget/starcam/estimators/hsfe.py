@@ -20,16 +20,16 @@ from .results import HsfeEstimate
 
 @_memo_last
 def _hsfe_stats(table, *, what: str, log: _Log):
-    """Stars of the table, good rows and per-(star, condition) statistics of an HSFE table
-    (shared by variants)."""
+    """The table's stars (sorted), good rows and per-(star, condition) statistics of an HSFE
+    table (shared by variants)."""
     rows, good, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
                                  key=("star", "condition", "frame"), what=what, log=log)
-    return rows["star"], good, n_bad, _per_star_stats(good, ["star", "condition"], 1)
+    return _unique(rows["star"]), good, n_bad, _per_star_stats(good, ["star", "condition"], 1)
 
 
 def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
-    table_stars, df, n_bad, st = _hsfe_stats(table, what=what, log=log)
-    conditions = _unique(df["condition"])
+    all_stars, df, n_bad, st = _hsfe_stats(table, what=what, log=log)
+    conditions = _unique(st["condition"])                 # those of the good rows
     m = conditions.size
     if m < 2:
         raise UserInputError(f"{what}: needs at least 2 conditions, got {m} ({conditions.tolist()})")
@@ -37,7 +37,6 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     st_star = st["star"]
     keep = st["n"] >= need_frames
     kept_stars, n_conditions = np.unique(st_star[keep], return_counts=True)
-    all_stars = _unique(table_stars)
     complete = kept_stars[n_conditions == m]
     dropped = np.setdiff1d(all_stars, complete)
     if dropped.size:
