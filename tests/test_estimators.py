@@ -556,6 +556,9 @@ def test_linear_unique_equals_numpy_unique():
                 assert got_u.dtype == u.dtype and np.array_equal(got_u, u)
                 assert got_inv.dtype == inv.dtype and np.array_equal(got_inv, inv)
                 assert np.array_equal(_unique(a), u)
+    near_max = np.array([2**64 - 1, 2**64 - 3, 2**64 - 1], dtype=np.uint64)
+    assert np.array_equal(_unique(near_max, return_inverse=True)[1], np.unique(near_max, return_inverse=True)[1])
+    assert np.array_equal(_unique(near_max), np.unique(near_max))
 
 
 def test_result_tables_are_built_on_first_access_and_pickle():

@@ -206,7 +206,7 @@ def _unique(values: np.ndarray, *, return_inverse: bool = False):
             present = np.zeros(hi - lo + 1, dtype=bool)
             offset = values - values.dtype.type(lo)
             present[offset] = True
-            uniques = (np.flatnonzero(present) + lo).astype(values.dtype)
+            uniques = np.flatnonzero(present).astype(values.dtype) + values.dtype.type(lo)
             if not return_inverse:
                 return uniques
             return uniques, (np.cumsum(present) - 1)[offset]
