@@ -133,9 +133,10 @@ class ProtocolData:
     (:class:`budget.starcam.estimators.common._Rows`; the Monte Carlo validator passes them
     to :func:`estimate`), and ``centroids`` the same table as a DataFrame, built on first
     use; so do ``reference_rows`` and ``reference`` the distortion grid's reference
-    coordinates (:func:`reference_table`). ``truth_parts`` holds each condition's truth table with its condition index and
-    field label; the ``truth`` table (one row per star and condition) is assembled from them
-    on first use (the Monte Carlo validator never needs it).
+    coordinates (:func:`reference_table`). ``truth_parts`` holds each condition's truth
+    table with its condition index and field label; the ``truth`` table (one row per star
+    and condition) is assembled from them on first use (the Monte Carlo validator never
+    needs it).
     """
 
     protocol: str
