@@ -508,7 +508,7 @@ def test_target_marker_error_round_trips_and_scales():
 def test_per_star_statistics_match_pandas_groupby():
     # the array implementation against pandas' groupby (independent code): sorted groups,
     # counts, means and ddof variances, singletons giving NaN variance
-    from budget.starcam.estimators.common import _per_star_stats
+    from budget.starcam.estimators.common import _per_star_stats, _Rows
 
     rng = np.random.default_rng(8)
     n = 500
@@ -518,7 +518,7 @@ def test_per_star_statistics_match_pandas_groupby():
                    ignore_index=True)
     for by in (["star"], ["star", "condition"]):
         for ddof in (0, 1):
-            got = _per_star_stats(df, by, ddof)
+            got = _per_star_stats(_Rows({c: df[c].to_numpy() for c in df.columns}), by, ddof).to_frame()
             g = df.groupby(by, sort=True)
             ref = pd.DataFrame({"n": g["x"].count(), "mean_x": g["x"].mean(), "mean_y": g["y"].mean(),
                                 "var_x": g["x"].var(ddof=ddof), "var_y": g["y"].var(ddof=ddof)}).reset_index()
@@ -537,3 +537,39 @@ def test_duplicate_key_check_matches_pandas():
         df = pd.DataFrame({"a": rng.integers(0, 4, n), "f": rng.choice(["n", "s", "e"], n),
                            "b": rng.integers(0, 3, n).astype(float)})
         assert _has_duplicate_keys(df, ("a", "f", "b")) == bool(df.duplicated(subset=["a", "f", "b"]).any())
+
+
+def test_linear_unique_equals_numpy_unique():
+    # the presence-table unique of integer keys against numpy.unique: values, dtype, inverse,
+    # for signed and unsigned keys of small and large range (the latter sorted by numpy)
+    from budget.starcam.estimators.common import _unique
+
+    rng = np.random.default_rng(3)
+    for dtype in (np.int64, np.int32, np.uint8, np.uint64):
+        for n in (1, 2, 100, 5000):
+            for span in (1, 3, 50, 10**6):
+                a = rng.integers(0, min(span, np.iinfo(dtype).max), n).astype(dtype)
+                if np.issubdtype(dtype, np.signedinteger):
+                    a = a - dtype(25)
+                u, inv = np.unique(a, return_inverse=True)
+                got_u, got_inv = _unique(a, return_inverse=True)
+                assert got_u.dtype == u.dtype and np.array_equal(got_u, u)
+                assert got_inv.dtype == inv.dtype and np.array_equal(got_inv, inv)
+                assert np.array_equal(_unique(a), u)
+    near_max = np.array([2**64 - 1, 2**64 - 3, 2**64 - 1], dtype=np.uint64)
+    assert np.array_equal(_unique(near_max, return_inverse=True)[1], np.unique(near_max, return_inverse=True)[1])
+    assert np.array_equal(_unique(near_max), np.unique(near_max))
+
+
+def test_result_tables_are_built_on_first_access_and_pickle():
+    # the estimators hand their tables over as builders (a Monte Carlo trial reads only the
+    # sigmas); read, pickled, copied or serialised, a result gives the same table
+    import copy
+    import pickle
+
+    r = high_spatial_frequency_error(_hsfe_hand_table(), plate_scale_arcsec=PS)
+    assert not isinstance(r.__dict__["residuals"], pd.DataFrame)
+    for other in (pickle.loads(pickle.dumps(r)), copy.deepcopy(r)):
+        pd.testing.assert_frame_equal(other.residuals, r.residuals, check_exact=True)
+    assert r.residuals is r.residuals
+    assert r.to_dict()["residuals"] == r.residuals.to_dict(orient="records")

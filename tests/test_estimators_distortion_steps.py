@@ -30,6 +30,7 @@ from budget.starcam.estimators.distortion import (
     _cubic_fit,
     _fit_residual_variance,
     _point_means,
+    _reference_rows,
     _residuals_to_reference,
     _sample_variance,
 )
@@ -83,7 +84,7 @@ def test_each_shared_step_matches_an_independent_computation(seed):
     # eqs 17-18: means of 5 values ~ 1e3 px, summed in another order: a few ulp of 1e3
     np.testing.assert_allclose(st["mean_x"], pts["mx"], rtol=0, atol=1e-9)
     np.testing.assert_allclose(st["var_y"], pts["vy"], rtol=1e-9)
-    x0, y0, dx, dy, lost = _residuals_to_reference(st, ref, what="LSFE-C1", log=log)
+    x0, y0, dx, dy, lost = _residuals_to_reference(st, _reference_rows(ref, "LSFE-C1"), what="LSFE-C1", log=log)
     assert lost == [] and np.array_equal(x0, pts["x_ref"]) and np.array_equal(y0, pts["y_ref"])
     np.testing.assert_allclose(dx, pts["dx"], rtol=0, atol=1e-9)              # eqs 19-20
     fx, fy = _cubic_fit(x0, y0, dx, dy, what="LSFE-C1")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -277,6 +278,54 @@ def test_fused_fast_path_threads_do_not_change_results(small, dark_frames):
     serial = simulate(plan, StarCamera(small, parallel=False), seed=2).centroids
     threaded = simulate(plan, StarCamera(small, parallel=True), seed=2).centroids
     pd.testing.assert_frame_equal(serial, threaded, check_exact=True)
+
+
+def _assert_same_estimate(a, b):
+    """Two estimates equal field by field: floats bit for bit, tables exactly."""
+    import dataclasses
+
+    assert type(a) is type(b)
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, pd.DataFrame):
+            pd.testing.assert_frame_equal(x, y, check_exact=True)
+        elif isinstance(x, dict):
+            assert list(x) == list(y), f.name
+            for k in x:
+                assert np.array_equal(x[k], y[k], equal_nan=isinstance(x[k], float)), (f.name, k)
+        else:
+            assert np.array_equal(x, y, equal_nan=isinstance(x, float)), f.name
+
+
+@pytest.mark.parametrize("world, threshold_sigma", [("realistic", 3.0), ("small", 3.0), ("small", 100.0),
+                                                    ("small", 200.0)])
+def test_estimates_on_simulated_rows_equal_those_on_the_checked_table(small, world, threshold_sigma):
+    # the Monte Carlo trial hands simulate()'s rows to estimate() unchecked; a lab hands it the
+    # DataFrame, which is checked and turned into the same rows: every variant, every field
+    # (warnings, tables) the same bit for bit; with flagged rows too, where a high threshold
+    # loses the 500 nm frames (100 sigma) or also the 600 nm ones (200 sigma: the same error)
+    from budget.starcam.validate import _spectral
+
+    scn = default() if world == "realistic" else small
+    cam = StarCamera(scn)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for proto in ("te", "hsfe", "chromatic", "distortion"):
+            d = simulate(make_plan(proto, scn, seed=4), cam, seed=4, marker_seed=9, threshold_sigma=threshold_sigma)
+            assert (d.rows["flag"] != 0).any() == (proto == "chromatic" and threshold_sigma > 3.0)
+            for spectral in (None, _spectral(scn)):
+                kw = dict(plate_scale_arcsec=scn.camera.scale_arcsec_per_px, marker_3sigma_arcsec=0.5,
+                          reference_filter_nm=scn.protocols.chromatic.reference_filter_nm, spectral=spectral)
+                try:
+                    fast = estimate(proto, d.rows, reference=d.reference_rows, **kw)
+                except Exception as exc:  # noqa: BLE001 - the same error either way
+                    with pytest.raises(type(exc), match=re.escape(str(exc))):
+                        estimate(proto, d.centroids, reference=d.reference, **kw)
+                    continue
+                checked = estimate(proto, d.centroids, reference=d.reference, **kw)
+                assert list(fast) == list(checked)
+                for variant in fast:
+                    _assert_same_estimate(fast[variant], checked[variant])
 
 
 def test_measure_finds_only_the_target_stars_at_the_validate_threshold(tmp_path):

@@ -696,28 +696,28 @@ def centroid_gaussian_fit(
     return x, y, f, flag | flag2
 
 
-def _warn_flags(table: pd.DataFrame, *, stacklevel: int = 3) -> None:
-    flags = table["flag"].to_numpy()
+def _warn_flags(flag: np.ndarray, star: np.ndarray, frame: np.ndarray, *, stacklevel: int = 3) -> None:
+    """One :class:`CentroidWarning` per flag bit set in ``flag``, naming the ``star`` and
+    ``frame`` of its first five rows."""
+    bits = int(np.bitwise_or.reduce(flag))
     for bit, text in _FLAG_TEXT.items():
-        hit = (flags & int(bit)) != 0
-        if not hit.any():
+        if not bits & int(bit):
             continue
-        sub = table.loc[hit, [c for c in ("star", "frame") if c in table.columns]]
-        examples = ", ".join(
-            "(" + ", ".join(f"{c}={int(v)}" for c, v in zip(sub.columns, row)) + ")"
-            for row in sub.head(5).itertuples(index=False)
-        )
-        more = "" if hit.sum() <= 5 else f" and {int(hit.sum()) - 5} more"
+        hit = np.flatnonzero((flag & int(bit)) != 0)
+        examples = ", ".join(f"(star={int(star[i])}, frame={int(frame[i])})" for i in hit[:5])
+        more = "" if hit.size <= 5 else f" and {hit.size - 5} more"
         warnings.warn(
-            f"{int(hit.sum())} centroid(s) flagged {bit.name}: {text}: {examples}{more}",
+            f"{hit.size} centroid(s) flagged {bit.name}: {text}: {examples}{more}",
             CentroidWarning, stacklevel=stacklevel,
         )
 
 
-def _table(
+def _table_columns(
     *, star: Any, frame: Any, x: np.ndarray, y: np.ndarray, flux: np.ndarray, flag: np.ndarray,
     flux_column: str, extra_columns: Mapping[str, Any] | None,
-) -> pd.DataFrame:
+) -> dict[str, np.ndarray]:
+    """The columns of a centroid table, in table order: ``star, frame, x, y, <flux_column>,
+    flag`` and the extra columns (a scalar repeated on every row)."""
     n = x.size
     cols: dict[str, Any] = {
         "star": _per_window(star, n, "star").astype(np.int64),
@@ -731,7 +731,14 @@ def _table(
         cols[name] = np.repeat(arr, n) if arr.ndim == 0 else arr
         if np.shape(cols[name]) != (n,):
             raise UserInputError(f"extra_columns: {name!r} must be a scalar or {n} values")
-    return pd.DataFrame(cols)
+    return cols
+
+
+def _centroid_arrays(windows: Any, *, x0: Any, y0: Any, method: str, **options: Any) -> tuple:
+    """x, y, flux and flag of each window of a batch by ``method`` (the columns
+    :func:`centroid_windows` tabulates)."""
+    w = _as_windows(windows)
+    return _METHODS[_method(method)](w, x0=x0, y0=y0, **options)
 
 
 def centroid_windows(
@@ -772,13 +779,11 @@ def centroid_windows(
         ``star, frame, x, y, <flux_column>, flag`` and the extra columns. One
         :class:`CentroidWarning` per flag bit that occurs.
     """
-    w = _as_windows(windows)
-    n = w.shape[0]
-    x, y, f, flag = _METHODS[_method(method)](w, x0=x0, y0=y0, **options)
-    table = _table(star=np.arange(n) if star is None else star, frame=frame, x=x, y=y,
-                   flux=f, flag=flag, flux_column=flux_column, extra_columns=extra_columns)
-    _warn_flags(table)
-    return table
+    x, y, f, flag = _centroid_arrays(windows, x0=x0, y0=y0, method=method, **options)
+    cols = _table_columns(star=np.arange(x.size) if star is None else star, frame=frame, x=x, y=y,
+                          flux=f, flag=flag, flux_column=flux_column, extra_columns=extra_columns)
+    _warn_flags(cols["flag"], cols["star"], cols["frame"])
+    return pd.DataFrame(cols)
 
 
 def centroid_frames(
@@ -903,10 +908,10 @@ def centroid_frames(
         x[~found] = np.nan
         y[~found] = np.nan
         f[~found] = np.nan
-        tables.append(_table(star=np.arange(n_ref), frame=fid, x=x, y=y, flux=f, flag=flag,
-                             flux_column=flux_column, extra_columns=extra_columns))
+        tables.append(pd.DataFrame(_table_columns(star=np.arange(n_ref), frame=fid, x=x, y=y, flux=f, flag=flag,
+                                                  flux_column=flux_column, extra_columns=extra_columns)))
     table = pd.concat(tables, ignore_index=True)
-    _warn_flags(table)
+    _warn_flags(table["flag"].to_numpy(), table["star"].to_numpy(), table["frame"].to_numpy())
     return table
 
 

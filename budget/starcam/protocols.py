@@ -23,7 +23,7 @@ Plans (seed 000, section 1):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -129,18 +129,42 @@ def _grid_offsets_px(h, *, noise_px: float, seed: int) -> tuple[np.ndarray, np.n
 class ProtocolData:
     """What a protocol run yields: centroids (what the lab sees) and truth (what was injected).
 
-    ``truth_parts`` holds each condition's truth table with its condition index and field
-    label; the ``truth`` table (one row per star and condition) is assembled from them on
-    first use (the Monte Carlo validator never needs it).
+    ``rows`` holds the centroid table as arrays, what the estimators compute on
+    (:class:`budget.starcam.estimators.common._Rows`; the Monte Carlo validator passes them
+    to :func:`estimate`), and ``centroids`` the same table as a DataFrame, built on first
+    use; so do ``reference_rows`` and ``reference`` the distortion grid's reference
+    coordinates (:func:`reference_table`). ``truth_parts`` holds each condition's truth
+    table with its condition index and field label; the ``truth`` table (one row per star
+    and condition) is assembled from them on first use (the Monte Carlo validator never
+    needs it).
     """
 
     protocol: str
-    centroids: pd.DataFrame
+    rows: object
     truth_parts: list
-    reference: pd.DataFrame | None = None
+    reference_rows: object = None
     plan: AcquisitionPlan | None = None
     windows: dict = field(default_factory=dict)
     camera: object = None
+
+    @property
+    def centroids(self) -> pd.DataFrame:
+        """The centroid table: ``star, frame, x, y, flux_dn, flag`` and the plan's
+        ``condition``, ``filter_nm`` and ``field`` (where it has filters and fields)."""
+        cached = self.__dict__.get("_centroids")
+        if cached is None:
+            cached = self.__dict__["_centroids"] = self.rows.to_frame()
+        return cached
+
+    @property
+    def reference(self) -> pd.DataFrame | None:
+        """The reference coordinates ``star, x_ref, y_ref`` (distortion protocol; else None)."""
+        if self.reference_rows is None:
+            return None
+        cached = self.__dict__.get("_reference")
+        if cached is None:
+            cached = self.__dict__["_reference"] = self.reference_rows.to_frame()
+        return cached
 
     @property
     def truth(self) -> pd.DataFrame:
@@ -206,12 +230,18 @@ def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None 
     The ideal projection of the calibrated point positions (nominal chip layout is the
     camera's own), including the marker calibration error (seed 000 C2).
     """
+    return _reference_points(scenario, camera, marker_seed=marker_seed).to_frame()
+
+
+def _reference_points(scenario: Scenario, camera=None, *, marker_seed: int | None = None):
+    """:func:`reference_table` as the estimators' rows (:class:`budget.starcam.estimators.common._Rows`)."""
+    from budget.starcam.estimators.common import _Rows
     from simcam.starcam.geometry import Mosaic
 
     lay = calibration_grid(scenario, marker_seed=marker_seed)
     mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
     _, x, y = mosaic.focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
-    return pd.DataFrame({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
+    return _Rows({"star": np.arange(lay.n_stars), "x_ref": x, "y_ref": y})
 
 
 def simulate(
@@ -233,7 +263,8 @@ def simulate(
     inter-frame differencing). ``marker_seed`` draws new marker errors of the calibration
     grid (default: the scenario's fixed target).
     """
-    from budget.centroid.core import centroid_windows
+    from budget.centroid.core import _centroid_arrays, _table_columns, _warn_flags
+    from budget.starcam.estimators.common import _Rows
     from simcam.starcam.render import Placement
 
     scn = camera.scenario
@@ -241,7 +272,7 @@ def simulate(
     # thresholded centre of gravity when the windows themselves are not wanted
     fused = method == "cog" and not keep_windows
     truths, wins = [], {}
-    cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt", "field",
+    cols: dict[str, list] = {k: [] for k in ("pix", "x0", "y0", "noise", "star", "frame", "cond", "filt",
                                              "x", "y", "flux", "flag")}
     # the simulated world's hexapod pose errors and target drift: the camera draws
     # them from the run seed (simcam.starcam.world); the plan, like a lab's, has only the
@@ -297,38 +328,37 @@ def simulate(
             cols["noise"].append(np.tile(noise_dn, n))
             if keep_windows:
                 wins[c.index] = win
-        for name in ("x0", "y0", "star", "frame", "cond", "filt", "field"):
+        for name in ("x0", "y0", "star", "frame", "cond", "filt"):
             cols[name].append(cc[name])
         truths.append((scene, c.index, c.field))  # the scene's truth table only when asked for
     extra = {"condition": np.concatenate(cols["cond"])}
     if any(c.filter_nm is not None for c in plan.conditions):
         extra["filter_nm"] = np.concatenate(cols["filt"])
+    field_labels = None
     if any(c.field for c in plan.conditions):
-        extra["field"] = np.concatenate(cols["field"])
-    star, frame = np.concatenate(cols["star"]), np.concatenate(cols["frame"])
+        # the fields as codes into their sorted labels (the estimators' rows, _Rows)
+        field_labels = np.array(sorted({c.field for c in plan.conditions}), dtype=object)
+        extra["field"] = np.repeat(np.searchsorted(field_labels, [c.field for c in plan.conditions]),
+                                   [s.size for s in cols["star"]])
     if fused:
-        from budget.centroid.core import _table, _warn_flags
-
-        table = _table(star=star, frame=frame, x=np.concatenate(cols["x"]), y=np.concatenate(cols["y"]),
-                       flux=np.concatenate(cols["flux"]), flag=np.concatenate(cols["flag"]),
-                       flux_column="flux_dn", extra_columns=extra)
-        _warn_flags(table)
+        x, y, flux, flag = (np.concatenate(cols[k]) for k in ("x", "y", "flux", "flag"))
     else:
         # one centroiding call for the whole protocol (same options as per condition)
         opts = {"background": "border", "noise_dn": np.concatenate(cols["noise"]),
                 "threshold_sigma": float(threshold_sigma)}
         if method == "iwcog":
             opts["weight_sigma_px"] = design_psf_sigma_px(scn)
-        table = centroid_windows(
-            np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]), y0=np.concatenate(cols["y0"]),
-            star=star, frame=frame, method=method, extra_columns=extra, **opts,
-        )
+        x, y, flux, flag = _centroid_arrays(np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]),
+                                            y0=np.concatenate(cols["y0"]), method=method, **opts)
+    table = _table_columns(star=np.concatenate(cols["star"]), frame=np.concatenate(cols["frame"]), x=x, y=y,
+                           flux=flux, flag=flag, flux_column="flux_dn", extra_columns=extra)
+    _warn_flags(table["flag"], table["star"], table["frame"])
     if camera.onboard_correction is not None:
         # the camera reports its centroids through its own distortion correction
         # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
-        table["x"], table["y"] = camera.report_positions(table["x"].to_numpy(), table["y"].to_numpy())
-    ref = reference_table(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, table, truths, ref, plan, wins, camera)
+        table["x"], table["y"] = camera.report_positions(table["x"], table["y"])
+    ref = _reference_points(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
+    return ProtocolData(plan.protocol, _Rows(table, field_labels), truths, ref, plan, wins, camera)
 
 
 _LAYOUTS: dict = {}
@@ -336,7 +366,7 @@ _LAYOUTS: dict = {}
 
 def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
     """The per-row columns of a condition's centroid table (window origins, star, frame,
-    condition, filter, field) and its windows' noise and threshold (DN): fixed for a
+    condition, filter) and its windows' noise and threshold (DN): fixed for a
     condition and its window origins, so kept on the camera (read-only) for the next trial,
     also when a new pose error (the world's hexapod, drift) makes the scene new but leaves
     the windows where they were."""
@@ -353,8 +383,7 @@ def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: floa
               "x0": np.tile(chain.col0, n), "y0": np.tile(chain.row0, n),
               "star": np.tile(np.arange(W), n), "frame": np.repeat(np.arange(n), W),
               "cond": np.full(W * n, c.index),
-              "filt": np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm),
-              "field": np.full(W * n, c.field, dtype=object)}
+              "filt": np.full(W * n, np.nan if c.filter_nm is None else c.filter_nm)}
         for v in cc.values():
             v.flags.writeable = False
         store[key] = cc
@@ -426,10 +455,10 @@ def _render_windows_drift(camera, scene, drift, *, seed: int):
 
 def estimate(
     protocol: str,
-    centroids: pd.DataFrame,
+    centroids: Any,
     *,
     plate_scale_arcsec: float,
-    reference: pd.DataFrame | None = None,
+    reference: Any = None,
     reference_filter_nm: float | None = None,
     marker_3sigma_arcsec: float = 0.0,
     spectral: dict | None = None,
@@ -448,7 +477,10 @@ def estimate(
     reports positions through its own distortion correction, as a flight camera does) the
     displacement that calibrated camera still makes). Other variants are returned under their
     own names (``extra_variants=False`` skips them, as the Monte Carlo validator does).
-    The same function serves simulated and real tables.
+    The same function serves simulated and real tables: a DataFrame is checked
+    (:func:`budget.starcam.estimators.common._checked_rows`); the rows of a simulated protocol
+    (:attr:`ProtocolData.rows` and ``reference_rows``, which the Monte Carlo validator
+    passes) meet those checks by construction and go to the same estimators unchecked.
     """
     from budget.starcam import estimators as E
 

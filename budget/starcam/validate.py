@@ -77,11 +77,22 @@ def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
 TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
 
 
+#: the last scenario object and its camera key (:func:`_camera_key`)
+_LAST_CAMERA_KEY: dict = {}
+
+
 def _camera_key(scenario) -> str:
+    """The scenario's hash with the truth sizes set to 0 (:data:`TRUTH_SIZE_FIELDS`), kept for
+    the last scenario object: scenarios are frozen, and a run's trials share one (a model
+    copy, a JSON dump and a SHA-256 fewer per trial)."""
     from simcam.config_base import model_hash
 
-    fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
-    return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
+    hit = _LAST_CAMERA_KEY.get("last")
+    if hit is None or hit[0] is not scenario:
+        fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
+        key = model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
+        hit = _LAST_CAMERA_KEY["last"] = (scenario, key)
+    return hit[1]
 
 
 def _camera(scenario, detector_seed=None):
@@ -133,7 +144,7 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
             data = simulate(plan, cam, seed=noise_seed, method=val.centroid_method,
                             threshold_sigma=val.threshold_sigma,
                             marker_seed=marker_seed if val.new_markers_per_trial else None)
-            res = estimate(proto, data.centroids, plate_scale_arcsec=ps, reference=data.reference,
+            res = estimate(proto, data.rows, plate_scale_arcsec=ps, reference=data.reference_rows,
                            reference_filter_nm=scenario.protocols.chromatic.reference_filter_nm,
                            marker_3sigma_arcsec=scenario.lab.calibration_target.marker_error_3sigma_arcsec,
                            spectral=spectral, extra_variants=keep,

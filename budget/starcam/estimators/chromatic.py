@@ -6,31 +6,57 @@ population through the camera's spectral response instead of "/2" and "/3"
 
 from __future__ import annotations
 
-from typing import Any
+from functools import partial
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from simcam.cli_common import UserInputError
 
-from .common import _check_plate_scale, _Log, _memo_last, _prepare
+from .common import _check_plate_scale, _Log, _memo_last, _prepare, _Rows, _unique
 from .results import ChromaticEstimate
 
 
-def _stars_per_field(wide: pd.DataFrame) -> np.ndarray:
-    """Number of rows (stars) of each field of a table indexed by (field, star)."""
-    codes, _ = pd.factorize(wide.index.get_level_values("field"))
-    return np.bincount(codes)
+class _FilterMeans(NamedTuple):
+    """What every LSFE-S variant starts from (eqs 13-14): per (field, star) point seen through
+    every filter, sorted by field then star, and per filter (sorted), the mean x and y (px)
+    and the number of frames; the rows excluded, the points excluded, the reference filter
+    and the filter pairs (short, long) the published estimator differences."""
+
+    n_bad: int
+    n_excl: int
+    filters: np.ndarray
+    ref: int
+    pairs: list
+    field_code: np.ndarray      # each point's field, codes into the sorted field_labels
+    field_labels: Any
+    star: np.ndarray
+    mean_x: np.ndarray          # (points, filters)
+    mean_y: np.ndarray
+    count: np.ndarray
+
+    def column(self, filter_nm) -> int:
+        """The column of filter ``filter_nm`` in the (points, filters) arrays."""
+        return int(np.searchsorted(self.filters, filter_nm))
+
+    def stars_per_field(self) -> np.ndarray:
+        """Number of points (stars) of each field."""
+        return np.unique(self.field_code, return_counts=True)[1]
+
+    def field(self) -> np.ndarray:
+        """Each point's field label."""
+        return np.asarray(self.field_labels)[self.field_code]
 
 
 @_memo_last
-def _chromatic_means(table, *, reference_filter_nm, what, log):
-    if not isinstance(table, pd.DataFrame):
+def _chromatic_means(table, *, reference_filter_nm, what, log) -> _FilterMeans:
+    if not isinstance(table, (pd.DataFrame, _Rows)):
         raise UserInputError(f"{what}: expected a pandas DataFrame, got {type(table).__name__}")
-    df, n_bad = _prepare(table, required=("star", "field", "filter_nm", "x", "y"),
-                         key=tuple(c for c in ("star", "field", "filter_nm", "condition", "frame")
-                                   if c in table.columns), what=what, log=log)
-    filters = np.sort(df["filter_nm"].unique())
+    rows, df, n_bad = _prepare(table, required=("star", "field", "filter_nm", "x", "y"),
+                               key=tuple(c for c in ("star", "field", "filter_nm", "condition", "frame")
+                                         if c in table.columns), what=what, log=log)
+    filters = np.unique(df["filter_nm"])
     if filters.size < 2:
         raise UserInputError(f"{what}: needs at least 2 filters in column 'filter_nm', got {filters.tolist()}")
     if reference_filter_nm is None:
@@ -41,33 +67,28 @@ def _chromatic_means(table, *, reference_filter_nm, what, log):
             raise UserInputError(f"{what}: reference_filter_nm={ref} is not in the data's filters {filters.tolist()}")
     # per (field, star) and filter: mean x, y and count, by bincount on integer codes
     # (every (field, star) pair of the table is kept, sorted, NaN where a filter is missing)
-    f_codes, f_uni = pd.factorize(table["field"], sort=True)
-    s_uni, s_codes = np.unique(table["star"].to_numpy(), return_inverse=True)
+    s_uni, s_codes = _unique(rows["star"], return_inverse=True)
     n_s = len(s_uni)
-    present = np.unique(f_codes * n_s + s_codes.reshape(-1))        # sorted by (field, star)
-    pairs_index = pd.MultiIndex.from_arrays([np.asarray(f_uni)[present // n_s], s_uni[present % n_s]],
-                                            names=["field", "star"])
-    row = np.searchsorted(present, pd.Index(f_uni).get_indexer(df["field"]) * n_s
-                          + np.searchsorted(s_uni, df["star"].to_numpy()))
-    col = np.searchsorted(filters, df["filter_nm"].to_numpy())
+    present = _unique(rows["field"] * n_s + s_codes.reshape(-1))        # sorted by (field, star)
+    point_field, point_star = present // n_s, s_uni[present % n_s]
+    row = np.searchsorted(present, df["field"] * n_s + np.searchsorted(s_uni, df["star"]))
+    col = np.searchsorted(filters, df["filter_nm"])
     cell = row * filters.size + col
-    size = len(pairs_index) * filters.size
+    size = len(present) * filters.size
     count = np.bincount(cell, minlength=size).astype(np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mx = np.bincount(cell, weights=df["x"].to_numpy(np.float64), minlength=size) / count
-        my = np.bincount(cell, weights=df["y"].to_numpy(np.float64), minlength=size) / count
+        mx = np.bincount(cell, weights=df["x"], minlength=size) / count
+        my = np.bincount(cell, weights=df["y"], minlength=size) / count
     count[count == 0] = np.nan
-    mx, my, count = (a.reshape(len(pairs_index), filters.size) for a in (mx, my, count))
+    mx, my, count = (a.reshape(len(present), filters.size) for a in (mx, my, count))
     complete = np.isfinite(count).all(axis=1)
     n_excl = int((~complete).sum())
     if n_excl:
-        lost = [f"{f}/{s}" for f, s in pairs_index[~complete][:10]]
+        lost = [f"{f}/{s}" for f, s in zip(np.asarray(rows.field_labels)[point_field[~complete][:10]],
+                                           point_star[~complete][:10].tolist())]
         log.warn(f"{what}: {n_excl} (field, star) pair(s) lack a filter and are excluded ({', '.join(lost)})")
-    columns = pd.Index(filters, name="filter_nm")
-    index = pairs_index[complete] if n_excl else pairs_index
-    wide_x, wide_y, wide_n = (pd.DataFrame(a[complete] if n_excl else a, index=index, columns=columns)
-                              for a in (mx, my, count))
-    if wide_x.empty:
+        point_field, point_star, mx, my, count = (a[complete] for a in (point_field, point_star, mx, my, count))
+    if not complete.any():
         raise UserInputError(f"{what}: no (field, star) seen through every filter")
     pairs = []
     for f in filters:
@@ -75,7 +96,7 @@ def _chromatic_means(table, *, reference_filter_nm, what, log):
             continue
         lo, hi = (int(f), ref) if f < ref else (ref, int(f))
         pairs.append((lo, hi))
-    return df, n_bad, n_excl, filters, ref, pairs, wide_x, wide_y, wide_n
+    return _FilterMeans(n_bad, n_excl, filters, ref, pairs, point_field, rows.field_labels, point_star, mx, my, count)
 
 
 def chromatic_error(
@@ -124,38 +145,35 @@ def chromatic_error(
     if not spectrum_factor > 0:
         raise UserInputError(f"spectrum_factor: must be > 0, got {spectrum_factor}")
     log = _Log()
-    (_, n_bad, n_excl, filters, ref, pairs, wx, wy, wn) = _chromatic_means(
-        table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
-    n_pts = len(wx)                                   # W * K
-    k = wx.index.get_level_values("field").nunique()
+    fm = _chromatic_means(table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
+    n_pts = len(fm.star)                              # W * K
+    per_field = fm.stars_per_field()
+    k = per_field.size
     rows = []
-    col = {f: i for i, f in enumerate(wx.columns)}
-    ax, ay = wx.to_numpy(), wy.to_numpy()
-    for lo, hi in pairs:
-        dxb = float((ax[:, col[hi]] - ax[:, col[lo]]).sum()) / (2.0 * n_pts)
-        dyb = float((ay[:, col[hi]] - ay[:, col[lo]]).sum()) / (2.0 * n_pts)
+    ax, ay = fm.mean_x, fm.mean_y
+    for lo, hi in fm.pairs:
+        dxb = float((ax[:, fm.column(hi)] - ax[:, fm.column(lo)]).sum()) / (2.0 * n_pts)
+        dyb = float((ay[:, fm.column(hi)] - ay[:, fm.column(lo)]).sum()) / (2.0 * n_pts)
         rows.append({"pair": f"{hi}-{lo}", "filter_short_nm": lo, "filter_long_nm": hi,
                      "delta_bar_x_px": dxb, "delta_bar_y_px": dyb,
                      "delta_bar_x_arcsec": dxb * ps, "delta_bar_y_arcsec": dyb * ps})
-    pt = pd.DataFrame(rows)
-    mx = float(pt["delta_bar_x_px"].abs().max())
-    my = float(pt["delta_bar_y_px"].abs().max())
-    per_field = _stars_per_field(wx)
+    mx = float(np.max(np.abs([r["delta_bar_x_px"] for r in rows])))
+    my = float(np.max(np.abs([r["delta_bar_y_px"] for r in rows])))
     return ChromaticEstimate(
         quantity="LSFE-S", method="published", equations="seed 000 eqs 13-16, section 1.4.1",
         sigma_x_px=mx / spectrum_factor, sigma_y_px=my / spectrum_factor, plate_scale_arcsec=ps,
-        n_stars=int(per_field.min()), n_frames=int(wn.min().min()), n_conditions=int(k),
-        n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
+        n_stars=int(per_field.min()), n_frames=int(fm.count.min()), n_conditions=int(k),
+        n_stars_excluded=fm.n_excl, n_rows_excluded=fm.n_bad, warnings=tuple(log.messages),
         details={"max_abs_delta_bar_x_px": mx, "max_abs_delta_bar_y_px": my,
                  "max_abs_delta_bar_x_arcsec": mx * ps, "max_abs_delta_bar_y_arcsec": my * ps,
                  "max_over_factor_x_px": mx / spectrum_factor,
                  "max_over_factor_y_px": my / spectrum_factor,
                  "max_over_factor_x_arcsec": mx / spectrum_factor * ps,
                  "max_over_factor_y_arcsec": my / spectrum_factor * ps,
-                 "reference_filter_nm": ref, "n_filters": int(filters.size),
+                 "reference_filter_nm": fm.ref, "n_filters": int(fm.filters.size),
                  "n_fields": int(k), "n_field_star_pairs": int(n_pts),
                  "spectrum_factor": float(spectrum_factor)},
-        pairs=pt,
+        pairs=partial(pd.DataFrame, rows),
     )
 
 
@@ -199,13 +217,12 @@ def chromatic_error_decomposed(
     if not spectrum_factor > 0:
         raise UserInputError(f"spectrum_factor: must be > 0, got {spectrum_factor}")
     log = _Log()
-    (_, n_bad, n_excl, filters, ref, pairs, wx, wy, wn) = _chromatic_means(
-        table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
-    n_pts = len(wx)
+    fm = _chromatic_means(table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
+    n_pts = len(fm.star)
     if n_pts < 3:
         raise UserInputError(f"LSFE-S: the decomposition needs 3+ (field, star) points, got {n_pts}")
-    px = wx[ref].to_numpy(float)
-    py = wy[ref].to_numpy(float)
+    px = fm.mean_x[:, fm.column(fm.ref)]
+    py = fm.mean_y[:, fm.column(fm.ref)]
     if optical_axis_xy is None:
         ax0, ay0 = float(px.mean()), float(py.mean())
     else:
@@ -221,9 +238,9 @@ def chromatic_error_decomposed(
     a[:n_pts, 2] = rx
     a[n_pts:, 2] = ry
     rows = []
-    for lo, hi in pairs:
-        dx = (wx[hi] - wx[lo]).to_numpy(float)
-        dy = (wy[hi] - wy[lo]).to_numpy(float)
+    for lo, hi in fm.pairs:
+        dx = fm.mean_x[:, fm.column(hi)] - fm.mean_x[:, fm.column(lo)]
+        dy = fm.mean_y[:, fm.column(hi)] - fm.mean_y[:, fm.column(lo)]
         b = np.concatenate([dx, dy])
         coef, *_ = np.linalg.lstsq(a, b, rcond=None)
         ux, uy, c = (float(v) for v in coef)
@@ -235,20 +252,19 @@ def chromatic_error_decomposed(
                      "fit_residual_rms_px": float(np.sqrt(np.mean(res**2))),
                      "rms_x_px": float(np.sqrt(np.mean(mod_x**2))),
                      "rms_y_px": float(np.sqrt(np.mean(mod_y**2)))})
-    pt = pd.DataFrame(rows)
-    sx = float(pt["rms_x_px"].max()) / (2.0 * spectrum_factor)
-    sy = float(pt["rms_y_px"].max()) / (2.0 * spectrum_factor)
-    k = wx.index.get_level_values("field").nunique()
-    per_field = _stars_per_field(wx)
+    sx = float(np.max([r["rms_x_px"] for r in rows])) / (2.0 * spectrum_factor)
+    sy = float(np.max([r["rms_y_px"] for r in rows])) / (2.0 * spectrum_factor)
+    per_field = fm.stars_per_field()
+    k = per_field.size
     return ChromaticEstimate(
         quantity="LSFE-S", method="decomposed", equations="docs/estimators.md (chromatic decomposed)",
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
-        n_stars=int(per_field.min()), n_frames=int(wn.min().min()), n_conditions=int(k),
-        n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
-        details={"reference_filter_nm": ref, "optical_axis_x_px": ax0, "optical_axis_y_px": ay0,
+        n_stars=int(per_field.min()), n_frames=int(fm.count.min()), n_conditions=int(k),
+        n_stars_excluded=fm.n_excl, n_rows_excluded=fm.n_bad, warnings=tuple(log.messages),
+        details={"reference_filter_nm": fm.ref, "optical_axis_x_px": ax0, "optical_axis_y_px": ay0,
                  "mean_field_radius_px": rmean, "n_fields": int(k),
                  "spectrum_factor": float(spectrum_factor)},
-        pairs=pt,
+        pairs=partial(pd.DataFrame, rows),
     )
 
 
@@ -305,23 +321,22 @@ def chromatic_error_population(
     if lam_p.size == 0 or not np.isfinite(lam_p).all():
         raise UserInputError("star_wavelengths_nm: needs one or more finite wavelengths")
     log = _Log()
-    (_, n_bad, n_excl, filters, ref, _pairs, wx, wy, wn) = _chromatic_means(
-        table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
+    fm = _chromatic_means(table, reference_filter_nm=reference_filter_nm, what="LSFE-S", log=log)
+    filters = fm.filters
     missing = [int(f) for f in filters if int(f) not in {int(k) for k in filter_wavelength_nm}]
     if missing:
         raise UserInputError(f"filter_wavelength_nm: no effective wavelength for filter(s) {missing}")
     lam_f = np.array([float({int(k): v for k, v in filter_wavelength_nm.items()}[int(f)]) for f in filters])
     a = np.column_stack([np.ones_like(lam_f), lam_f - lam_f.mean()])
     pinv = np.linalg.pinv(a)
-    bx = (pinv @ wx[list(filters)].to_numpy(float).T)[1]
-    by = (pinv @ wy[list(filters)].to_numpy(float).T)[1]
+    # (filters, points), C-ordered: the layout the product's rounding was recorded with
+    bx = (pinv @ np.ascontiguousarray(fm.mean_x.T))[1]
+    by = (pinv @ np.ascontiguousarray(fm.mean_y.T))[1]
     dl = lam_p - float(calibration_wavelength_nm)
-    per = pd.DataFrame({"field": wx.index.get_level_values("field"), "star": wx.index.get_level_values("star"),
-                        "b_x_px_per_nm": bx, "b_y_px_per_nm": by})
     # Per field, the slope is averaged over its stars (lateral colour varies little across
     # one target); the mean square of that average is debiased by its sampling variance
     # s_b^2 / W (temporal noise in the filter means), clipped at 0.
-    fcode, _ = pd.factorize(per["field"])
+    fcode = np.unique(fm.field_code, return_inverse=True)[1]
     cnt = np.bincount(fcode).astype(float)
     msq = {}
     for ax, b in (("x", bx), ("y", by)):
@@ -331,15 +346,16 @@ def chromatic_error_population(
         msq[ax] = np.clip(mean_b**2 - var_b, 0.0, None)
     sx = float(np.sqrt(np.mean(msq["x"]) * np.mean(dl**2)))
     sy = float(np.sqrt(np.mean(msq["y"]) * np.mean(dl**2)))
-    k = wx.index.get_level_values("field").nunique()
+    per_field = fm.stars_per_field()
     return ChromaticEstimate(
         quantity="LSFE-S", method="population", equations="docs/estimators.md (chromatic population)",
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
-        n_stars=int(_stars_per_field(wx).min()), n_frames=int(wn.min().min()), n_conditions=int(k),
-        n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
+        n_stars=int(per_field.min()), n_frames=int(fm.count.min()), n_conditions=int(per_field.size),
+        n_stars_excluded=fm.n_excl, n_rows_excluded=fm.n_bad, warnings=tuple(log.messages),
         details={"calibration_wavelength_nm": float(calibration_wavelength_nm),
                  "population_wavelengths_nm": lam_p.tolist(),
                  "filter_effective_wavelengths_nm": lam_f.tolist(),
                  "mean_slope_x_px_per_nm": float(bx.mean()), "mean_slope_y_px_per_nm": float(by.mean())},
-        pairs=per,
+        pairs=partial(pd.DataFrame, {"field": fm.field(), "star": fm.star, "b_x_px_per_nm": bx,
+                                     "b_y_px_per_nm": by}),
     )

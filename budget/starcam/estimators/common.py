@@ -1,8 +1,11 @@
-"""Shared steps of the estimators: table checks, per-star statistics, the last-call memo.
+"""Shared steps of the estimators: table checks, rows as arrays, per-star statistics, the
+last-call memo.
 
-Nothing here implements a seed-000 equation by itself; :func:`_per_star_stats` computes the
-per-star (or per star and condition) means and variances that eqs 1, 3-4, 13-14 and 17-18
-start from.
+A centroid table is checked once (:func:`_checked_rows`) and turned into :class:`_Rows`,
+numpy arrays per column, which is all the estimators compute on; a simulated protocol's
+table comes as rows already (:func:`budget.starcam.protocols.simulate`). Nothing here
+implements a seed-000 equation by itself; :func:`_per_star_stats` computes the per-star (or
+per star and condition) means and variances that eqs 1, 3-4, 13-14 and 17-18 start from.
 """
 
 from __future__ import annotations
@@ -40,10 +43,49 @@ def _check_plate_scale(plate_scale_arcsec: float) -> float:
     return ps
 
 
-def _prepare(
-    table: Any, *, required: tuple[str, ...], key: tuple[str, ...], what: str, log: _Log
-) -> tuple[pd.DataFrame, int]:
-    """Validate columns, drop flagged / non-finite rows; return (good rows, n excluded)."""
+class _Rows:
+    """A centroid table as numpy arrays, one per column (one value per row): what the
+    estimators compute on.
+
+    ``columns`` maps a column name to its values; a ``field`` column holds integer codes
+    into the sorted labels ``field_labels``. Built from a checked DataFrame
+    (:func:`_checked_rows`), or by :func:`budget.starcam.protocols.simulate` from the arrays of
+    the table it centroids, which meets those checks by construction (one row per star,
+    frame and condition, integer keys and flags), so the estimators take it unchecked.
+    """
+
+    __slots__ = ("columns", "field_labels")
+
+    def __init__(self, columns: dict[str, np.ndarray], field_labels: np.ndarray | None = None) -> None:
+        self.columns = columns
+        self.field_labels = field_labels
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.columns
+
+    def __len__(self) -> int:
+        return len(next(iter(self.columns.values())))
+
+    def take(self, keep: np.ndarray) -> _Rows:
+        """The rows where ``keep`` (boolean, one per row) is true."""
+        return _Rows({c: v[keep] for c, v in self.columns.items()}, self.field_labels)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The table as a DataFrame, ``field`` as its labels."""
+        cols = dict(self.columns)
+        if "field" in cols:
+            cols["field"] = np.asarray(self.field_labels, dtype=object)[cols["field"]]
+        return pd.DataFrame(cols)
+
+
+def _checked_rows(table: Any, *, required: tuple[str, ...], key: tuple[str, ...], what: str) -> _Rows:
+    """The columns of a DataFrame the estimators read (``required``, ``key``, ``flag``), after
+    checking them: a DataFrame with rows, the required columns, numeric x and y, integer
+    keys without gaps (a ``field`` key without missing values), no two rows with the same
+    key, an integer flag. x and y as float64, a ``field`` as codes into its sorted labels."""
     if not isinstance(table, pd.DataFrame):
         raise UserInputError(f"{what}: expected a pandas DataFrame, got {type(table).__name__}")
     missing = [c for c in required if c not in table.columns]
@@ -70,23 +112,41 @@ def _prepare(
         raise UserInputError(
             f"{what}: {int(dup.sum())} rows repeat the same ({', '.join(key)}), e.g. {first}"
         )
-    bad = ~(np.isfinite(table["x"].to_numpy(float)) & np.isfinite(table["y"].to_numpy(float)))
-    if "flag" in table.columns:
-        fl = table["flag"]
-        if not pd.api.types.is_integer_dtype(fl):
-            raise UserInputError(f"{what}: column 'flag' must hold integers (dtype {fl.dtype})")
-        bad |= fl.to_numpy() != 0
+    if "flag" in table.columns and not pd.api.types.is_integer_dtype(table["flag"]):
+        raise UserInputError(f"{what}: column 'flag' must hold integers (dtype {table['flag'].dtype})")
+    columns, labels = {}, None
+    for c in dict.fromkeys((*required, *key, "flag")):
+        if c not in table.columns:
+            continue
+        if c in ("x", "y"):
+            columns[c] = table[c].to_numpy(float)
+        elif c == "field":
+            columns[c], labels = pd.factorize(table[c], sort=True)
+        else:
+            columns[c] = table[c].to_numpy()
+    return _Rows(columns, labels)
+
+
+def _prepare(
+    table: Any, *, required: tuple[str, ...], key: tuple[str, ...], what: str, log: _Log
+) -> tuple[_Rows, _Rows, int]:
+    """A table's rows and its good rows (flagged and non-finite rows excluded, with a
+    warning): ``(rows, good rows, n excluded)``. A DataFrame is checked first
+    (:func:`_checked_rows`); :class:`_Rows` (a simulated protocol's own table) are not."""
+    rows = table if isinstance(table, _Rows) else _checked_rows(table, required=required, key=key, what=what)
+    bad = ~(np.isfinite(rows["x"]) & np.isfinite(rows["y"]))
+    if "flag" in rows:
+        bad |= rows["flag"] != 0
     n_bad = int(bad.sum())
     if n_bad:
-        stars = sorted(set(table.loc[bad, "star"].tolist()))
+        stars = sorted(set(rows["star"][bad].tolist()))
         shown = ", ".join(str(s) for s in stars[:10]) + (" ..." if len(stars) > 10 else "")
         log.warn(f"{what}: {n_bad} row(s) flagged or with non-finite x/y excluded (stars {shown})")
     # the estimators only read the good rows: the table itself when none is excluded
-    good = table.loc[~bad] if n_bad else table
-    if good.empty:
+    good = rows.take(~bad) if n_bad else rows
+    if len(good) == 0:
         raise UserInputError(f"{what}: no good rows left after excluding flagged/non-finite rows")
-    return good, n_bad
-
+    return rows, good, n_bad
 
 
 def _key_codes(table: pd.DataFrame, key: tuple[str, ...]) -> np.ndarray:
@@ -113,8 +173,11 @@ def _has_duplicate_keys(table: pd.DataFrame, key: tuple[str, ...]) -> bool:
     return bool(np.any(s[1:] == s[:-1]))
 
 
-def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame:
-    """The rows of one static condition (all rows when the table holds only one)."""
+def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame | _Rows:
+    """The rows of one static condition (all rows when the table holds only one; rows of a
+    simulated static protocol hold one by construction)."""
+    if isinstance(df, _Rows):
+        return df if condition is None else df.take(df["condition"] == condition)
     if not isinstance(df, pd.DataFrame):
         raise UserInputError(f"{what}: expected a pandas DataFrame, got {type(df).__name__}")
     if condition is not None:
@@ -133,7 +196,24 @@ def _select_condition(df: Any, condition: int | None, what: str) -> pd.DataFrame
     return df
 
 
-def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
+def _unique(values: np.ndarray, *, return_inverse: bool = False):
+    """``numpy.unique(values, return_inverse=...)``, the same arrays: for integers whose range
+    is at most a few times their count (star, condition and frame numbers) by a table of
+    the values present, in linear time, instead of a sort."""
+    if values.dtype.kind in "iu" and values.size:
+        lo, hi = int(values.min()), int(values.max())
+        if hi - lo <= 4 * values.size + 1024:
+            present = np.zeros(hi - lo + 1, dtype=bool)
+            offset = values - values.dtype.type(lo)
+            present[offset] = True
+            uniques = np.flatnonzero(present).astype(values.dtype) + values.dtype.type(lo)
+            if not return_inverse:
+                return uniques
+            return uniques, (np.cumsum(present) - 1)[offset]
+    return np.unique(values, return_inverse=return_inverse)
+
+
+def _per_star_stats(rows: _Rows, by: list[str], ddof: int) -> _Rows:
     """Per group of the ``by`` columns (sorted, as ``groupby(by, sort=True)``): count ``n``,
     means and variances (``ddof``; NaN when ``n <= ddof``) of x and y.
 
@@ -141,14 +221,14 @@ def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
     in every Monte Carlo trial); the variance is the two-pass sum of squared deviations
     from the group mean, so no precision is lost to cancellation.
     """
-    n_rows = len(df)
+    n_rows = len(rows)
     codes = np.zeros(n_rows, dtype=np.int64)
     uniques = []
     for c in by:
-        u, inv = np.unique(df[c].to_numpy(), return_inverse=True)
+        u, inv = _unique(rows[c], return_inverse=True)
         codes = codes * len(u) + inv.reshape(-1)
         uniques.append(u)
-    groups, inv = np.unique(codes, return_inverse=True)
+    groups, inv = _unique(codes, return_inverse=True)
     inv = inv.reshape(-1)
     n = np.bincount(inv, minlength=groups.size)
     out = {}
@@ -160,7 +240,7 @@ def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
     out["n"] = n
     means, variances = {}, {}
     for ax in ("x", "y"):
-        v = df[ax].to_numpy(np.float64)
+        v = rows[ax]
         m = np.bincount(inv, weights=v, minlength=groups.size) / n
         ss = np.bincount(inv, weights=(v - m[inv]) ** 2, minlength=groups.size)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -168,7 +248,7 @@ def _per_star_stats(df: pd.DataFrame, by: list[str], ddof: int) -> pd.DataFrame:
         means[f"mean_{ax}"], variances[f"var_{ax}"] = m, var
     out.update(means)
     out.update(variances)
-    return pd.DataFrame(out)
+    return _Rows(out)
 
 
 def _memo_last(fn):

@@ -27,7 +27,7 @@ import pandas as pd
 
 from simcam.cli_common import UserInputError
 
-from .common import _check_plate_scale, _Log, _memo_last, _nonneg, _per_star_stats, _prepare, _select_condition
+from .common import _check_plate_scale, _Log, _memo_last, _nonneg, _per_star_stats, _prepare, _Rows, _select_condition
 from .results import DistortionEstimate, ErrorEstimate
 
 _WHAT = "LSFE-C1"
@@ -46,13 +46,18 @@ def _point_means(table, *, condition, what, log):
     """Good rows of one static condition and each point's mean, variance (ddof 1) and
     frame count (eqs 17-18); returns ``(stats sorted by star, n rows excluded)``."""
     table = _select_condition(table, condition, what)
-    df, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
-                         key=tuple(c for c in ("star", "condition", "frame") if c in table.columns),
-                         what=what, log=log)
-    return _per_star_stats(df, ["star"], 1), n_bad                     # eqs 17-18
+    _, good, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
+                              key=tuple(c for c in ("star", "condition", "frame") if c in table.columns),
+                              what=what, log=log)
+    return _per_star_stats(good, ["star"], 1), n_bad                     # eqs 17-18
 
 
-def _check_reference(reference, what) -> None:
+def _reference_rows(reference, what) -> _Rows:
+    """The reference coordinates ``star, x_ref, y_ref`` as rows, checked when a DataFrame
+    (columns there, stars listed once, finite coordinates); a simulated protocol's own
+    (:func:`budget.starcam.protocols.reference_table`) meets the checks by construction."""
+    if isinstance(reference, _Rows):
+        return reference
     if not isinstance(reference, pd.DataFrame):
         raise UserInputError(f"{what}: reference: expected a DataFrame with star, x_ref, y_ref")
     miss = [c for c in ("star", "x_ref", "y_ref") if c not in reference.columns]
@@ -63,27 +68,29 @@ def _check_reference(reference, what) -> None:
     for c in ("x_ref", "y_ref"):
         if not pd.api.types.is_numeric_dtype(reference[c]) or not np.isfinite(reference[c].to_numpy(float)).all():
             raise UserInputError(f"{what}: reference: column {c!r} must be finite numbers")
+    return _Rows({"star": reference["star"].to_numpy(), "x_ref": reference["x_ref"].to_numpy(float),
+                  "y_ref": reference["y_ref"].to_numpy(float)})
 
 
 def _residuals_to_reference(st, reference, *, what, log):
     """Residuals of the point means to the reference coordinates, ``dX_j = Xbar_j - X0_j``
     (eqs 19-20), in the order of ``st`` (sorted by star); returns
     ``(x0, y0, dx, dy, stars of the reference without a good centroid)``."""
-    unknown = sorted(set(st["star"]) - set(reference["star"]))
+    unknown = sorted(set(st["star"].tolist()) - set(reference["star"].tolist()))
     if unknown:
         raise UserInputError(f"{what}: star(s) {unknown[:10]} have no reference coordinates")
-    lost = sorted(set(reference["star"]) - set(st["star"]))
+    lost = sorted(set(reference["star"].tolist()) - set(st["star"].tolist()))
     if lost:
         log.warn(f"{what}: {len(lost)} reference point(s) without a good centroid excluded "
                  f"(stars {lost[:10]})")
     # st is sorted by star and every star of st has its reference (checked above)
     _need_points(len(st), 10, what)
-    ref_star = reference["star"].to_numpy()
+    ref_star = reference["star"]
     order = np.argsort(ref_star, kind="stable")
-    ri = order[np.searchsorted(ref_star[order], st["star"].to_numpy())]
-    x0, y0 = reference["x_ref"].to_numpy(float)[ri], reference["y_ref"].to_numpy(float)[ri]
-    dx = st["mean_x"].to_numpy(float) - x0                    # eq 19
-    dy = st["mean_y"].to_numpy(float) - y0                    # eq 20
+    ri = order[np.searchsorted(ref_star[order], st["star"])]
+    x0, y0 = reference["x_ref"][ri], reference["y_ref"][ri]
+    dx = st["mean_x"] - x0                    # eq 19
+    dy = st["mean_y"] - y0                    # eq 20
     return x0, y0, dx, dy, lost
 
 
@@ -106,20 +113,18 @@ def _cubic_fit(x0, y0, *values, what):
 
 @_memo_last
 def _distortion_core(table, reference, *, condition, what, log):
-    """The steps every LSFE-C1 variant shares (eqs 17-20, 25-26): the residual table
+    """The steps every LSFE-C1 variant shares (eqs 17-20, 25-26): the residuals per point
     ``star, x_ref, y_ref, dx_px, dy_px, fit_x_px, fit_y_px, ddx_px, ddy_px,
-    var_mean_x_px2, var_mean_y_px2``, rows excluded, points excluded, fewest frames."""
+    var_mean_x_px2, var_mean_y_px2`` (rows), rows excluded, points excluded, fewest frames."""
     st, n_bad = _point_means(table, condition=condition, what=what, log=log)
-    _check_reference(reference, what)
-    x0, y0, dx, dy, lost = _residuals_to_reference(st, reference, what=what, log=log)
+    x0, y0, dx, dy, lost = _residuals_to_reference(st, _reference_rows(reference, what), what=what, log=log)
     fx, fy = _cubic_fit(x0, y0, dx, dy, what=what)
-    resid = pd.DataFrame({"star": st["star"].to_numpy(), "x_ref": x0, "y_ref": y0,
-                          "dx_px": dx, "dy_px": dy, "fit_x_px": fx, "fit_y_px": fy,
-                          "ddx_px": dx - fx, "ddy_px": dy - fy,  # eqs 25-26
-                          # temporal variance of each point's N-frame mean
-                          "var_mean_x_px2": (st["var_x"] / st["n"]).to_numpy(float),
-                          "var_mean_y_px2": (st["var_y"] / st["n"]).to_numpy(float)})
-    return resid, n_bad, len(lost), int(st["n"].min())
+    points = _Rows({"star": st["star"], "x_ref": x0, "y_ref": y0,
+                    "dx_px": dx, "dy_px": dy, "fit_x_px": fx, "fit_y_px": fy,
+                    "ddx_px": dx - fx, "ddy_px": dy - fy,  # eqs 25-26
+                    # temporal variance of each point's N-frame mean
+                    "var_mean_x_px2": st["var_x"] / st["n"], "var_mean_y_px2": st["var_y"] / st["n"]})
+    return points, n_bad, len(lost), int(st["n"].min())
 
 
 def _sample_variance(d) -> float:
@@ -151,21 +156,21 @@ def _root_of_difference(a2: float, b2: float, axis: str, flags: list, log: _Log,
 
 
 def _c1_points(table, reference, condition, log, *, min_points=0):
-    resid, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition,
-                                                   what=_WHAT, log=log)
+    points, n_bad, n_excl, n_min = _distortion_core(table, reference, condition=condition, what=_WHAT, log=log)
     if min_points:
-        _need_points(len(resid), min_points, _WHAT)
-    return resid, n_bad, n_excl, n_min
+        _need_points(len(points), min_points, _WHAT)
+    return points, (n_bad, n_excl, n_min)
 
 
-def _c1_estimate(sig, *, method, equations, ps, resid, n_bad, n_excl, n_min, flags, log,
-                 details) -> DistortionEstimate:
+def _c1_estimate(sig, *, method, equations, ps, points, counts, flags, log, details) -> DistortionEstimate:
+    """The estimate of a variant from its sigmas and what :func:`_c1_points` gave."""
+    n_bad, n_excl, n_min = counts
     return DistortionEstimate(
         quantity="LSFE-C1", method=method, equations=equations,
         sigma_x_px=sig["x"], sigma_y_px=sig["y"], plate_scale_arcsec=ps,
-        n_stars=len(resid), n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
+        n_stars=len(points), n_frames=n_min, n_conditions=1, n_stars_excluded=n_excl,
         n_rows_excluded=n_bad, flags=tuple(flags), warnings=tuple(log.messages),
-        details=details, residuals=resid,
+        details=details, residuals=points.to_frame,
     )
 
 
@@ -202,13 +207,13 @@ def distortion_residual_error(
     """
     ps = _check_plate_scale(plate_scale_arcsec)
     log = _Log()
-    resid, n_bad, n_excl, n_min = _c1_points(table, reference, condition, log)
+    points, counts = _c1_points(table, reference, condition, log)
     flags: list[str] = []
     sig = {}
     details: dict[str, Any] = {}
     for ax in ("x", "y"):
-        d = resid[f"d{ax}_px"].to_numpy()
-        dd = resid[f"dd{ax}_px"].to_numpy()
+        d = points[f"d{ax}_px"]
+        dd = points[f"dd{ax}_px"]
         sd = math.sqrt(_sample_variance(d))            # eqs 23-24
         sdd = math.sqrt(_sample_variance(dd))          # eqs 27-28
         details[f"mean_d{ax}_px"] = float(d.mean())
@@ -216,8 +221,7 @@ def distortion_residual_error(
         details[f"sigma_dd{ax}_px"] = sdd
         sig[ax] = _root_of_difference(sd**2, sdd**2, ax, flags, log, _WHAT)   # eqs 29-30
     return _c1_estimate(sig, method="published", equations="seed 000 eqs 17-30", ps=ps,
-                        resid=resid, n_bad=n_bad, n_excl=n_excl, n_min=n_min, flags=flags,
-                        log=log, details=details)
+                        points=points, counts=counts, flags=flags, log=log, details=details)
 
 
 def distortion_residual_error_dof(
@@ -246,19 +250,18 @@ def distortion_residual_error_dof(
     """
     ps = _check_plate_scale(plate_scale_arcsec)
     log = _Log()
-    resid, n_bad, n_excl, n_min = _c1_points(table, reference, condition, log, min_points=11)
+    points, counts = _c1_points(table, reference, condition, log, min_points=11)
     flags: list[str] = []
     sig = {}
     details: dict[str, Any] = {}
     for ax in ("x", "y"):
-        sd2 = _sample_variance(resid[f"d{ax}_px"].to_numpy())
-        sres2 = _fit_residual_variance(resid[f"dd{ax}_px"].to_numpy())
+        sd2 = _sample_variance(points[f"d{ax}_px"])
+        sres2 = _fit_residual_variance(points[f"dd{ax}_px"])
         details[f"sigma_d{ax}_px"] = math.sqrt(sd2)
         details[f"sigma_fit_residual_{ax}_px"] = math.sqrt(sres2)
         sig[ax] = _root_of_difference(sd2, sres2, ax, flags, log, _WHAT)
     return _c1_estimate(sig, method="fit-dof", equations="docs/estimators.md (distortion, W-10)",
-                        ps=ps, resid=resid, n_bad=n_bad, n_excl=n_excl, n_min=n_min, flags=flags,
-                        log=log, details=details)
+                        ps=ps, points=points, counts=counts, flags=flags, log=log, details=details)
 
 
 def distortion_calibration_residual(
@@ -294,8 +297,8 @@ def distortion_calibration_residual(
     -------
     DistortionEstimate
     """
-    def fit_residual_variance(resid, ax):
-        return f"sigma_fit_residual_{ax}_px", _fit_residual_variance(resid[f"dd{ax}_px"].to_numpy())
+    def fit_residual_variance(points, ax):
+        return f"sigma_fit_residual_{ax}_px", _fit_residual_variance(points[f"dd{ax}_px"])
 
     return _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
                                  fit_residual_variance, min_points=11, method="after-calibration",
@@ -305,24 +308,24 @@ def distortion_calibration_residual(
 def _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
                           variance, *, min_points, method, equations) -> DistortionEstimate:
     """``sigma_C1^2 = V - sigma_m^2 - mean_j v_j`` per axis, clipped at 0 with a flag: a
-    variance ``V`` of the points (``variance(resid, axis) -> (detail name, V)``) less the
+    variance ``V`` of the points (``variance(points, axis) -> (detail name, V)``) less the
     given marker variance and the temporal variance of the points' means."""
     ps = _check_plate_scale(plate_scale_arcsec)
     m3 = float(_nonneg("marker_3sigma_arcsec", marker_3sigma_arcsec))
     log = _Log()
-    resid, n_bad, n_excl, n_min = _c1_points(table, reference, condition, log, min_points=min_points)
+    points, counts = _c1_points(table, reference, condition, log, min_points=min_points)
     sm2 = (m3 / (3.0 * ps)) ** 2
     flags: list[str] = []
     sig = {}
     details: dict[str, Any] = {"marker_sigma_px": math.sqrt(sm2)}
     for ax in ("x", "y"):
-        name, v = variance(resid, ax)
-        noise2 = float(np.mean(resid[f"var_mean_{ax}_px2"].to_numpy()))
+        name, v = variance(points, ax)
+        noise2 = float(np.mean(points[f"var_mean_{ax}_px2"]))
         details[name] = math.sqrt(v)
         details[f"temporal_variance_of_means_{ax}_px2"] = noise2
         sig[ax] = _root_of_difference(v, sm2 + noise2, ax, flags, log, _WHAT)
-    return _c1_estimate(sig, method=method, equations=equations, ps=ps, resid=resid, n_bad=n_bad,
-                        n_excl=n_excl, n_min=n_min, flags=flags, log=log, details=details)
+    return _c1_estimate(sig, method=method, equations=equations, ps=ps, points=points, counts=counts, flags=flags,
+                        log=log, details=details)
 
 
 def distortion_remaining_displacement(
@@ -359,8 +362,8 @@ def distortion_remaining_displacement(
     -------
     DistortionEstimate
     """
-    def displacement_variance(resid, ax):
-        return f"sigma_d{ax}_px", _sample_variance(resid[f"d{ax}_px"].to_numpy())
+    def displacement_variance(points, ax):
+        return f"sigma_d{ax}_px", _sample_variance(points[f"d{ax}_px"])
 
     return _c1_minus_known_noise(table, reference, plate_scale_arcsec, marker_3sigma_arcsec, condition,
                                  displacement_variance, min_points=0, method="remaining-displacement",

@@ -6,6 +6,7 @@ itself rather than its consecutive differences (:func:`high_spatial_frequency_er
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -13,29 +14,29 @@ import pandas as pd
 
 from simcam.cli_common import UserInputError
 
-from .common import _check_plate_scale, _Log, _memo_last, _per_star_stats, _prepare
+from .common import _check_plate_scale, _Log, _memo_last, _per_star_stats, _prepare, _unique
 from .results import HsfeEstimate
 
 
 @_memo_last
 def _hsfe_stats(table, *, what: str, log: _Log):
-    """Good rows and per-(star, condition) statistics of an HSFE table (shared by variants)."""
-    df, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
-                         key=("star", "condition", "frame"), what=what, log=log)
-    return df, n_bad, _per_star_stats(df, ["star", "condition"], 1)
+    """The table's stars (sorted), good rows and per-(star, condition) statistics of an HSFE
+    table (shared by variants)."""
+    rows, good, n_bad = _prepare(table, required=("star", "condition", "frame", "x", "y"),
+                                 key=("star", "condition", "frame"), what=what, log=log)
+    return _unique(rows["star"]), good, n_bad, _per_star_stats(good, ["star", "condition"], 1)
 
 
 def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
-    df, n_bad, st = _hsfe_stats(table, what=what, log=log)
-    conditions = np.sort(df["condition"].unique())
+    all_stars, df, n_bad, st = _hsfe_stats(table, what=what, log=log)
+    conditions = _unique(st["condition"])                 # those of the good rows
     m = conditions.size
     if m < 2:
         raise UserInputError(f"{what}: needs at least 2 conditions, got {m} ({conditions.tolist()})")
     # st has one row per (star, condition), sorted by (star, condition)
-    st_star = st["star"].to_numpy()
-    keep = st["n"].to_numpy() >= need_frames
+    st_star = st["star"]
+    keep = st["n"] >= need_frames
     kept_stars, n_conditions = np.unique(st_star[keep], return_counts=True)
-    all_stars = np.unique(table["star"].to_numpy())
     complete = kept_stars[n_conditions == m]
     dropped = np.setdiff1d(all_stars, complete)
     if dropped.size:
@@ -48,7 +49,7 @@ def _hsfe_matrices(table, *, need_frames: int, what: str, log: _Log):
     sel = keep & np.isin(st_star, complete)
 
     def mat(col):
-        return st[col].to_numpy(float)[sel].reshape(w, m)
+        return np.asarray(st[col], dtype=float)[sel].reshape(w, m)
 
     return (df, n_bad, complete, conditions, mat("mean_x"), mat("mean_y"),
             mat("var_x"), mat("var_y"), mat("n"), int(dropped.size))
@@ -105,7 +106,7 @@ def high_spatial_frequency_error(table: pd.DataFrame, *, plate_scale_arcsec: flo
         sigma_x_px=sx, sigma_y_px=sy, plate_scale_arcsec=ps,
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, warnings=tuple(log.messages),
-        residuals=_residual_table(stars, conds, dx, dy),
+        residuals=partial(_residual_table, stars, conds, dx, dy),
     )
 
 
@@ -173,7 +174,7 @@ def high_spatial_frequency_error_debiased(
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, flags=tuple(flags),
         warnings=tuple(log.messages), details=details,
-        residuals=_residual_table(stars, conds, resid["x"], resid["y"]),
+        residuals=partial(_residual_table, stars, conds, resid["x"], resid["y"]),
     )
 
 
@@ -234,5 +235,5 @@ def high_spatial_frequency_error_static(
         n_stars=w, n_frames=int(n.min()), n_conditions=m,
         n_stars_excluded=n_excl, n_rows_excluded=n_bad, flags=tuple(flags),
         warnings=tuple(log.messages), details=details,
-        residuals=_residual_table(stars, conds, resid["x"], resid["y"]),
+        residuals=partial(_residual_table, stars, conds, resid["x"], resid["y"]),
     )

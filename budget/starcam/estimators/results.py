@@ -16,6 +16,26 @@ class EstimatorWarning(UserWarning):
     """Data were excluded or a result was clipped; the result records it too."""
 
 
+class _Table:
+    """A result's table (a dataclass field): given as a DataFrame, or as a function that
+    builds it, called on first access, so that a result read only for its sigmas (in every
+    Monte Carlo trial) never builds its table. Default: an empty table."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        if obj is None:
+            return pd.DataFrame                      # the default, a function building an empty table
+        value = obj.__dict__[self.name]
+        if not isinstance(value, pd.DataFrame):
+            value = obj.__dict__[self.name] = value()
+        return value
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self.name] = value
+
+
 def _frame_to_records(df: pd.DataFrame) -> list[dict[str, Any]]:
     return [
         {k: (v.item() if hasattr(v, "item") else v) for k, v in row.items()}
@@ -105,14 +125,14 @@ class HsfeEstimate(ErrorEstimate):
     ``condition_to``, ``delta_x_px``, ``delta_y_px``.
     """
 
-    residuals: pd.DataFrame = field(default_factory=pd.DataFrame)
+    residuals: pd.DataFrame = _Table()
 
 
 @dataclass(frozen=True, kw_only=True)
 class ChromaticEstimate(ErrorEstimate):
     """LSFE-S result with one row per filter pair in ``pairs``."""
 
-    pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
+    pairs: pd.DataFrame = _Table()
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -123,4 +143,4 @@ class DistortionEstimate(ErrorEstimate):
     19-20), ``fit_x_px``, ``fit_y_px`` (cubic fit), ``ddx_px``, ``ddy_px`` (eqs 25-26).
     """
 
-    residuals: pd.DataFrame = field(default_factory=pd.DataFrame)
+    residuals: pd.DataFrame = _Table()

@@ -20,19 +20,18 @@ def _te_stats(table, *, condition, ddof, what, log):
     if ddof not in (0, 1):
         raise UserInputError(f"ddof: expected 0 or 1, got {ddof}")
     table = _select_condition(table, condition, what)
-    df, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
-                         key=tuple(c for c in ("star", "condition", "frame") if c in table.columns),
-                         what=what, log=log)
-    all_stars = set(table["star"].tolist())
-    st = _per_star_stats(df, ["star"], ddof)
-    few = st["n"] < 2
-    st = st.loc[~few]
+    rows, good, n_bad = _prepare(table, required=("star", "frame", "x", "y"),
+                                 key=tuple(c for c in ("star", "condition", "frame") if c in table.columns),
+                                 what=what, log=log)
+    all_stars = set(rows["star"].tolist())
+    st = _per_star_stats(good, ["star"], ddof)
+    st = st.take(st["n"] >= 2)
     dropped = sorted(all_stars - set(st["star"].tolist()))
     n_excl = len(dropped)
     if n_excl:
         log.warn(f"{what}: {n_excl} star(s) with fewer than 2 good frames excluded "
                  f"(stars {dropped[:10]})")
-    if st.empty:
+    if len(st) == 0:
         raise UserInputError(f"{what}: no star has 2 or more good frames")
     return st, n_bad, n_excl
 
@@ -116,7 +115,7 @@ def temporal_error_pooled(
     dof = st["n"] - 1.0
     sx = float(np.sqrt((dof * st["var_x"]).sum() / dof.sum()))
     sy = float(np.sqrt((dof * st["var_y"]).sum() / dof.sum()))
-    c = c4(st["n"].to_numpy())
+    c = c4(st["n"])
     details = {
         "c4_corrected_mean_sigma_x_px": float((np.sqrt(st["var_x"]) / c).mean()),
         "c4_corrected_mean_sigma_y_px": float((np.sqrt(st["var_y"]) / c).mean()),
