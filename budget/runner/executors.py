@@ -88,10 +88,12 @@ def worker_setup(initializer: Callable | None = None, args: tuple = ()) -> None:
 
 def _init_worker(initializer, args):
     # the parent-death guard first (simcam.lifecycle): a parent killed while its workers
-    # still import leaves no worker behind
-    from simcam.lifecycle import exit_with_parent
+    # still import leaves no worker behind; the worker's exit, which the pool's shutdown
+    # waits for, skips the final garbage collections
+    from simcam.lifecycle import exit_with_parent, quick_teardown
 
     exit_with_parent()
+    quick_teardown()
     worker_setup(initializer, args)
 
 
