@@ -323,8 +323,10 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
 
     own = executor is None
     if own:
+        # local processes: this one is a worker too (it runs trials between collecting the
+        # others' results), so the first trials start at once and one process fewer imports
         executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
-                                 initializer=_worker_init, initargs=(study,))
+                                 initializer=_worker_init, initargs=(study,), work_here=True)
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
