@@ -73,7 +73,11 @@ def cli() -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console-script entry point."""
+    """Console-script entry point (the process then skips the final garbage collections
+    at its exit: :func:`simcam.lifecycle.quick_teardown`)."""
+    from simcam.lifecycle import quick_teardown
+
+    quick_teardown()
     run_cli(cli, argv)
 
 

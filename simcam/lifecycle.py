@@ -20,6 +20,8 @@ same under faults:
 * :func:`progress`: a tqdm bar on a terminal, nothing when stderr is not one.
 * :func:`guarded_entry`: the console scripts' entry, so that Ctrl-C even while the heavy
   modules are being imported ends in one line, not a traceback.
+* :func:`quick_teardown`: a command's process (and each worker it starts) skips the
+  interpreter's final garbage collections, a fixed half second of CPU at every exit.
 
 Only the standard library is imported at module level (it runs before anything else in
 the console scripts).
@@ -41,8 +43,8 @@ from pathlib import Path
 __all__ = [
     "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
     "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
-    "progress", "remove_stale_partials", "safe_filename", "stop_pool", "worker_initializer", "cap_workers",
-    "usable_cores",
+    "progress", "quick_teardown", "remove_stale_partials", "safe_filename", "stop_pool", "worker_initializer",
+    "cap_workers", "usable_cores",
 ]
 
 #: outputs at least this large are announced before they are written
@@ -131,15 +133,45 @@ def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
                 pass
 
 
+def quick_teardown() -> None:
+    """At this process's exit, skip the interpreter's final garbage collections.
+
+    Python's shutdown clears every module and runs full collections over every object
+    still tracked: in a process that has imported numpy, numba, pandas and pydantic and
+    run a study (about 170,000 tracked objects) that costs 0.3-0.5 s of CPU after the
+    command's last line, at the end of every command and of every worker process, which
+    the command then waits for. An exit handler registered here, first (so it runs last,
+    after every other exit handler: ``weakref.finalize`` clean-ups, multiprocessing's),
+    moves the objects to the collector's permanent generation (:func:`gc.freeze`):
+    shutdown still frees each object by its reference count, only the reference cycles
+    left at exit are not searched for (the process's memory goes back to the system all
+    the same). A command writes and closes its outputs before it returns, so nothing it
+    writes waits on such a cycle. Idempotent; call it first thing in a process.
+    """
+    global _QUICK_TEARDOWN
+    if _QUICK_TEARDOWN:
+        return
+    _QUICK_TEARDOWN = True
+    import atexit
+    import gc
+
+    atexit.register(gc.freeze)
+
+
+_QUICK_TEARDOWN = False
+
+
 def guarded_entry(module: str, attr: str = "main") -> None:
     """Import ``module`` and call its ``attr()``; Ctrl-C or SIGTERM while importing ends
     in one line on stderr and exit status 128 + signal instead of a traceback.
 
     Used by the console scripts (``simcam``, ``budget``); the command itself runs under
-    :func:`simcam.cli_common.run_cli`, which handles signals from then on.
+    :func:`simcam.cli_common.run_cli`, which handles signals from then on. The process
+    skips the final garbage collections at its exit (:func:`quick_teardown`).
     """
     import importlib
 
+    quick_teardown()
     try:
         with handle_termination():
             fn = getattr(importlib.import_module(module), attr)
@@ -223,6 +255,7 @@ _GUARDED = False
 
 def _guarded_init(target: str) -> None:
     exit_with_parent()
+    quick_teardown()
     import importlib
 
     module, _, name = target.partition(":")
@@ -231,7 +264,8 @@ def _guarded_init(target: str) -> None:
 
 def worker_initializer(target: str):
     """A pool ``initializer`` that guards the worker (:func:`exit_with_parent`) *before*
-    importing and calling ``target`` (``"package.module:function"``).
+    importing and calling ``target`` (``"package.module:function"``); the worker skips the
+    final garbage collections at its exit (:func:`quick_teardown`).
 
     The guard then holds from the worker's first moments: a parent killed while its
     workers are still importing numerical libraries (seconds on a loaded machine) leaves

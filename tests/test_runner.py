@@ -180,8 +180,9 @@ class _ThreadsToy(type(STUDY)):
 @pytest.mark.parametrize("where", [{"workers": 2}, {"workers": None, "dask_local": 1}], ids=["processes", "dask"])
 def test_every_worker_the_runner_starts_has_one_numba_thread(where):
     """The runner owns the worker set-up: one numba thread in every worker it
-    starts, local process or Dask worker, already when the study's own worker_init runs;
-    a study sets nothing itself (the toy's worker_init only records)."""
+    starts, local process or Dask worker, and in this process where it runs trials too
+    (local processes), already when the study's own worker_init runs; a study sets
+    nothing itself (the toy's worker_init only records)."""
     import numba
 
     if numba.config.NUMBA_NUM_THREADS < 2:
@@ -189,4 +190,7 @@ def test_every_worker_the_runner_starts_has_one_numba_thread(where):
     res = run_study(_ThreadsToy(), Toy(), trials=12, seed=1, **where)
     assert set(res.aux["numba_threads"]) == {1.0}
     assert set(res.aux["threads_at_init"]) == {1.0}
-    assert os.getpid() not in set(res.aux["pid"])  # run in workers, not here
+    pids = set(res.aux["pid"])
+    assert pids - {float(os.getpid())}  # run in started workers (and here, with local processes)
+    if where.get("workers") == 2:
+        assert len(pids) == 2  # this process and the one it started

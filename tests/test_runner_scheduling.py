@@ -30,7 +30,9 @@ def test_chunks_cover_every_trial_once_evenly(n, most, workers):
     assert _chunks([], most, workers) == []
 
 
-@pytest.mark.parametrize("make", [InlineExecutor, lambda: ProcessExecutor(2)], ids=["inline", "processes"])
+@pytest.mark.parametrize("make", [InlineExecutor, lambda: ProcessExecutor(2),
+                                  lambda: ProcessExecutor(2, work_here=True)],
+                         ids=["inline", "processes", "processes-working-here"])
 def test_tasks_appended_while_mapping_are_run(make):
     tasks = [1, -2, 3]
     got = {}
@@ -40,6 +42,29 @@ def test_tasks_appended_while_mapping_are_run(make):
             if i == 0:
                 tasks += [-4, 5]  # as the runner appends the truths' pieces
     assert got == {0: 1, 1: 2, 2: 3, 3: 4, 4: 5}
+
+
+def _pid_after(seconds: float) -> int:
+    import os
+    import time
+
+    time.sleep(seconds)
+    return os.getpid()
+
+
+def test_working_here_this_process_takes_the_first_task_and_starts_one_worker_fewer():
+    """``work_here``: of 2 workers this process is one (it runs the first task, the pool
+    started one process, which runs others); every task runs once."""
+    import multiprocessing
+    import os
+
+    tasks = [0.2] * 8
+    with ProcessExecutor(2, work_here=True) as ex:
+        got = dict(ex.map_unordered(_pid_after, tasks))
+        assert len(multiprocessing.active_children()) == 1
+    assert sorted(got) == list(range(8))
+    assert got[0] == os.getpid()
+    assert len(set(got.values())) == 2
 
 
 @pytest.mark.parametrize("trials", [2, PILOT_TRIALS, 45])

@@ -33,7 +33,7 @@ from budget.runner.registry import get_study
 st = get_study("starcam")
 scn = st.load_scenario(sys.argv[1])
 before = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
-opts = json.dumps({"fused": True, "windows": True})
+opts = json.dumps(warm.options(scn))
 warm.compile_support(opts)
 warm.compile_stamps_and_exposure(opts)
 after = [is_cached(psf.folded_stamp_spectra), is_cached(kt.expose_centroid_frames_serial)]
@@ -59,11 +59,13 @@ print(json.dumps({"before": before, "after": after, "compiled": compiled}))
 """
 
 
-def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path):
+@pytest.mark.parametrize("dark_frames", [2, 0])
+def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path, dark_frames):
     # with dark frames a trial calls every kernel it calls without them, and the window
-    # exposure besides (one fresh process and empty cache: about 15 s)
+    # exposure besides; without, the truths their control-variate kernels (each case one
+    # fresh process and empty cache: about 15 s)
     scn = tmp_path / "tiny.toml"
-    scn.write_text(TINY.replace("[validation]\n", "[validation]\ndark_frames = 2\n"))
+    scn.write_text(TINY.replace("[validation]\n", f"[validation]\ndark_frames = {dark_frames}\n"))
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
     run = subprocess.run([sys.executable, "-c", _SCRIPT, str(scn)], env=env, capture_output=True, text=True,
                          timeout=600, check=False)
@@ -219,7 +221,7 @@ def test_targets_run_for_every_option():
 
 def test_prewarm_options_follow_the_scenario(monkeypatch):
     # the fused kernel only for the centre of gravity; the window exposure for dark frames
-    # or another method
+    # or another method; the truths' kernels where their control variates apply
     from budget.runner.registry import get_study
     from budget.starcam import warm
 
@@ -244,9 +246,12 @@ def test_prewarm_options_follow_the_scenario(monkeypatch):
             "dark_frames = 0", f"dark_frames = {dark}")
         warm.prewarm(st.from_dict(tomllib.loads(text), source="test"))
     # the stamps (both routes) and the windows summed from them always; the fused kernel and
-    # its twin for a drifting condition for the centre of gravity
+    # its twin for a drifting condition for the centre of gravity; the truths' control-variate
+    # kernels for the centre of gravity without dark frames
     stamps = ["folded_stamp_spectra", "stamp_profiles", "shifted_stamp_spectra", "add_stamps_windows"]
     fused = ["expose_centroid_frames_serial", "expose_centroid_drift_serial"]
-    assert seen[0] == ([{"fused": True, "windows": False}], stamps + fused)
-    assert seen[1] == ([{"fused": True, "windows": True}], stamps + fused + ["expose_windows_frames_serial"])
-    assert seen[2] == ([{"fused": False, "windows": True}], stamps + ["expose_windows_frames_serial"])
+    truth = ["cv_tables", "expose_centroid_cv_serial"]
+    assert seen[0] == ([{"fused": True, "windows": False, "truth": True}], stamps + fused + truth)
+    assert seen[1] == ([{"fused": True, "windows": True, "truth": False}],
+                       stamps + fused + ["expose_windows_frames_serial"])
+    assert seen[2] == ([{"fused": False, "windows": True, "truth": False}], stamps + ["expose_windows_frames_serial"])

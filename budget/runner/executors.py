@@ -6,17 +6,18 @@ seed, trial numbers), so results do not depend on the executor, the number of wo
 the order of completion.
 
 * :class:`InlineExecutor`: one after the other in this process;
-* :class:`ProcessExecutor`: a pool of local processes started with ``spawn`` (numba's thread
-  pools must not be forked). The pool is started on entering the context, so workers
-  import while the caller does serial work (the truths);
+* :class:`ProcessExecutor`: a pool of local processes started with ``spawn`` (numba's
+  thread pools must not be forked), and this process among them where the caller asks
+  (``work_here``). The pool is started on entering the context, so its workers import
+  while this process works;
 * :class:`DaskExecutor`: an existing scheduler (``tcp://host:port``) or a
   :class:`distributed.LocalCluster` of single-threaded worker processes.
 
 The runner owns the set-up of every worker it starts (:func:`worker_setup`): one numba
 thread (the workers are the parallelism; a study's ``parallel=True`` kernel would
 otherwise start a thread per core in each worker and oversubscribe the cores), then the
-caller's ``initializer`` (a study's own :meth:`Study.worker_init`). With one worker the
-tasks run in this process, set up the same way.
+caller's ``initializer`` (a study's own :meth:`Study.worker_init`). This process, where
+it runs tasks (with one worker, or ``work_here``), is set up the same way.
 """
 
 from __future__ import annotations
@@ -88,17 +89,31 @@ def worker_setup(initializer: Callable | None = None, args: tuple = ()) -> None:
 
 def _init_worker(initializer, args):
     # the parent-death guard first (simcam.lifecycle): a parent killed while its workers
-    # still import leaves no worker behind
-    from simcam.lifecycle import exit_with_parent
+    # still import leaves no worker behind; the worker's exit, which the pool's shutdown
+    # waits for, skips the final garbage collections
+    from simcam.lifecycle import exit_with_parent, quick_teardown
 
     exit_with_parent()
+    quick_teardown()
     worker_setup(initializer, args)
 
 
 class ProcessExecutor(Executor):
-    """A pool of ``workers`` local processes (spawn)."""
+    """A pool of ``workers`` local processes (spawn); with ``work_here``, ``workers`` counts
+    this process too and the pool starts ``workers - 1``.
 
-    def __init__(self, workers: int, *, initializer: Callable | None = None, initargs: tuple = ()):
+    ``work_here``: this process runs the next task itself between collecting the others'
+    results (a caller's own work between results, the truths' sizing say, is done in the
+    same gaps). The started workers are not idle meanwhile: each holds two tasks, the one
+    it runs and the next, and this process tops them up before it runs one of its own.
+    This process is the first ready (it has imported what the tasks need, a started
+    worker imports it all again: 1.5-2 s), so it takes the first task; and one process
+    fewer is started, imported and set up for the same number of workers. A caller that
+    must stay free between results (a sweep writing each point as it comes) leaves it off.
+    """
+
+    def __init__(self, workers: int, *, initializer: Callable | None = None, initargs: tuple = (),
+                 work_here: bool = False):
         if workers < 1:
             raise ValueError(f"workers: must be >= 1, got {workers}")
         self.workers = workers
@@ -106,15 +121,23 @@ class ProcessExecutor(Executor):
         self._initializer = initializer
         self._initargs = initargs
         self._pool = None
+        #: processes the pool starts; whether this process is set up as a worker (work_here)
+        self._started = workers - 1 if work_here else workers
+        self._work_here = work_here
+        self._set_up = not work_here
 
     def __enter__(self):
         from concurrent.futures import ProcessPoolExecutor
 
-        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_init_worker, initargs=(self._initializer, self._initargs))
-        # start every worker now (a pool spawns lazily): they import while the caller works
-        for _ in range(self.workers):
-            self._pool.submit(int)
+        if self._started > 0:
+            self._pool = ProcessPoolExecutor(max_workers=self._started, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_init_worker, initargs=(self._initializer, self._initargs))
+            # start every worker now (a pool spawns lazily): they import while the caller works
+            for _ in range(self._started):
+                self._pool.submit(int)
+        if not self._set_up:  # this process is a worker too, set up as the others
+            worker_setup(self._initializer, self._initargs)
+            self._set_up = True
         return self
 
     def close(self):
@@ -134,18 +157,26 @@ class ProcessExecutor(Executor):
     def map_unordered(self, fn, tasks):
         from concurrent.futures import FIRST_COMPLETED, wait
 
-        if self._pool is None:
+        if not self._set_up or (self._pool is None and self._started > 0):
             self.__enter__()
-        # a bounded number in flight: an interruption leaves little queued work behind (and
-        # tasks the caller appends between results still find workers)
+        # a bounded number in flight in the pool: an interruption leaves little queued work
+        # behind, and tasks the caller appends between results still find workers
+        depth = 2 * self._started
         nxt = 0
         running: dict = {}
         try:
             while nxt < len(tasks) or running:
-                while nxt < len(tasks) and len(running) < 2 * self.workers:
+                mine = None
+                if self._work_here and nxt < len(tasks):  # this process's: the first not given out
+                    mine, nxt = nxt, nxt + 1
+                while nxt < len(tasks) and len(running) < depth:
                     running[self._pool.submit(fn, tasks[nxt])] = nxt
                     nxt += 1
-                finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
+                if mine is not None:
+                    yield mine, fn(tasks[mine])
+                    finished = [f for f in running if f.done()]
+                else:  # nothing to run here: wait for the pool's
+                    finished, _ = wait(list(running), return_when=FIRST_COMPLETED)
                 for f in finished:
                     i = running.pop(f)
                     yield i, f.result()
@@ -236,8 +267,9 @@ class DaskExecutor(Executor):
 
 
 def make_executor(*, workers: int | None = None, scheduler: str | None = None, dask_local: int | None = None,
-                  initializer: Callable | None = None, initargs: tuple = ()) -> Executor:
-    """The executor asked for (at most one option; default all local cores; 1 worker: inline)."""
+                  initializer: Callable | None = None, initargs: tuple = (), work_here: bool = False) -> Executor:
+    """The executor asked for (at most one option; default all local cores; 1 worker: inline).
+    ``work_here``: local processes count this one, which runs tasks too (:class:`ProcessExecutor`)."""
     from simcam.cli_common import UserInputError
 
     given = [n for n, v in (("--workers", workers), ("--scheduler", scheduler), ("--dask-local", dask_local))
@@ -261,4 +293,4 @@ def make_executor(*, workers: int | None = None, scheduler: str | None = None, d
     if n == 1:
         worker_setup(initializer, initargs)
         return InlineExecutor()
-    return ProcessExecutor(n, initializer=initializer, initargs=initargs)
+    return ProcessExecutor(n, initializer=initializer, initargs=initargs, work_here=work_here)

@@ -314,17 +314,14 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     n_max = trials if trials is not None else cap
     check_memory(float(n_max) * (300 + 3 * 100 * n_values),
                  what=f"--trials {n_max}" if trials is not None else f"up to {n_max} trials of {study.name}")
-    if prewarm and scheduler is None:
-        # a first run compiles its kernels on this machine's cores before the workers start,
-        # so that they load them from numba's cache instead of each compiling them again
-        # (a remote cluster's workers have their own caches)
-        study.prewarm(scenario)
     import contextlib
 
     own = executor is None
     if own:
+        # local processes: this one is a worker too (it runs trials between collecting the
+        # others' results), so the first trials start at once and one process fewer imports
         executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
-                                 initializer=_worker_init, initargs=(study,))
+                                 initializer=_worker_init, initargs=(study,), work_here=True)
     results: dict[int, TrialResult] = {}
     stopped_by = "trials"
     bar = None
@@ -332,12 +329,6 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     targets: dict = {}
     # the scenario the truths are computed on, once their size is known (None: after the pilot)
     truth_scn = None
-    if not given:
-        if truth_size == "fixed":
-            truth_scn = scenario
-        elif tolerance is not None:
-            targets = truth_targets(classes, tolerance=tolerance)
-            truth_scn = sized_truths_scenario(study, scenario, seed, targets)
     pilot = min(trials, PILOT_TRIALS) if trials is not None else 0
     parts: list = []
     part_results: dict[int, Any] = {}
@@ -354,7 +345,19 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             tasks += [(study, truth_scn, seed, ("truth", i, p)) for i, p in enumerate(parts)]
         state["started"] = True
 
+    # the workers start first: they import while this process does its serial work here
     with executor if own else contextlib.nullcontext(executor):
+        if prewarm and scheduler is None:
+            # a first run compiles its kernels on this machine's cores before the workers are
+            # given a task, so that they load them from numba's cache instead of each
+            # compiling them again (a remote cluster's workers have their own caches)
+            study.prewarm(scenario)
+        if not given:
+            if truth_size == "fixed":
+                truth_scn = scenario
+            elif tolerance is not None:
+                targets = truth_targets(classes, tolerance=tolerance)
+                truth_scn = sized_truths_scenario(study, scenario, seed, targets)
         if progress:
             from tqdm import tqdm
 

@@ -5,15 +5,17 @@ A trial needs three groups of numba kernels: the PSF stamps
 :mod:`simcam.starcam.kernels.windows`), the detector's fixed pattern
 (:func:`simcam.kernels.detector.mean_charge_windows`) and the fused
 expose-and-centroid kernels (:mod:`budget.starcam.kernels_trial`: a static and a
-drifting condition's, with the noise, random number and centroid kernels they call). On
-a fresh install numba compiles them one after the other, about 9 s of one core.
-:func:`prewarm` splits them over two processes
-(:func:`simcam.numba_warm.compiling_in_parallel`) in about equal halves, each kernel
-compiled once:
+drifting condition's, with the noise, random number and centroid kernels they call); the
+truths add their own, the control-variate kernels (:mod:`budget.starcam.kernels_truth`,
+where :func:`budget.starcam.truth.control_variate_applies`). On a fresh install numba
+compiles them one after the other, about 12 s of one core. :func:`prewarm` splits them
+over two processes (:func:`simcam.numba_warm.compiling_in_parallel`) in about equal
+halves, each kernel compiled once:
 
 * a child (:func:`compile_support`) compiles the random-number kernels first (the
-  fixed pattern and the noise kernels call them), the per-window centroid kernels, then
-  the drifting condition's fused kernel (with its own signature of the noise kernel);
+  fixed pattern and the noise kernels call them), the per-window centroid kernels, the
+  drifting condition's fused kernel (with its own signature of the noise kernel), then
+  the truths' control-variate kernels (option ``truth``);
 * this process (:func:`compile_stamps_and_exposure`) compiles the stamps meanwhile (the
   child is still importing), then the fixed pattern, the static condition's fused
   kernel (whose centroid callees it by then finds in numba's cache) and the kernel that
@@ -34,38 +36,53 @@ import json
 import numpy as np
 
 
+def options(scenario) -> dict:
+    """What a validation of ``scenario`` compiles besides the stamps and the fixed pattern:
+    ``fused`` (the fused expose-and-centroid kernels, which serve the centre of gravity),
+    ``windows`` (the window exposure: dark frames, or another centroid method, whose own
+    kernels compile where they are first called) and ``truth`` (the truths' control-variate
+    kernels: :func:`budget.starcam.truth.control_variate_applies`, and a TE or HSFE truth)."""
+    from budget.starcam.truth import control_variate_applies
+    from budget.starcam.validate import computed_classes
+
+    val = scenario.validation
+    fused = val.centroid_method == "cog"
+    return {"fused": fused, "windows": int(val.dark_frames) > 0 or not fused,
+            "truth": control_variate_applies(scenario) and bool({"te", "hsfe"} & set(computed_classes(scenario)))}
+
+
 def prewarm(scenario) -> None:
     """Compile what a validation of ``scenario`` calls, on two cores, if numba's cache is cold."""
     from budget.starcam import kernels_trial as kt
-    from simcam.numba_warm import compiling_in_parallel
+    from budget.starcam import kernels_truth as ktr
     from simcam.kernels import detector as kd
+    from simcam.numba_warm import compiling_in_parallel
     from simcam.starcam.kernels import psf as kp
-
-    val = scenario.validation
-    # the fused kernel serves the centre of gravity; other methods centroid rendered
-    # windows (their own kernels compile where they are first called), as do dark frames
-    fused = val.centroid_method == "cog"
-    windows = int(val.dark_frames) > 0 or not fused
-    opts = json.dumps({"fused": fused, "windows": windows})
     from simcam.starcam.kernels import windows as kw
 
+    opts = options(scenario)
     check = [kp.folded_stamp_spectra, kp.stamp_profiles, kp.shifted_stamp_spectra, kw.add_stamps_windows]
-    check += [kt.expose_centroid_frames_serial, kt.expose_centroid_drift_serial] if fused else []
-    check += [kd.expose_windows_frames_serial] if windows else []
-    with compiling_in_parallel([("budget.starcam.warm:compile_support", opts)], check=check) as cold:
+    check += [kt.expose_centroid_frames_serial, kt.expose_centroid_drift_serial] if opts["fused"] else []
+    check += [kd.expose_windows_frames_serial] if opts["windows"] else []
+    check += [ktr.cv_tables, ktr.expose_centroid_cv_serial] if opts["truth"] else []
+    arg = json.dumps(opts)
+    with compiling_in_parallel([("budget.starcam.warm:compile_support", arg)], check=check) as cold:
         if cold:
-            compile_stamps_and_exposure(opts)
+            compile_stamps_and_exposure(arg)
 
 
 def compile_support(arg: str) -> None:
     """Child target: the random-number kernels (first: the fixed pattern and the noise
     kernels call them), the per-window centroid kernels with the types the fused kernels
-    pass them, and the drifting condition's fused kernel (option ``fused``) through
-    :func:`budget.starcam.kernels_trial.expose_centroid_drift_chain`. ``arg``: JSON options."""
+    pass them, the drifting condition's fused kernel (option ``fused``) through
+    :func:`budget.starcam.kernels_trial.expose_centroid_drift_chain`, then the truths'
+    control-variate kernels (option ``truth``) through
+    :func:`budget.starcam.kernels_truth.cv_prepare` and
+    :func:`budget.starcam.kernels_truth.expose_centroid_cv`. ``arg``: JSON options."""
     from numba import types
 
     from budget.centroid.kernels import border_one, cog_one
-    from simcam.rng import poisson_prepared, std_normal
+    from simcam.rng import child_keys, poisson_prepared, std_normal
 
     opts = json.loads(arg)
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
@@ -74,16 +91,20 @@ def compile_support(arg: str) -> None:
     win = np.zeros((h, w))
     border_one(win, np.empty(16), np.bool_(False))
     cog_one(win, 0.0, 0.0, 0.0, 1.0, False, np.inf)
+    chain = _tiny_chain(h, w)
+    keys = child_keys(np.uint64(1), 2)
     if opts.get("fused", True):
         f8 = types.float64  # the drifting kernel passes cog_one a literal False
         cog_one.compile((types.Array(f8, 2, "C"), f8, f8, f8, f8, types.literal(False), f8))
         from budget.starcam.kernels_trial import expose_centroid_drift_chain
-        from simcam.rng import child_keys
 
-        chain = _tiny_chain(h, w)
         g = np.zeros((1, h, w))
-        expose_centroid_drift_chain(chain, g, g, np.zeros((2, 2)), child_keys(np.uint64(1), 2), dark_mean=None,
+        expose_centroid_drift_chain(chain, g, g, np.zeros((2, 2)), keys, dark_mean=None,
                                     threshold_dn=np.full(1, 3.0))
+    if opts.get("truth", False):
+        from budget.starcam.kernels_truth import cv_prepare, expose_centroid_cv
+
+        expose_centroid_cv(chain, keys, cv_prepare(chain, threshold_dn=np.full(1, 3.0)))
 
 
 def _tiny_chain(h: int, w: int):
