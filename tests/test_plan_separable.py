@@ -84,19 +84,23 @@ def test_each_group_finds_its_analytic_optimum_and_only_its_classes_are_computed
                                                    rel=1e-12)
 
 
-def test_the_separable_plan_computes_less_than_the_joint_plan():
-    """Two groups (a, b; c unrequired) against the whole-test plan of the same toy, seed 0: trials
-    counted by the study, and the protocols they computed (what a trial costs: a restricted trial
-    computes one protocol, a whole one three). docs/planning.md states both counts."""
+def test_a_separable_trial_computes_its_groups_protocol_a_joint_trial_every_protocol():
+    """What a separable plan saves per trial, exactly (a and b required, c not; seed 0): each
+    search trial computes its group's one protocol, each re-validation trial a and b, never c;
+    every trial of the whole-test plan of the same toy computes all three. Whether the plan as
+    a whole computes less depends on how many trials each search runs (two one-knob searches,
+    each refined to its own resolution, against one three-knob search), which is seed-dependent:
+    docs/planning.md states what four seeds measured, not a bound."""
     reqs = ["a.x<=0.01", "b.x<=0.01"]
     sep, joint = SplitToyStudy(record=True), SplitToyStudy(record=True, separable=False)
     rs = plan_protocol(sep, sep.load_scenario(), reqs, seed=0)
     rj = plan_protocol(joint, joint.load_scenario(), reqs, seed=0)
     assert len(rj.to_json()["groups"]) == 1 and len(rs.to_json()["groups"]) == 2
     assert len(sep.calls) == rs.total_trials and len(joint.calls) == rj.total_trials
-    assert sum(sep.computed.values()) < sum(joint.computed.values()), (sep.computed, joint.computed)
-    # and its answer is at least as cheap: each group searched to its own resolution
-    assert rs.recommended.cost_s <= rj.recommended.cost_s
+    per_group = {go["group"].name: go["trials"] for go in rs.groups}
+    assert sep.computed == {"a": per_group["a"] + N, "b": per_group["b"] + N, "c": 0}
+    assert rs.search_trials == per_group["a"] + per_group["b"] and rs.validation.trials == N
+    assert joint.computed == {p: rj.total_trials for p in ("a", "b", "c")}
 
 
 def test_a_class_depending_on_both_makes_one_group_as_today():

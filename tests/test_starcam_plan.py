@@ -285,8 +285,6 @@ def test_the_planners_protocol_meets_the_requirement_in_full_validations():
 #: --require 'lsfe_s.y<=0.05' --trials 40 --workers 2`` (seed 0, ``--sure 0.9``) recommends
 #: (docs/validation.md, "Planning the test"): filters 600/800, 3 frames per field and filter
 CHROMATIC_RECOMMENDED = {"protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.chromatic.frames": 3}
-#: its boundary protocol (the plan's frames 2, 90 % sure not asked)
-CHROMATIC_BOUNDARY = {"protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.chromatic.frames": 2}
 CHROMATIC_BOUND_ARCSEC = 0.05
 
 
@@ -310,16 +308,21 @@ def _lsfe_s_exceedances(protocol: dict, n: int) -> np.ndarray:
 def test_the_chromatic_plan_meets_the_requirement_on_new_seeds():
     """100 trials on seeds no plan used: the plan's answer (filters 600/800 x 3 frames) and seed
     000's own test (3 filters x 30 frames) each have at most 5 of 100 beyond 0.05" per axis (the
-    95 % quantile of |error| within the bound, the planner's criterion); the boundary protocol
-    (2 frames) does not, nor does the 500/600 pair at seed 000's 30 frames (its y estimate
-    reads the static centroid difference between two close filters as a slope:
-    docs/validation.md, "Planning the test")."""
+    95 % quantile of |error| within the bound, the planner's criterion); the 500/600 pair at seed
+    000's 30 frames does not, by far (its y estimate reads the static centroid difference between
+    two close filters as a slope, about 0.15" off: docs/validation.md, "Planning the test"; more
+    than 5 of 100 beyond is what a protocol whose true exceedance rate were 5 % gives with
+    probability 0.38, so only the far miss is asserted: at least 50, which such a protocol gives
+    with probability below 1e-25)."""
+    from scipy import stats
+
     n = 100
     allowed = _allowed_exceedances(n)
     assert np.all(_lsfe_s_exceedances(CHROMATIC_RECOMMENDED, n) <= allowed)
     assert np.all(_lsfe_s_exceedances({}, n) <= allowed)
-    assert np.any(_lsfe_s_exceedances(CHROMATIC_BOUNDARY, n) > allowed)
-    assert _lsfe_s_exceedances({"protocols.chromatic.filters_nm": [500.0, 600.0]}, n)[1] > allowed
+    far = n // 2
+    assert stats.binom.sf(far - 1, n, 1 - CONFIDENCE) < 1e-25
+    assert _lsfe_s_exceedances({"protocols.chromatic.filters_nm": [500.0, 600.0]}, n)[1] >= far
 
 
 def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
@@ -355,3 +358,4 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
     rec = with_updates(scn, {**res.recommended.knobs,
                              **STUDY.protocol_shapes(scn)[res.recommended.shape]})
     assert res.recommended.cost_s == pytest.approx(sum(STUDY.lab_time_s(rec).values()), rel=1e-12)
+
