@@ -359,3 +359,20 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
                              **STUDY.protocol_shapes(scn)[res.recommended.shape]})
     assert res.recommended.cost_s == pytest.approx(sum(STUDY.lab_time_s(rec).values()), rel=1e-12)
 
+
+# ------------------------------------------------------------------ separable plans
+def test_requiring_a_class_the_scenario_does_not_compute_names_the_field():
+    """validation.protocols = ["chromatic"]: TE is a star-camera class this scenario leaves out
+    (its protocol not run), not an unknown one; the error names the field and the protocol."""
+    from budget.runner.plan import parse_requirements
+    from simcam.cli_common import UserInputError
+
+    scn = with_updates(default(), {"validation.protocols": ["chromatic"]})
+    with pytest.raises(UserInputError, match=r"te is a starcam class this scenario does not compute: "
+                                             r"validation\.protocols \(chromatic\) leaves out its protocol te; "
+                                             r"add it to validation\.protocols"):
+        parse_requirements(STUDY, scn, ["te.x<=0.01"])
+    with pytest.raises(UserInputError, match=r"lsfe.*leaves out its protocol distortion"):
+        parse_requirements(STUDY, scn, ["lsfe.x<=0.01"])
+    with pytest.raises(UserInputError, match=r"unknown class 'tee'; the starcam classes are lsfe_s, lsfe_c2"):
+        parse_requirements(STUDY, scn, ["tee.x<=0.01"])

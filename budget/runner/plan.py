@@ -244,6 +244,9 @@ def parse_requirements(study: Study, scenario: Any, texts, variant: str | None =
         cls, ax, raw = m.groups()
         spec = specs.get(cls)
         if spec is None:
+            why = study.uncomputed_class(scenario, cls)
+            if why:
+                raise UserInputError(f"--require {t!r}: {why}")
             raise UserInputError(f"--require {t!r}: unknown class {cls!r}; the {study.name} classes are "
                                  f"{', '.join(specs)}")
         if ax not in spec.axes:

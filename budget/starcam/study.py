@@ -286,6 +286,29 @@ class StarCameraStudy(Study):
             "validation.dark_frames": every,
         }
 
+    def shape_value(self, scenario, field: str):
+        """A shape field as the protocol uses it (:meth:`budget.runner.study.Study.shape_value`):
+        the chromatic test's filter set is :meth:`~simcam.starcam.scenario.Scenario.chromatic_filters_nm`
+        (an empty ``protocols.chromatic.filters_nm``, seed 000's default, is every lab filter,
+        the shape ``filters 500/600/800``); any other field as the scenario holds it."""
+        if field == "protocols.chromatic.filters_nm":
+            return scenario.chromatic_filters_nm()
+        return super().shape_value(scenario, field)
+
+    def uncomputed_class(self, scenario, name: str) -> str | None:
+        """A seed-000 class the scenario's ``validation.protocols`` leaves out (its protocols,
+        :data:`budget.starcam.validate.CLASS_NEEDS`, not all computed), in words naming the field."""
+        from budget.starcam.validate import CLASS_NEEDS, computed_classes
+
+        if name not in CLASS_NEEDS or name in computed_classes(scenario):
+            return None
+        run = list(scenario.validation.protocols)
+        missing = [p for p in CLASS_NEEDS[name] if p not in run]
+        return (f"{name} is a {self.name} class this scenario does not compute: validation.protocols "
+                f"({', '.join(run)}) leaves out its protocol{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(missing)}; add {'them' if len(missing) > 1 else 'it'} to validation.protocols "
+                f"to plan {name}")
+
     def restrict_classes(self, scenario, classes: frozenset[str]):
         """The scenario with ``validation.protocols`` = the protocols the classes need
         (:func:`budget.starcam.validate.protocols_for`; LSFE-C2 needs none, so a set of it
