@@ -361,6 +361,34 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
 
 
 # ------------------------------------------------------------------ separable plans
+def test_a_separable_plan_keeps_the_scenarios_filter_set_where_no_requirement_depends_on_it():
+    """The default scenario with only hsfe.x required: one group (the HSFE counts, its pattern,
+    the dark frames), whose "grid" stands for the three declared grid shapes; its answer put in
+    one protocol keeps the scenario's filter set (its empty filters_nm: every lab filter,
+    500/600/800), as an unsearched knob keeps its value, not the cheapest set: 500/600 and
+    600/800 cost the same, and 500/600 misreads LSFE-S y about five times (docs/validation.md)."""
+    from budget.runner.plan import Evaluation, _Run, _union, decompose, parse_requirements
+
+    scn = default()
+    reqs, variant = parse_requirements(STUDY, scn, ["hsfe.x<=0.01"])
+    knobs = STUDY.protocol_knobs(scn)
+    declared = STUDY.protocol_shapes(scn)
+    groups, _ = decompose(STUDY, scn, reqs, knobs, declared)
+    assert [g.name for g in groups] == ["hsfe"] and list(groups[0].shapes) == ["diagonal", "grid"]
+    members = groups[0].members["grid"]
+    assert members == ["grid, filters 500/600", "grid, filters 600/800", "grid, filters 500/600/800"]
+    cost = {m: sum(STUDY.lab_time_s(with_updates(scn, declared[m])).values()) for m in members}
+    assert cost["grid, filters 500/600"] == cost["grid, filters 600/800"] < cost["grid, filters 500/600/800"]
+    part = Evaluation("grid", {"protocols.hsfe.frames": 30, "protocols.hsfe.conditions": 12}, 0.0, {}, 0, 60, {},
+                      "search")
+    run = _Run(STUDY, scn, reqs, variant, 0.95, None, None, 0, 60, 1, False, None, knobs, 0.9, {}, 0.0, 0.0)
+    union = _union(run, declared, groups, [part], False)
+    assert union.shape == "grid, filters 500/600/800"
+    assert union.scenario.chromatic_filters_nm() == (500.0, 600.0, 800.0)
+    assert union.scenario.protocols.hsfe.pattern == "grid"
+    assert union.cost_s == cost["grid, filters 500/600/800"]
+
+
 def test_requiring_a_class_the_scenario_does_not_compute_names_the_field():
     """validation.protocols = ["chromatic"]: TE is a star-camera class this scenario leaves out
     (its protocol not run), not an unknown one; the error names the field and the protocol."""
