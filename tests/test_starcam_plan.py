@@ -360,7 +360,69 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
     assert res.recommended.cost_s == pytest.approx(sum(STUDY.lab_time_s(rec).values()), rel=1e-12)
 
 
-# ------------------------------------------------------------------ separable plans
+# ------------------------------------------------------------------ separable plans: the field classes
+#: the ideal world: every world effect off (docs/validation.md, "What its claim survives")
+_IDEAL = {f"world.effects.{e}": 0.0 for e in (
+    "distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta",
+    "hexapod_repeatability_arcsec", "hexapod_backlash_arcsec", "drift_rate_arcsec_per_h", "drift_random_arcsec")}
+#: a value other than the default's for every plannable field but the dark frames (which change every class)
+_CHANGED = {"protocols.te.frames": 7, "protocols.hsfe.frames": 9, "protocols.hsfe.conditions": 5,
+            "protocols.hsfe.pattern": "grid", "protocols.chromatic.frames": 4,
+            "protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.distortion.frames": 6}
+
+
+def _changed_classes(scn, field: str, seed: int = 11, k: int = 2) -> set[str]:
+    """The classes whose trial values (every variant and axis, trial ``k`` of run seed
+    ``seed``) change when ``field`` takes its :data:`_CHANGED` value."""
+    from budget.starcam import validate as V
+
+    base = V.run_trial(scn, seed, k)["values"]
+    other = V.run_trial(with_updates(scn, {field: _CHANGED[field]}), seed, k)["values"]
+    assert set(other) == set(base)
+    return {key[0] for key in base if other[key] != base[key]}
+
+
+def test_each_plannable_field_changes_only_its_declared_classes_in_the_ideal_world():
+    """The default camera in the ideal world (run seed 11, trial 2): each plannable field moves
+    exactly the classes StarCameraStudy.field_classes declares for it, the others bit for bit
+    the same, and no truth (the protocols' fields are among those no truth reads): the
+    separable plan's groups are independent there."""
+    from budget.runner.study import truth_identity
+
+    scn = with_updates(default(), _IDEAL)
+    fc = STUDY.field_classes(scn)
+    assert set(_CHANGED) | {"validation.dark_frames"} == set(fc)
+    assert set(fc["validation.dark_frames"]) == {c.name for c in STUDY.classes(scn)}
+    for field in _CHANGED:
+        assert _changed_classes(scn, field) == set(fc[field]), field
+        assert truth_identity(STUDY, with_updates(scn, {field: _CHANGED[field]})) == truth_identity(STUDY, scn)
+
+
+def test_in_the_realistic_world_a_count_moves_the_later_protocols_draws():
+    """The default (realistic) world, run seed 11, trial 2: the world's drift and hexapod follow
+    the lab run's timeline (TE, HSFE, chromatic, distortion; simcam.starcam.world), so a count of
+    one protocol also moves the trial values of every protocol after it (their drift and pose
+    draws shift), never of one before it; field_classes leaves this out (StarCameraStudy.field_classes).
+    A separable plan searches each group with the other groups' counts at the scenario's values,
+    so its union's figures are not the groups' search figures: the union's re-validation, which
+    runs the whole protocol on fresh seeds, is what measures it
+    (tests/test_plan_separable.py::test_the_re_validation_runs_the_union_as_one_protocol)."""
+    from simcam.starcam.world import RUN_ORDER
+
+    own = {"te": {"te"}, "hsfe": {"hsfe"}, "chromatic": {"lsfe_s"}, "distortion": {"lsfe_c1"}}
+    scn = default()
+    fc = STUDY.field_classes(scn)
+    for field in ("protocols.te.frames", "protocols.hsfe.conditions", "protocols.chromatic.frames",
+                  "protocols.distortion.frames"):
+        proto = field.split(".")[1]
+        later = set().union(*(own[p] for p in RUN_ORDER[RUN_ORDER.index(proto) + 1:]))
+        changed = _changed_classes(scn, field)
+        # its own classes, and (a count adds frames or moves to the timeline) every later protocol's
+        assert changed - {"lsfe", "total"} == own[proto] | later, field
+        # the declared classes cover it only where no protocol follows (the distortion test, last)
+        assert (changed <= set(fc[field])) == (not later), field
+
+
 def test_a_separable_plan_keeps_the_scenarios_filter_set_where_no_requirement_depends_on_it():
     """The default scenario with only hsfe.x required: one group (the HSFE counts, its pattern,
     the dark frames), whose "grid" stands for the three declared grid shapes; its answer put in

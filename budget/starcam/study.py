@@ -265,14 +265,18 @@ class StarCameraStudy(Study):
         """The classes each plannable field (every knob's and every shape's field) can change
         (:meth:`budget.runner.study.Study.field_classes`): a protocol's counts and shape change
         its own class and what is built from it (LSFE from LSFE-S and LSFE-C1, the total from
-        all), the dark frames every class. In the realistic world a count also moves the
-        world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift at
-        their frames' times, the hexapod draws after its moves), which changes their trials'
-        draws; their distribution only through the drift ramp's offset at their time, which
-        moves every image of a condition alike (the random part is stationary, the ramp within
-        a condition depends on that condition's own duration, each move's error is drawn alike;
-        the default 0.05"/h ramp moves an image by under 0.01 px over a run), which is left
-        out here."""
+        all), the dark frames every class. Exact in the ideal world (tested: every other
+        class's trial values bit for bit the same). In the realistic world a count also moves
+        the world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift
+        at their frames' times, the hexapod draws after its moves), which changes their trials'
+        draws (tested); their distribution only through the drift ramp's offset at their time,
+        which moves every image of a condition alike (the random part is stationary, the ramp
+        within a condition depends on that condition's own duration, each move's error is drawn
+        alike; the default 0.05"/h ramp moves an image by under 0.01 px over a run). That
+        coupling is left out here: a separable plan searches each test with the others at the
+        scenario's counts, and the union's re-validation, which runs the whole protocol on
+        fresh seeds, is what measures each test as the union runs it (docs/planning.md,
+        "Separable plans")."""
         lsfe_s = ("lsfe_s", "lsfe", "total")
         every = tuple(n for n, _, _ in _CLASSES)
         return {
