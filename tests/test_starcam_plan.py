@@ -285,8 +285,6 @@ def test_the_planners_protocol_meets_the_requirement_in_full_validations():
 #: --require 'lsfe_s.y<=0.05' --trials 40 --workers 2`` (seed 0, ``--sure 0.9``) recommends
 #: (docs/validation.md, "Planning the test"): filters 600/800, 3 frames per field and filter
 CHROMATIC_RECOMMENDED = {"protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.chromatic.frames": 3}
-#: its boundary protocol (the plan's frames 2, 90 % sure not asked)
-CHROMATIC_BOUNDARY = {"protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.chromatic.frames": 2}
 CHROMATIC_BOUND_ARCSEC = 0.05
 
 
@@ -310,16 +308,21 @@ def _lsfe_s_exceedances(protocol: dict, n: int) -> np.ndarray:
 def test_the_chromatic_plan_meets_the_requirement_on_new_seeds():
     """100 trials on seeds no plan used: the plan's answer (filters 600/800 x 3 frames) and seed
     000's own test (3 filters x 30 frames) each have at most 5 of 100 beyond 0.05" per axis (the
-    95 % quantile of |error| within the bound, the planner's criterion); the boundary protocol
-    (2 frames) does not, nor does the 500/600 pair at seed 000's 30 frames (its y estimate
-    reads the static centroid difference between two close filters as a slope:
-    docs/validation.md, "Planning the test")."""
+    95 % quantile of |error| within the bound, the planner's criterion); the 500/600 pair at seed
+    000's 30 frames does not, by far (its y estimate reads the static centroid difference between
+    two close filters as a slope, about 0.15" off: docs/validation.md, "Planning the test"; more
+    than 5 of 100 beyond is what a protocol whose true exceedance rate were 5 % gives with
+    probability 0.38, so only the far miss is asserted: at least 50, which such a protocol gives
+    with probability below 1e-25)."""
+    from scipy import stats
+
     n = 100
     allowed = _allowed_exceedances(n)
     assert np.all(_lsfe_s_exceedances(CHROMATIC_RECOMMENDED, n) <= allowed)
     assert np.all(_lsfe_s_exceedances({}, n) <= allowed)
-    assert np.any(_lsfe_s_exceedances(CHROMATIC_BOUNDARY, n) > allowed)
-    assert _lsfe_s_exceedances({"protocols.chromatic.filters_nm": [500.0, 600.0]}, n)[1] > allowed
+    far = n // 2
+    assert stats.binom.sf(far - 1, n, 1 - CONFIDENCE) < 1e-25
+    assert _lsfe_s_exceedances({"protocols.chromatic.filters_nm": [500.0, 600.0]}, n)[1] >= far
 
 
 def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
@@ -355,3 +358,111 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
     rec = with_updates(scn, {**res.recommended.knobs,
                              **STUDY.protocol_shapes(scn)[res.recommended.shape]})
     assert res.recommended.cost_s == pytest.approx(sum(STUDY.lab_time_s(rec).values()), rel=1e-12)
+
+
+# ------------------------------------------------------------------ separable plans: the field classes
+#: the ideal world: every world effect off (docs/validation.md, "What its claim survives")
+_IDEAL = {f"world.effects.{e}": 0.0 for e in (
+    "distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta",
+    "hexapod_repeatability_arcsec", "hexapod_backlash_arcsec", "drift_rate_arcsec_per_h", "drift_random_arcsec")}
+#: a value other than the default's for every plannable field but the dark frames (which change every class)
+_CHANGED = {"protocols.te.frames": 7, "protocols.hsfe.frames": 9, "protocols.hsfe.conditions": 5,
+            "protocols.hsfe.pattern": "grid", "protocols.chromatic.frames": 4,
+            "protocols.chromatic.filters_nm": [600.0, 800.0], "protocols.distortion.frames": 6}
+
+
+def _changed_classes(scn, field: str, seed: int = 11, k: int = 2) -> set[str]:
+    """The classes whose trial values (every variant and axis, trial ``k`` of run seed
+    ``seed``) change when ``field`` takes its :data:`_CHANGED` value."""
+    from budget.starcam import validate as V
+
+    base = V.run_trial(scn, seed, k)["values"]
+    other = V.run_trial(with_updates(scn, {field: _CHANGED[field]}), seed, k)["values"]
+    assert set(other) == set(base)
+    return {key[0] for key in base if other[key] != base[key]}
+
+
+def test_each_plannable_field_changes_only_its_declared_classes_in_the_ideal_world():
+    """The default camera in the ideal world (run seed 11, trial 2): each plannable field moves
+    exactly the classes StarCameraStudy.field_classes declares for it, the others bit for bit
+    the same, and no truth (the protocols' fields are among those no truth reads): the
+    separable plan's groups are independent there."""
+    from budget.runner.study import truth_identity
+
+    scn = with_updates(default(), _IDEAL)
+    fc = STUDY.field_classes(scn)
+    assert set(_CHANGED) | {"validation.dark_frames"} == set(fc)
+    assert set(fc["validation.dark_frames"]) == {c.name for c in STUDY.classes(scn)}
+    for field in _CHANGED:
+        assert _changed_classes(scn, field) == set(fc[field]), field
+        assert truth_identity(STUDY, with_updates(scn, {field: _CHANGED[field]})) == truth_identity(STUDY, scn)
+
+
+def test_in_the_realistic_world_a_count_moves_the_later_protocols_draws():
+    """The default (realistic) world, run seed 11, trial 2: the world's drift and hexapod follow
+    the lab run's timeline (TE, HSFE, chromatic, distortion; simcam.starcam.world), so a count of
+    one protocol also moves the trial values of every protocol after it (their drift and pose
+    draws shift), never of one before it; field_classes leaves this out (StarCameraStudy.field_classes).
+    A separable plan searches each group with the other groups' counts at the scenario's values,
+    so its union's figures are not the groups' search figures: the union's re-validation, which
+    runs the whole protocol on fresh seeds, is what measures it
+    (tests/test_plan_separable.py::test_the_re_validation_runs_the_union_as_one_protocol)."""
+    from simcam.starcam.world import RUN_ORDER
+
+    own = {"te": {"te"}, "hsfe": {"hsfe"}, "chromatic": {"lsfe_s"}, "distortion": {"lsfe_c1"}}
+    scn = default()
+    fc = STUDY.field_classes(scn)
+    for field in ("protocols.te.frames", "protocols.hsfe.conditions", "protocols.chromatic.frames",
+                  "protocols.distortion.frames"):
+        proto = field.split(".")[1]
+        later = set().union(*(own[p] for p in RUN_ORDER[RUN_ORDER.index(proto) + 1:]))
+        changed = _changed_classes(scn, field)
+        # its own classes, and (a count adds frames or moves to the timeline) every later protocol's
+        assert changed - {"lsfe", "total"} == own[proto] | later, field
+        # the declared classes cover it only where no protocol follows (the distortion test, last)
+        assert (changed <= set(fc[field])) == (not later), field
+
+
+def test_a_separable_plan_keeps_the_scenarios_filter_set_where_no_requirement_depends_on_it():
+    """The default scenario with only hsfe.x required: one group (the HSFE counts, its pattern,
+    the dark frames), whose "grid" stands for the three declared grid shapes; its answer put in
+    one protocol keeps the scenario's filter set (its empty filters_nm: every lab filter,
+    500/600/800), as an unsearched knob keeps its value, not the cheapest set: 500/600 and
+    600/800 cost the same, and 500/600 misreads LSFE-S y about five times (docs/validation.md)."""
+    from budget.runner.plan import Evaluation, _Run, _union, decompose, parse_requirements
+
+    scn = default()
+    reqs, variant = parse_requirements(STUDY, scn, ["hsfe.x<=0.01"])
+    knobs = STUDY.protocol_knobs(scn)
+    declared = STUDY.protocol_shapes(scn)
+    groups, _ = decompose(STUDY, scn, reqs, knobs, declared)
+    assert [g.name for g in groups] == ["hsfe"] and list(groups[0].shapes) == ["diagonal", "grid"]
+    members = groups[0].members["grid"]
+    assert members == ["grid, filters 500/600", "grid, filters 600/800", "grid, filters 500/600/800"]
+    cost = {m: sum(STUDY.lab_time_s(with_updates(scn, declared[m])).values()) for m in members}
+    assert cost["grid, filters 500/600"] == cost["grid, filters 600/800"] < cost["grid, filters 500/600/800"]
+    part = Evaluation("grid", {"protocols.hsfe.frames": 30, "protocols.hsfe.conditions": 12}, 0.0, {}, 0, 60, {},
+                      "search")
+    run = _Run(STUDY, scn, reqs, variant, 0.95, None, None, 0, 60, 1, False, None, knobs, 0.9, {}, 0.0, 0.0)
+    union = _union(run, declared, groups, [part], False)
+    assert union.shape == "grid, filters 500/600/800"
+    assert union.scenario.chromatic_filters_nm() == (500.0, 600.0, 800.0)
+    assert union.scenario.protocols.hsfe.pattern == "grid"
+    assert union.cost_s == cost["grid, filters 500/600/800"]
+
+
+def test_requiring_a_class_the_scenario_does_not_compute_names_the_field():
+    """validation.protocols = ["chromatic"]: TE is a star-camera class this scenario leaves out
+    (its protocol not run), not an unknown one; the error names the field and the protocol."""
+    from budget.runner.plan import parse_requirements
+    from simcam.cli_common import UserInputError
+
+    scn = with_updates(default(), {"validation.protocols": ["chromatic"]})
+    with pytest.raises(UserInputError, match=r"te is a starcam class this scenario does not compute: "
+                                             r"validation\.protocols \(chromatic\) leaves out its protocol te; "
+                                             r"add it to validation\.protocols"):
+        parse_requirements(STUDY, scn, ["te.x<=0.01"])
+    with pytest.raises(UserInputError, match=r"lsfe.*leaves out its protocol distortion"):
+        parse_requirements(STUDY, scn, ["lsfe.x<=0.01"])
+    with pytest.raises(UserInputError, match=r"unknown class 'tee'; the starcam classes are lsfe_s, lsfe_c2"):
+        parse_requirements(STUDY, scn, ["tee.x<=0.01"])

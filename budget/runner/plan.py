@@ -26,9 +26,11 @@ passes the re-validation (fresh trials, the measured quantile) with probability 
 costs over the boundary protocol. Only a class of role ``result`` (an estimate
 of a truth) or ``residual`` (what a compensation leaves) can be required; an ``input``
 (taken as given), a ``stated`` uncertainty, a reference variant, an axis the data cannot
-determine, an unknown class, axis or variant, a value that is not a positive number and
-a second requirement on the same class and axis are each one ``error:`` line
-(:func:`parse_requirements`).
+determine, an unknown class, axis or variant (a class of the study that the scenario does not
+compute: why, naming the field, :meth:`Study.uncomputed_class`), a value that is not a positive
+number and a second requirement on the same class and axis are each one ``error:`` line
+(:func:`parse_requirements`). The margin is per requirement: with ``k`` requirements each aimed
+``P`` sure, all pass together with probability at least ``1 - k (1 - P)`` (Bonferroni).
 
 The oracle and common random numbers
 ------------------------------------
@@ -138,16 +140,26 @@ own budget of :data:`BUDGET_VALIDATIONS` per shape; a candidate's cost is always
 of the unrestricted scenario with every knob's current value (the other groups' at the
 scenario's). Lab time being additive and each group's fields changing only its own items, the
 groups' cheapest protocols together are the cheapest protocol meeting every requirement. The
-recommendation is their union (:func:`_union`: every group's knobs, in the declared shape that
-agrees with every group's chosen shape fields, the cheapest where several do), re-validated
-once as one protocol on fresh seeds (restricted to the union of the required classes where the
-study can) and costed by its full lab time. ``--budget-hours`` bounds the whole plan: with one
-group it bounds the search as above; with several, each group is searched without it and the
-union's lab time is checked against it (over it, no protocol within the budget meets every
-requirement: :attr:`PlanResult.over_budget`, the union as :attr:`PlanResult.best_achievable`).
-A group no protocol meets makes the plan infeasible; its best achievable figure is reported
-(the plan's: the group furthest from its bounds). Without :meth:`Study.field_classes` (the
-default) the plan is the whole-test plan, unchanged.
+recommendation is their union (:func:`_union`: every group's knobs, in a declared shape that
+agrees with every group's chosen shape fields; where several do (they differ only in fields no
+requirement depends on), the one keeping the scenario's own values of those fields
+(:meth:`Study.shape_value`), as an unsearched knob keeps its value, then the cheapest; a
+declared shape the scenario model refuses is skipped), run once as one protocol on fresh seeds
+(restricted to the union of the required classes where the study can; the re-validation) and
+costed by its full lab time. The groups' search figures are not the union's: a coupling the
+field classes leave out (the star camera's realistic world, whose drift and hexapod follow the
+lab run's timeline, moves a later protocol's draws with an earlier protocol's counts) shows only
+in that run of the whole protocol. ``--budget-hours`` bounds the whole plan: with one group it
+bounds the search as above; with several, each group is searched without it and the union's lab
+time is checked against it (over it, no protocol within the budget meets every requirement:
+:attr:`PlanResult.over_budget`). A group no protocol meets makes the plan infeasible. In either
+case the plan's best achievable (:attr:`PlanResult.best_achievable`) is the union of every
+group's part (its answer, or where none meets its most accurate protocol), run as one protocol
+on the re-validation's fresh seeds (stage :data:`REVALIDATED_BEST`, judged by the measured
+quantile; :attr:`PlanResult.best_achievable_revalidated`). The premium is the recommendation's
+lab time over the same union with each group's part at its model boundary, a group with no
+knob to search (all fixed or cost-flat) counting its one protocol as its boundary. Without
+:meth:`Study.field_classes` (the default) the plan is the whole-test plan, unchanged.
 
 The result, :class:`PlanResult`, writes JSON (schema ``budget.plan/1``), ``report.md`` and
 ``report.html`` with the trade curve and the recommended scenario (``recommended.toml``,
@@ -168,12 +180,11 @@ import numpy as np
 from budget.runner.study import Knob, Study, truth_identity
 from simcam.cli_common import UserInputError, overwrite_option
 
-__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation",
-           "PlanGroup", "PlanResult", "Requirement", "cost_flat_knobs", "decompose", "default_variant", "parse_fixes",
-           "parse_requirements",
-           "plan_command_for",
-           "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin", "sure_met",
-           "validation_seed"]
+__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "FRESH_STAGES", "REVALIDATED_BEST",
+           "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation", "PlanGroup", "PlanResult", "Requirement",
+           "cost_flat_knobs", "decompose", "default_variant", "parse_fixes", "parse_requirements",
+           "plan_command_for", "plan_protocol", "quantile_rel_se", "resolution", "screening_trials", "sure_margin",
+           "sure_met", "validation_seed"]
 
 SCHEMA = "budget.plan/1"
 DEFAULT_CONFIDENCE = 0.95
@@ -189,6 +200,10 @@ BUDGET_VALIDATIONS = 20
 #: a cost-flat knob's coarse grid (values over its range, ends included) and refinement steps
 FLAT_COARSE = 3
 FLAT_REFINE = 2
+#: the stage of a separable plan's best achievable (its groups' parts together) run as one protocol on
+#: the re-validation's fresh seeds; it and the re-validation are judged by the measured quantile
+REVALIDATED_BEST = "best achievable, re-validated"
+FRESH_STAGES = ("validation", REVALIDATED_BEST)
 _REQ = re.compile(r"^\s*([A-Za-z_][\w-]*)\.([A-Za-z_][\w-]*)\s*<=\s*(\S+)\s*$")
 
 
@@ -244,6 +259,9 @@ def parse_requirements(study: Study, scenario: Any, texts, variant: str | None =
         cls, ax, raw = m.groups()
         spec = specs.get(cls)
         if spec is None:
+            why = study.uncomputed_class(scenario, cls)
+            if why:
+                raise UserInputError(f"--require {t!r}: {why}")
             raise UserInputError(f"--require {t!r}: unknown class {cls!r}; the {study.name} classes are "
                                  f"{', '.join(specs)}")
         if ax not in spec.axes:
@@ -419,7 +437,7 @@ class Evaluation:
     seed: int
     trials: int
     figures: dict[str, dict]
-    stage: str  # "design", "search", "best achievable" or "validation"
+    stage: str  # "design", "flat search", "search", "best achievable", REVALIDATED_BEST or "validation"
     scenario: Any = field(default=None, repr=False)
     errors: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     truth_se: dict[str, float] = field(default_factory=dict, repr=False)
@@ -525,7 +543,7 @@ class _Oracle:
         # the lab time of the whole protocol, never of a restricted scenario
         items = {k: float(v) for k, v in self.study.lab_time_s(scn).items()}
         ev = Evaluation(shape, dict(knobs), float(sum(items.values())), items, seed, n0,
-                        self._figures(errs, tse, point=stage == "validation"), stage, scn, errs, tse,
+                        self._figures(errs, tse, point=stage in FRESH_STAGES), stage, scn, errs, tse,
                         run_scenario=None if run_scn is scn else run_scn, group=self.group)
         if extend and n0 < self.n and not self._decided(ev.figures):
             self.complete(ev, quiet=True)
@@ -541,7 +559,7 @@ class _Oracle:
         more, _ = self._run(scn, ev.seed, ev.trials, self.n, self.truths_for(scn, ev.seed))
         ev.errors = {k: np.concatenate([ev.errors[k], more[k]]) for k in ev.errors}
         ev.trials = self.n
-        ev.figures = self._figures(ev.errors, ev.truth_se, point=ev.stage == "validation")
+        ev.figures = self._figures(ev.errors, ev.truth_se, point=ev.stage in FRESH_STAGES)
         if not quiet:
             self._echo(ev, "extended")
         return ev
@@ -1044,7 +1062,7 @@ class PlanResult:
     #: knobs no required class depends on: left at the scenario's value, not searched
     unsearched: tuple = ()
     #: every group met its requirements but their protocols together exceed ``--budget-hours``
-    #: (:attr:`best_achievable` is that protocol)
+    #: (:attr:`best_achievable` is that protocol, re-validated)
     over_budget: bool = False
 
     # ---- verdicts
@@ -1084,11 +1102,16 @@ class PlanResult:
     def _groups_premium(self) -> dict | None:
         """A separable plan's premium: lab time being additive over the groups, the boundary
         protocol is the recommendation with each group's part replaced by its boundary
-        protocol's (the fitted model's, in the group's chosen shape)."""
+        protocol's (the fitted model's, in the group's chosen shape); a group with no knob to
+        search (every knob fixed or cost-flat, or none changes its classes) has no other
+        protocol, so its boundary is its answer."""
         rec = self.recommended
         bound, model, knobs = rec.cost_s, rec.cost_s, dict(rec.knobs)
         for go in self.groups:
-            b = self.shapes[go["best_shape"]].get("boundary")
+            s = self.shapes[go["best_shape"]]
+            if s.get("model") is None:  # nothing searched: the answer is the only protocol
+                continue
+            b = s.get("boundary")
             if not b:
                 return None
             bound -= go["best"].cost_s - b["cost_s"]
@@ -1104,8 +1127,21 @@ class PlanResult:
         return validation_seed(self.seed)
 
     @property
+    def best_achievable_revalidated(self) -> bool:
+        """The best achievable is a separable plan's union run as one protocol on the
+        re-validation's fresh seeds (stage :data:`REVALIDATED_BEST`), not a search's protocol."""
+        return self.best_achievable is not None and self.best_achievable.stage == REVALIDATED_BEST
+
+    @property
+    def fresh_run(self) -> Evaluation | None:
+        """The run on the re-validation's fresh seeds: the recommendation's re-validation, or a
+        separable plan's best achievable union (:attr:`best_achievable_revalidated`)."""
+        return self.validation if self.validation is not None else (
+            self.best_achievable if self.best_achievable_revalidated else None)
+
+    @property
     def total_trials(self) -> int:
-        return self.search_trials + (self.validation.trials if self.validation is not None else 0)
+        return self.search_trials + (self.fresh_run.trials if self.fresh_run is not None else 0)
 
     def recommended_scenario(self):
         return None if self.recommended is None else self.recommended.scenario
@@ -1142,7 +1178,7 @@ class PlanResult:
         import pandas as pd
 
         rows = []
-        for e in self.evaluations + ([self.validation] if self.validation is not None else []):
+        for e in self.evaluations + ([self.fresh_run] if self.fresh_run is not None else []):
             for name, f in e.figures.items():
                 rows.append({"shape": e.shape, "stage": e.stage, **{k.rsplit('.', 1)[-1]: v for k, v in e.knobs.items()},
                              "cost_h": e.cost_s / 3600.0, "trials": e.trials, "seed": e.seed, "requirement": name,
@@ -1208,59 +1244,103 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     # from the cache): starting workers per candidate would cost more than the toy's trials
     study.prewarm(scenario)
     with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
-        return _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
-                     budget_s, knobs, t0, c0, sure, fixed)
+        run = _Run(study, scenario, reqs, variant, confidence, budget_hours, budget_s, seed, n, workers, progress,
+                   pool, knobs, sure, fixed, t0, c0)
+        # the whole-test search where the study declares no field classes (every field may change
+        # every class), else the separable plan
+        return _plan_groups(run) if study.field_classes(scenario) else _plan_joint(run)
 
 
-def _plan(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool, budget_s,
-          knobs, t0, c0, sure, fixed=None) -> PlanResult:
-    """The whole-test search where the study declares no :meth:`Study.field_classes` (every
-    field may change every class), else the separable plan (:func:`_plan_groups`)."""
-    fixed = dict(fixed or {})
-    if study.field_classes(scenario):
-        return _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress,
-                            pool, budget_s, knobs, t0, c0, sure, fixed)
-    return _plan_joint(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
-                       budget_s, knobs, t0, c0, sure, fixed)
+@dataclass
+class _Run:
+    """What every search of one plan shares: the study, scenario, requirements and settings
+    (checked by :func:`plan_protocol`), the one pool of workers, the clocks and the cost-flat
+    knobs found (:attr:`flat`)."""
+
+    study: Study
+    scenario: Any
+    reqs: list[Requirement]
+    variant: str
+    confidence: float
+    budget_hours: float | None
+    budget_s: float | None
+    seed: int
+    n: int
+    workers: int | None
+    progress: bool
+    pool: Any
+    knobs: tuple[Knob, ...]
+    sure: float
+    fixed: dict
+    t0: float
+    c0: float
+    #: the cost-flat knobs of every shape searched (field -> knob)
+    flat: dict = field(default_factory=dict)
+
+    def oracle(self, reqs: list[Requirement] | None = None, **kw) -> _Oracle:
+        """An oracle of ``reqs`` (default every requirement) on the plan's seed, trials and pool."""
+        o = _Oracle(self.study, self.reqs if reqs is None else reqs, self.variant, self.confidence, self.seed, self.n,
+                    self.workers, self.progress, executor=self.pool, sure=self.sure, **kw)
+        o.prewarmed = True
+        return o
+
+    def search_shapes(self, oracle: _Oracle, shapes: dict[str, dict], knobs: tuple[Knob, ...],
+                      budget_s: float | None, key=None) -> dict[str, dict]:
+        """Each shape searched (module docstring, "The search"): its scenario (the shape's
+        overrides and the ``--fix`` values), its cost-flat knobs (:func:`cost_flat_knobs`) set per
+        candidate, the others searched by :class:`_ShapeSearch`; ``key``: the shape's name in the
+        plan (default its own)."""
+        cap = (BUDGET_VALIDATIONS - 1) * self.n
+        out = {}
+        for name, overrides in shapes.items():
+            k = name if key is None else key(name)
+            base = _with_values(self.study, self.scenario, {**overrides, **self.fixed},
+                                where=f"protocol shape {name}") if (overrides or self.fixed) else self.scenario
+            flat = cost_flat_knobs(self.study, base, knobs)
+            self.flat.update({f.field: f for f in flat})
+            cost_knobs = tuple(f for f in knobs if f not in flat)
+            s = _ShapeSearch(oracle, k, base, cost_knobs, budget_s, cap, flat=flat, fixed=self.fixed).search()
+            s["flat"] = [f.field for f in flat]
+            s["overrides"] = dict(overrides)
+            out[k] = s
+        return out
+
+    def fresh(self, shape: str, knobs: dict, scn: Any, stage: str = "validation") -> tuple[Evaluation, int]:
+        """``scn`` run as one protocol on the re-validation's fresh seeds (:func:`validation_seed`),
+        a validation's trials, restricted to the required classes where the study can; judged
+        by the measured quantile (the real test's rule). Returns it and the truths it computed."""
+        o = self.oracle(restrict=tuple(dict.fromkeys(r.cls for r in self.reqs)))
+        ev = o.evaluate(shape, knobs, scn, stage=stage, seed=validation_seed(self.seed), full=True)
+        return ev, o.truth_runs
+
+    def result(self, **kw) -> PlanResult:
+        """The :class:`PlanResult` with the plan's settings, clocks and cost-flat knobs."""
+        return PlanResult(study=self.study, scenario=self.scenario, requirements=self.reqs, variant=self.variant,
+                          confidence=self.confidence, seed=self.seed, trials_per_validation=self.n,
+                          budget_hours=self.budget_hours, knobs=self.knobs, elapsed_s=time.perf_counter() - self.t0,
+                          cpu_s=time.process_time() - self.c0, sure_level=self.sure, fixed=self.fixed,
+                          flat=tuple(k for k in self.knobs if k.field in self.flat), **kw)
 
 
-def _plan_joint(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
-                budget_s, knobs, t0, c0, sure, fixed) -> PlanResult:
-    oracle = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure)
-    oracle.prewarmed = True
-    shapes = study.protocol_shapes(scenario) or {"scenario": {}}
-    cap = (BUDGET_VALIDATIONS - 1) * n
-    free = tuple(k for k in knobs if k.field not in fixed)
-    results = {}
-    flat_all: dict[str, Knob] = {}
-    for name, overrides in shapes.items():
-        base = _with_values(study, scenario, {**overrides, **fixed}, where=f"protocol shape {name}") \
-            if (overrides or fixed) else scenario
-        flat = cost_flat_knobs(study, base, free)
-        flat_all.update({k.field: k for k in flat})
-        cost_knobs = tuple(k for k in free if k not in flat)
-        s = _ShapeSearch(oracle, name, base, cost_knobs, budget_s, cap, flat=flat, fixed=fixed).search()
-        s["flat"] = [k.field for k in flat]
-        s["overrides"] = dict(overrides)
-        results[name] = s
+def _plan_joint(run: _Run) -> PlanResult:
+    """The whole-test plan: every shape searched over every free knob with every requirement."""
+    oracle = run.oracle()
+    shapes = run.study.protocol_shapes(run.scenario) or {"scenario": {}}
+    free = tuple(k for k in run.knobs if k.field not in run.fixed)
+    results = run.search_shapes(oracle, shapes, free, run.budget_s)
     bests = [s["best"] for s in results.values() if s["best"] is not None]
     rec = min(bests, key=lambda e: e.cost_s) if bests else None
     search_trials = oracle.trials_run
     validation = best_ach = None
     if rec is not None:
-        vseed = validation_seed(seed)
+        vseed = validation_seed(run.seed)
         validation = oracle.evaluate(rec.shape, rec.knobs, rec.scenario, stage="validation", seed=vseed, full=True)
         oracle.evaluations.remove(validation)
     else:
         cands = [s.get("best_achievable") for s in results.values() if s.get("best_achievable") is not None]
         best_ach = min(cands, key=lambda e: e.ratio) if cands else None
-    return PlanResult(study=study, scenario=scenario, requirements=reqs, variant=variant, confidence=confidence,
-                      seed=seed, trials_per_validation=n, budget_hours=budget_hours, knobs=knobs, shapes=results,
-                      recommended=rec, validation=validation, best_achievable=best_ach,
-                      evaluations=list(oracle.evaluations), search_trials=search_trials,
-                      truth_runs=oracle.truth_runs, elapsed_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0, sure_level=sure, fixed=fixed,
-                      flat=tuple(k for k in knobs if k.field in flat_all))
+    return run.result(shapes=results, recommended=rec, validation=validation, best_achievable=best_ach,
+                      evaluations=list(oracle.evaluations), search_trials=search_trials, truth_runs=oracle.truth_runs)
 
 
 # ---------------------------------------------------------------------- separable plans
@@ -1374,40 +1454,28 @@ def _collapsed_labels(projs: list[list[str]], gf: tuple, shapes: dict) -> list[s
     return [f"{lab or 'shape'} ({i + 1})" for i, lab in enumerate(second)]
 
 
-def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed, n, workers, progress, pool,
-                 budget_s, knobs, t0, c0, sure, fixed) -> PlanResult:
+def _plan_groups(run: _Run) -> PlanResult:
     """The separable plan (module docstring, "Separable plans"): each group searched on its own
     (its classes only where the study can restrict, its own trial budget per shape, common
-    random numbers within it), the union of the answers re-validated as one protocol."""
+    random numbers within it), the union of the answers run as one protocol on fresh seeds:
+    the recommendation's re-validation, or (a group infeasible, or the union over the budget)
+    the best achievable's."""
+    study, scenario = run.study, run.scenario
     declared = study.protocol_shapes(scenario) or {"scenario": {}}
-    groups, unsearched = decompose(study, scenario, reqs, knobs, declared, fixed)
+    groups, unsearched = decompose(study, scenario, run.reqs, run.knobs, declared, run.fixed)
     several = len(groups) > 1
-    cap = (BUDGET_VALIDATIONS - 1) * n
     results: dict[str, dict] = {}
     group_out: list[dict] = []
     evaluations: list[Evaluation] = []
-    flat_all: dict[str, Knob] = {}
     search_trials = truth_runs = 0
     for g in groups:
-        oracle = _Oracle(study, g.requirements, variant, confidence, seed, n, workers, progress, executor=pool,
-                         sure=sure, restrict=g.classes, group=g.name if several else None)
-        oracle.prewarmed = True
-        gres = {}
-        for sname, ov in g.shapes.items():
-            key = g.key(sname, several)
-            base = _with_values(study, scenario, {**ov, **fixed}, where=f"protocol shape {sname}") \
-                if (ov or fixed) else scenario
-            flat = cost_flat_knobs(study, base, g.knobs)
-            flat_all.update({k.field: k for k in flat})
-            cost_knobs = tuple(k for k in g.knobs if k not in flat)
-            # one group: the budget bounds its protocols as in a whole-test plan; several: the sum is checked
-            s = _ShapeSearch(oracle, key, base, cost_knobs, None if several else budget_s, cap, flat=flat,
-                             fixed=fixed).search()
-            s["flat"] = [k.field for k in flat]
-            s["overrides"] = dict(ov)
+        oracle = run.oracle(g.requirements, restrict=g.classes, group=g.name if several else None)
+        # one group: the budget bounds its protocols as in a whole-test plan; several: the sum is checked
+        gres = run.search_shapes(oracle, g.shapes, g.knobs, None if several else run.budget_s,
+                                 key=lambda sname, g=g: g.key(sname, several))
+        for sname, s in zip(g.shapes, gres.values()):
             s["members"] = list(g.members[sname])
             s["group"] = g.name
-            gres[key] = s
         results.update(gres)
         bests = [s["best"] for s in gres.values() if s["best"] is not None]
         best = min(bests, key=lambda e: e.cost_s) if bests else None
@@ -1427,67 +1495,72 @@ def _plan_groups(study, scenario, reqs, variant, confidence, budget_hours, seed,
         truth_runs += oracle.truth_runs
     rec = validation = best_ach = None
     over_budget = False
-    if all(go["best"] is not None for go in group_out):
-        rec = _union(study, scenario, knobs, unsearched, fixed, declared, groups, group_out, n, seed)
-        if budget_s is not None and rec.cost_s > budget_s:
-            # lab time is additive over the groups: no cheaper protocol meets every requirement
-            over_budget, best_ach, rec = True, rec, None
-    else:
-        cands = [go["best_achievable"] for go in group_out if go["best"] is None and go["best_achievable"]]
-        best_ach = max(cands, key=lambda e: e.ratio) if cands else None
-    if rec is not None:
-        vor = _Oracle(study, reqs, variant, confidence, seed, n, workers, progress, executor=pool, sure=sure,
-                      restrict=tuple(dict.fromkeys(r.cls for r in reqs)))
-        vor.prewarmed = True
-        validation = vor.evaluate(rec.shape, rec.knobs, rec.scenario, stage="validation",
-                                  seed=validation_seed(seed), full=True)
-        truth_runs += vor.truth_runs
-    return PlanResult(study=study, scenario=scenario, requirements=reqs, variant=variant, confidence=confidence,
-                      seed=seed, trials_per_validation=n, budget_hours=budget_hours, knobs=knobs, shapes=results,
-                      recommended=rec, validation=validation, best_achievable=best_ach,
-                      evaluations=evaluations, search_trials=search_trials,
-                      truth_runs=truth_runs, elapsed_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0, sure_level=sure, fixed=fixed,
-                      flat=tuple(k for k in knobs if k.field in flat_all), groups=group_out,
+    # each group's part: its answer, else its most accurate protocol (None: none could be run)
+    parts = [go["best"] if go["best"] is not None else go["best_achievable"] for go in group_out]
+    if any(p is not None for p in parts):
+        union = _union(run, declared, groups, parts, several)
+        feasible = all(go["best"] is not None for go in group_out)
+        # lab time is additive over the groups: over the budget, no cheaper protocol meets every requirement
+        over_budget = feasible and run.budget_s is not None and union.cost_s > run.budget_s
+        if feasible and not over_budget:
+            rec = union
+            validation, t = run.fresh(rec.shape, rec.knobs, rec.scenario)
+        else:
+            # the best achievable: the union itself, run as one protocol on the fresh seeds (not the
+            # groups' search figures put together)
+            best_ach, t = run.fresh(union.shape, union.knobs, union.scenario, stage=REVALIDATED_BEST)
+        truth_runs += t
+    return run.result(shapes=results, recommended=rec, validation=validation, best_achievable=best_ach,
+                      evaluations=evaluations, search_trials=search_trials, truth_runs=truth_runs, groups=group_out,
                       unsearched=unsearched, over_budget=over_budget)
 
 
-def _union(study, scenario, knobs, unsearched, fixed, declared, groups, group_out, n, seed) -> Evaluation:
-    """The recommendation of a separable plan: every group's answer in one protocol (its knobs,
-    the unsearched knobs at the scenario's values, the fixed ones), in the declared shape that
-    agrees with every group's chosen shape fields, the cheapest where several do (they differ
-    only in fields no requirement depends on); where none agrees, the groups' shape fields
-    together. Its figures are the groups' (search) figures; its cost the full lab time."""
-    vals = {k.field: _knob_value(k, _dotted_get(scenario, k.field)) for k in unsearched}
-    vals.update(fixed)
-    for go in group_out:
-        vals.update({f: v for f, v in go["best"].knobs.items() if f not in fixed})
-    picks, members = {}, set(declared)
-    names = []
-    for g, go in zip(groups, group_out):
-        sname = go["best_sname"]
+def _union(run: _Run, declared, groups, parts, several: bool) -> Evaluation:
+    """Every group's part (its answer, or its most accurate protocol) in one protocol: the parts'
+    knobs, every other knob at the scenario's value (those no requirement depends on, and a group's
+    that has no part) or its ``--fix`` value; among the declared shapes that agree with every
+    part's shape fields, those keeping the scenario's own values of the other shape fields (no
+    requirement depends on them; :meth:`Study.shape_value`) first, then the cheapest (a declared
+    shape the scenario model refuses is skipped); where none agrees, the parts' shape fields
+    together. Its figures are the parts' (search) figures; its cost the full lab time."""
+    study, scenario = run.study, run.scenario
+    vals = {k.field: _knob_value(k, _dotted_get(scenario, k.field)) for k in run.knobs}
+    vals.update(run.fixed)
+    picks, members, names, fields = {}, set(declared), [], set()
+    for g, part in zip(groups, parts):
+        fields.update(g.shape_fields)
+        if part is None:
+            continue
+        vals.update({f: v for f, v in part.knobs.items() if f not in run.fixed})
+        sname = next(sn for sn in g.shapes if g.key(sn, several) == part.shape)
         picks.update(g.shapes[sname])
         members &= set(g.members[sname])
         names.append(sname)
     where = "plan: the recommended protocol"
-    if members:
-        costed = []
-        for name in declared:
-            if name in members:
-                scn = _with_values(study, scenario, {**declared[name], **vals}, where=where)
-                costed.append((float(sum(study.lab_time_s(scn).values())), name, scn))
-        _, shape, scn = min(costed, key=lambda t: t[0])
+    costed = []
+    for name in (n for n in declared if n in members):
+        try:
+            scn = _with_values(study, scenario, {**declared[name], **vals}, where=where)
+        except ValueError:
+            continue  # the scenario model refuses this combination of fields no requirement depends on
+        changed = sum(study.shape_value(scn, f) != study.shape_value(scenario, f)
+                      for f in declared[name] if f not in fields)
+        costed.append((changed, float(sum(study.lab_time_s(scn).values())), name, scn))
+    if costed:
+        _, _, shape, scn = min(costed, key=lambda t: t[:2])
     else:
         shape = "+".join(dict.fromkeys(names))
         scn = _with_values(study, scenario, {**picks, **vals}, where=where)
     items = {k: float(v) for k, v in study.lab_time_s(scn).items()}
     figs, errs, tse = {}, {}, {}
-    for go in group_out:
-        figs.update(go["best"].figures)
-        errs.update(go["best"].errors)
-        tse.update(go["best"].truth_se)
-    knob_vals = {k.field: vals[k.field] for k in knobs if k.field in vals}
-    return Evaluation(shape, knob_vals, float(sum(items.values())), items, seed, n, figs, "search", scn, errs, tse)
+    for part in parts:
+        if part is not None:
+            figs.update(part.figures)
+            errs.update(part.errors)
+            tse.update(part.truth_se)
+    knob_vals = {k.field: vals[k.field] for k in run.knobs}
+    return Evaluation(shape, knob_vals, float(sum(items.values())), items, run.seed, run.n, figs, "search", scn,
+                      errs, tse)
 
 
 # ---------------------------------------------------------------------- fixed and cost-flat knobs
@@ -1587,8 +1660,10 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     @click.option("--confidence", type=float, default=DEFAULT_CONFIDENCE, show_default=True,
                   help="The share of tests that must land within VALUE (the quantile).")
     @click.option("--sure", "sure", type=float, default=DEFAULT_SURE, show_default=True,
-                  help="How sure the recommended protocol should be to meet every requirement on the real test "
-                       "(the re-validation's fresh trials); 0.5: the boundary protocol.")
+                  help="How sure the recommended protocol should be to meet each requirement on the real test "
+                       "(the re-validation's fresh trials), per requirement: K requirements all pass together "
+                       "with probability at least 1 - K (1 - SURE) (for a joint P give 1 - (1 - P) / K); "
+                       "0.5: the boundary protocol.")
     @click.option("--fix", "fix", multiple=True, metavar="FIELD=VALUE",
                   help="Pin a protocol knob (repeat for several; FIELD one of the study's knobs, VALUE within "
                        "its bounds): the search leaves it at VALUE.")

@@ -10,9 +10,11 @@ Rules of the words:
   (the search's verdict came from trials the verdict does not share, so a protocol at the
   boundary may fail it: the sureness says how close); "no protocol ... meets" with the best
   achievable figure where the search found none;
-* the premium: "aiming P sure to pass the real test costs Fx the boundary protocol's lab
-  time", where the search judged by the ``--sure`` prediction bound (F: the recommendation's
-  lab time over the fitted model's cheapest protocol whose predicted quantiles equal the bounds);
+* the premium: "aiming P sure to pass the real test [on each requirement] costs Fx the
+  boundary protocol's lab time", where the search judged by the ``--sure`` prediction bound
+  (F: the recommendation's lab time over the fitted model's cheapest protocol whose predicted
+  quantiles equal the bounds; the margin is per requirement, hence "on each requirement" where
+  there are several);
 * a shape's sentence: its cheapest protocol meeting every requirement and its cost, or
   its best figure where none met;
 * a separable plan (:attr:`PlanResult.groups`): one sentence per group (its requirements,
@@ -20,7 +22,10 @@ Rules of the words:
   trials were restricted to its classes), one per knob no requirement depends on (left at the
   scenario's value), and, where every group met but their protocols together exceed
   ``--budget-hours``, "no protocol within B meets ...: the cheapest that does ... takes T"
-  (lab time being additive over the groups, none cheaper meets).
+  (lab time being additive over the groups, none cheaper meets) and what that protocol's run
+  on fresh trials says ("it meets every requirement", or "it does not confirm R"); where a
+  group meets nothing, the plan's best achievable is every group's answer with the failing
+  groups' most accurate protocols, run as one protocol on fresh trials, and the answer says so.
 """
 
 from __future__ import annotations
@@ -77,31 +82,45 @@ def answer_text(res) -> str:
     budget = "" if res.budget_hours is None else f" within {res.budget_hours:g} h"
     if res.recommended is None and getattr(res, "over_budget", False):
         b = res.best_achievable
+        failed = [name for name, f in b.figures.items() if not f["met"]]
+        verdict = (f"it meets every requirement ({_sure_text(res, b)})" if not failed else
+                   f"it does not confirm {', '.join(failed)} ({_sure_text(res, b)})")
         return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests): the "
                 f"cheapest that does, {_knobs(b)}{'' if _is_any(b.shape) else f' ({b.shape})'}, takes "
                 f"{_hours(b.cost_s)} of lab time (its {len(res.groups)} independent parts' cheapest protocols "
-                "together; lab time is additive, so none cheaper meets every requirement).")
+                f"together; lab time is additive, so none cheaper meets every requirement). Run as one protocol "
+                f"on {b.trials} fresh trials, {verdict}.")
     if res.recommended is None:
         b = res.best_achievable
         if b is None:
             return f"{st.title}: no protocol{budget} could be run for {_req_list(res)}."
         worst = max(b.figures.values(), key=lambda f: f["quantile"] / f["bound"])
         name = next(n for n, f in b.figures.items() if f is worst)
+        tail = ""
+        if getattr(res, "best_achievable_revalidated", False):
+            fails = [go["group"].name for go in res.groups if go["best"] is None]
+            which = f"group{'s' if len(fails) > 1 else ''} {', '.join(fails)}"
+            others = " with every other group's answer" if len(fails) < len(res.groups) else ""
+            tail = (f": the most accurate protocol of {which} (no protocol of {'them' if len(fails) > 1 else 'it'} "
+                    f"meets){others}, run as one protocol on {b.trials} fresh trials")
+            if worst["quantile"] <= worst["bound"]:
+                tail += f"; within the bound on these trials, but no protocol of {which} met it in the search"
+        elif worst["quantile"] <= worst["bound"] and "upper" in worst:
+            tail = (f"; within the bound, but not {pct(worst['upper_sure'])} sure to stay there on the real test "
+                    f"(its prediction bound {_fmt(worst['upper'])}; --sure)")
         return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
                 f"Best achievable: {name} {_fmt(worst['quantile'])} +- {_fmt(worst['se_quantile'])} "
                 f"{next(r.unit for r in res.requirements if r.name == name)} "
                 f"(the {conf} quantile of |error|, bound {_fmt(worst['bound'])}) with {_knobs(b)} "
-                f"({b.shape}, {_hours(b.cost_s)} of lab time)" +
-                ("" if worst["quantile"] > worst["bound"] or "upper" not in worst else
-                 f"; within the bound, but not {pct(worst['upper_sure'])} sure to stay there on the real test "
-                 f"(its prediction bound {_fmt(worst['upper'])}; --sure)") + ".")
+                f"({'' if _is_any(b.shape) else f'{b.shape}, '}{_hours(b.cost_s)} of lab time){tail}.")
     rec, val = res.recommended, res.validation
     head = (f"{st.title}: the cheapest protocol found{budget} is {_knobs(rec)}"
             f"{'' if _is_any(rec.shape) else f' ({rec.shape})'}, {_hours(rec.cost_s)} of lab time.")
     n = val.trials
     prem = res.premium
     aim = "" if prem is None or res.sure_level <= 0.5 else (
-        f" Aiming {pct(res.sure_level)} sure to pass the real test costs {prem['factor']:.2f}x the boundary "
+        f" Aiming {pct(res.sure_level)} sure to pass the real test"
+        f"{' on each requirement' if len(res.requirements) > 1 else ''} costs {prem['factor']:.2f}x the boundary "
         f"protocol's lab time ({_knobs_text_raw(prem['boundary_knobs'])}, {_hours(prem['boundary_cost_s'])}).")
     if res.confirmed:
         tail = (f" It meets {_req_list(res)} at {conf} (re-validated on {n} fresh trials; "
@@ -117,25 +136,28 @@ def answer_text(res) -> str:
     return head + tail + aim
 
 
-def _sure_text(res) -> str:
-    """How sure the re-validation is of every requirement at once: :attr:`PlanResult.sure`, a
-    Bonferroni bound, named as such where there is more than one requirement (each
-    requirement's own sureness is in its sentence)."""
+def _sure_text(res, ev=None) -> str:
+    """How sure a run on fresh seeds (``ev``; default the re-validation) is of every requirement
+    at once: the Bonferroni bound ``1 - sum (1 - sure_r)`` (:attr:`PlanResult.sure`), named as
+    such where there is more than one requirement (each requirement's own sureness is in its
+    sentence)."""
     k = len(res.requirements)
+    sure = res.sure if ev is None else max(0.0, 1.0 - sum(1.0 - f["sure"] for f in ev.figures.values()))
     if k == 1:
-        return f"sure at {pct(res.sure)}"
-    if pct(res.sure) == pct(1.0):
+        return f"sure at {pct(sure)}"
+    if pct(sure) == pct(1.0):
         return f"sure of all {k} requirements together at {pct(1.0)} (Bonferroni)"
-    return f"sure of all {k} requirements together at {pct(res.sure)} at least (Bonferroni)"
+    return f"sure of all {k} requirements together at {pct(sure)} at least (Bonferroni)"
 
 
 def findings_sentences(res) -> list[str]:
     """One sentence per requirement (the re-validated figures) and per shape (its best)."""
     out = []
     conf = pct(res.confidence)
-    if res.validation is not None:
+    fresh = res.fresh_run
+    if fresh is not None:
         for r in res.requirements:
-            f = res.validation.figures[r.name]
+            f = fresh.figures[r.name]
             out.append(f"{r.name} ({r.label}, {res.variant}): {conf} of |error| within {_fmt(f['quantile'])} +- "
                        f"{_fmt(f['se_quantile'])} {r.unit} (bound {_fmt(r.value)}; {f['exceed']} of {f['n']} "
                        f"fresh trials beyond it, {f['allowed']} allowed); bias {_fmt(f['bias'])} +- "
@@ -308,8 +330,9 @@ def plan_json(res) -> dict:
                           else s["best_achievable"].to_json()}
                    for name, s in res.shapes.items()},
         "evaluations": [e.to_json() for e in res.evaluations],
+        "best_achievable_revalidated": bool(getattr(res, "best_achievable_revalidated", False)),
         "trials": {"per_validation": res.trials_per_validation, "search": res.search_trials,
-                   "validation": 0 if res.validation is None else res.validation.trials,
+                   "validation": 0 if res.fresh_run is None else res.fresh_run.trials,
                    "total": res.total_trials},
         "truths_computed": res.truth_runs, "elapsed_s": res.elapsed_s, "cpu_s": res.cpu_s,
         "groups": _groups_json(res), "unsearched_knobs": [k.field for k in getattr(res, "unsearched", ())],
@@ -468,8 +491,8 @@ def _table(res) -> list[str]:
         [f"{r.name} q ({r.unit})" for r in res.requirements] + ["meets"]
     rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     evs = sorted(res.evaluations, key=lambda e: (e.shape, e.cost_s))
-    if res.validation is not None:
-        evs.append(res.validation)
+    if res.fresh_run is not None:
+        evs.append(res.fresh_run)
     for e in evs:
         # a separable plan's protocol carries its group's requirements only (the others: blank)
         cells = [e.shape, e.stage] + [str(e.knobs.get(k.field, "")) for k in res.knobs] + \

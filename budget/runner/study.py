@@ -95,7 +95,9 @@ protocol geometries to compare) and :meth:`Study.lab_time_s` (the lab time of a 
 seconds by item, from the scenario's own fields: exposures, frames, moves, settling, dwells);
 for a plan that splits into independent sub-plans, :meth:`Study.field_classes` (which classes
 each knob and shape field can change) and :meth:`Study.restrict_classes` (a scenario that
-computes only some classes).
+computes only some classes); :meth:`Study.shape_value` (a shape field's value as the protocol
+uses it, where two spellings mean one shape) and :meth:`Study.uncomputed_class` (why a class of
+the study is not computed by a scenario, for the planner's error).
 
 Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
 :meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
@@ -471,6 +473,18 @@ class Study(ABC):
         grid spanning both axes). Empty (the default): the scenario's own shape only."""
         return {}
 
+    def shape_value(self, scenario: Any, field: str) -> Any:
+        """The value of a :meth:`protocol_shapes` field as the protocol uses it: two scenarios
+        with equal values run the same shape there. The planner keeps the scenario's own value
+        of a shape field no requirement depends on by comparing it (docs/planning.md,
+        "Separable plans"). Default: the field's value as the validated scenario holds it; a
+        study whose field has another spelling of the same shape (an empty list meaning every
+        filter) says so here."""
+        obj = scenario
+        for part in field.split("."):
+            obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
+        return obj
+
     def lab_time_s(self, scenario: Any) -> dict[str, float]:
         """The lab time the scenario's protocol takes, in seconds, by item (``"exposure"``,
         ``"moves"``, ``"settling"``, ``"dwell"``, ...), from the scenario's own fields; the
@@ -492,6 +506,12 @@ class Study(ABC):
         seed), or None when the study cannot restrict (the default). The planner runs a
         sub-plan's trials on it and still takes the lab time from the unrestricted scenario
         (:meth:`lab_time_s` is never called on a restricted one)."""
+        return None
+
+    def uncomputed_class(self, scenario: Any, name: str) -> str | None:
+        """Where ``name`` is one of the study's classes that ``scenario`` does not compute (not
+        among :meth:`classes`), why, naming the scenario field that leaves it out (a sentence
+        the planner's error quotes); None (the default): not a class of the study."""
         return None
 
     # ------------------------------------------------------------ presentation

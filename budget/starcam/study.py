@@ -265,14 +265,18 @@ class StarCameraStudy(Study):
         """The classes each plannable field (every knob's and every shape's field) can change
         (:meth:`budget.runner.study.Study.field_classes`): a protocol's counts and shape change
         its own class and what is built from it (LSFE from LSFE-S and LSFE-C1, the total from
-        all), the dark frames every class. In the realistic world a count also moves the
-        world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift at
-        their frames' times, the hexapod draws after its moves), which changes their trials'
-        draws; their distribution only through the drift ramp's offset at their time, which
-        moves every image of a condition alike (the random part is stationary, the ramp within
-        a condition depends on that condition's own duration, each move's error is drawn alike;
-        the default 0.05"/h ramp moves an image by under 0.01 px over a run), which is left
-        out here."""
+        all), the dark frames every class. Exact in the ideal world (tested: every other
+        class's trial values bit for bit the same). In the realistic world a count also moves
+        the world's timeline of the protocols after it (:mod:`simcam.starcam.world`: the drift
+        at their frames' times, the hexapod draws after its moves), which changes their trials'
+        draws (tested); their distribution only through the drift ramp's offset at their time,
+        which moves every image of a condition alike (the random part is stationary, the ramp
+        within a condition depends on that condition's own duration, each move's error is drawn
+        alike; the default 0.05"/h ramp moves an image by under 0.01 px over a run). That
+        coupling is left out here: a separable plan searches each test with the others at the
+        scenario's counts, and the union's re-validation, which runs the whole protocol on
+        fresh seeds, is what measures each test as the union runs it (docs/planning.md,
+        "Separable plans")."""
         lsfe_s = ("lsfe_s", "lsfe", "total")
         every = tuple(n for n, _, _ in _CLASSES)
         return {
@@ -285,6 +289,29 @@ class StarCameraStudy(Study):
             "protocols.distortion.frames": ("lsfe_c1", "lsfe", "total"),
             "validation.dark_frames": every,
         }
+
+    def shape_value(self, scenario, field: str):
+        """A shape field as the protocol uses it (:meth:`budget.runner.study.Study.shape_value`):
+        the chromatic test's filter set is :meth:`~simcam.starcam.scenario.Scenario.chromatic_filters_nm`
+        (an empty ``protocols.chromatic.filters_nm``, seed 000's default, is every lab filter,
+        the shape ``filters 500/600/800``); any other field as the scenario holds it."""
+        if field == "protocols.chromatic.filters_nm":
+            return scenario.chromatic_filters_nm()
+        return super().shape_value(scenario, field)
+
+    def uncomputed_class(self, scenario, name: str) -> str | None:
+        """A seed-000 class the scenario's ``validation.protocols`` leaves out (its protocols,
+        :data:`budget.starcam.validate.CLASS_NEEDS`, not all computed), in words naming the field."""
+        from budget.starcam.validate import CLASS_NEEDS, computed_classes
+
+        if name not in CLASS_NEEDS or name in computed_classes(scenario):
+            return None
+        run = list(scenario.validation.protocols)
+        missing = [p for p in CLASS_NEEDS[name] if p not in run]
+        return (f"{name} is a {self.name} class this scenario does not compute: validation.protocols "
+                f"({', '.join(run)}) leaves out its protocol{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(missing)}; add {'them' if len(missing) > 1 else 'it'} to validation.protocols "
+                f"to plan {name}")
 
     def restrict_classes(self, scenario, classes: frozenset[str]):
         """The scenario with ``validation.protocols`` = the protocols the classes need
