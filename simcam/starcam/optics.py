@@ -520,7 +520,7 @@ def lateral_colour_shift_px(
     return colour.shift_px(u, v)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LateralColour:
     """The model of :func:`lateral_colour_shift_px` at fixed wavelengths (:func:`lateral_colour`):
     its polynomials in ``dl`` evaluated once, so that :meth:`shift_px` costs a few products per
