@@ -116,36 +116,59 @@ def study_group(study_name: str) -> click.Group:
     default scenario declares protocol knobs) plus
     :meth:`Study.commands` (a command of the study named ``validate`` replaces the plain one).
 
-    The study module is imported only when the group is invoked (or asked for help).
+    The study module is imported only when the group is invoked (or asked for help), and a
+    command runs without building the others: ``validate`` loads no scenario to learn
+    whether the study has ``plan`` (the listing, ``--help``, builds them all).
     """
     from budget.runner.registry import summary
 
+    def _plan():
+        from budget.runner.plan import has_knobs, plan_command_for
+        from budget.runner.registry import get_study
+
+        # a protocol with knobs: `plan` (budget.runner.plan)
+        return plan_command_for(study_name) if has_knobs(get_study(study_name)) else None
+
+    def _robustness():
+        from budget.runner.robustness import robustness_command_for
+
+        return robustness_command_for(study_name)
+
+    #: the runner's commands of every study, built on first use; the study's own replace them
+    generic = {"validate": lambda: validate_command_for(study_name), "robustness": _robustness, "plan": _plan}
+
     class _Lazy(click.Group):
-        def _load(self) -> None:
-            if getattr(self, "_loaded", False):
+        def _load_own(self) -> None:
+            """The study's own commands, then every study's ``scenario`` (with comments)."""
+            if getattr(self, "_own", None) is not None:
                 return
-            self._loaded = True
             from budget.runner.registry import get_study
+            from budget.runner.scenario_cmd import scenario_command_for
 
-            self.add_command(validate_command_for(study_name))
-            from budget.runner.robustness import robustness_command_for
-
-            self.add_command(robustness_command_for(study_name))
-            from budget.runner.plan import has_knobs, plan_command_for
-
-            if has_knobs(get_study(study_name)):  # a protocol with knobs: `plan` (budget.runner.plan)
-                self.add_command(plan_command_for(study_name))
-            for cmd in get_study(study_name).commands():
+            own = get_study(study_name).commands()
+            self._own = {cmd.name for cmd in own}
+            for cmd in own:
                 self.add_command(cmd)
-            from budget.runner.scenario_cmd import scenario_command_for  # every study's, with comments
             self.add_command(scenario_command_for(study_name))
+            self._built: set = set()
+
+        def _generic(self, name: str) -> None:
+            """Build the runner's command ``name`` once, unless the study has its own."""
+            if name in generic and name not in self._own and name not in self._built:
+                self._built.add(name)
+                cmd = generic[name]()
+                if cmd is not None:
+                    self.add_command(cmd)
 
         def list_commands(self, ctx):
-            self._load()
+            self._load_own()
+            for name in generic:
+                self._generic(name)
             return super().list_commands(ctx)
 
         def get_command(self, ctx, cmd_name):
-            self._load()
+            self._load_own()
+            self._generic(cmd_name)
             return super().get_command(ctx, cmd_name)
 
     return _Lazy(name=study_name, help=f"{summary(study_name)} Validation and its own commands.")
