@@ -94,7 +94,7 @@ def compile_support(arg: str) -> None:
     chain = _tiny_chain(h, w)
     keys = child_keys(np.uint64(1), 2)
     if opts.get("fused", True):
-        f8 = types.float64  # the drifting kernel passes cog_one a literal False
+        f8 = types.float64  # the fused kernels (border_cog_one, the truths' kernel) pass cog_one a literal False
         cog_one.compile((types.Array(f8, 2, "C"), f8, f8, f8, f8, types.literal(False), f8))
         from budget.starcam.kernels_trial import expose_centroid_drift_chain
 
