@@ -15,11 +15,12 @@ halves, each kernel compiled once:
 * a child (:func:`compile_support`) compiles the random-number kernels first (the
   fixed pattern and the noise kernels call them), the per-window centroid kernels, the
   drifting condition's fused kernel (with its own signature of the noise kernel), then
-  the truths' control-variate kernels (option ``truth``);
-* this process (:func:`compile_stamps_and_exposure`) compiles the stamps meanwhile (the
-  child is still importing), then the fixed pattern, the static condition's fused
-  kernel (whose centroid callees it by then finds in numba's cache) and the kernel that
-  sums a scene's windows from its stamps.
+  the truths' exposure with control variates (option ``truth``);
+* this process (:func:`compile_stamps_and_exposure`) compiles meanwhile (the child is
+  still importing) the truths' control-variate tables (option ``truth``: the child then
+  finds them in numba's cache), the stamps, then the fixed pattern, the static
+  condition's fused kernel (whose centroid callees it by then finds in numba's cache)
+  and the kernel that sums a scene's windows from its stamps.
 
 With a warm cache nothing happens. Each target calls the kernels through the functions
 a trial calls them through (which hand numba arguments of one type whatever their caller
@@ -76,9 +77,10 @@ def compile_support(arg: str) -> None:
     kernels call them), the per-window centroid kernels with the types the fused kernels
     pass them, the drifting condition's fused kernel (option ``fused``) through
     :func:`budget.starcam.kernels_trial.expose_centroid_drift_chain`, then the truths'
-    control-variate kernels (option ``truth``) through
-    :func:`budget.starcam.kernels_truth.cv_prepare` and
-    :func:`budget.starcam.kernels_truth.expose_centroid_cv`. ``arg``: JSON options."""
+    exposure with control variates (option ``truth``) through
+    :func:`budget.starcam.kernels_truth.expose_centroid_cv` (its tables, which
+    :func:`budget.starcam.kernels_truth.cv_prepare` computes, this process loads from the
+    cache: :func:`compile_stamps_and_exposure` compiles them first). ``arg``: JSON options."""
     from numba import types
 
     from budget.centroid.kernels import border_one, cog_one
@@ -118,8 +120,11 @@ def _tiny_chain(h: int, w: int):
 
 
 def compile_stamps_and_exposure(arg: str) -> None:
-    """The serial stamp kernel through :func:`simcam.starcam.optics.render_stamps` (a
-    trial's camera renders serially), the fixed pattern through
+    """The truths' control-variate tables (option ``truth``) through
+    :func:`budget.starcam.kernels_truth.cv_prepare`, first (:func:`compile_support` needs
+    them late), the serial stamp kernel through
+    :func:`simcam.starcam.optics.render_stamps` (a trial's camera renders serially), the
+    fixed pattern through
     :func:`simcam.detector.window_chain`, then on one tiny window the static condition's
     fused expose-and-centroid kernel (option ``fused``), the window exposure (option
     ``windows``: dark frames, or a method other than the centre of gravity), through
@@ -133,6 +138,12 @@ def compile_stamps_and_exposure(arg: str) -> None:
     from simcam.starcam.optics import render_shifted_stamps, render_stamps, stamp_profiles
 
     opts = json.loads(arg)
+    h = w = 5
+    chain = _tiny_chain(h, w)
+    if opts.get("truth", False):
+        from budget.starcam.kernels_truth import cv_prepare
+
+        cv_prepare(chain, threshold_dn=np.full(1, 3.0))
     n, n_l = 2, 3
     render_stamps(x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), stamp_px=8, psf_kind="gaussian",
                   sigma_px=np.full(n, 0.8), pinhole_radius_px=0.3, wavelength_nm=np.array([500.0, 600.0, 700.0]),
@@ -144,14 +155,12 @@ def compile_stamps_and_exposure(arg: str) -> None:
                           shift_x_px=np.zeros((n, n_l)), shift_y_px=np.zeros((n, n_l)))
     render_shifted_stamps(prof, x_px=np.array([10.2, 20.7]), y_px=np.array([11.4, 30.1]), sigma_px=np.full(n, 0.8),
                           mean_shift_x_px=np.zeros(n), mean_shift_y_px=np.zeros(n))
-    h = w = 5
     params = DetectorParams(gain_e_per_dn=(1.0,), offset_dn=(0.0,), read_noise_e=(1.0,), full_well_e=(1e4,),
                             adc_bits=12, prnu_rms=0.01, dark_e=1.0, dsnu_rms_e=0.5)
     window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w,
                  params=dataclasses.replace(params, nonlinearity_beta=0.008), detector_key=np.uint64(1))
     window_chain(signal_e=np.ones((1, h, w)), row0=[0], col0=[0], mosaic_cols=w, chip_cols=w, params=params,
                  detector_key=np.uint64(1))
-    chain = _tiny_chain(h, w)
     keys = child_keys(np.uint64(1), 2)
     if opts.get("fused", True):
         expose_centroid_chain(chain, keys, dark_mean=None, threshold_dn=np.full(1, 3.0), parallel=False)
