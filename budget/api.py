@@ -17,12 +17,15 @@
 * :func:`sweep` runs a design-trade sweep file into a Zarr store and returns it opened
   (:func:`budget.sweeps.run.run_sweep`).
 
-Both work from a plain script without an ``if __name__ == "__main__":`` guard: the worker
-processes are started with ``spawn`` (numba's thread pools must not be forked) and spawn
-re-runs the main script in each worker unless told otherwise; the workers need only
-budget's own functions, so while they start, the main module is not announced to them
-(:func:`_workers_skip_main`). Where the study itself is defined in the script, the workers
-do need it: then a script without the guard gets one line saying what to do.
+Both work from a plain script without an ``if __name__ == "__main__":`` guard. On Linux a
+fresh process forks its workers (:func:`budget.runner.executors.start_method`), which
+start with the script's modules and classes and run nothing again. Otherwise (macOS, a
+process with other threads or with numba's thread pool launched, which must not be
+forked) they are spawned, and spawn re-runs the main script in each worker unless told
+otherwise; the workers need only budget's own functions, so while they start, the main
+module is not announced to them (:func:`_workers_skip_main`). Where the study itself is
+defined in the script, spawned workers do need it: then a script without the guard gets
+one line saying what to do.
 """
 
 from __future__ import annotations

@@ -98,18 +98,28 @@ def test_notebook_example_runs(tmp_path):
     assert p.returncode == 0 and "NOTEBOOK OK" in p.stdout, p.stderr[-3000:]
 
 
-def test_a_study_defined_in_an_unguarded_script_says_what_to_do(tmp_path):
-    """Workers must import a script that defines the study; without the guard they re-run it
-    and cannot start: the call ends with one line saying to add the guard or use workers=1."""
+@pytest.mark.parametrize("start", ["spawn", "fork"])
+def test_a_study_defined_in_an_unguarded_script(tmp_path, start):
+    """Workers must import a script that defines the study. Spawned workers (forced here by
+    a second thread, :func:`budget.runner.executors.start_method`) re-run a script without
+    the guard and cannot start: the call ends with one line saying to add the guard or use
+    workers=1. Forked workers (a fresh process on Linux) have the script's classes already
+    and the call works."""
+    if start == "fork" and not sys.platform.startswith("linux"):
+        pytest.skip("workers fork on Linux only")
     src = (Path(__file__).parent / "toy_study.py").read_text().replace("STUDY = ToyStudy()", "")
     script = tmp_path / "own_study.py"
-    script.write_text(src + textwrap.dedent("""
-        import budget
+    thread = ("import threading\nthreading.Thread(target=threading.Event().wait, daemon=True).start()\n"
+              if start == "spawn" else "")
+    script.write_text(src + "\nimport budget\n" + thread + textwrap.dedent("""
         res = budget.validate(ToyStudy(), Toy(), trials=20, workers=2)
         print("RESULT", res.trials)
     """))
     p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path,
                        env=_env(), timeout=300)
+    if start == "fork":
+        assert p.returncode == 0 and "RESULT 20" in p.stdout, p.stderr[-3000:]
+        return
     assert p.returncode != 0 and "RESULT" not in p.stdout
     last = p.stderr.strip().splitlines()[-1]
     assert last.startswith("RuntimeError: budget:") and 'if __name__ == "__main__":' in last and "workers=1" in last

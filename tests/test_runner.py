@@ -194,3 +194,56 @@ def test_every_worker_the_runner_starts_has_one_numba_thread(where):
     assert pids - {float(os.getpid())}  # run in started workers (and here, with local processes)
     if where.get("workers") == 2:
         assert len(pids) == 2  # this process and the one it started
+
+
+_FORK_CHILD = r"""
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from budget.runner import executors
+from budget.runner.run import run_study
+from toy_study import STUDY, Toy
+
+before = executors.start_method()
+res = run_study(STUDY, Toy(), trials=40, seed=3, workers=2)
+after_run = executors.start_method()  # this process ran trials: numba's pool is launched
+print(json.dumps({"before": before, "after_run": after_run,
+                  "samples": {"|".join(k): v.tolist() for k, v in res.samples.items()}}))
+"""
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="workers fork on Linux only")
+def test_forked_workers_give_the_spawned_and_inline_results():
+    """A fresh process forks its workers (no thread, numba's pool not launched), and the
+    run's numbers are those of one process, bit for bit; once this process has launched
+    numba's thread pool (it ran trials itself), the next pool is spawned. This test
+    session's own process has long launched it, so the other tests here spawn: the fork
+    is checked in a child interpreter."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = subprocess.run([sys.executable, "-c", _FORK_CHILD, str(Path(__file__).parent)], capture_output=True,
+                         text=True, timeout=300, check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["before"] == "fork"
+    assert got["after_run"] == "spawn"
+    one = run_study(STUDY, Toy(), trials=40, seed=3, workers=1)
+    assert set(got["samples"]) == {"|".join(k) for k in one.samples}
+    for key, v in one.samples.items():
+        assert np.array_equal(np.array(got["samples"]["|".join(key)]), v)
+
+
+def test_start_method_spawns_beside_a_running_thread():
+    """A process with a second thread spawns (a fork would copy any lock that thread holds)."""
+    import threading
+
+    from budget.runner.executors import start_method
+
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    try:
+        assert start_method() == "spawn"
+    finally:
+        stop.set()
+        t.join()

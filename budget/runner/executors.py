@@ -6,10 +6,11 @@ seed, trial numbers), so results do not depend on the executor, the number of wo
 the order of completion.
 
 * :class:`InlineExecutor`: one after the other in this process;
-* :class:`ProcessExecutor`: a pool of local processes started with ``spawn`` (numba's
-  thread pools must not be forked), and this process among them where the caller asks
-  (``work_here``). The pool is started on entering the context, so its workers import
-  while this process works;
+* :class:`ProcessExecutor`: a pool of local processes, and this process among them where
+  the caller asks (``work_here``). The pool is started on entering the context, so its
+  workers import while this process works; it forks where that is safe (Linux, no thread
+  started here yet, numba's thread pool not launched: :func:`start_method`), so a worker
+  starts with this process's imports instead of importing them again, and spawns otherwise;
 * :class:`DaskExecutor`: an existing scheduler (``tcp://host:port``) or a
   :class:`distributed.LocalCluster` of single-threaded worker processes.
 
@@ -30,7 +31,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, Self
 
 __all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor",
-           "worker_setup"]
+           "start_method", "worker_setup"]
 
 
 def default_workers() -> int:
@@ -98,17 +99,42 @@ def _init_worker(initializer, args):
     worker_setup(initializer, args)
 
 
+def start_method() -> str:
+    """How :class:`ProcessExecutor` starts its workers: ``"fork"`` on Linux while this process
+    has no thread but its main one and numba has not launched its thread pool here, else
+    ``"spawn"``.
+
+    A forked worker begins with this process's imported modules (numpy, pandas, numba and
+    the study's code: 1-1.5 s of CPU that a spawned worker spends importing them again)
+    and nothing else of its work: the pool is started before any task or kernel runs, and
+    every task carries its scenario, seed and trials, so the results are the same whichever
+    way the workers start (``tests/test_runner.py``). Forking a process that runs other
+    threads can copy a lock held by one of them, and numba's thread pool does not survive a
+    fork, so a process that has either (a caller that ran a parallel kernel first, a test
+    session) spawns. macOS forks unsafely (its system libraries), so it spawns too.
+    """
+    import sys
+    import threading
+
+    if sys.platform != "linux" or threading.active_count() > 1:
+        return "spawn"
+    from numba.np.ufunc import parallel
+
+    return "spawn" if parallel._is_initialized else "fork"
+
+
 class ProcessExecutor(Executor):
-    """A pool of ``workers`` local processes (spawn); with ``work_here``, ``workers`` counts
-    this process too and the pool starts ``workers - 1``.
+    """A pool of ``workers`` local processes (forked or spawned: :func:`start_method`); with
+    ``work_here``, ``workers`` counts this process too and the pool starts ``workers - 1``.
 
     ``work_here``: this process runs the next task itself between collecting the others'
     results (a caller's own work between results, the truths' sizing say, is done in the
     same gaps). The started workers are not idle meanwhile: each holds two tasks, the one
     it runs and the next, and this process tops them up before it runs one of its own.
-    This process is the first ready (it has imported what the tasks need, a started
-    worker imports it all again: 1.5-2 s), so it takes the first task; and one process
-    fewer is started, imported and set up for the same number of workers. A caller that
+    This process is the first ready (it has imported what the tasks need; a spawned
+    worker imports it all again, 1.5-2 s, a forked one loads only its kernels), so it
+    takes the first task; and one process fewer is started and set up for the same
+    number of workers. A caller that
     must stay free between results (a sweep writing each point as it comes) leaves it off.
     """
 
@@ -130,7 +156,7 @@ class ProcessExecutor(Executor):
         from concurrent.futures import ProcessPoolExecutor
 
         if self._started > 0:
-            self._pool = ProcessPoolExecutor(max_workers=self._started, mp_context=multiprocessing.get_context("spawn"),
+            self._pool = ProcessPoolExecutor(max_workers=self._started, mp_context=multiprocessing.get_context(start_method()),
                                              initializer=_init_worker, initargs=(self._initializer, self._initargs))
             # start every worker now (a pool spawns lazily): they import while the caller works
             for _ in range(self._started):
