@@ -537,8 +537,8 @@ def grid_ref(tmp_path_factory):
 @pytest.mark.parametrize("sig", [signal.SIGKILL])  # SIGTERM: test_validate_sigterm_ends_its_workers
 def test_killed_sweep_leaves_no_worker_and_resumes_exactly(tmp_path, grid_ref, sig):
     """kill -9 of `budget sweep --workers 2` while its workers compute: they (and a
-    spawned pool's resource tracker) are gone within 5 s; the next run finishes the store, equal to an
-    uninterrupted run's."""
+    spawned pool's resource tracker) are gone within 5 s; the next run finishes the
+    store, equal to an uninterrupted run's."""
     from budget.sweeps.run import open_sweep, run_sweep
 
     (tmp_path / "tiny.toml").write_text(TINY)

@@ -215,9 +215,9 @@ print(json.dumps({"before": before, "after_run": after_run,
 def test_forked_workers_give_the_spawned_and_inline_results():
     """A fresh process forks its workers (no thread, numba's pool not launched), and the
     run's numbers are those of one process, bit for bit; once this process has launched
-    numba's thread pool (it ran trials itself), the next pool is spawned. This test
-    session's own process has long launched it, so the other tests here spawn: the fork
-    is checked in a child interpreter."""
+    numba's thread pool (it ran trials itself), the next pool is spawned. A test session's
+    process has usually launched it (any test that ran trials in it), so the fork is
+    checked in a child interpreter."""
     import subprocess
     import sys
     from pathlib import Path

@@ -105,10 +105,10 @@ def start_method() -> str:
     ``"spawn"``.
 
     A forked worker begins with this process's imported modules (numpy, pandas, numba and
-    the study's code: 1-1.5 s of CPU that a spawned worker spends importing them again)
-    and nothing else of its work: the pool is started before any task or kernel runs, and
-    every task carries its scenario, seed and trials, so the results are the same whichever
-    way the workers start (``tests/test_runner.py``). Forking a process that runs other
+    the study's code: 1-1.5 s of CPU that a spawned worker spends importing them again);
+    a validation starts its pool before any task or kernel runs, and every task carries
+    its scenario, seed and trials, so the results are the same whichever way the workers
+    start (``tests/test_runner.py``). Forking a process that runs other
     threads can copy a lock held by one of them, and numba's thread pool does not survive a
     fork, so a process that has either (a caller that ran a parallel kernel first, a test
     session) spawns. macOS forks unsafely (its system libraries), so it spawns too.
@@ -134,8 +134,8 @@ class ProcessExecutor(Executor):
     This process is the first ready (it has imported what the tasks need; a spawned
     worker imports it all again, 1.5-2 s, a forked one loads only its kernels), so it
     takes the first task; and one process fewer is started and set up for the same
-    number of workers. A caller that
-    must stay free between results (a sweep writing each point as it comes) leaves it off.
+    number of workers. A caller that must stay free between results (a sweep writing
+    each point as it comes) leaves it off.
     """
 
     def __init__(self, workers: int, *, initializer: Callable | None = None, initargs: tuple = (),
@@ -156,7 +156,8 @@ class ProcessExecutor(Executor):
         from concurrent.futures import ProcessPoolExecutor
 
         if self._started > 0:
-            self._pool = ProcessPoolExecutor(max_workers=self._started, mp_context=multiprocessing.get_context(start_method()),
+            context = multiprocessing.get_context(start_method())
+            self._pool = ProcessPoolExecutor(max_workers=self._started, mp_context=context,
                                              initializer=_init_worker, initargs=(self._initializer, self._initargs))
             # start every worker now (a pool spawns lazily): they import while the caller works
             for _ in range(self._started):
