@@ -121,7 +121,9 @@ the product, the trial's random-number floor, beside numpy's `Generator` drawing
 variates. A trial can be no faster than that floor while it draws these variates."""),
     "runner": ("Study machinery: start-up and workers", """\
 The README's main job (`budget validate --trials 200` on the embedded seed-000 scenario)
-end to end with 1 and with 2 worker processes (a new process each, as a user runs it), and
+end to end with 1 and with 2 worker processes (a new process each, as a user runs it;
+the two counts' runs alternate, so that the machine's drift falls on both, and each
+count's best is taken), and
 the fixed cost of `budget validate` (the wall time of a 2-trial run minus two warm trials
 and the truths' work, both measured in the same run) with a warm numba cache and with an
 empty one (a fresh install). The fixed-cost runs use the default scenario with
