@@ -224,12 +224,14 @@ def exit_with_parent(*, poll_s: float = 0.5, use_pdeathsig: bool = True) -> None
       and calls :func:`os._exit` once the worker has been re-parented.
 
     When the workers are gone, multiprocessing's resource tracker (which holds a pipe
-    from the parent and each worker) sees end-of-file and exits too.
+    from the parent and each worker) sees end-of-file and exits too. The guard is set
+    once per process: a forked worker inherits its parent's memory but neither the
+    parent's kernel setting nor its threads, so it sets its own.
     """
     global _GUARDED
-    if _GUARDED:
+    if _GUARDED == os.getpid():
         return
-    _GUARDED = True
+    _GUARDED = os.getpid()
     import multiprocessing
 
     owner = multiprocessing.parent_process()
@@ -250,7 +252,8 @@ def exit_with_parent(*, poll_s: float = 0.5, use_pdeathsig: bool = True) -> None
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-_GUARDED = False
+#: the process that set the guard (a forked child inherits the value, not the guard)
+_GUARDED: int | None = None
 
 
 def _guarded_init(target: str) -> None:

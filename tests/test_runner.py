@@ -247,3 +247,40 @@ def test_start_method_spawns_beside_a_running_thread():
     finally:
         stop.set()
         t.join()
+
+
+_FORK_STATE_CHILD = r"""
+import json, os, signal, sys
+from simcam import lifecycle
+from budget.runner import executors
+
+
+def state(_):
+    return {"term_default": signal.getsignal(signal.SIGTERM) == signal.SIG_DFL,
+            "int_default": signal.getsignal(signal.SIGINT) is signal.default_int_handler,
+            "guard_here": lifecycle._GUARDED == os.getpid(), "pid": os.getpid()}
+
+
+signal.signal(signal.SIGTERM, lambda *a: None)  # a command's own handlers, as run_cli sets them
+signal.signal(signal.SIGINT, lambda *a: None)
+lifecycle._GUARDED = os.getpid()  # as in a guarded process (its thread aside): a forked child sets its own
+method = executors.start_method()
+with executors.ProcessExecutor(1) as pool:
+    got = [r for _, r in pool.map_unordered(state, [0])][0]
+print(json.dumps({"method": method, "parent": os.getpid(), **got}))
+"""
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="workers fork on Linux only")
+def test_a_forked_worker_starts_as_a_spawned_one():
+    """A forked worker does not keep what it inherits of this process's set-up: its stop
+    signals are Python's defaults (not the command's handlers) and it sets its own
+    parent-death guard (the flag it inherits names its parent)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _FORK_STATE_CHILD], capture_output=True, text=True, timeout=300,
+                         check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["method"] == "fork" and got["pid"] != got["parent"]
+    assert got["term_default"] and got["int_default"] and got["guard_here"]
