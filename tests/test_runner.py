@@ -284,3 +284,23 @@ def test_a_forked_worker_starts_as_a_spawned_one():
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got["method"] == "fork" and got["pid"] != got["parent"]
     assert got["term_default"] and got["int_default"] and got["guard_here"]
+
+
+def test_start_method_reads_numbas_pool_flag_and_spawns_without_it(monkeypatch):
+    """Fork only while numba's pool is down; a numba without the (private) flag counts as
+    launched: spawn."""
+    import sys
+    import threading
+
+    from numba.np.ufunc import parallel
+
+    from budget.runner.executors import start_method
+
+    if not sys.platform.startswith("linux") or threading.active_count() > 1:
+        pytest.skip("needs Linux and a single-threaded test process")
+    monkeypatch.setattr(parallel, "_is_initialized", False)
+    assert start_method() == "fork"
+    monkeypatch.setattr(parallel, "_is_initialized", True)
+    assert start_method() == "spawn"
+    monkeypatch.delattr(parallel, "_is_initialized")
+    assert start_method() == "spawn"

@@ -123,19 +123,25 @@ def start_method() -> str:
     the study's code: 1-1.5 s of CPU that a spawned worker spends importing them again);
     a validation starts its pool before any task or kernel runs, and every task carries
     its scenario, seed and trials, so the results are the same whichever way the workers
-    start (``tests/test_runner.py``). Forking a process that runs other
-    threads can copy a lock held by one of them, and numba's thread pool does not survive a
-    fork, so a process that has either (a caller that ran a parallel kernel first, a test
-    session) spawns. macOS forks unsafely (its system libraries), so it spawns too.
+    start (``tests/test_runner.py``). Forking a process that runs other threads can copy a
+    lock held by one of them, and numba's thread pool does not survive a fork, so a
+    process that has either (a caller that ran a parallel kernel first, a test session)
+    spawns. macOS forks unsafely (its system libraries), so it spawns too. Whether numba's
+    pool is up is read from numba's own flag (not public API: a numba that no longer has
+    it counts as launched, and the pool spawns).
     """
     import sys
     import threading
 
     if sys.platform != "linux" or threading.active_count() > 1:
         return "spawn"
-    from numba.np.ufunc import parallel
+    try:
+        from numba.np.ufunc import parallel
 
-    return "spawn" if parallel._is_initialized else "fork"
+        launched = bool(getattr(parallel, "_is_initialized", True))
+    except ImportError:  # numba's layout changed: assume its pool is up
+        launched = True
+    return "spawn" if launched else "fork"
 
 
 class ProcessExecutor(Executor):
