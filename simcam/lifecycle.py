@@ -485,8 +485,9 @@ def announce_size(need_bytes: float, *, where: str | os.PathLike,
         say(f"writing about {format_bytes(need_bytes)} to {where}")
 
 
-#: memory one spawned worker needs once it has imported numpy, scipy and numba and holds
-#: its chunk (measured: 150-250 MiB resident on the default scenarios); a lower bound
+#: memory one worker needs once it has imported numpy, scipy and numba and holds its chunk
+#: (measured on spawned workers: 150-250 MiB resident on the default scenarios; a forked
+#: one shares its parent's pages until it writes them); a lower bound
 WORKER_BYTES = 200 * 1024 * 1024
 
 

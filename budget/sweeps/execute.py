@@ -4,7 +4,8 @@ Each point is a :class:`budget.sweeps.evaluate.PointTask` evaluated by
 :func:`budget.sweeps.evaluate.evaluate_point`; points are independent (each carries its
 scenario and seed), so the results do not depend on the executor, the number of workers
 or the order in which they finish. The executors are the same as the Monte Carlo
-runner's (this process; local ``spawn`` processes guarded against outliving their parent
+runner's (this process; local processes, forked or spawned
+(:func:`budget.runner.executors.start_method`), guarded against outliving their parent
 and stopped on an interruption; a Dask scheduler or LocalCluster), each worker set up by
 the runner (:func:`budget.runner.executors.worker_setup`: one numba thread per worker, the
 workers are the parallelism) and then by the sweep's study (:meth:`Study.worker_init`).
