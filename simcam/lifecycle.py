@@ -107,6 +107,16 @@ def _raise_interrupted(signum, _frame):
     raise Interrupted(signum)
 
 
+def default_stop_handlers() -> None:
+    """This process's stop signals back to Python's defaults (SIGINT raises
+    KeyboardInterrupt, SIGTERM and SIGHUP end the process), as a freshly started worker
+    has them: a forked worker inherits its parent's handlers (a command's: the signal
+    raises :class:`Interrupted`, the command's own clean-up), and the parent, which ends
+    its workers itself on an interruption, is the one to handle it. Main thread only."""
+    for s in _STOP_SIGNALS:
+        signal.signal(s, signal.default_int_handler if s == signal.SIGINT else signal.SIG_DFL)
+
+
 @contextmanager
 def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
     """Within the block, the given signals raise :class:`Interrupted` (main thread only).

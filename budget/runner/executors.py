@@ -92,26 +92,12 @@ def _init_worker(initializer, args):
     # the parent-death guard first (simcam.lifecycle): a parent killed while its workers
     # still import leaves no worker behind; the worker's exit, which the pool's shutdown
     # waits for, skips the final garbage collections
-    from simcam.lifecycle import exit_with_parent, quick_teardown
+    from simcam.lifecycle import default_stop_handlers, exit_with_parent, quick_teardown
 
     exit_with_parent()
-    _default_signal_handlers()
+    default_stop_handlers()  # a forked worker's are its parent's
     quick_teardown()
     worker_setup(initializer, args)
-
-
-def _default_signal_handlers() -> None:
-    """A worker's stop signals as a spawned worker has them (Python's defaults): SIGINT
-    raises KeyboardInterrupt, SIGTERM and SIGHUP end the process. A forked worker would
-    otherwise inherit this process's handlers (a command's: the signal raises
-    :class:`simcam.lifecycle.Interrupted`, the command's own clean-up), and the parent,
-    which ends its workers itself on an interruption, is the one to handle it."""
-    import signal
-
-    for name, handler in (("SIGINT", signal.default_int_handler), ("SIGTERM", signal.SIG_DFL),
-                          ("SIGHUP", signal.SIG_DFL)):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), handler)
 
 
 def start_method() -> str:
