@@ -12,7 +12,8 @@ from __future__ import annotations
 import click
 
 from budget import __version__
-from simcam.cli_common import UserInputError, run_cli
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import run_cli
 
 #: command name -> "module:attribute"; each module is imported only when its command runs
 #: (or when ``--help`` lists them), so a command pays only for its own imports
@@ -74,8 +75,8 @@ def cli() -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (the process then skips the final garbage collections
-    at its exit: :func:`simcam.lifecycle.quick_teardown`)."""
-    from simcam.lifecycle import quick_teardown
+    at its exit: :func:`simcam.infra.lifecycle.quick_teardown`)."""
+    from simcam.infra.lifecycle import quick_teardown
 
     quick_teardown()
     run_cli(cli, argv)

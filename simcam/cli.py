@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 
 from simcam import __version__
-from simcam.cli_common import UserInputError, run_cli, overwrite_option
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import run_cli, overwrite_option
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -54,7 +55,7 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, co
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
     from simcam.starcam.scenario import load, scenario_to_toml
-    from simcam.lifecycle import progress as progress_bar
+    from simcam.infra.lifecycle import progress as progress_bar
     from simcam.starcam.targets import star_grid
 
     t0 = time.perf_counter()

@@ -18,13 +18,8 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_serializer
 
-
-class ScenarioError(ValueError):
-    """A scenario (or sweep, or manifest) file is invalid.
-
-    The message names the file (when known), the dotted field path and what is wrong,
-    one line per problem, so the CLI can print it without a traceback.
-    """
+from simcam.infra.errors import ScenarioError
+from simcam.infra.outputs import input_file_problem
 
 
 class StrictModel(BaseModel):
@@ -168,7 +163,6 @@ def read_toml(*, path: str | Path | None = None, text: str | None = None, source
         p = Path(path)
         if p.is_dir():
             raise ScenarioError(f"{source}: is a folder, not a scenario file")
-        from simcam.outputs import input_file_problem  # a FIFO blocked forever, /dev/null read as empty
 
         if (why := input_file_problem(p)) is not None:
             raise ScenarioError(f"{source}: {why}")

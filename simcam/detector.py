@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.kernels import detector as _k
 from simcam.rng import MAX_PIXEL_INDEX, _as_key
 

@@ -21,7 +21,7 @@ Rules the classes enforce when a subclass is defined (a :class:`TypeError` then)
 * a :class:`WorldBase` subclass's further fields are settings of the model forms, never a
   switch (no ``bool`` field): an effect is off when its magnitude is 0, nowhere else.
 
-Magnitudes must be finite (a NaN or an infinity is a :class:`simcam.config_base.ScenarioError`
+Magnitudes must be finite (a NaN or an infinity is a :class:`simcam.infra.errors.ScenarioError`
 naming the field, like every scenario value). The lab side never reads ``world``: only the
 simulator and the truth routes do. A robustness run (:mod:`budget.runner.robustness`)
 builds its cases from :meth:`EffectsBase.ideal` and :meth:`EffectsBase.only` values.

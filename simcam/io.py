@@ -26,7 +26,7 @@ import numpy as np
 from astropy.io import fits
 
 from simcam import __version__
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 
 def frame_header(
@@ -69,17 +69,17 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     """Yield a temporary directory that replaces ``out`` only if the block completes.
 
     The temporary folder ``.NAME.partial.<pid>.*`` is removed on any exception, SIGINT,
-    and (under :func:`simcam.lifecycle.handle_termination`) SIGTERM; folders of this kind
+    and (under :func:`simcam.infra.lifecycle.handle_termination`) SIGTERM; folders of this kind
     left by a run that was killed outright (SIGKILL, power cut) are removed here, with a
-    line on stderr (:func:`simcam.lifecycle.remove_stale_partials`).
+    line on stderr (:func:`simcam.infra.lifecycle.remove_stale_partials`).
     """
-    from simcam.lifecycle import partial_prefix, remove_stale_partials
-    from simcam.outputs import apply_umask, check_output_dir
+    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.infra.outputs import apply_umask, check_output_dir
 
-    from simcam.outputs import is_earlier_output
+    from simcam.infra.outputs import is_earlier_output
 
     out = Path(out)
-    # the one rule (simcam.outputs.check_output_dir): empty, an earlier output, or --overwrite
+    # the one rule (simcam.infra.outputs.check_output_dir): empty, an earlier output, or --overwrite
     check_output_dir(out, option="--out", replaceable=is_earlier_output, overwrite=overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(out)
@@ -139,7 +139,7 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
     """
     import warnings
 
-    from simcam.outputs import input_file_problem
+    from simcam.infra.outputs import input_file_problem
 
     path = Path(path)
     if (why := input_file_problem(path)) is not None:  # a FIFO would block the reader forever
@@ -175,7 +175,7 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
 
 def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, fits.Header]:
     """Read a windows file: pixels (frames, stars, h, w) float64, col0, row0, header."""
-    from simcam.outputs import input_file_problem
+    from simcam.infra.outputs import input_file_problem
 
     path = Path(path)
     if (why := input_file_problem(path)) is not None:
@@ -215,7 +215,7 @@ def check_render_request(scenario, *, frames: int, out, source: str, mode: str =
     (windows mode: the float64 window cube of all frames). Disk: ``frames`` frame files of
     :func:`frame_bytes` (an upper bound when compressed) or the uint16 window cube.
     """
-    from simcam.lifecycle import announce_size, check_disk, check_memory
+    from simcam.infra.lifecycle import announce_size, check_disk, check_memory
 
     rows, cols = scenario.detector.mosaic_shape
     det = scenario.detector

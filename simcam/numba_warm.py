@@ -65,13 +65,13 @@ def is_cached(dispatcher) -> bool:
 
 def _child(target: str, arg: str) -> subprocess.Popen | None:
     """Start ``python -c`` running ``target`` (``module:function``) with ``arg`` (guarded by
-    :func:`simcam.lifecycle.exit_with_parent`; its exit, which the caller waits for, skips
-    the final garbage collections: :func:`simcam.lifecycle.quick_teardown`)."""
+    :func:`simcam.infra.lifecycle.exit_with_parent`; its exit, which the caller waits for, skips
+    the final garbage collections: :func:`simcam.infra.lifecycle.quick_teardown`)."""
     module, _, func = target.partition(":")
     code = (
         "import sys\n"
         f"sys.path[:0] = {[p or os.getcwd() for p in sys.path]!r}\n"
-        "from simcam.lifecycle import exit_with_parent, quick_teardown\n"
+        "from simcam.infra.lifecycle import exit_with_parent, quick_teardown\n"
         "exit_with_parent()\n"
         "quick_teardown()\n"
         "import importlib\n"

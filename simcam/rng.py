@@ -79,7 +79,7 @@ import operator
 import numpy as np
 from numba import njit
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 __all__ = [
     "DRAW_BITS",

@@ -14,7 +14,7 @@ import pytest
 
 from budget.cli import cli
 from budget.runner.registry import REGISTRY, study_names
-from simcam.cli_common import run_cli
+from simcam.infra.cli import run_cli
 
 
 def _ctx():

@@ -25,7 +25,7 @@ from budget.centroid.core import (
     subtract_dark,
     window_background,
 )
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 
 def _pixel_gaussian(n_pix, centre, sigma):

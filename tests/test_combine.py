@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from budget.starcam.combine import combine_budget, combine_command, load_budget_toml
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED_TOML = ROOT / "docs" / "examples" / "combine_seed000.toml"

@@ -17,7 +17,8 @@ import pytest
 from budget.starcam.truth import lsfe_c1_truth
 from simcam.starcam.correction import poly_design
 from simcam.starcam.render import StarCamera
-from simcam.starcam.scenario import ScenarioError, from_dict
+from simcam.infra.errors import ScenarioError
+from simcam.starcam.scenario import from_dict
 
 SMALL = {
     "detector": {"chip_cols": 256, "chip_rows": 256, "gap_px": 10.0},

@@ -3,7 +3,8 @@
 import pytest
 from pydantic import Field
 
-from simcam.config_base import ScenarioError, validate_model
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import validate_model
 from simcam.effects import EffectsBase, WorldBase, scenario_effects
 
 

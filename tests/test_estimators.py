@@ -26,7 +26,7 @@ from budget.starcam.estimators import (
     temporal_error,
     temporal_error_pooled,
 )
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 PS = 5.5  # seed-000 plate scale, passed as a parameter everywhere
 

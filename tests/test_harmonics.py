@@ -34,7 +34,7 @@ from budget.inductosyn.harmonics import (
     read_calibration_csv,
     sigma3_arcsec,
 )
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 A24 = np.arange(24) * 15.0
 A23 = np.arange(23) * (360.0 / 23)

@@ -23,7 +23,7 @@ from budget.inductosyn.validate import (
     simulate_trial_exact,
 )
 from budget.runner.run import run_study
-from simcam.cli_common import run_cli
+from simcam.infra.cli import run_cli
 from simcam.encoder.inductosyn import AutocollimatorParams, default
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.encoder.inductosyn import (
     ARCSEC_PER_RAD,
     DriftParams,

@@ -78,7 +78,7 @@ def test_every_effect_has_a_source_and_a_bad_value_names_the_field(tmp_path):
         assert len(src) > 40, name
     p = tmp_path / "bad.toml"
     p.write_text(IDEAL.read_text().replace("polygon_tilt_arcsec = 0.0", "polygon_tilt_arcsec = -1.0"))
-    from simcam.config_base import ScenarioError
+    from simcam.infra.errors import ScenarioError
 
     with pytest.raises(ScenarioError, match="world.effects.polygon_tilt_arcsec"):
         load(p)

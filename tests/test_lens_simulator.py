@@ -11,7 +11,7 @@ import pytest
 from test_lens_products import SMALL_ANALYSIS, small_star_camera
 
 from simcam.starcam import optics
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.starcam.lens import products as lp
 from simcam.starcam.lens.prescription import load_prescription
 from simcam.starcam.lens.products import LensProducts, lens_products

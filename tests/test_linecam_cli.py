@@ -10,7 +10,7 @@ import pytest
 import tomli_w
 
 from budget.linecam.cli import _local_group
-from simcam.cli_common import run_cli
+from simcam.infra.cli import run_cli
 
 SMALL = {"stars": {"region": "manual", "ra_deg": 280.0, "dec_deg": -5.0},
          "observation": {"passes": 2, "shift_px": 2000.0}}

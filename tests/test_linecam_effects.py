@@ -341,7 +341,7 @@ def test_truth_depends_on_the_distortion_effects_only():
 
 
 def test_an_effect_out_of_range_is_one_error_naming_the_field():
-    from simcam.config_base import ScenarioError
+    from simcam.infra.errors import ScenarioError
 
     with pytest.raises(ScenarioError, match=r"x\.toml.*world\.effects\.line_rate_mismatch_percent"):
         from_dict({"world": {"effects": {"line_rate_mismatch_percent": 60.0}}}, source="x.toml")

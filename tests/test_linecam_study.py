@@ -85,7 +85,7 @@ def test_a_folding_distortion_drawn_by_a_trial_names_the_file_and_fields():
     optics error without a file."""
     import pytest
 
-    from simcam.config_base import ScenarioError
+    from simcam.infra.errors import ScenarioError
 
     sc = STUDY.from_dict({"errors": {"k1": {"sigma": 5.0}, "k2": {"sigma": 5.0}}}, source="edge.toml")
     with pytest.raises(ScenarioError, match=r"^edge\.toml: errors\.k1 / k2 / p1 / p2 .*folds"):

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.linecam import signal
 from simcam.linecam.attitude import orbit_state, rodrigues, scan_plan
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm

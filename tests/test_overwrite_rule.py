@@ -1,4 +1,4 @@
-"""One ``--overwrite`` rule for every command that writes a folder (simcam.outputs.check_output_dir):
+"""One ``--overwrite`` rule for every command that writes a folder (simcam.infra.outputs.check_output_dir):
 a missing or empty folder, or an earlier output of the same kind, is written; anything else is
 refused before the work, naming ``--overwrite``; with ``--overwrite`` it is replaced; an input of
 the command is refused always."""
@@ -8,8 +8,8 @@ from __future__ import annotations
 import pytest
 from click.testing import CliRunner
 
-from simcam.cli_common import UserInputError
-from simcam.outputs import (check_output_dir, check_run_outputs, is_earlier_output, is_earlier_plots,
+from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import (check_output_dir, check_run_outputs, is_earlier_output, is_earlier_plots,
                             is_earlier_report)
 
 
@@ -79,7 +79,7 @@ def test_every_folder_writing_command_has_the_flag(prog, args):
 def _budget(argv) -> int:
     """`budget ARGV` as the console script runs it (run_cli: a user error is exit 2)."""
     from budget.cli import cli
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     try:
         run_cli(cli, argv)

@@ -119,7 +119,7 @@ def _register(monkeypatch, name="toy", target="budget.runner.toy:TOY"):
 
 def test_command_json_report_and_the_recommended_scenario_round_trips(tmp_path, monkeypatch, capsys):
     from budget.runner.cli import study_group
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     _register(monkeypatch)
     out, rep = tmp_path / "plan.json", tmp_path / "rep"
@@ -183,7 +183,7 @@ def test_dataframe_repr_and_html():
 ])
 def test_bad_requirements_are_one_line_errors(tmp_path, monkeypatch, capsys, args, message):
     from budget.runner.cli import study_group
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     _register(monkeypatch)
     with pytest.raises(SystemExit) as exc:
@@ -445,7 +445,7 @@ def test_a_cost_flat_knob_is_set_where_accuracy_is_best_and_the_other_knob_at_it
 
 def test_fix_pins_a_knob_and_the_json_says_so(tmp_path, monkeypatch):
     from budget.runner.cli import study_group
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     _register(monkeypatch)
     out = tmp_path / "plan.json"

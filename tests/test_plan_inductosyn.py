@@ -9,7 +9,7 @@ import pytest
 
 from budget.inductosyn.study import POLYGON_PAIRS, STUDY
 from budget.sweeps.dotted import set_dotted
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.encoder.inductosyn import default, from_dict
 
 

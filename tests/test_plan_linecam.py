@@ -8,7 +8,7 @@ import pytest
 
 from budget.linecam.study import STUDY
 from budget.sweeps.dotted import set_dotted
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.linecam.scenario import default, from_dict
 
 

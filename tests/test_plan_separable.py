@@ -228,7 +228,7 @@ class _RefusingSplit(SplitToyStudy):
     def from_dict(self, data, *, source):
         scn = super().from_dict(data, source=source)
         if scn.a.frames != 100 and (scn.b.pattern, scn.c.pattern) == ("line", "grid"):
-            from simcam.config_base import ScenarioError
+            from simcam.infra.errors import ScenarioError
 
             raise ScenarioError(f"{source}: b.pattern line with c.pattern grid refused here")
         return scn
@@ -307,7 +307,7 @@ def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(t
 
     from budget.runner import registry
     from budget.runner.cli import study_group
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     mod = types.ModuleType("tests_plan_separable_helpers")
     mod.STUDY = _CostCheckedSplit(shapes=True)

@@ -263,7 +263,7 @@ def test_fuzz_fits_frames(payload, cut, flip, kind):
         payload = bytes(b)
     import tempfile
 
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
     from simcam.io import read_frame
 
     with tempfile.TemporaryDirectory() as d:
@@ -341,7 +341,7 @@ def test_manifest_entries_stay_in_the_dataset_folder(tmp_path):
 def test_names_from_inputs_become_safe_file_names(tmp_path, monkeypatch):
     from simcam.starcam.lens.prescription import load_prescription
     from simcam.starcam.lens.products import cache_dir, cache_path
-    from simcam.lifecycle import safe_filename
+    from simcam.infra.lifecycle import safe_filename
 
     assert safe_filename("../../EVIL") == "EVIL" and safe_filename("..") == "unnamed"
     assert safe_filename("a/b\\c d\x00e") == "a_b_c_d_e" and safe_filename(".hidden") == "hidden"
@@ -587,7 +587,7 @@ def test_worker_guard_exits_with_parent(tmp_path):
     """`exit_with_parent` on its own: a grandchild whose parent is SIGKILLed exits."""
     code = textwrap.dedent("""
         import multiprocessing as mp, sys, time
-        from simcam.lifecycle import exit_with_parent
+        from simcam.infra.lifecycle import exit_with_parent
         def child():
             exit_with_parent(poll_s=0.1)
             time.sleep(600)
@@ -622,7 +622,7 @@ def test_quick_teardown_freezes_the_objects_at_exit():
     code = textwrap.dedent("""
         import atexit, gc
         atexit.register(lambda: print("frozen at exit:", gc.get_freeze_count() > 0))  # runs last
-        from simcam.lifecycle import quick_teardown
+        from simcam.infra.lifecycle import quick_teardown
         quick_teardown()
         quick_teardown()
         print("frozen before:", gc.get_freeze_count() > 0)
@@ -633,7 +633,8 @@ def test_quick_teardown_freezes_the_objects_at_exit():
 
 
 def test_size_helpers_name_figure_and_limit(tmp_path):
-    from simcam.lifecycle import ResourceLimitError, announce_size, check_disk, check_memory, format_bytes
+    from simcam.infra.errors import ResourceLimitError
+    from simcam.infra.lifecycle import announce_size, check_disk, check_memory, format_bytes
 
     assert format_bytes(1536) == "1.5 KiB" and format_bytes(3 * 2**40) == "3.0 TiB"
     with pytest.raises(ResourceLimitError, match=r"the request: needs about .* of disk, .* free at"):

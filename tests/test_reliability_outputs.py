@@ -22,10 +22,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simcam.cli_common import UserInputError, write_json_atomic
-from simcam.config_base import ScenarioError
-from simcam.lifecycle import Interrupted, ResourceLimitError, cap_workers, format_bytes
-from simcam.outputs import (StagedOutputs, check_input_file, check_output_dir, check_output_file,
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import write_json_atomic
+from simcam.infra.errors import ScenarioError
+from simcam.infra.errors import Interrupted, ResourceLimitError
+from simcam.infra.lifecycle import cap_workers, format_bytes
+from simcam.infra.outputs import (StagedOutputs, check_input_file, check_output_dir, check_output_file,
                             check_run_outputs)
 
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
@@ -230,7 +232,7 @@ def test_validate_refuses_a_non_report_folder_before_running(tmp_path, monkeypat
 
 # ----------------------------------------------------------------------------- workers, sizes
 def test_workers_are_capped_with_a_note(monkeypatch):
-    import simcam.lifecycle as lc
+    import simcam.infra.lifecycle as lc
 
     said = []
     assert cap_workers(1000, echo=said.append) == lc.usable_cores() or lc.available_memory_bytes() is not None
@@ -313,7 +315,7 @@ def test_bad_epochs_are_one_line_when_the_scenario_loads():
 
 
 def test_scanmirror_ground_step_too_fine_is_refused_naming_the_field(monkeypatch):
-    import simcam.lifecycle as lc
+    import simcam.infra.lifecycle as lc
     from budget.scanmirror.pipeline import Setup
     from budget.scanmirror.study import STUDY
 
@@ -532,7 +534,7 @@ def test_disk_full_while_writing_is_one_error_line(tmp_path, monkeypatch, capsys
 
     import click
 
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     def full(*a, **k):
         raise OSError(errno.ENOSPC, "No space left on device")

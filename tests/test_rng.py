@@ -15,7 +15,7 @@ import pytest
 from scipy import special, stats
 
 from simcam import rng
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 N = 200_000
 KEY = rng.key_from_seed(20240611, 7)

@@ -23,7 +23,7 @@ from budget.runner.robustness import (
     summary_cell,
 )
 from budget.runner.study import ClassSpec
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 EPS = np.finfo(float).eps
 OFF = {n: 0.0 for n in ("correlation_rho", "extra_noise_units", "drift_units_per_sample",
@@ -290,7 +290,7 @@ def test_truths_are_shared_where_they_do_not_depend_on_the_effect(depends, calls
 def test_command_line(tmp_path, monkeypatch, capsys):
     from budget.runner import registry
     from budget.runner.cli import study_group
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     monkeypatch.setitem(registry._BY_NAME, "toyworld", registry.StudyEntry("toyworld", "toy_world_study:STUDY",
                                                                            "toy world study"))
@@ -315,7 +315,7 @@ def test_command_line(tmp_path, monkeypatch, capsys):
 def test_every_study_group_has_the_verb(capsys):
     from budget.runner.cli import study_group
     from budget.runner.registry import study_names
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     for name in study_names():
         run_cli(study_group(name), ["robustness", "--help"])

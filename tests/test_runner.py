@@ -11,7 +11,7 @@ from toy_study import STUDY, Toy
 from budget.runner.report import format_table, write_report
 from budget.runner.run import run_study
 from budget.runner.stats import key_statistics
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 
 def test_statistics_match_the_analytic_answers():
@@ -99,7 +99,7 @@ def test_truth_error_above_the_tolerance_runs_to_the_cap():
 def test_bad_requests_are_refused_before_work():
     with pytest.raises(UserInputError, match="give one of them"):
         run_study(STUDY, Toy(), trials=5, tolerance=0.1)
-    from simcam.lifecycle import ResourceLimitError
+    from simcam.infra.errors import ResourceLimitError
 
     with pytest.raises(ResourceLimitError, match="--trials 10000000000000: needs about"):
         run_study(STUDY, Toy(), trials=10**13)
@@ -251,7 +251,7 @@ def test_start_method_spawns_beside_a_running_thread():
 
 _FORK_STATE_CHILD = r"""
 import json, os, signal, sys
-from simcam import lifecycle
+from simcam.infra import lifecycle
 from budget.runner import executors
 
 

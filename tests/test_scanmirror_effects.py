@@ -50,7 +50,7 @@ def test_ideal_world_equals_the_results_before_the_effects(tmp_path):
     the code before the world effects (``tests/data/scanmirror_before_effects_trials4.json``:
     ``budget scanmirror validate --trials 4 --workers 1 --seed 0 --json`` at commit aa8a787)."""
     from budget.cli import cli
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     out = tmp_path / "ideal.json"
     try:

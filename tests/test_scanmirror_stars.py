@@ -11,7 +11,7 @@ import pytest
 from budget.scanmirror.compensation import exact_compensation
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
 from budget.scanmirror.pipeline import ARCSEC, Setup, run
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.scanmirror.geometry import attitude_matrix_br, line_of_sight_body, rot_x, rot_y, rotvec_matrix
 from simcam.scanmirror.scenario import default_text, from_dict
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids

@@ -49,7 +49,7 @@ def test_run_study_workers_equivalence(scenario):
 
 def test_simulate_command_and_bad_input(tmp_path, capsys):
     from budget.cli import cli
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     out = tmp_path / "sim.json"
     coarse = tmp_path / "coarse.toml"
@@ -73,7 +73,7 @@ def test_simulate_command_and_bad_input(tmp_path, capsys):
 
 def test_validate_names_the_file_of_a_starless_dwell(tmp_path, capsys):
     from budget.cli import cli
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     bad = tmp_path / "dim.toml"
     bad.write_text(STUDY.default_text().replace("mag_limit = 7.5 ", "mag_limit = 2.0 "))

@@ -6,7 +6,7 @@ import tomllib
 
 import pytest
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import (
     ARCSEC_PER_RAD,
     Scenario,

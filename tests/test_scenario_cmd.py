@@ -32,7 +32,7 @@ def test_a_bad_scenario_file_is_one_error_line(tmp_path):
     p.write_text("nonsense_key = 1\n")
     r = CliRunner().invoke(budget_cli, ["linecam", "scenario", str(p)])
     # a ScenarioError naming file and field: the console script prints it as one error line, exit 2
-    from simcam.config_base import ScenarioError
+    from simcam.infra.errors import ScenarioError
 
     assert isinstance(r.exception, ScenarioError) and r.output == ""
     assert str(p) in str(r.exception) and "nonsense_key" in str(r.exception)

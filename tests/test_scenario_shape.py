@@ -11,7 +11,8 @@ import pytest
 
 from budget.runner.registry import get_study, study_names
 from budget.runner.study import ClassSpec
-from simcam.config_base import ScenarioBase, ScenarioError, ValidationSettings, read_toml
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import ScenarioBase, ValidationSettings, read_toml
 
 STUDIES = study_names()
 

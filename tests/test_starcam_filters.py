@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from budget.starcam.study import STUDY
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import default, with_updates
 
 

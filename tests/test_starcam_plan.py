@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from budget.starcam.study import STUDY
-from simcam.config_base import ScenarioError, read_toml
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import read_toml
 from simcam.starcam.scenario import default, with_updates
 
 
@@ -455,7 +456,7 @@ def test_requiring_a_class_the_scenario_does_not_compute_names_the_field():
     """validation.protocols = ["chromatic"]: TE is a star-camera class this scenario leaves out
     (its protocol not run), not an unknown one; the error names the field and the protocol."""
     from budget.runner.plan import parse_requirements
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     scn = with_updates(default(), {"validation.protocols": ["chromatic"]})
     with pytest.raises(UserInputError, match=r"te is a starcam class this scenario does not compute: "

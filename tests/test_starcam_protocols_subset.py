@@ -11,7 +11,8 @@ import pytest
 
 from budget.starcam import validate as V
 from budget.starcam.study import STUDY
-from simcam.config_base import ScenarioError, read_toml
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import read_toml
 from simcam.starcam.scenario import default, with_updates
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from budget.sweeps.spec import expand_values, load_sweep, point_identity, point_seed
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from tiny_camera import TINY
 
 

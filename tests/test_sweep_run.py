@@ -20,7 +20,7 @@ import xarray as xr
 
 from budget.sweeps.run import open_sensitivity, open_sobol, open_sweep, run_sweep
 from budget.sweeps.spec import load_sweep
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 from tiny_camera import TINY
 
 

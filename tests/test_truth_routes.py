@@ -194,7 +194,8 @@ def test_lab_knowledge_is_the_lab_s_not_the_simulator_s():
 def test_embedded_noisy_scenario_is_the_default_with_the_seed_s_noise():
     """`embedded:seed000_noisy` is the default camera and lab with three noise values
     changed (source V, PRNU, DSNU); an unknown embedded name is a scenario error."""
-    from simcam.starcam.scenario import ScenarioError, default, load
+    from simcam.infra.errors import ScenarioError
+    from simcam.starcam.scenario import default, load
 
     noisy = load("embedded:seed000_noisy")
     base = default()

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from budget.runner.report import world_line
-from simcam.cli_common import run_cli
+from simcam.infra.cli import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -51,7 +51,7 @@ def test_ideal_world_on_a_study_without_effects_is_a_user_error():
     import pytest
 
     from budget.runner.cli import ideal_world_scenario
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
     from toy_study import STUDY as TOY   # a study whose scenario has no world
 
     with pytest.raises(UserInputError, match="--ideal-world: the .* study has no \\[world.effects\\]"):

@@ -13,7 +13,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.starcam import optics
 from simcam.detector import DetectorParams, expose, expose_windows, window_chain
 from simcam.starcam.scenario import ARCSEC_PER_RAD, default, load, with_updates

@@ -56,7 +56,7 @@ import numpy as np
 import pandas as pd
 
 from budget.centroid import kernels as _k
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 __all__ = [
     "CentroidFlag",

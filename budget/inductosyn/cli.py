@@ -2,8 +2,8 @@
 and validation of the seed-001 inductosyn.
 
 The commands of the inductosyn study's group (:meth:`InductosynStudy.commands`, one group
-under both names). User mistakes raise :class:`simcam.config_base.ScenarioError` or
-:class:`simcam.cli_common.UserInputError`; ``budget.cli.main`` prints them as one line
+under both names). User mistakes raise :class:`simcam.infra.errors.ScenarioError` or
+:class:`simcam.infra.errors.UserInputError`; ``budget.cli.main`` prints them as one line
 each and exits 2.
 """
 
@@ -14,7 +14,8 @@ import math
 import click
 import numpy as np
 
-from simcam.cli_common import UserInputError, write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import write_json_atomic
 
 __all__ = ["commands", "design_command", "fit_command", "scenario_command", "validate_command"]
 
@@ -106,7 +107,7 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
 
     if pole_pairs < 1:
         raise UserInputError("--pole-pairs: must be >= 1")
-    from simcam.outputs import check_run_outputs  # outputs checked before the work
+    from simcam.infra.outputs import check_run_outputs  # outputs checked before the work
 
     check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)
     tables = [read_calibration_csv(path=f) for f in csv_files]

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 #: one full turn in arcsec: no calibration reading errs by that much
 FULL_TURN_ARCSEC = 360.0 * 3600.0
@@ -591,7 +591,7 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
     """
     import csv
 
-    from simcam.outputs import check_input_file
+    from simcam.infra.outputs import check_input_file
 
     path = str(path)
     check_input_file(path, what="calibration table")  # a FIFO or a device is not read (it would block)

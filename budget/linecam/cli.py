@@ -29,7 +29,7 @@ from pathlib import Path
 
 import click
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 import numpy as np
 
 __all__ = ["commands", "read_observations", "calibrate_table", "CSV_COLUMNS"]
@@ -57,7 +57,7 @@ def _scenario(path):
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
 @overwrite_option
 def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
-    from simcam.cli_common import write_json_atomic
+    from simcam.infra.cli import write_json_atomic
     from simcam.linecam.scenario import PARAMETERS
 
     from budget.runner.study import trial_seed_sequence
@@ -66,10 +66,10 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
     from .study import trial_extra
     from .trial import PARAM_UNITS, simulate, to_report_units
 
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     from .calibrate import CalibrationError
-    from simcam.outputs import check_run_outputs
+    from simcam.infra.outputs import check_run_outputs
 
     check_run_outputs(json_out=json_out, report_dir=report_dir, files={"--csv": csv_out}, inputs=(scenario,),
                       overwrite=overwrite)
@@ -122,7 +122,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
     click.echo(f"before calibration: rms {np.sqrt(np.mean(eb[0] ** 2)):.2f}\" along, "
                f"{np.sqrt(np.mean(eb[1] ** 2)):.2f}\" across")
     out["truth"] = dict(zip(PARAMETERS, truth.tolist()))
-    from simcam.outputs import StagedOutputs, apply_umask
+    from simcam.infra.outputs import StagedOutputs, apply_umask
 
     with StagedOutputs() as staged:  # the table, the JSON and the report appear together or not at all
         if csv_out:
@@ -171,19 +171,19 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     """Read and check an observation table; the stars' apparent directions in the reported
     body frame (:class:`budget.linecam.model.Observations`) and the table.
 
-    Every problem is a :class:`simcam.cli_common.UserInputError` naming the file and field.
+    Every problem is a :class:`simcam.infra.errors.UserInputError` naming the file and field.
     """
     import pandas as pd
     from astropy.time import Time
     from scipy.spatial.transform import Rotation
 
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
     from simcam.sky.apparent import aberration_first_order, apparent_directions
     from simcam.sky.catalogue import CatalogueError, hipparcos
 
     from .model import Observations
 
-    from simcam.outputs import check_input_file
+    from simcam.infra.outputs import check_input_file
 
     src = str(path)
     p = check_input_file(path, what="observation table")  # a FIFO or a device is not read
@@ -267,7 +267,7 @@ def check_observation_values(src: str, arr: dict, *, n_pixels: int) -> None:
     one pixel. ``arr``: the table's columns as float arrays (already finite)."""
     import numpy as np
 
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     t = arr["time_s"]
     bad = np.flatnonzero(np.abs(t) > MAX_ABS_TIME_S)
@@ -318,7 +318,7 @@ def check_determined(calibrations: dict, *, source: str) -> None:
     """
     import numpy as np
 
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     for m, c in calibrations.items():
         cond = float(getattr(c, "condition", np.nan))
@@ -333,7 +333,7 @@ def check_determined(calibrations: dict, *, source: str) -> None:
 
 def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", "improved", "lookangle")) -> dict:
     """Both estimators on the observations; errors name ``source`` and the field."""
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
     from simcam.linecam.scenario import PARAMETERS
 
     from .calibrate import (CalibrationError, calibrate_joint, calibrate_lookangle, calibrate_published, los_field,
@@ -388,13 +388,14 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
 @overwrite_option
 def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir, overwrite):
-    from simcam.cli_common import UserInputError, write_json_atomic
+    from simcam.infra.errors import UserInputError
+    from simcam.infra.cli import write_json_atomic
     from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
 
     from .model import los_angles, residuals
     from .trial import PARAM_UNITS, to_report_units
 
-    from simcam.outputs import check_run_outputs
+    from simcam.infra.outputs import check_run_outputs
 
     # before any work: --json/--report are new files/folders or earlier outputs, not a
     # device and not the observation table or the scenario
@@ -462,7 +463,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
             "los_field": field}
-    from simcam.outputs import StagedOutputs
+    from simcam.infra.outputs import StagedOutputs
 
     with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
         if json_out:
@@ -512,6 +513,6 @@ for _c in commands():
     _local_group.add_command(_c)
 
 if __name__ == "__main__":  # pragma: no cover
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     run_cli(_local_group)

@@ -101,7 +101,7 @@ class LineCamStudy(Study):
     # ------------------------------------------------------------ scenario
 
     def check(self, scenario, *, where: str) -> None:
-        from simcam.config_base import ScenarioError
+        from simcam.infra.errors import ScenarioError
 
         if scenario.lab.grid_step_px >= scenario.camera.n_pixels:
             raise ScenarioError(f"{where}: lab.grid_step_px must be below camera.n_pixels")
@@ -142,7 +142,7 @@ class LineCamStudy(Study):
         return tuple(out)
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from simcam.config_base import ScenarioError
+        from simcam.infra.errors import ScenarioError
 
         from .calibrate import CalibrationError
         from .trial import simulate

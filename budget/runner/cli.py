@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 
 __all__ = ["run_and_write", "study_group", "validate_command_for"]
 
@@ -26,7 +26,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     from budget.runner.findings import findings_lines
     from budget.runner.report import format_table, world_line, write_outputs, write_report
     from budget.runner.run import run_study
-    from simcam.outputs import check_run_outputs
+    from simcam.infra.outputs import check_run_outputs
 
     if progress is None:
         progress = sys.stderr.isatty()
@@ -53,7 +53,7 @@ def ideal_world_scenario(study, scenario, *, source: str):
     """``scenario`` with every ``world.effects`` magnitude 0 (``--ideal-world``); a study
     without world effects is a one-line user error."""
     from budget.runner.robustness import scenario_with_effects
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
     from simcam.effects import scenario_effects
 
     effects = scenario_effects(scenario)

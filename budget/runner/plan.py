@@ -178,7 +178,8 @@ import click
 import numpy as np
 
 from budget.runner.study import Knob, Study, truth_identity
-from simcam.cli_common import UserInputError, overwrite_option
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import overwrite_option
 
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "FRESH_STAGES", "REVALIDATED_BEST",
            "SCHEMA", "VALIDATION_SPAWN_KEY", "Evaluation", "PlanGroup", "PlanResult", "Requirement",
@@ -1684,7 +1685,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
              report_dir, overwrite, progress):
         import sys
 
-        from simcam.outputs import check_run_outputs
+        from simcam.infra.outputs import check_run_outputs
 
         if get_study is None:
             from budget.runner.registry import get_study as lookup

@@ -538,7 +538,7 @@ def write_plan_report(res, out_dir) -> Path:
     from budget.figures import figure_markdown
     from budget.runner.html import write_html
     from budget.runner.report import staged_report
-    from simcam.cli_common import write_json_atomic
+    from simcam.infra.cli import write_json_atomic
 
     with staged_report(out_dir) as tmp:
         st = res.study

@@ -82,7 +82,7 @@ def summary(name: str) -> str:
 
 def get_study(name: str) -> Study:
     """The study registered as ``name``; an unknown name is an error listing the known ones."""
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     e = _BY_NAME.get(name)
     if e is None:

@@ -234,7 +234,7 @@ def world_line(scenario) -> str:
 def write_report(result, out_dir: str | os.PathLike) -> Path:
     """Write ``report.md``, ``estimates.png``, the study's sections and figures,
     ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
-    from simcam.cli_common import write_json_atomic
+    from simcam.infra.cli import write_json_atomic
 
     with staged_report(out_dir) as tmp:
         study = result.study
@@ -288,7 +288,7 @@ def staged_report(out_dir: str | os.PathLike):
     on any error the temporary folder is removed, so no half-written report is left."""
     import sys
 
-    from simcam.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
 
     out = Path(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -309,7 +309,7 @@ def publish_report(tmp: Path, out: Path) -> None:
         if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
             shutil.rmtree(out)
         else:
-            from simcam.cli_common import UserInputError
+            from simcam.infra.errors import UserInputError
 
             raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
     os.replace(tmp, out)
@@ -317,13 +317,13 @@ def publish_report(tmp: Path, out: Path) -> None:
 
 def write_outputs(res, *, json_out, report_dir, write_report=None) -> None:
     """A command's ``--json`` and ``--report`` together or not at all (staged, then moved into
-    place: :class:`simcam.outputs.StagedOutputs`), then the report's path on the terminal; the
+    place: :class:`simcam.infra.outputs.StagedOutputs`), then the report's path on the terminal; the
     one way validate, robustness and plan write. ``write_report(res, folder)`` defaults to
     ``res.write_report(folder)``."""
     import click
 
-    from simcam.cli_common import write_json_atomic
-    from simcam.outputs import StagedOutputs
+    from simcam.infra.cli import write_json_atomic
+    from simcam.infra.outputs import StagedOutputs
 
     with StagedOutputs() as staged:
         if json_out:

@@ -62,7 +62,7 @@ import click
 import numpy as np
 
 from budget.runner.study import ClassSpec, Study, TrialResult
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 from simcam.effects import scenario_effects
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
@@ -172,8 +172,8 @@ def scenario_with_effects(study: Study, scenario: Any, values: dict[str, float],
 
 def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
     """The cases of a robustness run (module docstring); a scenario without
-    ``world.effects`` is a :class:`simcam.cli_common.UserInputError`."""
-    from simcam.cli_common import UserInputError
+    ``world.effects`` is a :class:`simcam.infra.errors.UserInputError`."""
+    from simcam.infra.errors import UserInputError
 
     effects = scenario_effects(scenario)
     where = source or f"{study.name} scenario {getattr(scenario, 'name', '')}".strip()
@@ -246,8 +246,8 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
     results do not depend on it)."""
     from budget.runner.executors import make_executor
     from budget.runner.run import StudyResult
-    from simcam.cli_common import UserInputError
-    from simcam.lifecycle import check_memory
+    from simcam.infra.errors import UserInputError
+    from simcam.infra.lifecycle import check_memory
 
     t0 = time.perf_counter()
     if trials is None:
@@ -573,7 +573,7 @@ class RobustnessResult:
         """Write ``report.md``, ``robustness.json`` and ``scenario.toml`` into ``out_dir``
         (a temporary sibling renamed into place: never a half-written report)."""
         from budget.runner.report import staged_report
-        from simcam.cli_common import write_json_atomic
+        from simcam.infra.cli import write_json_atomic
 
         with staged_report(out_dir) as tmp:
             st = self.study
@@ -645,7 +645,7 @@ def robustness_command_for(study_name: str) -> click.Command:
         import sys
 
         from budget.runner.registry import get_study
-        from simcam.outputs import check_run_outputs
+        from simcam.infra.outputs import check_run_outputs
 
         study = get_study(study_name)
         scn = study.load_scenario(scenario)

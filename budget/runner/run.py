@@ -202,7 +202,7 @@ def _findings_json(result) -> dict:
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     if trials is not None and tolerance is not None:
         raise UserInputError("--trials and --tolerance: give one of them")
@@ -308,7 +308,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     # what the trials will hold in memory, refused before any work if it cannot fit: per
     # trial and key an estimate, maybe a truth and a stated sigma (8 bytes each, kept in
     # Python dicts until the end: about 100 bytes a value)
-    from simcam.lifecycle import check_memory
+    from simcam.infra.lifecycle import check_memory
 
     n_values = sum(len(c.axes) for c in classes) * len(study.variants)
     n_max = trials if trials is not None else cap

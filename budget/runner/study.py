@@ -22,7 +22,7 @@ What a study must provide
   ``validation``, ``hash``, ``source``). :meth:`Study.default_text`,
   :meth:`Study.from_dict` (what sweeps use after setting dotted keys) and
   :meth:`Study.load_scenario` delegate to it; errors are
-  :class:`simcam.config_base.ScenarioError` naming file and field;
+  :class:`simcam.infra.errors.ScenarioError` naming file and field;
 * :meth:`Study.classes`: its error classes (:class:`ClassSpec`: label, unit, axes, whether
   the truth is drawn per trial, and the role: an estimate of a truth, an input, a residual
   or a stated uncertainty);
@@ -337,7 +337,7 @@ class Study(ABC):
     def from_dict(self, data: dict, *, source: str) -> Any:
         """Validate a scenario mapping into the study's frozen model.
 
-        Raises :class:`simcam.config_base.ScenarioError` naming ``source`` and the field.
+        Raises :class:`simcam.infra.errors.ScenarioError` naming ``source`` and the field.
         """
         return self._scenario_module().from_dict(data, source=source)
 

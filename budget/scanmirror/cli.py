@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 import numpy as np
 
 __all__ = ["simulate_command", "simulate", "write_simulate_report"]
@@ -100,9 +100,9 @@ def simulate_command() -> click.Command:
     @overwrite_option
     def cmd(scenario, seed, json_out, report_dir, overwrite):
         from budget.scanmirror.study import STUDY
-        from simcam.cli_common import write_json_atomic
+        from simcam.infra.cli import write_json_atomic
 
-        from simcam.outputs import StagedOutputs, check_run_outputs
+        from simcam.infra.outputs import StagedOutputs, check_run_outputs
 
         check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)  # before the work
         scn = STUDY.load_scenario(scenario)

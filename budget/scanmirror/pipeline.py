@@ -44,7 +44,7 @@ class Setup:
     def _check_size(self, duration_s: float) -> None:
         """Refuse, before allocating, a step that gives more samples than memory holds,
         naming the scenario field the step came from."""
-        from simcam.lifecycle import check_memory
+        from simcam.infra.lifecycle import check_memory
 
         sc = self.scenario
         field_name = "ground_step_s"
@@ -70,7 +70,7 @@ class Setup:
         self.latlon0 = w.latlon(self.g0)
         if np.isnan(self.g0).any():
             j = int(np.flatnonzero(np.isnan(self.g0[:, 0]))[0])
-            from simcam.config_base import ScenarioError
+            from simcam.infra.errors import ScenarioError
 
             raise ScenarioError(
                 f"{self.source}: scan_plan.segments: area scan {int(self.scan[j])} leaves the Earth disc at "

@@ -2,7 +2,7 @@
 
 The star-camera study's :meth:`~budget.runner.study.Study.check` (used by the sweep engine
 on every point before a sweep starts): a star the render would put off the detector is one
-:class:`~simcam.config_base.ScenarioError` naming the protocol, the condition and the star,
+:class:`~simcam.infra.errors.ScenarioError` naming the protocol, the condition and the star,
 not a failure hours into a run.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 __all__ = ["check_geometry"]
 

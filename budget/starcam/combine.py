@@ -27,8 +27,8 @@ from typing import Any
 import click
 
 from budget.starcam.estimators import attitude_error, low_spatial_frequency_error, single_star_error
-from simcam.cli_common import write_json_atomic
-from simcam.config_base import ScenarioError
+from simcam.infra.cli import write_json_atomic
+from simcam.infra.errors import ScenarioError
 
 __all__ = ["BudgetCombination", "combine_budget", "format_budget", "load_budget_toml", "combine_command"]
 

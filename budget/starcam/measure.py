@@ -37,7 +37,8 @@ import click
 import numpy as np
 import pandas as pd
 
-from simcam.cli_common import UserInputError, write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.cli import write_json_atomic
 from simcam.starcam.scenario import ValidationModel
 
 MANIFEST_COLUMNS = ("file", "condition", "frame", "filter_nm", "field", "dark")
@@ -48,7 +49,7 @@ DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     """Read and validate a manifest CSV (see module docstring)."""
     path = Path(path)
-    from simcam.outputs import input_file_problem
+    from simcam.infra.outputs import input_file_problem
 
     if (why := input_file_problem(path)) is not None:  # a FIFO would block, /dev/null read as empty
         raise UserInputError(f"{path}: {why}")
@@ -225,7 +226,7 @@ def measure_frames(
         if reference is None:
             raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
         rp = Path(reference)
-        from simcam.outputs import input_file_problem
+        from simcam.infra.outputs import input_file_problem
 
         if (why := input_file_problem(rp)) is not None:
             raise UserInputError(f"--reference {rp}: {why}")
@@ -246,7 +247,7 @@ def measure_frames(
                 got = "an empty cell" if pd.isna(raw) else repr(str(raw))
                 raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
             ref_table[c] = v
-    from simcam.lifecycle import progress as progress_bar
+    from simcam.infra.lifecycle import progress as progress_bar
 
     tables = []
     prev_xy = None
@@ -353,7 +354,7 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
 
     if window_px % 2 == 0:
         raise UserInputError(f"--window {window_px}: must be odd")
-    from simcam.outputs import StagedOutputs, check_run_outputs
+    from simcam.infra.outputs import StagedOutputs, check_run_outputs
 
     # before any frame is read: the outputs are files (not a device), not an input, in a
     # writable folder
@@ -402,7 +403,7 @@ def header_plate_scale(info: dict) -> float:
 
 def _write_measure_outputs(staged, cen, results, protocol, directory, method, ps, centroids_out, json_out):
     if centroids_out:
-        from simcam.outputs import apply_umask
+        from simcam.infra.outputs import apply_umask
 
         tmp = staged.file(centroids_out)
         cen.to_csv(tmp, index=False)

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
@@ -37,7 +37,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     plan = make_plan(protocol, scenario, seed=seed, dark_frames=dark_frames)
     if frames is not None:
         plan = replace(plan, conditions=tuple(replace(c, frames=frames) for c in plan.conditions))
-    from simcam.lifecycle import progress as progress_bar
+    from simcam.infra.lifecycle import progress as progress_bar
 
     n_files = sum(c.frames + plan.dark_frames for c in plan.conditions)
     io.check_render_request(scenario, frames=n_files, out=out, source=source, compress=compress)
@@ -125,7 +125,7 @@ def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwri
                               source=str(scenario or "<embedded scenario>"))
     if json_out:
         from simcam import __version__
-        from simcam.cli_common import write_json_atomic
+        from simcam.infra.cli import write_json_atomic
 
         write_json_atomic(json_out, {
             "protocol": protocol, "out": str(out), "frames": int(len(m)),

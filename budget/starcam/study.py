@@ -231,7 +231,7 @@ class StarCameraStudy(Study):
         shape. Every shape takes the same knobs."""
         from itertools import combinations
 
-        from simcam.config_base import ScenarioError
+        from simcam.infra.errors import ScenarioError
         from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS
 
         opened = set(scenario.protocols.plan_knobs)

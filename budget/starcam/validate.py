@@ -59,7 +59,7 @@ def worker_init() -> None:
     """Worker processes run the serial kernels: the processes are the parallelism (the
     runner gives each worker one numba thread, :func:`budget.runner.executors.worker_setup`).
 
-    Pools pass it through :func:`simcam.lifecycle.worker_initializer`, which first makes
+    Pools pass it through :func:`simcam.infra.lifecycle.worker_initializer`, which first makes
     the worker exit when its parent dies.
     """
     global _PARALLEL

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 __all__ = ["set_dotted"]
 

@@ -35,7 +35,8 @@ from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
-from simcam.config_base import ScenarioError, StrictModel
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import StrictModel
 
 __all__ = ["RENAMED", "DistSpec", "SensitivitySpec", "SweepSpec", "parse_sweep"]
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
 
@@ -480,16 +480,16 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     """Write the figures of a sweep store into ``out_dir``; return their paths.
 
     ``out_dir`` must be new, empty, hold only earlier figures, or ``overwrite`` be given
-    (:func:`simcam.outputs.check_output_dir`)."""
+    (:func:`simcam.infra.outputs.check_output_dir`)."""
     import matplotlib
 
     matplotlib.use("Agg")
     from budget.sweeps.store import open_sobol, open_sweep
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     import shutil
 
-    from simcam.outputs import check_output_dir, is_earlier_plots
+    from simcam.infra.outputs import check_output_dir, is_earlier_plots
 
     ds = open_sweep(store)
     out_dir = Path(out_dir)

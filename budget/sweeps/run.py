@@ -168,7 +168,7 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     """
     from budget.sweeps.execute import make_runner
     from budget.sweeps.store import StoreWriter, check_store, create_store
-    from simcam.cli_common import UserInputError
+    from simcam.infra.errors import UserInputError
 
     say = echo or (lambda _msg: None)
     sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)

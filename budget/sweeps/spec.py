@@ -41,7 +41,7 @@ from budget.sweeps.values import (
     sensitivity_seed,
     sobol_samples,
 )
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 __all__ = [
     "DistSpec",

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 __all__ = [
     "FORMAT",
@@ -137,7 +137,7 @@ def store_bytes(sweep) -> float:
 
 def check_store_size(path, sweep) -> None:
     """Refuse a store that cannot fit on the disk at ``path`` (before it is created)."""
-    from simcam.lifecycle import announce_size, check_disk
+    from simcam.infra.lifecycle import announce_size, check_disk
 
     need = store_bytes(sweep)
     check_disk(path, need, what=f"{getattr(sweep, 'path', 'sweep')}: parameters: a store of "
@@ -153,8 +153,8 @@ def create_store(path: str | os.PathLike, sweep) -> None:
     parent = path.parent if str(path.parent) else Path(".")
     check_store_size(path, sweep)  # refused before anything is created
     parent.mkdir(parents=True, exist_ok=True)
-    from simcam.lifecycle import partial_prefix, remove_stale_partials
-    from simcam.outputs import apply_umask
+    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
+    from simcam.infra.outputs import apply_umask
 
     # a store a killed run left half-created (.NAME.partial.<pid>.*, its PID gone) is
     # removed here and said so on stderr; this run's own is removed on any failure below
@@ -226,7 +226,7 @@ def check_store(path: str | os.PathLike, sweep) -> str:
     """
     import simcam
 
-    from simcam.outputs import check_output_dir
+    from simcam.infra.outputs import check_output_dir
 
     path = Path(path)
     if not path.exists() or (path.is_dir() and not any(path.iterdir())):

@@ -13,20 +13,20 @@ from pathlib import Path
 
 import click
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 
 __all__ = ["synthesize_command", "run_synthesis", "main"]
 
 
 def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None, overwrite=False,
                   echo=click.echo, seeds=20, criterion_trials=200):
-    from simcam.outputs import StagedOutputs, check_run_outputs, is_earlier_report
+    from simcam.infra.outputs import StagedOutputs, check_run_outputs, is_earlier_report
     from simcam.whiskbroom import scenario as wsc
     from simcam.whiskbroom import synthesis as sy
 
     check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # before the work
     if report_dir:
-        from simcam.outputs import check_output_dir
+        from simcam.infra.outputs import check_output_dir
 
         check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report,
                          overwrite=overwrite)
@@ -87,7 +87,7 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
 def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, report_dir, claim_md) -> None:
     import numpy as np
 
-    from simcam.cli_common import write_json_atomic
+    from simcam.infra.cli import write_json_atomic
     from simcam.whiskbroom import geometry as geo
     from simcam.whiskbroom import synthesis as sy
 
@@ -190,7 +190,7 @@ def synthesize_command(scenario, seed, trials, json_out, report_dir, overwrite, 
 
 def main(argv=None):
     """Local entry for manual testing (``python -m budget.whiskbroom.cli synthesize``)."""
-    from simcam.cli_common import run_cli
+    from simcam.infra.cli import run_cli
 
     group = click.Group("whiskbroom", commands={"synthesize": synthesize_command})
     run_cli(group, argv)

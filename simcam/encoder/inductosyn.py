@@ -46,8 +46,8 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 from scipy.optimize import brentq
 
-from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials,
-                                ValidationSettings, load_scenario_file, validate_model)
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
 from simcam.effects import EffectsBase, WorldBase
 
 ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi

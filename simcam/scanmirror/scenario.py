@@ -10,8 +10,8 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from simcam.config_base import (BatchTrials, ScenarioBase, ScenarioError, StrictModel, Trials,
-                                ValidationSettings, load_scenario_file, validate_model)
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
 from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
 
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.scanmirror.geometry import attitude_matrix_br, mirror_normal_body
 from simcam.scanmirror.orbit import orbit_frame_matrix_Ir
 

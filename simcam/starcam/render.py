@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from simcam.starcam import optics
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
 from simcam.starcam.geometry import Mosaic
 from simcam.starcam.kernels.windows import add_stamps_windows

@@ -7,7 +7,7 @@ and how to render (window and stamp sizes, wavelength sampling). Every key has a
 documented default: the seed-000 camera and lab (``simcam scenario`` prints the resolved
 values as TOML that ``simcam render`` accepts back).
 
-Errors are :class:`simcam.config_base.ScenarioError` naming the file and the dotted
+Errors are :class:`simcam.infra.errors.ScenarioError` naming the file and the dotted
 field, e.g. ``scenario.toml: detector.read_noise_e: Input should be greater than or equal
 to 0 (got -1.0)``.
 """
@@ -26,7 +26,8 @@ from typing import Annotated, Any, Literal
 import tomli_w
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from simcam.config_base import ScenarioBase, ScenarioError, StrictModel, ValidationSettings, model_hash, read_toml, validate_model
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import (ScenarioBase, StrictModel, ValidationSettings, model_hash, read_toml, validate_model)
 from simcam.effects import EffectsBase, WorldBase
 
 #: arcsec per radian (exact: 180 * 3600 / pi)

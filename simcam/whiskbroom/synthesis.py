@@ -148,7 +148,7 @@ _SOBOL_ROW_BYTES = 8 * 60
 def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int | None = None,
                 trials_what: str | None = None) -> None:
     """Refuse, before any allocation, a scenario whose arrays cannot fit in memory, naming
-    the fields (:class:`simcam.lifecycle.ResourceLimitError`, one line).
+    the fields (:class:`simcam.infra.errors.ResourceLimitError`, one line).
 
     Estimates: the synthesis holds ``trials x field points`` float64 arrays
     (:data:`_SYNTH_ARRAYS` of them, and :data:`_SYNTH_KEPT` per mirror-rate level); the
@@ -156,7 +156,7 @@ def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int
     accumulators (``tdi_stages x tdi.columns`` complex, twice) and the edge image
     (``edge_lines x edge_columns x edge_oversampling^2`` float64, three arrays).
     """
-    from simcam.lifecycle import check_memory
+    from simcam.infra.lifecycle import check_memory
 
     cam, syn, t = sc.camera, sc.synthesis, sc.tdi
     k = float(syn.trials if trials is None else trials)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 from simcam.whiskbroom import scenario as wsc
 
 

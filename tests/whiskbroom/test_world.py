@@ -211,7 +211,7 @@ def test_the_lab_never_reads_world():
 
 
 def test_effects_scenario_errors():
-    from simcam.config_base import ScenarioError
+    from simcam.infra.errors import ScenarioError
 
     data = wsc.default().model_dump(mode="json")
     data["world"]["effects"]["attitude_jitter_arcsec"] = -1.0

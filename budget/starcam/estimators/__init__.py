@@ -38,7 +38,7 @@ Improved (derived in ``docs/estimators.md``):
 Rows with a non-zero ``flag`` or a non-finite ``x``/``y`` are excluded with an
 :class:`EstimatorWarning`; stars that then lack what an estimator needs are excluded
 with a warning too. Both counts are in the result. Malformed tables raise
-:class:`simcam.cli_common.UserInputError` naming the column, star or condition.
+:class:`simcam.infra.errors.UserInputError` naming the column, star or condition.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 from .common import _nonneg
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 from .results import EstimatorWarning
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 from .common import _check_plate_scale, _Log, _memo_last, _nonneg, _per_star_stats, _prepare, _Rows, _select_condition
 from .results import DistortionEstimate, ErrorEstimate

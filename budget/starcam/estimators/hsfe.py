@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 from .common import _check_plate_scale, _Log, _memo_last, _per_star_stats, _prepare, _unique
 from .results import HsfeEstimate

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from simcam.cli_common import overwrite_option
+from simcam.infra.cli import overwrite_option
 import numpy as np
 
 __all__ = ["format_table", "optics_command", "write_plots"]

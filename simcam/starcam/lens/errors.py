@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from simcam.config_base import ScenarioError
+from simcam.infra.errors import ScenarioError
 
 __all__ = ["LensBackendWarning", "LensError"]
 
@@ -12,7 +12,7 @@ class LensError(ScenarioError):
 
     The message names the file (when known) and the surface, glass or setting at fault,
     e.g. ``lens.toml: surfaces.3.glass: unknown glass 'N-BK8' (did you mean N-BK7?)``.
-    It derives from :class:`simcam.config_base.ScenarioError`, so the command lines
+    It derives from :class:`simcam.infra.errors.ScenarioError`, so the command lines
     print it as ``error: ...`` without a traceback.
     """
 

@@ -47,7 +47,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from simcam.config_base import ScenarioError, StrictModel, validate_model
+from simcam.infra.errors import ScenarioError
+from simcam.config_base import StrictModel, validate_model
 from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.glass import AIR, Glass, get_glass
 from simcam.starcam.lens.surface import SurfaceShape
@@ -358,7 +359,7 @@ def load_prescription(ref: str | Path) -> Prescription:
             raise LensError(f"{path}: lens prescription file not found (or use embedded:NAME, one of "
                             f"{', '.join(embedded_lens_names())})")
         from simcam.config_base import read_toml  # strict: non-UTF-8, empty, invalid
-        from simcam.config_base import ScenarioError
+        from simcam.infra.errors import ScenarioError
 
         source = str(path)
         try:

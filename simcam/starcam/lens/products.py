@@ -84,9 +84,9 @@ def cache_dir() -> Path:
 
 def cache_path(prescription) -> Path:
     """Cache file of a prescription's products: ``cache_dir()/NAME-HASH.nc``, where NAME is
-    the prescription's name made a safe file name (:func:`simcam.lifecycle.safe_filename`):
+    the prescription's name made a safe file name (:func:`simcam.infra.lifecycle.safe_filename`):
     a name from an input file never leads out of the cache folder."""
-    from simcam.lifecycle import safe_filename
+    from simcam.infra.lifecycle import safe_filename
 
     return cache_dir() / f"{safe_filename(prescription.name, default='lens')}-{prescription.hash}.nc"
 

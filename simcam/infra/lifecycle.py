@@ -7,7 +7,7 @@ same under faults:
 * :func:`handle_termination`: SIGTERM and SIGHUP (and SIGINT) raise :class:`Interrupted`
   in the main thread, so the ``except BaseException`` / ``finally`` clean-up that already
   runs on Ctrl-C (temporary folders, worker pools) also runs when ``timeout`` or a batch
-  system stops the run. :func:`simcam.cli_common.run_cli` wraps every command in it and
+  system stops the run. :func:`simcam.infra.cli.run_cli` wraps every command in it and
   turns the interruption into one line and exit status ``128 + signal``.
 * :func:`exit_with_parent`: called from a worker's initializer, the worker dies when its
   parent does (``kill -9`` of the parent leaves no orphan burning a core).
@@ -40,6 +40,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from simcam.infra.errors import Interrupted, ResourceLimitError
+
 __all__ = [
     "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
     "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
@@ -51,44 +53,6 @@ __all__ = [
 ANNOUNCE_BYTES = 1 << 30
 #: a request may use at most this fraction of the free disk / available memory
 SAFETY_FRACTION = 0.9
-
-
-class Interrupted(BaseException):
-    """The run was stopped by a signal (SIGINT, SIGTERM, SIGHUP).
-
-    A :class:`BaseException` like :class:`KeyboardInterrupt`, so ``except Exception``
-    does not swallow it while ``finally`` and ``except BaseException`` clean-up runs.
-
-    Attributes
-    ----------
-    signum : int
-        The signal number; the command exits with status ``128 + signum``.
-    """
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = int(signum)
-
-    @property
-    def exit_status(self) -> int:
-        """Shell convention: 128 + the signal number (130 for SIGINT, 143 for SIGTERM)."""
-        return 128 + self.signum
-
-    @property
-    def name(self) -> str:
-        """The signal's name, e.g. ``SIGTERM``."""
-        try:
-            return signal.Signals(self.signum).name
-        except ValueError:
-            return f"signal {self.signum}"
-
-
-class ResourceLimitError(ValueError):
-    """A request needs more disk or memory than there is (message: figure and limit).
-
-    A ``ValueError`` of this package: :func:`simcam.cli_common.run_cli` prints it as one
-    ``error:`` line with exit status 2.
-    """
 
 
 # ----------------------------------------------------------------------------- signals
@@ -176,7 +140,7 @@ def guarded_entry(module: str, attr: str = "main") -> None:
     in one line on stderr and exit status 128 + signal instead of a traceback.
 
     Used by the console scripts (``simcam``, ``budget``); the command itself runs under
-    :func:`simcam.cli_common.run_cli`, which handles signals from then on. The process
+    :func:`simcam.infra.cli.run_cli`, which handles signals from then on. The process
     skips the final garbage collections at its exit (:func:`quick_teardown`).
     """
     import importlib
@@ -190,16 +154,6 @@ def guarded_entry(module: str, attr: str = "main") -> None:
         sys.stderr.write(f"interrupted ({signal.Signals(signum).name}) while starting; nothing was written\n")
         sys.exit(128 + signum)
     fn()
-
-
-def simcam_entry() -> None:
-    """Console script ``simcam``."""
-    guarded_entry("simcam.cli")
-
-
-def budget_entry() -> None:
-    """Console script ``budget``."""
-    guarded_entry("budget.cli")
 
 
 # ----------------------------------------------------------------------------- workers

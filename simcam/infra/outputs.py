@@ -14,7 +14,7 @@ The rules (docs/reliability.md):
   temporary siblings and renames them into place together at the end, with the stop
   signals held back during the renames: an interruption leaves none of them.
 
-Every refusal is a :class:`~simcam.cli_common.UserInputError` naming the option and the path.
+Every refusal is a :class:`~simcam.infra.errors.UserInputError` naming the option and the path.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from simcam.cli_common import UserInputError
+from simcam.infra.errors import UserInputError
 
 __all__ = [
     "StagedOutputs", "apply_umask", "check_input_file", "check_output_dir", "check_output_file",
@@ -110,7 +110,7 @@ def _same_file(a: Path, b: Path) -> bool:
 
 def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
     """Parent is a folder, writable, on a writable file system; name short enough; space."""
-    from simcam.lifecycle import check_disk
+    from simcam.infra.lifecycle import check_disk
 
     # the nearest existing ancestor must be a folder (a path under a regular file is refused)
     anc = p.absolute().parent
@@ -246,14 +246,14 @@ class StagedOutputs:
     folder, already checked replaceable, is replaced), with the stop signals held back;
     an exception or an interruption removes every staged output, so none of the outputs
     appears. The staged names are ``.NAME.partial.<pid>.<random>`` so a run killed
-    outright is cleaned up by the next (:func:`simcam.lifecycle.remove_stale_partials`).
+    outright is cleaned up by the next (:func:`simcam.infra.lifecycle.remove_stale_partials`).
     """
 
     def __init__(self) -> None:
         self._items: list[tuple[Path, Path, bool]] = []
 
     def _stage(self, final: str | os.PathLike, is_dir: bool) -> Path:
-        from simcam.lifecycle import partial_prefix, remove_stale_partials
+        from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
 
         final = Path(final)
         final.parent.mkdir(parents=True, exist_ok=True)

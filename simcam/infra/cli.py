@@ -16,22 +16,18 @@ from typing import Any
 
 import click
 
-from simcam.config_base import ScenarioError
-
-
-class UserInputError(ValueError):
-    """Bad user input other than a scenario (a frame directory, a manifest, a table)."""
+from simcam.infra.errors import Interrupted, ScenarioError, UserInputError
 
 
 def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     """Run ``group``; turn user errors into a one-line message and exit status 2.
 
     SIGINT, SIGTERM and SIGHUP stop the command through
-    :class:`simcam.lifecycle.Interrupted` (so its clean-up runs: temporary folders
+    :class:`simcam.infra.errors.Interrupted` (so its clean-up runs: temporary folders
     removed, worker processes ended) and end in one line and exit status 128 + signal.
     A request that does not fit in memory is one ``error:`` line and status 2.
     """
-    from simcam.lifecycle import Interrupted, handle_termination
+    from simcam.infra.lifecycle import handle_termination
 
     try:
         with handle_termination():
@@ -63,7 +59,7 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
         # file system remounted read-only): one line naming the file, no traceback
         if exc.errno not in _USER_ERRNOS:
             raise
-        from simcam.outputs import os_error_message
+        from simcam.infra.outputs import os_error_message
 
         where = exc.filename or ""
         click.echo(f"error: {where}{': ' if where else ''}{os_error_message(exc)}", err=True)
@@ -91,11 +87,11 @@ def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "-
 
     NaN and infinities are written as null (strict JSON). The file gets the user's umask
     (not ``mkstemp``'s 0600). ``path`` must be a regular file or new
-    (:func:`simcam.outputs.check_output_file`: a rename over ``/dev/null`` would replace
+    (:func:`simcam.infra.outputs.check_output_file`: a rename over ``/dev/null`` would replace
     the device); a link to a regular file is written through, so it stays a link. A
     failed write (disk full) is a :class:`UserInputError` naming the file.
     """
-    from simcam.outputs import apply_umask, check_output_file, os_error_message
+    from simcam.infra.outputs import apply_umask, check_output_file, os_error_message
 
     path = check_output_file(path, option=option)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -147,7 +143,7 @@ def _json_default(obj: Any) -> Any:
 def overwrite_option(f):
     """``--overwrite``, the same for every command that writes a folder: replace an existing
     folder that is neither empty nor an earlier output of the command (which are replaced
-    without it); see :func:`simcam.outputs.check_output_dir`."""
+    without it); see :func:`simcam.infra.outputs.check_output_dir`."""
     return click.option("--overwrite", is_flag=True, default=False,
                         help="Replace an existing output folder that is not empty and not an earlier output "
                              "of this command (an empty folder or an earlier output is replaced without it).")(f)
