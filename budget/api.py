@@ -10,7 +10,9 @@
     res.to_json()            # what ``budget <study> validate --json`` writes
 
 * :func:`validate` runs a study's Monte Carlo validation (the runner,
-  :func:`budget.runner.run.run_study`) and returns its :class:`~budget.runner.run.StudyResult`;
+  :func:`budget.runner.run.run_study`) and returns its
+  :class:`~budget.runner.result.StudyResult` (its repr, notebook view, table and JSON
+  payload are the result's own: :mod:`budget.runner.result`);
 * :func:`robustness` runs a study's robustness cases (the world's effects) and returns them;
 * :func:`plan` finds the cheapest lab protocol that meets required accuracies
   (:func:`budget.runner.plan.plan_protocol`, docs/planning.md) and returns its ``PlanResult``;
@@ -112,7 +114,7 @@ def _broken_pool_hint(exc: BaseException) -> RuntimeError | None:
 def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
              tolerance: float | None = None, progress: bool = False):
     """The Monte Carlo validation of ``study`` on ``scenario``; returns a
-    :class:`~budget.runner.run.StudyResult`.
+    :class:`~budget.runner.result.StudyResult`.
 
     Parameters
     ----------
@@ -220,58 +222,3 @@ def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False
                 raise hint from None
             raise
     return xr.open_zarr(out)
-
-
-# ------------------------------------------------------------------ what a result shows
-_STATS = ("n", "truth", "truth_se", "truth_sd", "mean", "bias", "bias_percent", "se_bias", "std", "se_std",
-          "rms_error")
-
-
-def result_dataframe(result):
-    """Tidy statistics of a result: one row per (class, axis, variant, statistic) with its
-    value and unit; coverage statistics as ``coverage_within_1sigma`` etc.; the findings'
-    rule as statistic ``rule`` is not numeric and is left to :func:`budget.runner.findings.findings`."""
-    import pandas as pd
-
-    rows = []
-    for key in result.keys():
-        cls, var, ax = key
-        st = result.statistics(key)
-        unit = result.class_spec(cls).unit
-        unit = "" if unit.strip() in ("1", "-") else unit  # dimensionless
-        for name in _STATS:
-            if name in st:
-                rows.append((cls, ax, var, name, float(st[name]), unit))
-        rows.append((cls, ax, var, "bias_significant", float(bool(st["bias_significant"])), ""))
-        for name in ("within_1sigma", "within_2sigma", "se_1sigma", "sd_normalised_error", "mean_stated_sigma"):
-            if "coverage" in st and name in st["coverage"]:
-                rows.append((cls, ax, var, f"coverage_{name}", float(st["coverage"][name]),
-                             unit if name == "mean_stated_sigma" else ""))
-    return pd.DataFrame(rows, columns=["class", "axis", "variant", "statistic", "value", "unit"])
-
-
-def result_repr(result) -> str:
-    """One short paragraph: study, scenario, trials, and the recommendation."""
-    from budget.runner.findings import findings_json
-
-    f = findings_json(result)
-    name = getattr(result.scenario, "name", "") or ""
-    return (f"<StudyResult {result.study.name}: scenario {name!r}, seed {result.seed}, {result.trials} trials "
-            f"({result.stopped_by}), {len(result.keys())} keys; {f['recommendation'] or ''}>")
-
-
-def result_html(result) -> str:
-    """For notebooks: the header, the findings and the table (no figures)."""
-    import html
-
-    from budget.runner.findings import findings_json, findings_markdown
-    from budget.runner.html import markdown_to_html
-    from budget.runner.report import format_table
-
-    f = findings_json(result)
-    name = getattr(result.scenario, "name", "") or ""
-    head = (f"<p><strong>{html.escape(result.study.title)}</strong>: scenario <code>{html.escape(name)}</code>, "
-            f"seed {result.seed}, {result.trials} trials (stopped by {html.escape(result.stopped_by)})</p>")
-    return (f"<div>{head}<details open><summary>Findings</summary>"
-            f"{markdown_to_html(chr(10).join(findings_markdown(result, f)))}</details>"
-            f"<details><summary>Table</summary><pre>{html.escape(format_table(result))}</pre></details></div>")

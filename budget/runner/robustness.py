@@ -245,7 +245,7 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
     the study's) and seed ``seed``, in one executor (:func:`budget.runner.executors.make_executor`;
     results do not depend on it)."""
     from budget.runner.executors import make_executor
-    from budget.runner.run import StudyResult
+    from budget.runner.result import StudyResult
     from simcam.infra.errors import UserInputError
     from simcam.infra.lifecycle import check_memory
 

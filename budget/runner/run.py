@@ -26,27 +26,25 @@
    (JCGM 101:2008, 7.9) or the study's cap;
 5. summarises each ``(class, variant, axis)`` (:func:`budget.runner.stats.key_statistics`).
 
-The result, :class:`StudyResult`, gives the JSON payload (:meth:`StudyResult.to_json`,
-schema ``budget.study-result/1``: ``classes[class][axis][variant]`` holds the statistics,
-``class_info[class]`` the label, unit and description, ``details`` the study's own figures,
-:meth:`Study.details`, empty for most studies) and the report (:func:`budget.runner.report.write_report`).
+The result, :class:`budget.runner.result.StudyResult`, gives the statistics, the JSON
+payload (:meth:`StudyResult.to_json`, schema ``budget.study-result/1``) and the report
+(:func:`budget.runner.report.write_report`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from budget.runner.stats import converged, key_statistics
-from budget.runner.study import ClassSpec, Study, TrialResult, Truth
+from budget.runner.result import SCHEMA, StudyResult
+from budget.runner.stats import converged
+from budget.runner.study import Study, TrialResult, Truth
 
 __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
            "sized_truths_scenario", "truth_targets", "with_targets"]
 
-SCHEMA = "budget.study-result/1"
 #: a sampled truth's target standard error, as a fraction of the bias standard error the
 #: trials give (or of the tolerance): its share of the bias's variance is 1/16
 TRUTH_SE_FRACTION = 0.25
@@ -81,126 +79,6 @@ def _worker_init(study: Study) -> None:
     study.worker_init()
 
 
-@dataclass
-class StudyResult:
-    """Trials, truths and statistics of one run of one study."""
-
-    study: Study
-    scenario: Any
-    seed: int
-    trials: int
-    stopped_by: str
-    classes: tuple[ClassSpec, ...]
-    truths: dict[tuple[str, str], Truth]
-    samples: dict[tuple[str, str, str], np.ndarray]
-    trial_truths: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
-    sigmas: dict[tuple[str, str, str], np.ndarray] = field(default_factory=dict)
-    example: TrialResult | None = None
-    elapsed_s: float = float("nan")
-    executor: str = ""
-    #: per-trial scalars of :attr:`TrialResult.aux`, in trial order
-    aux: dict[str, np.ndarray] = field(default_factory=dict)
-    #: how the truths were sized: "adaptive", "fixed" or "given" (computed before the run)
-    truth_size: str = "fixed"
-    _details: dict | None = field(default=None, repr=False)
-
-    def __repr__(self) -> str:
-        from budget.api import result_repr  # short: the samples are in .samples
-
-        return result_repr(self)
-
-    def _repr_html_(self) -> str:
-        from budget.api import result_html
-
-        return result_html(self)
-
-    def to_dataframe(self):
-        """Tidy statistics (pandas): class, axis, variant, statistic, value, unit."""
-        from budget.api import result_dataframe
-
-        return result_dataframe(self)
-
-    def details(self) -> dict:
-        """:meth:`Study.details` of this result (computed once: the JSON and the report share it)."""
-        if self._details is None:
-            self._details = self.study.details(self)
-        return self._details
-
-    def class_spec(self, name: str) -> ClassSpec:
-        """The :class:`ClassSpec` called ``name``."""
-        for c in self.classes:
-            if c.name == name:
-                return c
-        raise KeyError(name)
-
-    def keys(self) -> list[tuple[str, str, str]]:
-        """Every (class, variant, axis) with estimates, in the study's class order."""
-        order = {c.name: i for i, c in enumerate(self.classes)}
-        var = {v: i for i, v in enumerate(self.study.variants)}
-        return sorted(self.samples, key=lambda k: (order.get(k[0], 999), k[2], var.get(k[1], 999), k[1]))
-
-    def statistics(self, key: tuple[str, str, str]) -> dict:
-        """:func:`key_statistics` of one key."""
-        cls, var, ax = key
-        if key in self.trial_truths:
-            st = key_statistics(self.samples[key], trial_truths=self.trial_truths[key], sigmas=self.sigmas.get(key))
-        else:
-            t = self.truths[(cls, ax)]
-            st = key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))
-        role = self.class_spec(cls).role if cls in {c.name for c in self.classes} else "result"
-        st["role"] = role
-        if role == "input":
-            # given to the method, not measured by it: nothing to validate
-            st.update(bias_percent=float("nan"), bias_significant=False)
-        from budget.runner.findings import annotate
-
-        return annotate(self, key, st)  # numerical floor, reference variant, undetermined axis
-
-    def summary(self) -> dict:
-        """``{class: {axis: {variant: statistics}}}``."""
-        out: dict = {}
-        for key in self.keys():
-            cls, var, ax = key
-            out.setdefault(cls, {}).setdefault(ax, {})[var] = self.statistics(key)
-        return out
-
-    def to_json(self) -> dict:
-        """JSON payload (schema ``budget.study-result/1``)."""
-        from simcam import __version__
-
-        s = self.summary()
-        info = {c.name: {"label": c.label, "unit": c.unit, "description": c.description,
-                         "per_trial_truth": c.per_trial_truth, "axes": list(c.axes), "role": c.role}
-                for c in self.classes if c.name in s}
-        return {
-            "schema": SCHEMA, "study": self.study.name, "title": self.study.title,
-            "seed_document": self.study.seed_document, "version": __version__,
-            "scenario_name": getattr(self.scenario, "name", None),
-            "world_effects_on": _effects_on(self.scenario),
-            "scenario_hash": self.study.scenario_hash(self.scenario),
-            "scenario_toml": self.study.scenario_text(self.scenario),
-            "seed": self.seed, "trials": self.trials, "stopped_by": self.stopped_by,
-            "truth_size": self.truth_size,
-            "variants": list(self.study.variants),
-            "truths": {f"{c}.{a}": {"value": t.value, "se": t.se,
-                                    **{k: v for k, v in t.details.items() if isinstance(v, (int, float, str, bool))}}
-                       for (c, a), t in self.truths.items()},
-            "class_info": info,
-            "classes": s,
-            "details": self.details(),
-            **_findings_json(self),
-            "elapsed_s": self.elapsed_s, "executor": self.executor,
-        }
-
-
-def _findings_json(result) -> dict:
-    from budget.runner.findings import findings_json
-
-    f = findings_json(result)
-    return {"findings": f["findings"], "findings_summary": {"variants": f["variants"],
-                                                           "recommendation": f["recommendation"]}}
-
-
 def _check_trials(trials: int | None, tolerance: float | None) -> None:
     from simcam.infra.errors import UserInputError
 
@@ -210,14 +88,6 @@ def _check_trials(trials: int | None, tolerance: float | None) -> None:
         raise UserInputError(f"--trials: must be at least 2 (got {trials})")
     if tolerance is not None and not (math.isfinite(tolerance) and tolerance > 0):
         raise UserInputError(f"--tolerance: must be a positive number (got {tolerance})")
-
-
-def _effects_on(scenario) -> list[str] | None:
-    """The scenario's active ``[world.effects]`` (None for a study without world effects)."""
-    from simcam.effects import scenario_effects
-
-    effects = scenario_effects(scenario)
-    return None if effects is None else list(effects.active())
 
 
 def truth_targets(classes, *, tolerance: float | None = None, samples: dict | None = None,
