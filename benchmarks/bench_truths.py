@@ -67,7 +67,7 @@ def main() -> None:
     import numba
 
     from budget.runner.registry import get_study
-    from budget.runner.run import PILOT_TRIALS, _collect, truth_targets
+    from budget.runner.scheduler import PILOT_TRIALS, trial_arrays, truth_targets
     from budget.sweeps.evaluate import PointTask, evaluate_point
 
     numba.set_num_threads(1)
@@ -77,7 +77,8 @@ def main() -> None:
     study = get_study("starcam")
     scn = study.load_scenario()
     pilot = {k: study.trial(scn, 0, k) for k in range(min(PILOT_TRIALS, args.trials))}
-    samples, tt, _ = _collect(pilot)
+    arrays = trial_arrays(pilot)
+    samples, tt = arrays.samples, arrays.trial_truths
     targets = truth_targets(study.classes(scn), samples=samples, trial_truths=tt, trials=args.trials)
     from budget.starcam.validate import truths as starcam_truths
 

@@ -1,4 +1,4 @@
-"""How the runner queues its work (budget.runner.run, budget.runner.executors): the trials
+"""How the runner queues its work (budget.runner.scheduler, budget.runner.executors): the trials
 in even chunks, the pilot's first, the truths' pieces queued after the trials once the
 pilot has sized them; results bit for bit the same whatever the number of workers."""
 
@@ -13,21 +13,22 @@ from parted_toy_study import STUDY as PARTED
 from toy_study import Toy
 
 from budget.runner.executors import InlineExecutor, ProcessExecutor
-from budget.runner.run import PILOT_TRIALS, _chunks, run_study
+from budget.runner.run import run_study
+from budget.runner.scheduler import PILOT_TRIALS, split_trials
 
 
 @pytest.mark.parametrize("n, most, workers", [(20, 10, 2), (180, 10, 2), (50, 10, 2), (2, 10, 2), (7, 3, 1),
                                               (1, 10, 4), (101, 7, 3)])
 def test_chunks_cover_every_trial_once_evenly(n, most, workers):
     ks = list(range(5, 5 + n))
-    chunks = _chunks(ks, most, workers)
+    chunks = split_trials(ks, most, workers)
     assert [k for c in chunks for k in c] == ks  # every trial once, in order
     sizes = [len(c) for c in chunks]
     assert max(sizes) - min(sizes) <= 1 and min(sizes) >= 1
     if n >= 2 * workers:
         assert len(chunks) % workers == 0 and len(chunks) >= 2 * workers
     assert max(sizes) <= max(most, -(-n // (2 * workers)))  # at most ``most`` unless fewer than 2 per worker
-    assert _chunks([], most, workers) == []
+    assert split_trials([], most, workers) == []
 
 
 @pytest.mark.parametrize("make", [InlineExecutor, lambda: ProcessExecutor(2),

@@ -93,11 +93,11 @@ def test_default_main_job_truths_meet_their_target(default):
     truth of ~5e-5 arcsec: the variance-reduced truth (budget.starcam.truth, control
     variate) meets it at far fewer frames per phase than the scenario's 2000; TE asks for
     more than its 1000 frames give and stays at that ceiling, within 1.25 of its target."""
-    from budget.runner.run import _collect
+    from budget.runner.scheduler import trial_arrays
 
     study, scn = default
-    results = {k: study.trial(scn, 0, k) for k in range(PILOT_TRIALS)}
-    samples, tt, _ = _collect(results)
+    pilot = trial_arrays({k: study.trial(scn, 0, k) for k in range(PILOT_TRIALS)})
+    samples, tt = pilot.samples, pilot.trial_truths
     targets = truth_targets(study.classes(scn), samples=samples, trial_truths=tt, trials=200)
     sized = study.truth_size_for(scn, 0, targets)
     assert sized.validation.hsfe_truth_frames < scn.validation.hsfe_truth_frames / 10
