@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 __all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
@@ -102,13 +103,18 @@ def _workers_skip_main(*objects):
             main.__spec__ = saved_spec
 
 
-def _broken_pool_hint(exc: BaseException) -> RuntimeError | None:
-    from concurrent.futures.process import BrokenProcessPool
-
-    if isinstance(exc, BrokenProcessPool):
-        return RuntimeError("budget: the worker processes could not start (they re-ran your script, which "
-                            "defines the study): put the call under `if __name__ == \"__main__\":`, or pass workers=1")
-    return None
+@contextlib.contextmanager
+def _on_workers(*objects):
+    """Around a call that starts worker processes: :func:`_workers_skip_main` while they
+    start, and a pool that could not start (spawned workers that re-ran a script defining
+    the study) turned into one line saying what to do."""
+    with _workers_skip_main(*objects):
+        try:
+            yield
+        except BrokenProcessPool:
+            raise RuntimeError("budget: the worker processes could not start (they re-ran your script, which "
+                               "defines the study): put the call under `if __name__ == \"__main__\":`, "
+                               "or pass workers=1") from None
 
 
 def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
@@ -140,15 +146,9 @@ def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, 
     scn = _scenario(st, scenario)
     if workers is None:
         workers = default_workers()
-    with _workers_skip_main(st):
-        try:
-            return run_study(st, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
-                             progress=progress)
-        except Exception as exc:
-            hint = _broken_pool_hint(exc)
-            if hint is not None:
-                raise hint from None
-            raise
+    with _on_workers(st):
+        return run_study(st, scn, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
+                         progress=progress)
 
 
 def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0, workers: int | None = None,
@@ -161,16 +161,10 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
 
     st = _study(study)
     scn = _scenario(st, scenario)
-    with _workers_skip_main(st):
-        try:
-            return run_robustness(st, scn, trials=trials, seed=seed,
-                                  workers=default_workers() if workers is None else workers, progress=progress,
-                                  source=str(scenario) if isinstance(scenario, (str, Path)) else "")
-        except Exception as exc:
-            hint = _broken_pool_hint(exc)
-            if hint is not None:
-                raise hint from None
-            raise
+    with _on_workers(st):
+        return run_robustness(st, scn, trials=trials, seed=seed,
+                              workers=default_workers() if workers is None else workers, progress=progress,
+                              source=str(scenario) if isinstance(scenario, (str, Path)) else "")
 
 
 def plan(study, scenario=None, *, require=(), variant: str | None = None, confidence: float = 0.95,
@@ -192,17 +186,11 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
     scn = _scenario(st, scenario)
     if isinstance(require, str):
         require = [require]
-    with _workers_skip_main(st):
-        try:
-            return plan_protocol(st, scn, list(require), variant=variant, confidence=confidence,
-                                 budget_hours=budget_hours, trials=trials, seed=seed,
-                                 workers=default_workers() if workers is None else workers, progress=progress,
-                                 sure=sure, fix=fix)
-        except Exception as exc:
-            hint = _broken_pool_hint(exc)
-            if hint is not None:
-                raise hint from None
-            raise
+    with _on_workers(st):
+        return plan_protocol(st, scn, list(require), variant=variant, confidence=confidence,
+                             budget_hours=budget_hours, trials=trials, seed=seed,
+                             workers=default_workers() if workers is None else workers, progress=progress,
+                             sure=sure, fix=fix)
 
 
 def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False):
@@ -213,12 +201,6 @@ def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False
 
     from budget.sweeps.run import run_sweep
 
-    with _workers_skip_main():
-        try:
-            run_sweep(sweep_file, out, workers=workers, progress=progress, echo=lambda *a, **k: None)
-        except Exception as exc:
-            hint = _broken_pool_hint(exc)
-            if hint is not None:
-                raise hint from None
-            raise
+    with _on_workers():
+        run_sweep(sweep_file, out, workers=workers, progress=progress, echo=lambda *a, **k: None)
     return xr.open_zarr(out)
