@@ -139,3 +139,38 @@ def test_robustness_through_the_api_equals_the_runner_and_writes_html(tmp_path):
     got.write_report(tmp_path / "rep")
     page = (tmp_path / "rep" / "report.html").read_text()
     assert page.startswith("<!DOCTYPE html>") and "<h1>" in page and "http" not in page
+
+
+def test_the_cli_json_the_report_summary_and_the_api_payload_are_one(tmp_path, monkeypatch):
+    """``validate --json``, the report's summary.json and ``to_json()`` of the result (what
+    ``budget.validate`` returns) are the one payload of the result, built once; a caller's
+    copy can be changed without changing it."""
+    import contextlib
+    import io
+
+    from budget.runner.cli import run_and_write
+    from budget.runner.result import StudyResult
+
+    built = []
+    summary = StudyResult.summary
+    monkeypatch.setattr(StudyResult, "summary", lambda self: built.append(1) or summary(self))
+    with contextlib.redirect_stdout(io.StringIO()):
+        res = run_and_write(TOY, Toy(trials=20), trials=20, seed=4, workers=1, json_out=tmp_path / "out.json",
+                            report_dir=tmp_path / "rep", progress=False)
+    assert len(built) == 1  # the JSON file and the report's summary.json: one payload
+    payload = json.dumps(res.to_json(), sort_keys=True)
+    # the files as written (strict JSON: a NaN is null there)
+    assert (tmp_path / "out.json").read_text() == (tmp_path / "rep" / "summary.json").read_text()
+    from simcam.infra.cli import write_json_atomic
+
+    write_json_atomic(tmp_path / "again.json", res.to_json())
+    assert (tmp_path / "again.json").read_text() == (tmp_path / "out.json").read_text()
+    assert len(built) == 1
+    mine = res.to_json()
+    mine["classes"].clear()
+    assert json.dumps(res.to_json(), sort_keys=True) == payload
+    api = budget.validate(TOY, Toy(trials=20), trials=20, seed=4, workers=1).to_json()
+    cli = json.loads(payload)
+    for p in (api, cli):
+        p.pop("elapsed_s"), p.pop("executor")  # how long it took and where: not results
+    assert json.dumps(api, sort_keys=True) == json.dumps(cli, sort_keys=True)
