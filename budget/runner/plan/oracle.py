@@ -11,7 +11,6 @@ import sys
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from budget.runner.plan.quantiles import figures_of, sure_margin, sure_met
 from budget.runner.plan.requirements import Requirement
@@ -73,6 +72,8 @@ class Oracle:
         self.trials_run = 0
         self.evaluations: list[Evaluation] = []
         self.prewarmed = False
+        from scipy import stats  # heavy (budget.runner.plan.quantiles)
+
         self.z = float(stats.norm.ppf(0.5 + confidence / 2.0))
         self.margin = sure_margin(sure, trials, confidence)
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import optimize, stats
-from scipy.stats import mstats
+
+# scipy is imported inside the functions that use it: it is heavy (scipy.stats alone takes longer to
+# import than matplotlib), and `budget <study> --help` imports this package to build the plan command
 
 __all__ = ["DEFAULT_SURE", "figures_of", "prediction_bound", "quantile_rank", "quantile_rel_se", "smooth_ratio",
            "sure_margin", "sure_met"]
@@ -37,6 +38,8 @@ def quantile_rank(n: int, confidence: float) -> int:
 def sure_met(exceed: int, n: int, confidence: float) -> float:
     """Posterior probability (Jeffreys prior ``Beta(1/2, 1/2)``) that the exceedance rate is
     at most ``1 - confidence``, given ``exceed`` of ``n`` trials beyond the bound."""
+    from scipy import stats
+
     return float(stats.beta.cdf(1.0 - confidence, exceed + 0.5, n - exceed + 0.5))
 
 
@@ -45,6 +48,8 @@ def quantile_rel_se(trials: int, confidence: float) -> float:
     trials: the asymptotic ``sqrt(C (1 - C) / n) / (f(q) q)`` with ``q = z s``, ``z =
     Phi^-1((1 + C) / 2)`` and ``f(q) = 2 phi(z) / s`` the density of ``|e|`` at ``q`` (about
     ``0.95 / sqrt(n)`` at C = 0.95)."""
+    from scipy import stats
+
     z = float(stats.norm.ppf(0.5 + confidence / 2.0))
     return math.sqrt(confidence * (1 - confidence) / trials) / (2.0 * float(stats.norm.pdf(z)) * z)
 
@@ -56,6 +61,8 @@ def sure_margin(sure: float | None, trials: int, confidence: float) -> float:
     it; the measured bound decides."""
     if sure is None or sure <= 0.5:
         return 1.0
+    from scipy import stats
+
     return 1.0 + float(stats.norm.ppf(sure)) * math.sqrt(2.0) * quantile_rel_se(trials, confidence)
 
 
@@ -67,6 +74,8 @@ def prediction_bound(q: float, se_q: float, n: int, n_future: int, truth_se: flo
         return q
     if not math.isfinite(se_q):
         return math.inf
+    from scipy import stats
+
     z = float(stats.norm.ppf(sure))
     return q + z * math.sqrt(se_q**2 * (1.0 + n / n_future) + 2.0 * truth_se**2)
 
@@ -80,6 +89,8 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     over the truth's standard error ``truth_se``). ``sure``: ``met`` when the ``sure``
     :func:`prediction_bound` (``upper``; the re-validation has ``n_future`` trials, default
     ``n``) is within ``value``; None: when the quantile itself is (the re-validation's rule)."""
+    from scipy.stats import mstats
+
     e = np.asarray(err, dtype=float)
     n = e.size
     a = np.sort(np.abs(e))
@@ -110,6 +121,8 @@ def smooth_ratio(figures: dict[str, dict], confidence: float) -> float:
     normal): on a screening run's few trials far steadier than the order statistic, so the
     cost-flat search compares settings by their accuracy rather than by the noise of one order
     statistic."""
+    from scipy import optimize, stats
+
     worst = 0.0
     for f in figures.values():
         b, sd = abs(f["bias"]), max(f["sd"], 0.0)

@@ -12,8 +12,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
-from scipy.optimize import nnls
 
 from budget.runner.plan.oracle import Oracle
 from budget.runner.plan.protocols import (cost_flat_knobs, dotted_value, knob_levels, knob_value, lab_time,
@@ -146,6 +144,8 @@ class ShapeSearch:
 
     def _grid(self) -> None:
         """The fine grid (frontier candidates) with costs interpolated from a coarse grid."""
+        from scipy.interpolate import RegularGridInterpolator  # heavy (budget.runner.plan.quantiles)
+
         d = len(self.knobs)
         coarse = [knob_levels(k, _by_count(COARSE_VALUES, COARSE_VALUES_MANY, d)) for k in self.knobs]
         fine = [knob_levels(k, _by_count(FINE_VALUES, FINE_VALUES_MANY, d)) for k in self.knobs]
@@ -178,6 +178,8 @@ class ShapeSearch:
     # ---- the model
     def _fit(self):
         """Per requirement, non-negative ``(a, b_1..b_d)`` of ``q^2 = a + sum b_i f_i(x_i)``."""
+        from scipy.optimize import nnls  # heavy (budget.runner.plan.quantiles)
+
         evs = list(self.evals)
         if not evs:  # nothing measured yet (every design protocol refused): no preference
             return {r.name: np.zeros(1 + len(self.knobs)) for r in self.o.reqs}
