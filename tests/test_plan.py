@@ -224,10 +224,10 @@ def test_protocol_shapes_are_each_searched_and_compared():
         shaped = study.from_dict({**scn.model_dump(mode="json"), "protocol": {
             **scn.protocol.model_dump(mode="json"), "pattern": name}}, source="test")
         opt = analytic_optimum(shaped, 0.01)
-        assert s["best"].scenario.protocol.pattern == name
-        var, var_star = s["best"].cost_s - scn.lab.setup_time_s, opt["cost_s"] - scn.lab.setup_time_s
-        assert abs(var / var_star - 1) <= tol, (name, s["best"].knobs, var, var_star)
-        assert s["trials"] <= (BUDGET_VALIDATIONS - 1) * N  # each shape's search within its budget
+        assert s.best.scenario.protocol.pattern == name
+        var, var_star = s.best.cost_s - scn.lab.setup_time_s, opt["cost_s"] - scn.lab.setup_time_s
+        assert abs(var / var_star - 1) <= tol, (name, s.best.knobs, var, var_star)
+        assert s.trials <= (BUDGET_VALIDATIONS - 1) * N  # each shape's search within its budget
     # the line pattern's optimum is 25 % cheaper above setup: the recommendation, and the report says so
     assert res.recommended.shape == "line"
     assert any(s.startswith("Shape grid:") and "more lab time than line" in s for s in res.sentences())
@@ -281,10 +281,10 @@ class _Picky(ToyStudy):
 def test_refused_protocols_are_skipped_and_reported():
     study = _Picky()
     res = plan_protocol(study, study.load_scenario(), ["offset.x<=0.01"], seed=0)
-    refused = res.shapes["scenario"]["refused"]
-    assert refused and all(r["knobs"]["protocol.positions"] < 3 or r["knobs"]["protocol.frames"] < 3
+    refused = res.shapes["scenario"].refused
+    assert refused and all(r.knobs["protocol.positions"] < 3 or r.knobs["protocol.frames"] < 3
                            for r in refused)
-    assert any("at least 3" in r["error"] for r in refused) and any("too few frames" in r["error"] for r in refused)
+    assert any("at least 3" in r.error for r in refused) and any("too few frames" in r.error for r in refused)
     assert res.feasible and res.recommended.knobs["protocol.positions"] >= 3
     assert any("refused by the study" in s for s in res.sentences())
     assert all(e.knobs["protocol.positions"] >= 3 and e.knobs["protocol.frames"] >= 3 for e in res.evaluations)
@@ -310,7 +310,7 @@ def test_every_study_knob_is_a_lab_field_the_sweeps_can_set(name):
     finite, non-negative seconds that does not fall as a knob grows; shapes that apply."""
     if name == "(none)":
         pytest.skip("no registered study declares protocol knobs")
-    from budget.runner.plan import _with_values
+    from budget.runner.plan import scenario_with
     from budget.runner.registry import get_study
 
     study = get_study(name)
@@ -321,11 +321,11 @@ def test_every_study_knob_is_a_lab_field_the_sweeps_can_set(name):
     assert base and all(math.isfinite(v) and v >= 0 for v in base.values())
     for k in knobs:
         assert not k.field.startswith("world."), k.field
-        lo = _with_values(study, scn, {k.field: int(k.low) if k.kind == "int" else k.low}, where="test")
-        hi = _with_values(study, scn, {k.field: int(k.high) if k.kind == "int" else k.high}, where="test")
+        lo = scenario_with(study, scn, {k.field: int(k.low) if k.kind == "int" else k.low}, where="test")
+        hi = scenario_with(study, scn, {k.field: int(k.high) if k.kind == "int" else k.high}, where="test")
         assert sum(study.lab_time_s(lo).values()) <= sum(study.lab_time_s(hi).values()), k.field
     for shape, overrides in study.protocol_shapes(scn).items():
-        shaped = _with_values(study, scn, overrides, where=f"shape {shape}")
+        shaped = scenario_with(study, scn, overrides, where=f"shape {shape}")
         assert study.protocol_knobs(shaped), shape
 
 

@@ -79,7 +79,7 @@ def test_each_group_finds_its_analytic_optimum_and_only_its_classes_are_computed
     assert study.computed["a"] + study.computed["b"] == res.total_trials + res.validation.trials
     # every trial counted; each group within its budget of 20 validations
     assert len(study.calls) == res.total_trials
-    assert all(go["trials"] <= (BUDGET_VALIDATIONS - 1) * N for go in res.groups)
+    assert all(go.trials <= (BUDGET_VALIDATIONS - 1) * N for go in res.groups)
     # the recommendation's cost is the whole protocol's lab time
     assert res.recommended.cost_s == pytest.approx(sum(study.lab_time_s(res.recommended.scenario).values()),
                                                    rel=1e-12)
@@ -98,7 +98,7 @@ def test_a_separable_trial_computes_its_groups_protocol_a_joint_trial_every_prot
     rj = plan_protocol(joint, joint.load_scenario(), reqs, seed=0)
     assert len(rj.to_json()["groups"]) == 1 and len(rs.to_json()["groups"]) == 2
     assert len(sep.calls) == rs.total_trials and len(joint.calls) == rj.total_trials
-    per_group = {go["group"].name: go["trials"] for go in rs.groups}
+    per_group = {go.group.name: go.trials for go in rs.groups}
     assert sep.computed == {"a": per_group["a"] + N, "b": per_group["b"] + N, "c": 0}
     assert rs.search_trials == per_group["a"] + per_group["b"] and rs.validation.trials == N
     assert joint.computed == {p: rj.total_trials for p in ("a", "b", "c")}
@@ -207,7 +207,7 @@ def test_budget_and_infeasible_groups():
     q_star = stats.norm.ppf(0.975) * 0.05 / math.sqrt(1e5)
     assert ba.figures["a.x"]["quantile"] == pytest.approx(q_star, rel=3 * _quantile_rel_se(N, C))
     # every group's part: a's most accurate protocol, b's answer (not b at the scenario's 100 frames)
-    b_answer = next(go["best"] for go in bad.groups if go["group"].name == "b")
+    b_answer = next(go.best for go in bad.groups if go.group.name == "b")
     assert ba.knobs == {"a.frames": 100000, "b.frames": b_answer.knobs["b.frames"], "c.frames": 10}
     assert ba.cost_s == pytest.approx(sum(study.lab_time_s(ba.scenario).values()), rel=1e-12)
     assert set(ba.figures) == {"a.x", "b.x"} and js["best_achievable"]["knobs"] == ba.knobs
@@ -250,15 +250,15 @@ def test_a_group_without_knobs_keeps_the_plans_premium():
     b's model boundary."""
     study = SplitToyStudy()
     res = plan_protocol(study, study.load_scenario(), ["a.x<=0.02", "b.x<=0.01"], seed=0, fix={"a.frames": 60})
-    assert [tuple(k.field for k in go["group"].knobs) for go in res.groups] == [(), ("b.frames",)]
+    assert [tuple(k.field for k in go.group.knobs) for go in res.groups] == [(), ("b.frames",)]
     gb = res.groups[1]
-    b = res.shapes[gb["best_shape"]]["boundary"]
+    b = res.shapes[gb.best_shape].boundary
     prem = res.premium
     assert prem is not None and res.to_json()["premium"] == prem
-    bound = res.recommended.cost_s - (gb["best"].cost_s - b["cost_s"])
+    bound = res.recommended.cost_s - (gb.best.cost_s - b.cost_s)
     assert prem["boundary_cost_s"] == pytest.approx(bound, rel=1e-12)
     assert prem["factor"] == pytest.approx(res.recommended.cost_s / bound, rel=1e-12)
-    assert prem["boundary_knobs"]["a.frames"] == 60 and prem["boundary_knobs"]["b.frames"] == b["knobs"]["b.frames"]
+    assert prem["boundary_knobs"]["a.frames"] == 60 and prem["boundary_knobs"]["b.frames"] == b.knobs["b.frames"]
     assert "Aiming 90 % sure" in res.answer()
 
 
@@ -335,18 +335,18 @@ def test_command_with_fix_json_and_report_and_lab_time_only_of_whole_scenarios(t
 def test_collapsed_shape_labels_name_what_the_members_share():
     """A collapsed shape's label: its members' common comma-separated name parts, else its
     shape fields' values; '(any)' where no shape field touches the group; unique, no '|'."""
-    from budget.runner.plan import _collapsed_labels
+    from budget.runner.plan import collapsed_labels
 
     shapes = {f"{p}, filters {f}": {"h.pattern": p, "c.filters": f}
               for p in ("grid", "diagonal") for f in ("500/600", "600/800", "500/600/800")}
     by_pattern = [[n for n in shapes if n.startswith(p)] for p in ("grid", "diagonal")]
-    assert _collapsed_labels(by_pattern, ("h.pattern",), shapes) == ["grid", "diagonal"]
+    assert collapsed_labels(by_pattern, ("h.pattern",), shapes) == ["grid", "diagonal"]
     by_filters = [[n for n in shapes if n.endswith(f"filters {f}")] for f in ("500/600", "600/800", "500/600/800")]
-    assert _collapsed_labels(by_filters, ("c.filters",), shapes) == ["filters 500/600", "filters 600/800",
+    assert collapsed_labels(by_filters, ("c.filters",), shapes) == ["filters 500/600", "filters 600/800",
                                                                      "filters 500/600/800"]
-    assert _collapsed_labels([list(shapes)], (), shapes) == ["(any)"]
+    assert collapsed_labels([list(shapes)], (), shapes) == ["(any)"]
     # no common part: the field's value; a field name shared by two fields: the full field
     odd = {"a|1": {"x.p": 1, "y.p": 2}, "b": {"x.p": 1, "y.p": 2}, "c": {"x.p": 3, "y.p": 2}, "d": {"x.p": 3, "y.p": 2}}
-    labels = _collapsed_labels([["a|1", "b"], ["c", "d"]], ("x.p", "y.p"), odd)
+    labels = collapsed_labels([["a|1", "b"], ["c", "d"]], ("x.p", "y.p"), odd)
     assert labels == ["x.p 1, y.p 2", "x.p 3, y.p 2"]
-    assert _collapsed_labels([["a|1"], ["c", "d"]], ("x.p",), odd) == ["a/1", "p 3"]
+    assert collapsed_labels([["a|1"], ["c", "d"]], ("x.p",), odd) == ["a/1", "p 3"]

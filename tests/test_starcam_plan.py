@@ -353,7 +353,7 @@ def test_a_plan_searches_every_filter_set_and_recommends_the_cheapest():
     scn = STUDY.from_dict(d, source="tiny")
     res = plan_protocol(STUDY, scn, ["lsfe_s.x<=0.5"], trials=20, seed=0, workers=1)
     assert set(res.shapes) == {"filters 500/600", "filters 500/600/800"}
-    bests = {k: v["best"] for k, v in res.shapes.items() if v["best"] is not None}
+    bests = {k: v.best for k, v in res.shapes.items() if v.best is not None}
     assert res.recommended is not None and bests
     assert res.recommended.cost_s == min(b.cost_s for b in bests.values())
     rec = with_updates(scn, {**res.recommended.knobs,
@@ -430,7 +430,7 @@ def test_a_separable_plan_keeps_the_scenarios_filter_set_where_no_requirement_de
     one protocol keeps the scenario's filter set (its empty filters_nm: every lab filter,
     500/600/800), as an unsearched knob keeps its value, not the cheapest set: 500/600 and
     600/800 cost the same, and 500/600 misreads LSFE-S y about five times (docs/validation.md)."""
-    from budget.runner.plan import Evaluation, _Run, _union, decompose, parse_requirements
+    from budget.runner.plan import Evaluation, PlanRun, decompose, parse_requirements, union_protocol
 
     scn = default()
     reqs, variant = parse_requirements(STUDY, scn, ["hsfe.x<=0.01"])
@@ -444,8 +444,8 @@ def test_a_separable_plan_keeps_the_scenarios_filter_set_where_no_requirement_de
     assert cost["grid, filters 500/600"] == cost["grid, filters 600/800"] < cost["grid, filters 500/600/800"]
     part = Evaluation("grid", {"protocols.hsfe.frames": 30, "protocols.hsfe.conditions": 12}, 0.0, {}, 0, 60, {},
                       "search")
-    run = _Run(STUDY, scn, reqs, variant, 0.95, None, None, 0, 60, 1, False, None, knobs, 0.9, {}, 0.0, 0.0)
-    union = _union(run, declared, groups, [part], False)
+    run = PlanRun(STUDY, scn, reqs, variant, 0.95, None, None, 0, 60, 1, False, None, knobs, 0.9, {}, 0.0, 0.0)
+    union = union_protocol(run, declared, groups, [part], False)
     assert union.shape == "grid, filters 500/600/800"
     assert union.scenario.chromatic_filters_nm() == (500.0, 600.0, 800.0)
     assert union.scenario.protocols.hsfe.pattern == "grid"

@@ -1,0 +1,89 @@
+"""The planner's entry, :func:`plan_protocol`: the settings checked, one pool of workers for
+every candidate, then the whole-test plan (:func:`plan_joint`) or, where the study declares
+field classes, the separable one (:func:`budget.runner.plan.separable.plan_separable`)."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+from budget.runner.executors import make_executor
+from budget.runner.plan.quantiles import DEFAULT_SURE
+from budget.runner.plan.requirements import (DEFAULT_CONFIDENCE, Requirement, default_variant, parse_fixes,
+                                             parse_requirements)
+from budget.runner.plan.result import PlanResult
+from budget.runner.plan.search import PlanRun
+from budget.runner.plan.separable import plan_separable
+from budget.runner.plan.trials import MIN_TRIALS, validation_seed
+from budget.runner.run import _worker_init
+from budget.runner.study import Study
+from simcam.infra.errors import UserInputError
+
+__all__ = ["plan_joint", "plan_protocol"]
+
+
+def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | None = None,
+                  confidence: float = DEFAULT_CONFIDENCE, budget_hours: float | None = None, seed: int = 0,
+                  trials: int | None = None, workers: int | None = 1, progress: bool = False,
+                  sure: float = DEFAULT_SURE, fix=None) -> PlanResult:
+    """Plan ``study``'s protocol on ``scenario`` (docs/planning.md). ``requirements``: texts
+    ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
+    the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
+    prediction bound of the quantile the re-validation will measure is within the bound
+    (:func:`budget.runner.plan.quantiles.prediction_bound`; 0.5: the measured quantile itself,
+    the boundary protocol); ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE``
+    (:func:`parse_fixes`)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    knobs = tuple(study.protocol_knobs(scenario))
+    if not knobs:
+        raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
+    if not study.lab_time_s(scenario):
+        raise TypeError(f"{type(study).__name__} declares protocol knobs but no lab time (Study.lab_time_s): "
+                        "a plan has no cost to minimise")
+    fixed = parse_fixes(knobs, fix)
+    if not (0.5 <= confidence < 1.0):
+        raise UserInputError(f"--confidence {confidence}: must be in [0.5, 1)")
+    if not (0.5 <= sure < 1.0):
+        raise UserInputError(f"--sure {sure}: must be in [0.5, 1)")
+    if budget_hours is not None and not (math.isfinite(budget_hours) and budget_hours > 0):
+        raise UserInputError(f"--budget-hours {budget_hours}: must be a positive number")
+    if requirements and all(isinstance(r, Requirement) for r in requirements):
+        reqs, variant = list(requirements), variant or default_variant(study)
+    else:
+        reqs, variant = parse_requirements(study, scenario, requirements, variant)
+    n = int(trials) if trials is not None else int(study.default_trials(scenario))
+    if n < MIN_TRIALS:
+        raise UserInputError(f"--trials {n}: a plan needs at least {MIN_TRIALS} trials per validation")
+    budget_s = None if budget_hours is None else 3600.0 * budget_hours
+    # one pool for every candidate (the study's kernels compiled first, so its workers load them
+    # from the cache): starting workers per candidate would cost more than the toy's trials
+    study.prewarm(scenario)
+    with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
+        run = PlanRun(study, scenario, reqs, variant, confidence, budget_hours, budget_s, seed, n, workers, progress,
+                      pool, knobs, sure, fixed, t0, c0)
+        # the whole-test search where the study declares no field classes (every field may change
+        # every class), else the separable plan
+        return plan_separable(run) if study.field_classes(scenario) else plan_joint(run)
+
+
+def plan_joint(run: PlanRun) -> PlanResult:
+    """The whole-test plan: every shape searched over every free knob with every requirement;
+    the cheapest shape's answer re-validated on fresh seeds, else the most accurate protocol."""
+    oracle = run.oracle()
+    shapes = run.study.protocol_shapes(run.scenario) or {"scenario": {}}
+    free = tuple(k for k in run.knobs if k.field not in run.fixed)
+    results = run.search_shapes(oracle, shapes, free, run.budget_s)
+    bests = [s.best for s in results.values() if s.best is not None]
+    rec = min(bests, key=lambda e: e.cost_s) if bests else None
+    search_trials = oracle.trials_run
+    validation = best_ach = None
+    if rec is not None:
+        vseed = validation_seed(run.seed)
+        validation = oracle.evaluate(rec.shape, rec.knobs, rec.scenario, stage="validation", seed=vseed, full=True)
+        oracle.evaluations.remove(validation)
+    else:
+        cands = [s.best_achievable for s in results.values() if s.best_achievable is not None]
+        best_ach = min(cands, key=lambda e: e.ratio) if cands else None
+    return run.result(shapes=results, recommended=rec, validation=validation, best_achievable=best_ach,
+                      evaluations=list(oracle.evaluations), search_trials=search_trials, truth_runs=oracle.truth_runs)

@@ -1,0 +1,29 @@
+"""How a plan writes lab time, knob settings and shares in its words: the progress lines, the
+findings and report, the recommended scenario's header."""
+
+from __future__ import annotations
+
+__all__ = ["knobs_text", "lab_time_text", "number_text", "percent_text"]
+
+
+def lab_time_text(s: float) -> str:
+    """Lab time ``s`` (seconds) for prose: hours from 0.1 h, minutes below (``0.343 h``, ``5.2 min``)."""
+    return f"{s / 3600:.3g} h" if s >= 360 else f"{s / 60:.3g} min"
+
+
+def number_text(v) -> str:
+    """A knob's value for prose: a whole number as it is, a real one to 4 significant digits."""
+    return f"{v:d}" if isinstance(v, int) else f"{v:.4g}"
+
+
+def knobs_text(knobs: dict) -> str:
+    """``frames 100, positions 4``: each knob by its last name, by its dotted field where two
+    knobs share a last name (``te.frames 10, distortion.frames 20``)."""
+    last = [f.rsplit(".", 1)[-1] for f in knobs]
+    return ", ".join(f"{f if last.count(n) > 1 else n} {number_text(v)}"
+                     for f, n, v in zip(knobs, last, knobs.values()))
+
+
+def percent_text(p: float) -> str:
+    """``0.95`` -> ``"95 %"``."""
+    return f"{100 * p:.0f} %"

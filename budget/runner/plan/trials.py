@@ -1,0 +1,34 @@
+"""How many trials a plan runs and on which seeds: the trial budget, the screening trials a
+candidate runs first and when they decide it, and the re-validation's fresh seed
+(docs/planning.md, "The search" and "Honest verdict")."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["BUDGET_VALIDATIONS", "DECIDED", "MIN_TRIALS", "VALIDATION_SPAWN_KEY", "screening_trials",
+           "validation_seed"]
+
+#: the search with the re-validation costs at most this many validations' trials (per shape)
+BUDGET_VALIDATIONS = 20
+#: the fewest trials of one validation a plan accepts (``--trials``), and the fewest a candidate screens on
+MIN_TRIALS = 20
+#: a candidate screens on this fraction (one over it) of a validation's trials
+SCREENING_DIVISOR = 4
+#: a candidate is decided by its screening trials when the posterior probability of meeting is below
+#: this or above 1 - this
+DECIDED = 0.001
+#: the re-validation's spawn key: distinct from every trial's (0, 1, ...) and the truths' (2**31)
+VALIDATION_SPAWN_KEY = 2**31 + 1
+
+
+def screening_trials(trials: int) -> int:
+    """Trials a candidate runs first: a quarter of a validation's, at least 20 (at most all)."""
+    return min(trials, max(MIN_TRIALS, trials // SCREENING_DIVISOR))
+
+
+def validation_seed(seed: int) -> int:
+    """The re-validation's seed: the first 32-bit word of ``SeedSequence(seed,
+    spawn_key=(VALIDATION_SPAWN_KEY,))``; its trials ``SeedSequence(validation_seed, (k,))``
+    share no stream with the search's ``SeedSequence(seed, (k,))``."""
+    return int(np.random.SeedSequence(seed, spawn_key=(VALIDATION_SPAWN_KEY,)).generate_state(1)[0])
