@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.runner.study import ReportSection
+from simcam.units import ARCSEC_PER_DEG
 
 __all__ = ["FIGURES", "details", "drift_figures", "figure_arrays", "report_sections",
            "sequence_coefficients", "summary_lines"]
@@ -85,7 +86,7 @@ def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
     """
     from budget.inductosyn.harmonics import HarmonicSpec, design_matrix
     from budget.inductosyn.validate import LONG, dense_stats
-    from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, apply_drift
+    from simcam.encoder.inductosyn import Inductosyn, apply_drift
 
     p = prepared
     sc = p.scenario
@@ -278,7 +279,6 @@ def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, pat
     the true residual (continuous reading) overlaid; the text says how much of it is inside."""
     from budget.inductosyn.harmonics import fit_joint, posterior_band
     from budget.inductosyn.validate import JOINT_ELEC
-    from simcam.encoder.inductosyn import ARCSEC_PER_DEG
 
     plt = _plt()
     jf = fit_joint(tables=[(p.angles_long_deg, ex["y_long"]), (p.angles_short_deg, ex["y_short"])],

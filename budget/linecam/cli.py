@@ -30,6 +30,7 @@ from pathlib import Path
 import click
 
 from simcam.infra.cli import overwrite_option
+from simcam.units import ARCSEC_PER_RAD, SECONDS_PER_DAY
 import numpy as np
 
 __all__ = ["commands", "read_observations", "calibrate_table", "CSV_COLUMNS"]
@@ -251,7 +252,7 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
 #: a physical observation table: times within a century of the epoch, the
 #: spacecraft between the Earth's surface and ten times the Moon's distance, at less than
 #: the Earth's escape speed from its surface (11.2 km/s) plus margin
-MAX_ABS_TIME_S = 100 * 365.25 * 86400.0
+MAX_ABS_TIME_S = 100 * 365.25 * SECONDS_PER_DAY
 MIN_RADIUS_KM, MAX_RADIUS_KM = 6356.0, 4.0e6
 MAX_SPEED_KM_S = 20.0
 #: at least this many distinct catalogue stars (each gives two equations; ten parameters)
@@ -390,7 +391,7 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
 def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir, overwrite):
     from simcam.infra.errors import UserInputError
     from simcam.infra.cli import write_json_atomic
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+    from simcam.linecam.scenario import PARAMETERS
 
     from .model import los_angles, residuals
     from .trial import PARAM_UNITS, to_report_units

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from simcam.units import ARCSEC_PER_RAD
+
 __all__ = ["plot_dtau_errors", "plot_trial_ground_errors", "plot_ground_error_maps", "plot_deviation_timeline",
            "plot_scan_pattern"]
 
@@ -151,16 +153,15 @@ def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: f
     from budget.figures import save
 
     plt = _plt()
-    arc = 180 / np.pi * 3600
     fig, axes = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
     i_end = int(np.clip(np.searchsorted(t_s, dwell_end_s), 0, len(t_s) - 1))
     parts = []
     for ax, d, j, lab in ((axes[0], dtau_x, 0, "x"), (axes[1], dtau_y, 1, "y")):
-        ax.plot(t_s, d * arc, "k", lw=1, label="injected")
+        ax.plot(t_s, d * ARCSEC_PER_RAD, "k", lw=1, label="injected")
         for k, (name, e) in enumerate(estimates.items()):
-            ax.hlines(e[j] * arc, dwell_end_s, t_s[-1], lw=1.4, ls=("-", "--", ":")[k % 3],
+            ax.hlines(e[j] * ARCSEC_PER_RAD, dwell_end_s, t_s[-1], lw=1.4, ls=("-", "--", ":")[k % 3],
                       label=f"{name} estimate", color={"published": "C1", "improved": "C2"}.get(name, "C3"))
-            parts.append(f"{name} {lab} {(e[j] - d[i_end]) * arc:+.2f}")
+            parts.append(f"{name} {lab} {(e[j] - d[i_end]) * ARCSEC_PER_RAD:+.2f}")
         ax.axvline(dwell_end_s, color="grey", ls=":", lw=0.8)
         ax.set_ylabel(f"dtau_{lab} (arcsec)")
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: never over a line
@@ -168,7 +169,7 @@ def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: f
                       fontsize=9)
     axes[1].set_xlabel("time (s)")
     after = slice(i_end, None)
-    drift = max(float(np.ptp(dtau_x[after])), float(np.ptp(dtau_y[after]))) * arc
+    drift = max(float(np.ptp(dtau_x[after])), float(np.ptp(dtau_y[after]))) * ARCSEC_PER_RAD
     caption = (f"Estimate minus injected deviation at the dwell's end (t = {dwell_end_s:.0f} s), arcsec: "
                + ", ".join(parts) + f"; after the dwell the injected deviation still moves by up to "
                f"{drift:.2f} arcsec (peak to peak), which a held estimate cannot follow.")
