@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.numbers import fmt
 from simcam.units import ARCSEC_PER_RAD
 
 __all__ = ["plot_dtau_errors", "plot_trial_ground_errors", "plot_ground_error_maps", "plot_deviation_timeline",
@@ -16,10 +17,6 @@ def _plt():
     from budget.figures import plt
 
     return plt()
-
-
-def _g(x: float) -> str:
-    return f"{x:.3g}"
 
 
 def plot_dtau_errors(result, path: Path) -> Path:
@@ -51,11 +48,11 @@ def plot_dtau_errors(result, path: Path) -> Path:
         if p is not None and i is not None and i > 0:
             better = "improved" if i < p else "published"
             ratio = p / i if i < p else i / p
-            parts.append(f"on {axis} the {better} estimate's rms error is {ratio:.2g} times smaller "
-                         f"({_g(i)} vs {_g(p)} arcsec, improved vs published)")
+            parts.append(f"on {axis} the {better} estimate's rms error is {fmt(ratio, 2)} times smaller "
+                         f"({fmt(i, 3)} vs {fmt(p, 3)} arcsec, improved vs published)")
         elif p is not None or i is not None:
             v, r = ("published", p) if p is not None else ("improved", i)
-            parts.append(f"on {axis} the {v} estimate's rms error is {_g(r)} arcsec")
+            parts.append(f"on {axis} the {v} estimate's rms error is {fmt(r, 3)} arcsec")
     caption = (f"Estimate minus injected deviation over {result.trials} trials (0 = exact): "
                + "; ".join(parts) + ".") if parts else "No deviation estimates in this run."
     return save(fig, path, caption)
@@ -70,7 +67,7 @@ def _max_errors_caption(errors: dict) -> str:
     """Each compensation's largest |error| (deg), smallest first, from the arrays drawn."""
     m = {n: float(max(np.abs(lat).max(), np.abs(lon).max())) for n, (lat, lon) in errors.items()}
     order = sorted(m, key=m.get)
-    return ", ".join(f"{n} {_g(m[n])} deg" for n in order), m
+    return ", ".join(f"{n} {fmt(m[n], 3)} deg" for n in order), m
 
 
 def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
@@ -137,10 +134,10 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
     worst = {n: float(np.max(mags[(last, n)])) for n in names}
     order = sorted(worst, key=worst.get)
     caption = ("Ground error |(lat, lon) error| at the nominal ground points, every panel on one "
-               f"logarithmic colour scale ({vmin:.2g} to {vmax:.2g} deg). Largest error in the last scan "
+               f"logarithmic colour scale ({fmt(vmin, 2)} to {fmt(vmax, 2)} deg). Largest error in the last scan "
                f"({last}), smallest first: "
-               + ", ".join(f"{n} {_g(worst[n])} deg" for n in order)
-               + (f"; the best compensation ({order[0]}) is {worst['uncompensated'] / worst[order[0]]:.3g} "
+               + ", ".join(f"{n} {fmt(worst[n], 3)} deg" for n in order)
+               + (f"; the best compensation ({order[0]}) is {fmt(worst['uncompensated'] / worst[order[0]], 3)} "
                   "times below uncompensated." if worst[order[0]] > 0 and order[0] != "uncompensated"
                   else "."))
     return save(fig, path, caption, dpi=100, layout=False)
