@@ -106,7 +106,12 @@ class ScanPlan:
 
 def rodrigues(rotvec) -> np.ndarray:
     """Rotation matrices (n, 3, 3) of rotation vectors (n, 3):
-    ``I + sin(a) K + (1 - cos(a)) K^2`` with ``K = [e]x`` (Rodrigues' formula)."""
+    ``I + sin(a) K + (1 - cos(a)) K^2`` with ``K = [e]x`` (Rodrigues' formula).
+
+    Written out, not ``Rotation.from_rotvec(...).as_matrix()``: the line-camera study is pinned
+    bit for bit (tests/test_linecam_effects.py, ideal world) and scipy's quaternion route
+    differs in the last bit, which moves its estimates.
+    """
     v = np.asarray(rotvec, dtype=float)
     a = np.linalg.norm(v, axis=-1)
     safe = np.where(a > 0, a, 1.0)
