@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from simcam.starcam.geometry import Mosaic
-from simcam.starcam.scenario import ARCSEC_PER_RAD, default, with_updates
+from simcam.starcam.scenario import default, with_updates
 from simcam.starcam.targets import calibration_grid, collimator_px_per_mm, pinhole_radius_px, platform_offsets_px, star_grid
+from simcam.units import ARCSEC_PER_RAD
 
 
 def test_nominal_mosaic_centres_and_gap():

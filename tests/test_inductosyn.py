@@ -14,7 +14,6 @@ from scipy import stats
 
 from simcam.infra.errors import ScenarioError
 from simcam.encoder.inductosyn import (
-    ARCSEC_PER_RAD,
     DriftParams,
     ElectricalErrors,
     Inductosyn,
@@ -32,6 +31,7 @@ from simcam.encoder.inductosyn import (
     winding_harmonic_order_map,
 )
 from simcam.encoder.polygon import face_taylor, measure_polygon, nominal_face_angles_deg
+from simcam.units import ARCSEC_PER_RAD
 
 THETA_E = np.linspace(0.0, 2 * math.pi, 13, endpoint=False) + 0.1
 

@@ -15,7 +15,7 @@ import pytest
 
 from budget.cli import main as budget_main
 from budget.inductosyn.harmonics import fit_long_period, fit_short_period
-from simcam.encoder.inductosyn import ARCSEC_PER_RAD, InductosynEffects, default, from_dict, load
+from simcam.encoder.inductosyn import InductosynEffects, default, from_dict, load
 from simcam.encoder.polygon import (
     autocollimator_error_arcsec,
     autocollimator_reading_rad,
@@ -24,6 +24,7 @@ from simcam.encoder.polygon import (
     tilted_face_reading_rad,
 )
 from simcam.noise_processes import allan_deviation
+from simcam.units import ARCSEC_PER_RAD
 
 ROOT = Path(__file__).resolve().parents[1]
 IDEAL = ROOT / "docs" / "examples" / "inductosyn_ideal.toml"

@@ -17,13 +17,13 @@ from simcam.starcam.lens.prescription import load_prescription
 from simcam.starcam.lens.products import LensProducts, lens_products
 from simcam.starcam.lens.simulator import simulator_optics
 from simcam.starcam.scenario import (
-    ARCSEC_PER_RAD,
     OpticsModel,
     Scenario,
     from_dict,
     scenario_to_toml,
     with_updates,
 )
+from simcam.units import ARCSEC_PER_RAD
 
 F_NOM = 5.5e-3 / (5.5 / ARCSEC_PER_RAD)  # the seed-000 camera's focal length, mm
 

@@ -18,7 +18,8 @@ from budget.linecam.calibrate import (CalibrationError, calibrate_joint, calibra
 from budget.linecam.model import NominalCamera, Observations, los_angles, residuals
 from budget.linecam.trial import los_grid, simulate
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
-from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, from_dict, default
+from simcam.linecam.scenario import PARAMETERS, from_dict, default
+from simcam.units import ARCSEC_PER_RAD
 
 #: the ideal world (every unmodelled world effect off): the lab's model is the world's
 IDEAL = {"world": {"effects": {n: 0.0 for n in default().world.effects.names()}}}

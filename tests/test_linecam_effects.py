@@ -18,8 +18,9 @@ from simcam.linecam.attitude import scan_plan
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
 from simcam.linecam.effects import (JITTER_TONE_RATIOS, JITTER_TONES_HZ, Jitter, LineCamEffects,
                                     chromatic_centroid, lateral_colour_px)
-from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, default, from_dict
+from simcam.linecam.scenario import PARAMETERS, default, from_dict
 from simcam.linecam.world import AttitudeReports, image_passes, sky_strip, world_sky_strip
+from simcam.units import ARCSEC_PER_RAD
 
 DEFAULT = default()
 OFF = {n: 0.0 for n in LineCamEffects().names()}

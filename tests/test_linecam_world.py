@@ -18,8 +18,9 @@ from simcam.infra.errors import ScenarioError
 from simcam.linecam import signal
 from simcam.linecam.attitude import orbit_state, rodrigues, scan_plan
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
-from simcam.linecam.scenario import ARCSEC_PER_RAD, from_dict, default
+from simcam.linecam.scenario import from_dict, default
 from simcam.linecam.world import crossing_times, image_passes, sky_strip
+from simcam.units import ARCSEC_PER_RAD
 
 SC = default()
 

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from budget.scanmirror.study import STUDY
-from simcam.scanmirror.effects import (ARCSEC, ScanMirrorEffects, deviation_extra, encoder_residual_arcsec,
+from simcam.scanmirror.effects import (ScanMirrorEffects, deviation_extra, encoder_residual_arcsec,
                                        tracker_error_series)
+from simcam.units import RAD_PER_ARCSEC
 
 ROOT = Path(__file__).resolve().parents[1]
 IDEAL = ROOT / "docs" / "examples" / "scenarios" / "scanmirror_ideal.toml"
@@ -181,7 +182,7 @@ def test_tracker_error_has_the_stated_bias_variance_and_correlation():
     for i, g in enumerate(rng.spawn(M)):
         s = tracker_error_series(g, t, bias_arcsec=b, fov_arcsec=s_fov, tau_s=tau, lfe_arcsec=s_lfe,
                                  orbit_rate_rad_s=w)
-        bias[i], total[i], fov[i] = s["bias"] / ARCSEC, s["total"] / ARCSEC, s["fov"] / ARCSEC
+        bias[i], total[i], fov[i] = s["bias"] / RAD_PER_ARCSEC, s["total"] / RAD_PER_ARCSEC, s["fov"] / RAD_PER_ARCSEC
         assert np.allclose(s["total"], s["bias"] + s["fov"] + s["lfe"], rtol=0, atol=1e-18)
     N = bias.size
     assert abs(bias.mean()) < 4 * b / np.sqrt(N)
@@ -226,10 +227,10 @@ def test_a_tracker_bias_shifts_the_estimate_by_the_projected_bias():
         o = run(setup, np.random.default_rng(100 + k))
         E = o["effects"].tracker_parts["bias"]
         pred, *_ = np.linalg.lstsq(D, -np.cross(E, s), rcond=None)
-        shift = (o["dtau"]["improved"] - o["dtau_true"]) / ARCSEC
-        tol = np.linalg.norm(E / ARCSEC) * np.deg2rad(sc.star_sensing.field_half_width_deg) + 0.03
-        assert np.linalg.norm(pred / ARCSEC) > 3 * tol  # the check has teeth
-        assert np.allclose(shift, pred / ARCSEC, atol=tol), (shift, pred / ARCSEC)
+        shift = (o["dtau"]["improved"] - o["dtau_true"]) / RAD_PER_ARCSEC
+        tol = np.linalg.norm(E / RAD_PER_ARCSEC) * np.deg2rad(sc.star_sensing.field_half_width_deg) + 0.03
+        assert np.linalg.norm(pred / RAD_PER_ARCSEC) > 3 * tol  # the check has teeth
+        assert np.allclose(shift, pred / RAD_PER_ARCSEC, atol=tol), (shift, pred / RAD_PER_ARCSEC)
         checked += 1
     assert checked == 3
 
@@ -270,7 +271,7 @@ def test_encoder_read_angles_differ_from_commanded_by_the_inductosyn_residual():
         scale = 5.4 / (3 * r_grid.std())
         a = np.mod(np.rad2deg(cmd), 360.0)
         want = -(flown.error_arcsec(angle_deg=a) - design(a) @ coef) * scale
-        diff = (got - cmd) / ARCSEC
+        diff = (got - cmd) / RAD_PER_ARCSEC
         assert np.abs(diff).max() > 0.5  # arcsec-level, as stated
         assert np.allclose(diff, want, rtol=0, atol=0.01 * np.abs(want).max())
     # off: the commanded angles themselves (identity, exact)
@@ -297,10 +298,10 @@ def test_deviation_drift_and_a_held_estimate():
     axis, phase, r = 0.7, 1.1, 0.2
     bx, by = deviation_components(t, 0.0, dv, P, phase, axis)
     bx2, by2 = deviation_components(t + dt, 0.0, dv, P, phase, axis)
-    drift = np.hypot(bx2 - bx, by2 - by).max() / ARCSEC
-    assert drift == pytest.approx(dv * om * dt / ARCSEC, rel=1e-4)  # sin x ~ x, (om dt)^2/24 = 5e-5
+    drift = np.hypot(bx2 - bx, by2 - by).max() / RAD_PER_ARCSEC
+    assert drift == pytest.approx(dv * om * dt / RAD_PER_ARCSEC, rel=1e-4)  # sin x ~ x, (om dt)^2/24 = 5e-5
     assert drift == pytest.approx(0.45, abs=0.005)
-    off = np.array([1.5, -2.0]) * ARCSEC
+    off = np.array([1.5, -2.0]) * RAD_PER_ARCSEC
     ph = np.array([0.3, 2.0])
     ex, ey = deviation_extra(t, offset_rad=off, variable_rad=dv, fraction=r, period_s=P, phase_rad=phase,
                              axis_rad=axis, harmonic_phases_rad=ph)
@@ -310,5 +311,5 @@ def test_deviation_drift_and_a_held_estimate():
     assert np.allclose(ey, off[1] + h * np.sin(axis), rtol=0, atol=1e-15)
     ex2, ey2 = deviation_extra(t + dt, offset_rad=off, variable_rad=dv, fraction=r, period_s=P, phase_rad=phase,
                                axis_rad=axis, harmonic_phases_rad=ph)
-    drift_w = np.hypot(bx2 + ex2 - bx - ex, by2 + ey2 - by - ey).max() / ARCSEC
-    assert drift < drift_w <= dv * om * dt * (1 + 5 * r) / ARCSEC * (1 + 1e-3)
+    drift_w = np.hypot(bx2 + ex2 - bx - ex, by2 + ey2 - by - ey).max() / RAD_PER_ARCSEC
+    assert drift < drift_w <= dv * om * dt * (1 + 5 * r) / RAD_PER_ARCSEC * (1 + 1e-3)

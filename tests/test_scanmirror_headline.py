@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from budget.scanmirror.pipeline import ARCSEC, Setup, run
+from budget.scanmirror.pipeline import Setup, run
+from simcam.units import RAD_PER_ARCSEC
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "scanmirror_paper_numbers.py"
 
@@ -44,10 +45,10 @@ def _max_abs(o, scan, name):
 def test_published_estimator_ignoring_aberration_is_off_by_the_documented_angles(paper_run):
     # docs/scanmirror.md: "the published estimator is off by (+6.6", -9.1") with catalogue
     # directions" (the script prints 6.64, -9.11: +-0.005")
-    d = (np.asarray(paper_run["dtau"]["published"]) - np.asarray(paper_run["dtau_true"])) / ARCSEC
+    d = (np.asarray(paper_run["dtau"]["published"]) - np.asarray(paper_run["dtau_true"])) / RAD_PER_ARCSEC
     assert d[0] == pytest.approx(6.64, abs=0.005) and d[1] == pytest.approx(-9.11, abs=0.005)
     # the injected deviation at the dwell, (36.27", 20.94")
-    t = np.asarray(paper_run["dtau_true"]) / ARCSEC
+    t = np.asarray(paper_run["dtau_true"]) / RAD_PER_ARCSEC
     assert t[0] == pytest.approx(36.27, abs=0.005) and t[1] == pytest.approx(20.94, abs=0.005)
 
 

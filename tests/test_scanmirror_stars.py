@@ -10,12 +10,13 @@ import pytest
 
 from budget.scanmirror.compensation import exact_compensation
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
-from budget.scanmirror.pipeline import ARCSEC, Setup, run
+from budget.scanmirror.pipeline import Setup, run
 from simcam.infra.errors import ScenarioError
 from simcam.scanmirror.geometry import attitude_matrix_br, line_of_sight_body, rot_x, rot_y, rotvec_matrix
 from simcam.scanmirror.scenario import default_text, from_dict
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
 from simcam.scanmirror.world import World
+from simcam.units import RAD_PER_ARCSEC
 
 DEG = np.pi / 180
 
@@ -100,9 +101,9 @@ def test_apparent_directions_agree_with_astropy_gcrs(world, dwell):
     ref /= np.linalg.norm(ref, axis=1, keepdims=True)
     # separation from the cross product (arccos of a dot product floors at 1.5e-8 rad)
     sep = np.linalg.norm(np.cross(ref, dwell.apparent_I), axis=1)
-    assert (sep / ARCSEC).max() < 1e-3
+    assert (sep / RAD_PER_ARCSEC).max() < 1e-3
     # and the aberration itself is the ~20" the paper ignores
-    ab = np.arccos(np.clip(np.sum(dwell.catalogue_I * dwell.apparent_I, 1), -1, 1)) / ARCSEC
+    ab = np.arccos(np.clip(np.sum(dwell.catalogue_I * dwell.apparent_I, 1), -1, 1)) / RAD_PER_ARCSEC
     assert 5 < ab.min() and ab.max() < 25
 
 
@@ -110,27 +111,27 @@ def test_published_estimator_identity_star_on_boresight():
     """Noise-free star exactly on the deviated line of sight: eqs. 33-38 recover dtau to
     second order (notes: 36.275"/20.943" -> 36.272"/20.946")."""
     a, b = 13 * DEG, -55.5 * DEG
-    dt = np.array([36.275, 20.943]) * ARCSEC
+    dt = np.array([36.275, 20.943]) * RAD_PER_ARCSEC
     A_Ib = rotvec_matrix(np.array([0.3, -0.2, 0.5]))
     star = A_Ib @ line_of_sight_body(a, b, dt[0], dt[1])
     m = DwellMeasurement(star[None, :], A_Ib[None], np.zeros((1, 1, 2)), a, b)
     est = published_estimate(m, star=0, frame=0)
     # first order in dtau (2e-4 rad): the remainder is O(dtau^2) ~ 4e-8 rad = 0.01"
-    assert np.abs(est - dt).max() < 0.02 * ARCSEC
+    assert np.abs(est - dt).max() < 0.02 * RAD_PER_ARCSEC
 
 
 def test_batch_estimate_noise_free_is_exact(world, dwell):
-    dt = np.array([-30.0, 12.0]) * ARCSEC
+    dt = np.array([-30.0, 12.0]) * RAD_PER_ARCSEC
     att = world.attitude(dwell.frame_t_s)
     m = np.where(dwell.visible[..., None], true_centroids(dwell, dt[0], dt[1], att), np.nan)
     A = body_to_inertial(dwell.r_km, dwell.v_km_s, att)
     est, cov = batch_estimate([DwellMeasurement(dwell.apparent_I, A, m, dwell.alpha_rad, dwell.beta_rad)],
-                              centroid_sigma_rad=ARCSEC, tracker_sigma_rad=ARCSEC)
-    assert np.abs(est - dt).max() < 1e-6 * ARCSEC
+                              centroid_sigma_rad=RAD_PER_ARCSEC, tracker_sigma_rad=RAD_PER_ARCSEC)
+    assert np.abs(est - dt).max() < 1e-6 * RAD_PER_ARCSEC
     # ignoring aberration (catalogue directions) costs arcseconds of deviation
     est_cat, _ = batch_estimate([DwellMeasurement(dwell.catalogue_I, A, m, dwell.alpha_rad, dwell.beta_rad)],
-                                centroid_sigma_rad=ARCSEC, tracker_sigma_rad=ARCSEC)
-    assert np.abs(est_cat - dt).max() > 3 * ARCSEC
+                                centroid_sigma_rad=RAD_PER_ARCSEC, tracker_sigma_rad=RAD_PER_ARCSEC)
+    assert np.abs(est_cat - dt).max() > 3 * RAD_PER_ARCSEC
 
 
 def test_batch_estimate_sigma_matches_its_own_noise_model_algebra_check():
@@ -208,7 +209,7 @@ def test_profile_attitude_mode_runs_through_the_pipeline():
     # their maximum is about one draw's size: 4 sigma (0.010 deg, exceeded with probability
     # 6e-5 per axis) bounds it; the run gives 1.0e-3 / 4.5e-3 deg here.
     k = sc.attitude.knowledge_sigma_arcsec
-    s = np.hypot(k, 2 * np.max(o["dtau_sigma"]) / ARCSEC)
+    s = np.hypot(k, 2 * np.max(o["dtau_sigma"]) / RAD_PER_ARCSEC)
     g = (sc.orbit.semi_major_axis_km - 6378.137) / 6378.137
     bound = 4 * s * g / 3600.0
     assert 0.009 < bound < 0.011

@@ -8,7 +8,6 @@ import pytest
 
 from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import (
-    ARCSEC_PER_RAD,
     Scenario,
     default,
     load,
@@ -16,6 +15,7 @@ from simcam.starcam.scenario import (
     scenario_to_toml,
     with_updates,
 )
+from simcam.units import ARCSEC_PER_RAD
 
 
 def test_default_is_seed000_camera_and_lab():

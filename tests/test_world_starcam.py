@@ -16,10 +16,11 @@ import pytest
 from simcam.infra.errors import ScenarioError
 from simcam.starcam import optics
 from simcam.detector import DetectorParams, expose, expose_windows, window_chain
-from simcam.starcam.scenario import ARCSEC_PER_RAD, default, load, with_updates
+from simcam.starcam.scenario import default, load, with_updates
 from simcam.starcam.world import (
     WorldMotion, drift_px, frame_times_s, hexapod_pose_errors, timeline,
 )
+from simcam.units import ARCSEC_PER_RAD
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

@@ -14,6 +14,7 @@ import math
 import click
 import numpy as np
 
+from budget.runner.numbers import fmt
 from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
 
@@ -64,7 +65,7 @@ def design_command(faces, pole_pairs, mech_orders, elec_orders, no_constant, jso
                         n_constants=0 if no_constant else 1)
     an = analyse_design(angle_deg=nominal_face_angles_deg(faces=faces), spec=spec)
     click.echo(f"{faces} faces, {pole_pairs} pole pairs: {len(an.names)} coefficients, "
-               f"rank {an.rank}, condition number {an.condition_number:.4g}")
+               f"rank {an.rank}, condition number {fmt(an.condition_number)}")
     for m in spec.mech_orders:
         o, sg = alias_order(faces=faces, cycles_per_rev=m)
         click.echo(f"  mechanical {m}: appears as mechanical order {o}" + (" (sine sign flipped)" if sg < 0 else ""))
@@ -138,7 +139,7 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
     coefficients = {}
     for label, f in fits:
         click.echo(f"{label} fit: {f.angle_deg.size} points, {len(f.names)} coefficients, "
-                   f"residual sigma {f.sigma_arcsec:.4g} arcsec ({f.dof} dof)")
+                   f"residual sigma {fmt(f.sigma_arcsec)} arcsec ({f.dof} dof)")
         for nm, v, s in zip(f.names, f.coefficients_arcsec, f.standard_errors_arcsec):
             click.echo(f"  {nm:>7s} = {v:10.4f} +- {s:.4f} arcsec")
             coefficients[nm] = {"value_arcsec": float(v), "std_arcsec": float(s)}

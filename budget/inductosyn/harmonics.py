@@ -36,9 +36,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simcam.infra.errors import UserInputError
+from simcam.units import ARCSEC_PER_DEG
 
 #: one full turn in arcsec: no calibration reading errs by that much
-FULL_TURN_ARCSEC = 360.0 * 3600.0
+FULL_TURN_ARCSEC = 360.0 * ARCSEC_PER_DEG
 #: calibration angles beyond ten turns are not readings of one rotation
 MAX_ANGLE_DEG = 3600.0
 

@@ -19,7 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
+from simcam.units import ARCSEC_PER_DEG
 
 __all__ = ["FIGURES", "details", "drift_figures", "figure_arrays", "report_sections",
            "sequence_coefficients", "summary_lines"]
@@ -85,7 +87,7 @@ def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
     """
     from budget.inductosyn.harmonics import HarmonicSpec, design_matrix
     from budget.inductosyn.validate import LONG, dense_stats
-    from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, apply_drift
+    from simcam.encoder.inductosyn import Inductosyn, apply_drift
 
     p = prepared
     sc = p.scenario
@@ -137,7 +139,9 @@ def details(result, prepared) -> dict:
     return out
 
 
-def _fmt(v: dict) -> str:
+def _band(v: dict) -> str:
+    """A figure's mean and 5 % - 95 % band over the trials, ``mean [p05, p95]``, in arcsec to
+    0.001 (fixed decimals: the resolution the paper's figures are read at)."""
     return f"{v['mean']:.3f} [{v['p05']:.3f}, {v['p95']:.3f}]"
 
 
@@ -147,14 +151,14 @@ def summary_lines(result) -> list[str]:
     return [
         f"truth points {d['dense_points']} (step {d['dense_step_deg']:g} deg); 3 sigma, arcsec: mean [5%, 95%]",
         f"3 sigma before (dense truth): {d['dense_sigma3_before_arcsec']:.3f} arcsec",
-        f"long  period 24 faces: before {_fmt(d['long_sigma3_before_arcsec'])}  "
-        f"after {_fmt(d['long_sigma3_after_arcsec'])}",
-        f"short period 23 faces: before {_fmt(d['short_sigma3_before_arcsec'])}  "
-        f"after {_fmt(d['short_sigma3_after_arcsec'])}",
-        f"dense residual 3 sigma: in sequence {_fmt(d['dense_sigma3_after_arcsec'])}  "
-        f"joint {_fmt(d['joint_dense_sigma3_after_arcsec'])}",
-        f"dense max |residual - mean|: in sequence {_fmt(d['dense_maxabs_after_arcsec'])}  "
-        f"joint {_fmt(d['joint_dense_maxabs_after_arcsec'])}",
+        f"long  period 24 faces: before {_band(d['long_sigma3_before_arcsec'])}  "
+        f"after {_band(d['long_sigma3_after_arcsec'])}",
+        f"short period 23 faces: before {_band(d['short_sigma3_before_arcsec'])}  "
+        f"after {_band(d['short_sigma3_after_arcsec'])}",
+        f"dense residual 3 sigma: in sequence {_band(d['dense_sigma3_after_arcsec'])}  "
+        f"joint {_band(d['joint_dense_sigma3_after_arcsec'])}",
+        f"dense max |residual - mean|: in sequence {_band(d['dense_maxabs_after_arcsec'])}  "
+        f"joint {_band(d['joint_dense_maxabs_after_arcsec'])}",
         f"after drift (in sequence): {d['dense_sigma3_after_drift_arcsec']['mean']:.3f} arcsec 3 sigma",
     ]
 
@@ -164,10 +168,10 @@ def _figures_markdown(result, d: dict) -> str:
              "3 sigma (3 x sample std, as the paper computes it), arcsec: mean [5%, 95%] over trials.", "",
              "| figure | value |", "|---|---|",
              f"| dense truth before | {d['dense_sigma3_before_arcsec']:.2f} |"]
-    lines += [f"| {label} | {_fmt(d[k])} |" for k, label in FIGURES.items()]
+    lines += [f"| {label} | {_band(d[k])} |" for k, label in FIGURES.items()]
     a = d["acceptance_rate"]
     lines += [f"| dense 3 sigma after drift (in sequence, drift seed {d['drift_seed']}) | "
-              f"{_fmt(d['dense_sigma3_after_drift_arcsec'])} |", "",
+              f"{_band(d['dense_sigma3_after_drift_arcsec'])} |", "",
               f"Acceptance (23-face verification within requirement/3 = {a['requirement_arcsec'] / 3:.2f} "
               f"arcsec): in sequence {a['in_sequence']:.3f}, joint {a['joint']:.3f}."]
     return "\n".join(lines)
@@ -242,7 +246,7 @@ def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
     before, a_s, a_j = _s3(p.dense_before_arcsec), _s3(rs), _s3(rj)
     caption = (f"Dense truth over the whole turn: 3 sigma {before:.2f} arcsec before compensation; trial 0 "
                f"leaves {a_s:.2f} arcsec in sequence (eq 7 + eq 8) and {a_j:.2f} arcsec after the joint fit "
-               f"({a_s / a_j:.2g} times less)." if a_j > 0 else
+               f"({fmt(a_s / a_j, 2)} times less)." if a_j > 0 else
                f"Dense truth: 3 sigma {before:.2f} arcsec before compensation, {a_s:.2f} after (in sequence).")
     return save(fig, path, caption)
 
@@ -278,7 +282,6 @@ def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, pat
     the true residual (continuous reading) overlaid; the text says how much of it is inside."""
     from budget.inductosyn.harmonics import fit_joint, posterior_band
     from budget.inductosyn.validate import JOINT_ELEC
-    from simcam.encoder.inductosyn import ARCSEC_PER_DEG
 
     plt = _plt()
     jf = fit_joint(tables=[(p.angles_long_deg, ex["y_long"]), (p.angles_short_deg, ex["y_short"])],

@@ -33,7 +33,7 @@ from budget.inductosyn.harmonics import (
     fit_joint,
     sigma3_arcsec,
 )
-from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario, world_encoder_params
+from simcam.encoder.inductosyn import Inductosyn, InductosynScenario, world_encoder_params
 from simcam.encoder.polygon import (
     face_taylor,
     measure_polygon,
@@ -41,6 +41,7 @@ from simcam.encoder.polygon import (
     quantise_arcsec,
     world_alpha_arcsec,
 )
+from simcam.units import ARCSEC_PER_DEG
 
 __all__ = ["JOINT_ELEC", "LONG", "Prepared", "dense_stats", "prepare", "reference_coefficients",
            "run_trials", "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]

@@ -29,7 +29,9 @@ from pathlib import Path
 
 import click
 
+from budget.runner.numbers import fmt
 from simcam.infra.cli import overwrite_option
+from simcam.units import ARCSEC_PER_RAD, SECONDS_PER_DAY
 import numpy as np
 
 __all__ = ["commands", "read_observations", "calibrate_table", "CSV_COLUMNS"]
@@ -90,8 +92,8 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
         for c in sim.calibrations.values():
             est = to_report_units(c.theta)[j]
             sd = np.sqrt(max(c.cov[j, j], 0.0)) * abs(PARAM_UNITS[p][1])
-            cols.append(f"{est:10.4g} {'not determined':>10s}" if p in undet else f"{est:10.4g} +-{sd:9.3g}")
-        click.echo(f"{p:10s} {PARAM_UNITS[p][0]:7s} {truth[j]:10.4g} " + " ".join(cols))
+            cols.append(f"{fmt(est):>10} {'not determined':>10s}" if p in undet else f"{fmt(est):>10} +-{fmt(sd, 3):>9}")
+        click.echo(f"{p:10s} {PARAM_UNITS[p][0]:7s} {fmt(truth[j]):>10} " + " ".join(cols))
     from .study import determined_combinations, gauge_combination_vector
 
     f_px = scn.camera.focal_length_mm / scn.camera.pitch_mm
@@ -101,8 +103,8 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
         vals = {v: {"value": float(g @ c.theta), "sigma": float(np.sqrt(max(g @ c.cov @ g, 0.0)))}
                 for v, c in sim.calibrations.items()}
         out["determined_combinations"][name] = {"unit": "arcsec", "truth": float(g @ sim.theta_true), **vals}
-        click.echo(f"{name:10s} {'arcsec':7s} {g @ sim.theta_true:10.4g} "
-                   + " ".join(f"{d['value']:10.4g} +-{d['sigma']:9.3g}" for d in vals.values()))
+        click.echo(f"{name:10s} {'arcsec':7s} {fmt(g @ sim.theta_true):>10} "
+                   + " ".join(f"{fmt(d['value']):>10} +-{fmt(d['sigma'], 3):>9}" for d in vals.values()))
     for v, (ea, ec, sa, sc) in ex["los_error_arcsec"].items():
         stats = {"rms_error_along_arcsec": float(np.sqrt(np.mean(ea**2))),
                  "rms_error_across_arcsec": float(np.sqrt(np.mean(ec**2))),
@@ -251,7 +253,7 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
 #: a physical observation table: times within a century of the epoch, the
 #: spacecraft between the Earth's surface and ten times the Moon's distance, at less than
 #: the Earth's escape speed from its surface (11.2 km/s) plus margin
-MAX_ABS_TIME_S = 100 * 365.25 * 86400.0
+MAX_ABS_TIME_S = 100 * 365.25 * SECONDS_PER_DAY
 MIN_RADIUS_KM, MAX_RADIUS_KM = 6356.0, 4.0e6
 MAX_SPEED_KM_S = 20.0
 #: at least this many distinct catalogue stars (each gives two equations; ten parameters)
@@ -390,7 +392,7 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
 def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir, overwrite):
     from simcam.infra.errors import UserInputError
     from simcam.infra.cli import write_json_atomic
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+    from simcam.linecam.scenario import PARAMETERS
 
     from .model import los_angles, residuals
     from .trial import PARAM_UNITS, to_report_units
@@ -418,7 +420,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
     click.echo(f"{src}: {len(obs)} star observations")
     if sep is not None:
         null = "; ".join(" ".join(f"{c:+.2f} {p}" for p, c in d.items()) for d in sep.null_space) or "none"
-        click.echo(f"plan: condition {sep.condition:.3g}; unobservable combinations: {null}")
+        click.echo(f"plan: condition {fmt(sep.condition, 3)}; unobservable combinations: {null}")
     payload = {"observations": src, "n": len(obs), "scenario_hash": scn.hash,
                "separability": None if sep is None else {"condition": sep.condition, "null_space": sep.null_space,
                                                           "inseparable": list(sep.inseparable)},
@@ -431,7 +433,7 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
                  "across_minus_nominal_arcsec": ((L["across"] - nominal[1]) * ARCSEC_PER_RAD).tolist(),
                  "sigma_along_arcsec": (L["sigma_along"] * ARCSEC_PER_RAD).tolist(),
                  "sigma_across_arcsec": (L["sigma_across"] * ARCSEC_PER_RAD).tolist()}
-        click.echo(f"{m}: rms residual {c.sigma0_px:.3f} px, condition {c.condition:.3g}, "
+        click.echo(f"{m}: rms residual {c.sigma0_px:.3f} px, condition {fmt(c.condition, 3)}, "
                    f"stated LOS rms {np.sqrt(np.mean(L['sigma_along'] ** 2)) * ARCSEC_PER_RAD:.3f}\" along, "
                    f"{np.sqrt(np.mean(L['sigma_across'] ** 2)) * ARCSEC_PER_RAD:.3f}\" across")
         if m == "lookangle":
@@ -448,14 +450,14 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         for j, p in enumerate(PARAMETERS):
             if p in c.solved:
                 click.echo(f"  {p:6s} not determined (inseparable on this plan)" if p in undet else
-                           f"  {p:6s} {th[j]:12.5g} +- {sd[j]:.3g} {PARAM_UNITS[p][0]}")
+                           f"  {p:6s} {fmt(th[j], 5):>12} +- {fmt(sd[j], 3)} {PARAM_UNITS[p][0]}")
         combos = {}
         for name, ang, px, sign in (determined_combinations(sep.null_space, cam.f_px) if sep is not None else []):
             if ang in c.solved and px in c.solved:
                 g = gauge_combination_vector(cam.f_px, ang, px, sign)
                 combos[name] = {"value": float(g @ c.theta), "sigma": float(np.sqrt(max(g @ c.cov @ g, 0.0))),
                                 "unit": "arcsec"}
-                click.echo(f"  {name:6s} {combos[name]['value']:12.5g} +- {combos[name]['sigma']:.3g} arcsec")
+                click.echo(f"  {name:6s} {fmt(combos[name]['value'], 5):>12} +- {fmt(combos[name]['sigma'], 3)} arcsec")
         payload["methods"][m] = {
             "theta": dict(zip(PARAMETERS, th.tolist())),
             "sigma": {p: (None if p in undet else v) for p, v in zip(PARAMETERS, sd.tolist())},
@@ -484,9 +486,9 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             for m, pm in payload["methods"].items():
                 for p in pm.get("solved", []):
                     rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
-                                else f"| {m} | {p} | {pm['theta'][p]:.5g} | {pm['sigma'][p]:.3g} | {pm['units'][p]} |")
+                                else f"| {m} | {p} | {fmt(pm['theta'][p], 5)} | {fmt(pm['sigma'][p], 3)} | {pm['units'][p]} |")
                 for name, cmb in pm.get("determined_combinations", {}).items():
-                    rows.append(f"| {m} | {name} | {cmb['value']:.5g} | {cmb['sigma']:.3g} | arcsec |")
+                    rows.append(f"| {m} | {name} | {fmt(cmb['value'], 5)} | {fmt(cmb['sigma'], 3)} | arcsec |")
             note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
                     "stars do determine are listed in their place." if any(
                         pm.get("not_determined") for pm in payload["methods"].values()) else "")

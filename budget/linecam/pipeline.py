@@ -28,8 +28,9 @@ from scipy.spatial import cKDTree
 
 from budget.centroid.core import centroid_cog
 from simcam.linecam.attitude import strip_frame
-from simcam.linecam.scenario import ARCSEC_PER_RAD, LineCamScenario
+from simcam.linecam.scenario import LineCamScenario
 from simcam.linecam.world import PassImages, SkyStrip
+from simcam.units import ARCSEC_PER_RAD
 
 from .model import NominalCamera, Observations
 

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.figures import figure_markdown
+from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
 
 __all__ = ["plot_tracks", "plot_residuals", "plot_los_error", "plot_coverage", "report_sections"]
@@ -138,9 +139,9 @@ def example_markdown(ex: dict) -> str:
         "|---|---|---|---|",
     ]
     for v in ex["sigma0_px"]:
-        lines.append(f"| {v} | {ex['sigma0_px'][v]:.3f} | {ex['iterations'][v]} | {ex['condition'][v]:.3g} |")
+        lines.append(f"| {v} | {ex['sigma0_px'][v]:.3f} | {ex['iterations'][v]} | {fmt(ex['condition'][v], 3)} |")
     lines += ["", f"Plan separability (all ten parameters, column-normalised Jacobian): condition "
-              f"{sep['condition']:.3g}; unobservable combinations: {null}. Parameters in them "
+              f"{fmt(sep['condition'], 3)}; unobservable combinations: {null}. Parameters in them "
               f"({', '.join(sep['inseparable']) or 'none'}) are a gauge: not determined, reported without "
               "a sigma; what the stars determine of them is the class `gauge_combination` "
               "(pitch + dx0/F, roll - dy0/F). Compare LOS fields, not these parameters."]

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.units import ARCSEC_PER_RAD
 
 __all__ = ["STUDY", "LineCamStudy", "LOS_POINTS"]
 
@@ -66,7 +67,7 @@ def _gauge_axes(scenario) -> tuple[str, ...]:
 def gauge_combination_vector(f_px: float, angle: str, px: str, sign: float):
     """Coefficients (arcsec per model unit: rad, px) of ``angle + sign px / F`` over the ten
     parameters (:data:`simcam.linecam.scenario.PARAMETERS`)."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+    from simcam.linecam.scenario import PARAMETERS
 
     g = np.zeros(len(PARAMETERS))
     g[PARAMETERS.index(angle)] = ARCSEC_PER_RAD
@@ -230,7 +231,7 @@ class LineCamStudy(Study):
 
 def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     """The estimates, per-trial truths and stated sigmas of one simulation."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+    from simcam.linecam.scenario import PARAMETERS
 
     from .trial import to_report_units
 
@@ -288,8 +289,6 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
 
 def trial_extra(scenario, sim) -> dict:
     """What the report plots from trial 0 (small, picklable)."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD
-
     from .calibrate import separability
     from .model import NominalCamera, residuals
 

@@ -18,10 +18,11 @@ from functools import lru_cache
 import numpy as np
 
 from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
-from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
+from simcam.linecam.scenario import PARAMETERS, LineCamScenario
 from simcam.linecam.effects import effects_generator
 from simcam.linecam.world import (PassImages, SkyStrip, attitude_reports, image_passes, sky_strip, world_jitter,
                                   world_sky_strip)
+from simcam.units import ARCSEC_PER_RAD
 
 from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
 from .model import NominalCamera, Observations

@@ -55,8 +55,10 @@ from __future__ import annotations
 
 import math
 
+from budget.runner.numbers import fmt
+
 __all__ = ["RULES", "annotate", "findings", "findings_json", "findings_lines", "findings_markdown",
-           "fmt", "with_unit"]
+           "with_unit"]
 
 RULES = ("input", "residual", "stated", "reference", "undetermined", "exact", "recovers", "biased", "coverage",
          "unresolved")
@@ -65,16 +67,6 @@ RULES = ("input", "residual", "stated", "reference", "undetermined", "exact", "r
 RESOLUTION = 0.10
 #: verdicts that count as "recovered within its claim"
 _OK = ("exact", "recovers")
-
-
-def fmt(v) -> str:
-    """A number for prose: 4 significant digits, exponent outside [1e-3, 1e5)."""
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    a = abs(v)
-    if a != 0 and (a < 1e-3 or a >= 1e5):
-        return f"{v:.3g}"
-    return f"{v:.4g}"
 
 
 def with_unit(value: float, unit: str) -> str:

@@ -1,9 +1,9 @@
 """A report's self-contained HTML twin: ``report.html`` beside ``report.md``.
 
-One file, readable when mailed: the Markdown the report already writes is converted here
-(a small converter for what the reports use: headings, paragraphs, bullet lists, bold,
-inline code, fenced code, pipe tables, images), every figure the Markdown links is embedded
-as a ``data:`` URI (base64), the style is inline, nothing is fetched from a network.
+One file, readable when mailed: the Markdown the report already writes is converted by
+Python-Markdown (its ``tables`` and ``fenced_code`` extensions; raw HTML in the Markdown is
+shown as text, never passed through), every figure the Markdown links is embedded as a
+``data:`` URI (base64), the style is inline, nothing is fetched from a network.
 """
 
 from __future__ import annotations
@@ -12,7 +12,11 @@ import base64
 import html
 import os
 import re
+import xml.etree.ElementTree as etree
 from pathlib import Path
+
+import markdown
+from markdown.treeprocessors import Treeprocessor
 
 __all__ = ["markdown_to_html", "write_html"]
 
@@ -36,117 +40,69 @@ section#findings{background:#f7fbff;border:1px solid #c9ddf0;border-radius:6px;p
 """
 
 
-def _inline(text: str, base: Path | None) -> str:
-    """Escape, then inline code (kept verbatim), images, links and bold (which may hold code)."""
-    codes: list[str] = []
-
-    def keep(m):
-        codes.append(f"<code>{html.escape(m.group(1))}</code>")
-        return f"\x00{len(codes) - 1}\x00"
-
-    p = re.sub(r"`([^`]+)`", keep, text)
-    p = html.escape(p, quote=False)
-    p = re.sub(r"!\[([^\]]*)\]\(([^)\s]+)\)", lambda m: _img(m.group(1), m.group(2), base), p)
-    p = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', p)
-    p = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", p)
-    return re.sub("\x00(\\d+)\x00", lambda m: codes[int(m.group(1))], p)
-
-
-def _img(alt: str, src: str, base: Path | None) -> str:
-    data = None
+def _figure(img: etree.Element, base: Path | None) -> etree.Element:
+    """The ``<figure>`` of one Markdown image, its file embedded; a figure that is not a local
+    file (a network address, or missing) is said to be missing, never fetched."""
+    alt, src = img.get("alt", ""), img.get("src", "")
     path = Path(src) if base is None else base / src
-    if not src.startswith(("http:", "https:", "data:")) and path.is_file():
-        mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
-        data = f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}"
-    if data is None:  # never a network fetch: a figure that is not here is said to be missing
-        return f"<em>[figure {html.escape(alt)} not available]</em>"
-    return f'<figure><img alt="{html.escape(alt)}" src="{data}"><figcaption>{html.escape(alt)}</figcaption></figure>'
+    if src.startswith(("http:", "https:", "data:")) or not path.is_file():
+        missing = etree.Element("em")
+        missing.text = f"[figure {alt} not available]"
+        return missing
+    mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
+    fig = etree.Element("figure")
+    etree.SubElement(fig, "img", alt=alt,
+                     src=f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}")
+    etree.SubElement(fig, "figcaption").text = alt
+    return fig
+
+
+class _ReportPage(Treeprocessor):
+    """Embeds the figures (:func:`_figure`; an image alone in its paragraph replaces the
+    paragraph) and wraps the section titled "Findings" (to the next h1 or h2) in
+    ``<section id="findings">``."""
+
+    def __init__(self, md, base: Path | None):
+        super().__init__(md)
+        self.base = base
+
+    def run(self, root: etree.Element) -> None:
+        for parent in list(root.iter()):
+            for i, child in enumerate(list(parent)):
+                if child.tag != "img":
+                    continue
+                new = _figure(child, self.base)
+                new.tail = child.tail
+                parent.remove(child)
+                parent.insert(i, new)
+        for i, p in enumerate(list(root)):
+            if (p.tag == "p" and len(p) == 1 and p[0].tag == "figure" and not (p.text or "").strip()
+                    and not (p[0].tail or "").strip()):
+                root.remove(p)
+                p[0].tail = p.tail
+                root.insert(i, p[0])
+        section = None
+        for child in list(root):
+            if child.tag in ("h1", "h2"):
+                section = None
+                if child.tag == "h2" and "".join(child.itertext()).strip().lower() == "findings":
+                    section = etree.Element("section", id="findings")
+                    section.text, section.tail = "\n", "\n"
+                    root.insert(list(root).index(child), section)
+            if section is not None:
+                root.remove(child)
+                section.append(child)
 
 
 def markdown_to_html(md: str, *, base: Path | None = None) -> str:
-    """The body HTML of the Markdown subset the reports write; images under ``base`` embedded.
-    The section titled "Findings" is wrapped in ``<section id="findings">``."""
-    lines = md.splitlines()
-    out: list[str] = []
-    i = 0
-    para: list[str] = []
-    in_list = False
-    open_findings = False
-
-    def flush():
-        nonlocal para
-        if para:
-            out.append(f"<p>{_inline(' '.join(para), base)}</p>")
-            para = []
-
-    def close_list():
-        nonlocal in_list
-        if in_list:
-            out.append("</ul>")
-            in_list = False
-
-    while i < len(lines):
-        line = lines[i]
-        if line.startswith("```"):
-            flush(); close_list()
-            j = i + 1
-            while j < len(lines) and not lines[j].startswith("```"):
-                j += 1
-            out.append("<pre><code>" + html.escape("\n".join(lines[i + 1:j])) + "</code></pre>")
-            i = j + 1
-            continue
-        m = re.match(r"^(#{1,6})\s+(.*)$", line)
-        if m:
-            flush(); close_list()
-            level = len(m.group(1))
-            if level <= 2 and open_findings:
-                out.append("</section>")
-                open_findings = False
-            if level == 2 and m.group(2).strip().lower() == "findings":
-                out.append('<section id="findings">')
-                open_findings = True
-            out.append(f"<h{level}>{_inline(m.group(2), base)}</h{level}>")
-            i += 1
-            continue
-        if line.lstrip().startswith("|") and i + 1 < len(lines) and re.match(r"^\s*\|[\s:|-]+\|\s*$", lines[i + 1]):
-            flush(); close_list()
-            head = [c.strip() for c in line.strip().strip("|").split("|")]
-            rows = []
-            j = i + 2
-            while j < len(lines) and lines[j].lstrip().startswith("|"):
-                rows.append([c.strip() for c in lines[j].strip().strip("|").split("|")])
-                j += 1
-            out.append("<table><tr>" + "".join(f"<th>{_inline(c, base)}</th>" for c in head) + "</tr>"
-                       + "".join("<tr>" + "".join(f"<td>{_inline(c, base)}</td>" for c in r) + "</tr>" for r in rows)
-                       + "</table>")
-            i = j
-            continue
-        m = re.match(r"^\s*[*-]\s+(.*)$", line)
-        if m:
-            flush()
-            if not in_list:
-                out.append("<ul>")
-                in_list = True
-            item = [m.group(1)]
-            j = i + 1
-            while j < len(lines) and lines[j].startswith("  ") and lines[j].strip() and \
-                    not re.match(r"^\s*[*-]\s+", lines[j]):
-                item.append(lines[j].strip())
-                j += 1
-            out.append(f"<li>{_inline(' '.join(item), base)}</li>")
-            i = j
-            continue
-        if not line.strip():
-            flush(); close_list()
-            i += 1
-            continue
-        close_list()
-        para.append(line.strip())
-        i += 1
-    flush(); close_list()
-    if open_findings:
-        out.append("</section>")
-    return "\n".join(out)
+    """The body HTML of a report's Markdown; images under ``base`` embedded. The section
+    titled "Findings" is wrapped in ``<section id="findings">``."""
+    conv = markdown.Markdown(extensions=["tables", "fenced_code"], output_format="html")
+    conv.preprocessors.deregister("html_block")  # raw HTML is text in a report, never markup
+    conv.inlinePatterns.deregister("html")
+    # after "unescape" (priority 0), which restores the escaped characters of the alt texts
+    conv.treeprocessors.register(_ReportPage(conv, base), "report_page", -1)
+    return conv.convert(md)
 
 
 def write_html(md_path: str | os.PathLike, html_path: str | os.PathLike | None = None, *,

@@ -17,18 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.numbers import fmt
+
 
 __all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "publish_report", "staged_report",
            "write_outputs", "write_report"]
-
-
-def _fmt(v: float) -> str:
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    a = abs(v)
-    if a != 0 and (a < 1e-3 or a >= 1e5):
-        return f"{v:.3e}"
-    return f"{v:.4g}"
 
 
 def _sig(st: dict) -> str:
@@ -51,10 +44,10 @@ def format_table(result) -> str:
         st = result.statistics(key)
         cls, var, ax = key
         cov = st.get("coverage")
-        rows.append((cls, ax, var, _fmt(st["truth"]), _fmt(st["truth_se"]), _fmt(st["mean"]), _fmt(st["bias"]),
+        rows.append((cls, ax, var, fmt(st["truth"]), fmt(st["truth_se"]), fmt(st["mean"]), fmt(st["bias"]),
                      "n/a" if not math.isfinite(st["bias_percent"]) else f"{st['bias_percent']:+.1f}",
                      _sig(st),
-                     _fmt(st["std"]),
+                     fmt(st["std"]),
                      f"{cov['within_1sigma']:.2f}" if cov else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
@@ -137,7 +130,7 @@ def plot_estimates(result, path: Path, fdata: dict | None = None):
     import textwrap
 
     from budget.figures import save
-    from budget.runner.findings import _unit, fmt
+    from budget.runner.findings import _unit
 
     plt = _plt()
     panels = estimates_panels(result)

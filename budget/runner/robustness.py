@@ -61,6 +61,7 @@ from typing import Any
 import click
 import numpy as np
 
+from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Study, TrialResult
 from simcam.infra.cli import overwrite_option
 from simcam.effects import scenario_effects
@@ -147,7 +148,7 @@ def summary_cell(axes: list[tuple[str, dict]], *, markdown: bool = False) -> str
     else:
         a, c = max(axes, key=lambda ac: abs(ac[1]["bias"]) if math.isfinite(ac[1]["bias"]) else math.inf)
         v, n = "--", len(axes)
-    return f"{v} {_fmt(c['bias'])}" + (f" ({a})" if n > 1 else "")
+    return f"{v} {fmt(c['bias'], 3, sign=True)}" + (f" ({a})" if n > 1 else "")
 
 
 # ---------------------------------------------------------------------- the cases
@@ -318,15 +319,6 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
 
 
 # ---------------------------------------------------------------------- the result
-def _fmt(v: float | None) -> str:
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    a = abs(v)
-    if a != 0 and (a < 1e-3 or a >= 1e5):
-        return f"{v:+.2e}"
-    return f"{v:+.3g}"
-
-
 @dataclass
 class RobustnessResult:
     """The cases of one robustness run and their statistics (module docstring)."""
@@ -444,11 +436,11 @@ class RobustnessResult:
 
         def said(cn, k) -> str:
             c = cells[cn][k]
-            s = f"bias {_fmt(c['bias'])} +- {abs(c['se_bias']):.2g}{unit}"
+            s = f"bias {fmt(c['bias'], 3, sign=True)} +- {fmt(abs(c['se_bias']), 2)}{unit}"
             if cn != IDEAL:
-                s += f" (a shift of {_fmt(c['shift'])} +- {abs(c['se_shift']):.2g} from the ideal world)"
+                s += f" (a shift of {fmt(c['shift'], 3, sign=True)} +- {fmt(abs(c['se_shift']), 2)} from the ideal world)"
             if c["claim"] is not None:
-                s += f", {(abs(c['bias']) + 3 * c['se_bias']) / c['claim']:.2g} times its claimed {c['claim']:.3g}"
+                s += f", {fmt((abs(c['bias']) + 3 * c['se_bias']) / c['claim'], 2)} times its claimed {fmt(c['claim'], 3)}"
             if c["coverage_1sigma"] is not None:
                 s += (f", 1-sigma coverage {100 * c['coverage_1sigma']:.1f} % "
                       f"(68.3 +- {100 * c['se_coverage_1sigma']:.1f} % expected)")

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from simcam.infra.cli import overwrite_option
+from simcam.units import RAD_PER_ARCSEC
 import numpy as np
 
 __all__ = ["simulate_command", "simulate", "write_simulate_report"]
@@ -16,7 +17,7 @@ __all__ = ["simulate_command", "simulate", "write_simulate_report"]
 def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dict, object, dict]:
     """Run the timeline once (the draws of trial ``seed``'s stream, ground points every
     ``compensation.ground_step_s``); returns (JSON summary, setup, raw output)."""
-    from budget.scanmirror.pipeline import ARCSEC, Setup, run
+    from budget.scanmirror.pipeline import Setup, run
 
     setup = Setup(scenario, scenario.compensation.ground_step_s, source=source or scenario.source)
     out = run(setup, np.random.default_rng(np.random.SeedSequence(seed)), keep_series=True)
@@ -24,9 +25,9 @@ def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dic
     summary = {
         "scenario_hash": scenario.hash, "seed": seed, "duration_s": setup.world.duration_s,
         "ground_step_s": scenario.compensation.ground_step_s,
-        "dtau_true_arcsec": (out["dtau_true"] / ARCSEC).tolist(),
-        "dtau_estimate_arcsec": {k: (v / ARCSEC).tolist() for k, v in out["dtau"].items()},
-        "dtau_sigma_arcsec": (out["dtau_sigma"] / ARCSEC).tolist(),
+        "dtau_true_arcsec": (out["dtau_true"] / RAD_PER_ARCSEC).tolist(),
+        "dtau_estimate_arcsec": {k: (v / RAD_PER_ARCSEC).tolist() for k, v in out["dtau"].items()},
+        "dtau_sigma_arcsec": (out["dtau_sigma"] / RAD_PER_ARCSEC).tolist(),
         "dwells": [{"t_s": [float(d.frame_t_s[0]), float(d.frame_t_s[-1])], "hip": d.hip.tolist(),
                     "v_mag": np.round(d.v_mag, 2).tolist()} for d in setup.dwells],
         "scans": {},

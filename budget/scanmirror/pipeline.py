@@ -20,10 +20,10 @@ from simcam.scanmirror.effects import WorldEffects
 from simcam.scanmirror.geometry import rotvec_matrix
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
 from simcam.scanmirror.world import World, deviation_components
+from simcam.units import RAD_PER_ARCSEC
 
-__all__ = ["Setup", "run", "ARCSEC", "VARIANTS"]
+__all__ = ["Setup", "run", "VARIANTS"]
 
-ARCSEC = np.pi / 180 / 3600
 VARIANTS = ("published", "improved", "without_estimate")
 
 
@@ -115,10 +115,10 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
     const = np.deg2rad(m.deviation_constant_deg) + np.deg2rad(m.constant_sigma_deg) * rng.standard_normal()
     init = np.asarray(a.initial_deg) + a.initial_sigma_deg * rng.standard_normal(3)
     orbit_offset = sc.orbit.knowledge_sigma_km * rng.standard_normal(3)
-    att_know = a.knowledge_sigma_arcsec * ARCSEC * rng.standard_normal(3)
+    att_know = a.knowledge_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(3)
     n_d = len(setup.dwells)
-    tracker_err = ss.tracker_sigma_arcsec * ARCSEC * rng.standard_normal((n_d, 3))
-    noise = [ss.centroid_sigma_arcsec * ARCSEC * rng.standard_normal(d.visible.shape + (2,)) for d in setup.dwells]
+    tracker_err = ss.tracker_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal((n_d, 3))
+    noise = [ss.centroid_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(d.visible.shape + (2,)) for d in setup.dwells]
     # the world's effects draw from a child spawned after the lab's draws: off, nothing changes
     fx = setup.effects.draw(rng.spawn(1)[0], setup.t_s) if setup.effects.on else None
 
@@ -164,8 +164,8 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
                 mid, star = int(fr), int(np.flatnonzero(last.visible[fr])[0])
             est_pub = published_estimate(meas_cat[before[-1]], star=star, frame=mid)
             est_imp, cov = batch_estimate([meas_app[j] for j in before],
-                                          centroid_sigma_rad=ss.centroid_sigma_arcsec * ARCSEC,
-                                          tracker_sigma_rad=ss.tracker_sigma_arcsec * ARCSEC)
+                                          centroid_sigma_rad=ss.centroid_sigma_arcsec * RAD_PER_ARCSEC,
+                                          tracker_sigma_rad=ss.tracker_sigma_arcsec * RAD_PER_ARCSEC)
             t_mid = float(last.frame_t_s.mean())
             truth = np.array(dev(t_mid))
         else:

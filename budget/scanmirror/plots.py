@@ -6,6 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.numbers import fmt
+from simcam.units import ARCSEC_PER_RAD
+
 __all__ = ["plot_dtau_errors", "plot_trial_ground_errors", "plot_ground_error_maps", "plot_deviation_timeline",
            "plot_scan_pattern"]
 
@@ -14,10 +17,6 @@ def _plt():
     from budget.figures import plt
 
     return plt()
-
-
-def _g(x: float) -> str:
-    return f"{x:.3g}"
 
 
 def plot_dtau_errors(result, path: Path) -> Path:
@@ -49,11 +48,11 @@ def plot_dtau_errors(result, path: Path) -> Path:
         if p is not None and i is not None and i > 0:
             better = "improved" if i < p else "published"
             ratio = p / i if i < p else i / p
-            parts.append(f"on {axis} the {better} estimate's rms error is {ratio:.2g} times smaller "
-                         f"({_g(i)} vs {_g(p)} arcsec, improved vs published)")
+            parts.append(f"on {axis} the {better} estimate's rms error is {fmt(ratio, 2)} times smaller "
+                         f"({fmt(i, 3)} vs {fmt(p, 3)} arcsec, improved vs published)")
         elif p is not None or i is not None:
             v, r = ("published", p) if p is not None else ("improved", i)
-            parts.append(f"on {axis} the {v} estimate's rms error is {_g(r)} arcsec")
+            parts.append(f"on {axis} the {v} estimate's rms error is {fmt(r, 3)} arcsec")
     caption = (f"Estimate minus injected deviation over {result.trials} trials (0 = exact): "
                + "; ".join(parts) + ".") if parts else "No deviation estimates in this run."
     return save(fig, path, caption)
@@ -68,7 +67,7 @@ def _max_errors_caption(errors: dict) -> str:
     """Each compensation's largest |error| (deg), smallest first, from the arrays drawn."""
     m = {n: float(max(np.abs(lat).max(), np.abs(lon).max())) for n, (lat, lon) in errors.items()}
     order = sorted(m, key=m.get)
-    return ", ".join(f"{n} {_g(m[n])} deg" for n in order), m
+    return ", ".join(f"{n} {fmt(m[n], 3)} deg" for n in order), m
 
 
 def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
@@ -135,10 +134,10 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
     worst = {n: float(np.max(mags[(last, n)])) for n in names}
     order = sorted(worst, key=worst.get)
     caption = ("Ground error |(lat, lon) error| at the nominal ground points, every panel on one "
-               f"logarithmic colour scale ({vmin:.2g} to {vmax:.2g} deg). Largest error in the last scan "
+               f"logarithmic colour scale ({fmt(vmin, 2)} to {fmt(vmax, 2)} deg). Largest error in the last scan "
                f"({last}), smallest first: "
-               + ", ".join(f"{n} {_g(worst[n])} deg" for n in order)
-               + (f"; the best compensation ({order[0]}) is {worst['uncompensated'] / worst[order[0]]:.3g} "
+               + ", ".join(f"{n} {fmt(worst[n], 3)} deg" for n in order)
+               + (f"; the best compensation ({order[0]}) is {fmt(worst['uncompensated'] / worst[order[0]], 3)} "
                   "times below uncompensated." if worst[order[0]] > 0 and order[0] != "uncompensated"
                   else "."))
     return save(fig, path, caption, dpi=100, layout=False)
@@ -151,16 +150,15 @@ def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: f
     from budget.figures import save
 
     plt = _plt()
-    arc = 180 / np.pi * 3600
     fig, axes = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
     i_end = int(np.clip(np.searchsorted(t_s, dwell_end_s), 0, len(t_s) - 1))
     parts = []
     for ax, d, j, lab in ((axes[0], dtau_x, 0, "x"), (axes[1], dtau_y, 1, "y")):
-        ax.plot(t_s, d * arc, "k", lw=1, label="injected")
+        ax.plot(t_s, d * ARCSEC_PER_RAD, "k", lw=1, label="injected")
         for k, (name, e) in enumerate(estimates.items()):
-            ax.hlines(e[j] * arc, dwell_end_s, t_s[-1], lw=1.4, ls=("-", "--", ":")[k % 3],
+            ax.hlines(e[j] * ARCSEC_PER_RAD, dwell_end_s, t_s[-1], lw=1.4, ls=("-", "--", ":")[k % 3],
                       label=f"{name} estimate", color={"published": "C1", "improved": "C2"}.get(name, "C3"))
-            parts.append(f"{name} {lab} {(e[j] - d[i_end]) * arc:+.2f}")
+            parts.append(f"{name} {lab} {(e[j] - d[i_end]) * ARCSEC_PER_RAD:+.2f}")
         ax.axvline(dwell_end_s, color="grey", ls=":", lw=0.8)
         ax.set_ylabel(f"dtau_{lab} (arcsec)")
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: never over a line
@@ -168,7 +166,7 @@ def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: f
                       fontsize=9)
     axes[1].set_xlabel("time (s)")
     after = slice(i_end, None)
-    drift = max(float(np.ptp(dtau_x[after])), float(np.ptp(dtau_y[after]))) * arc
+    drift = max(float(np.ptp(dtau_x[after])), float(np.ptp(dtau_y[after]))) * ARCSEC_PER_RAD
     caption = (f"Estimate minus injected deviation at the dwell's end (t = {dwell_end_s:.0f} s), arcsec: "
                + ", ".join(parts) + f"; after the dwell the injected deviation still moves by up to "
                f"{drift:.2f} arcsec (peak to peak), which a held estimate cannot follow.")

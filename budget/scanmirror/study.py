@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorStudy", "STUDY"]
 
@@ -82,7 +83,7 @@ class ScanMirrorStudy(Study):
         return _SETUP[key]
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from budget.scanmirror.pipeline import ARCSEC, run
+        from budget.scanmirror.pipeline import run
 
         setup = self._setup(scenario)
         o = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)))
@@ -90,14 +91,14 @@ class ScanMirrorStudy(Study):
         est, truths, sig = {}, {}, {}
         for v in self.variants:
             for j, ax in enumerate(("x", "y")):
-                est[("dtau", v, ax)] = float(o["dtau"][v][j] / ARCSEC)
-                truths[("dtau", v, ax)] = float(o["dtau_true"][j] / ARCSEC)
+                est[("dtau", v, ax)] = float(o["dtau"][v][j] / RAD_PER_ARCSEC)
+                truths[("dtau", v, ax)] = float(o["dtau_true"][j] / RAD_PER_ARCSEC)
             lat, lon = o["errors"][last][v]
             for ax, e in (("lat", lat), ("lon", lon)):
                 est[("ground_max", v, ax)] = float(np.abs(e).max())
                 est[("ground_rms", v, ax)] = float(np.sqrt(np.mean(e * e)))
         for j, ax in enumerate(("x", "y")):
-            sig[("dtau", "improved", ax)] = float(o["dtau_sigma"][j] / ARCSEC)
+            sig[("dtau", "improved", ax)] = float(o["dtau_sigma"][j] / RAD_PER_ARCSEC)
         extra = {}
         if k == 0:
             extra = {"t_s": setup.t_s, "g0": setup.g0,

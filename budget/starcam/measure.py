@@ -40,6 +40,7 @@ import pandas as pd
 from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
 from simcam.starcam.scenario import ValidationModel
+from simcam.units import ARCSEC_PER_DEG
 
 MANIFEST_COLUMNS = ("file", "condition", "frame", "filter_nm", "field", "dark")
 #: the centroid threshold (noise sigmas) of budget validate's default scenario: one path
@@ -395,7 +396,7 @@ def header_plate_scale(info: dict) -> float:
         ps = float(raw)
     except (TypeError, ValueError):
         ps = float("nan")
-    if isinstance(raw, bool) or not math.isfinite(ps) or ps <= 0 or ps > 3600.0 * 360:
+    if isinstance(raw, bool) or not math.isfinite(ps) or ps <= 0 or ps > ARCSEC_PER_DEG * 360:
         raise UserInputError(f"{where}: header PLTSCALE = {raw!r} is not a positive number of arcsec/px "
                              "(pass --plate-scale to give it)")
     return ps

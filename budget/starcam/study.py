@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 
 __all__ = ["STUDY", "StarCameraStudy"]
@@ -385,12 +386,12 @@ class StarCameraStudy(Study):
             # at the floor: within 3 standard errors or 15 % of it, and nearer it than the truth
             if near <= max(3.0 * stats.get("se_bias", 0.0), 0.15 * floor) and near < abs(stats["mean"] - stats["truth"]):
                 return (f"the published estimator measures temporal noise, not the pixel error: its mean "
-                        f"{stats['mean']:.3g} sits at the temporal-noise floor of the {p.frames}-frame means "
-                        f"(TE x sqrt(2/{p.frames}) = {floor:.3g}), not at the static error {stats['truth']:.3g}.")
+                        f"{fmt(stats['mean'], 3)} sits at the temporal-noise floor of the {p.frames}-frame means "
+                        f"(TE x sqrt(2/{p.frames}) = {fmt(floor, 3)}), not at the static error {fmt(stats['truth'], 3)}.")
             seen = (f", and the {p.conditions} poses along one diagonal see only part of the static error"
                     if getattr(p, "pattern", "diagonal") == "diagonal" else "")
             return (f"the scatter of the {p.frames}-frame means about the fitted steps holds their temporal noise "
-                    f"(about {floor:.3g}) beside the static error{seen}: its sign depends on which dominates.")
+                    f"(about {fmt(floor, 3)}) beside the static error{seen}: its sign depends on which dominates.")
         if cls == "hsfe" and b < 0 and getattr(result.scenario.protocols.hsfe, "pattern", "diagonal") == "diagonal":
             p = result.scenario.protocols.hsfe
             return (f"the improved static estimator removes the temporal noise but cannot see the part of the "
@@ -431,7 +432,7 @@ class StarCameraStudy(Study):
                 same = (cor.rows, cor.cols, cor.extent_fraction) == (tgt.rows, tgt.cols, tgt.extent_fraction)
                 beyond = (f"the world's distortion beyond the lab's cubic (r^5 {a5:g} px, r^7 {a7:g} px at the "
                           f"corner, [world.effects]) is in the truth: the camera's order-{cor.order} correction "
-                          f"leaves {c1.value:.3g} of the {raw * f:.3g} raw static displacement "
+                          f"leaves {fmt(c1.value, 3)} of the {fmt(raw * f, 3)} raw static displacement "
                           f"({100 * c1.value / (raw * f):.0f} %) over {c1.details.get('dense_points', 'the')} "
                           f"points of the field, but it was fitted at a {cor.rows} x {cor.cols} grid"
                           + (", the lab's own calibration points," if same else "")
@@ -441,16 +442,16 @@ class StarCameraStudy(Study):
                 # were it seen, the camera's residual beside it (root-sum-square)
                 seen = math.hypot(floor, stats["truth"]) if floor is not None else None
                 blind = beyond is not None and seen is not None and stats["mean"] < seen - 3.0 * se
-                fl = f" (sqrt(9/{n_pts - 1}) x {c2.value:.3g} = {floor:.3g})" if floor is not None else ""
+                fl = f" (sqrt(9/{n_pts - 1}) x {fmt(c2.value, 3)} = {fmt(floor, 3)})" if floor is not None else ""
                 s = f"eq 29 reports the target markers' floor{fl} beside the camera's residual" if b > 0 else ""
                 if blind:
                     s += ("; " if s else "") + (
-                        f"{beyond}: its mean {stats['mean']:.3g} stays below the {seen:.3g} that the floor and "
-                        f"the whole truth {stats['truth']:.3g} give together (root-sum-square)")
+                        f"{beyond}: its mean {fmt(stats['mean'], 3)} stays below the {fmt(seen, 3)} that the floor and "
+                        f"the whole truth {fmt(stats['truth'], 3)} give together (root-sum-square)")
                 return s + "." if s else None
             if beyond is not None and b < 0 and stats["bias_significant"]:
                 return (f"{beyond}; the estimate sees the displacement only at the {n_pts} "
-                        f"calibration points: its mean {stats['mean']:.3g} falls {-b:.3g} short of the truth.")
+                        f"calibration points: its mean {fmt(stats['mean'], 3)} falls {fmt(-b, 3)} short of the truth.")
             if b > 0 or not stats["bias_significant"]:
                 # a sample variance of n points has a relative sd of sqrt(2 / (n - 1))
                 return (f"the marker variance it subtracts is known to about +-{100 * (2 / (n_pts - 1)) ** 0.5:.0f} % "

@@ -24,6 +24,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from budget.runner.numbers import fmt
 from simcam.infra.cli import overwrite_option
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
@@ -143,7 +144,7 @@ def _panel_title(ds, cls, axis=None) -> str:
 def _pair(a: float, b: float) -> tuple[str, str]:
     """Two values with enough significant digits to tell them apart (up to 6)."""
     for n in (3, 4, 5, 6):
-        sa, sb = f"{a:.{n}g}", f"{b:.{n}g}"
+        sa, sb = fmt(a, n), fmt(b, n)
         if sa != sb:
             break
     return sa, sb
@@ -301,7 +302,7 @@ def _heatmaps(ds, axis, variant, out_dir):
                 if is_flat:
                     ax.text(0.5, 0.97, "flat over the grid", ha="center", va="top", fontsize=7,
                             transform=ax.transAxes, bbox=dict(boxstyle="round", fc="w", ec="0.6", alpha=0.9))
-                fl = (f"flat at {lo_:.3g} {_unit(ds, cls)}" if is_flat
+                fl = (f"flat at {fmt(lo_, 3)} {_unit(ds, cls)}" if is_flat
                       else f"{a_} to {b_} {_unit(ds, cls)} (largest |value| at {d0} = {d[d0].values[ix]}, "
                            f"{d1} = {d[d1].values[iy]})")
                 found.append(f"{_class_label(ds, cls)} {fl}")
@@ -397,7 +398,7 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
                 ax.errorbar(x, 100 * rel, yerr=200 * rel_se, fmt=mk + "-", ms=4, color=col, capsize=2, lw=1,
                             label=str(v), mfc="none" if mk == "s" else None)
                 f = np.isfinite(rel)
-                found.append(f"{_class_label(ds, cls)} ({v}) {100 * rel[f][0]:.3g} % to {100 * rel[f][-1]:.3g} %")
+                found.append(f"{_class_label(ds, cls)} ({v}) {fmt(100 * rel[f][0], 3)} % to {fmt(100 * rel[f][-1], 3)} %")
             elif np.all(np.isnan(m)):
                 ax.text(0.5, 0.5, "no lab estimate (truth only)", ha="center", va="center",
                         fontsize=7, transform=ax.transAxes)

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import click
-import numpy as np
 
+from budget.runner.numbers import fmt
 from budget.sweeps.spec import Sweep, load_sweep
 from budget.sweeps.store import open_sensitivity, open_sobol, open_sweep
 
@@ -250,10 +250,6 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
 
 
 # --------------------------------------------------------------------------- CLI
-def _fmt(v: float) -> str:
-    return "nan" if not np.isfinite(v) else f"{v:.3f}"
-
-
 @click.command("sweep")
 @click.argument("sweep_file", type=click.Path(dir_okay=False))
 @click.option("--out", "out", required=True, type=click.Path(),
@@ -287,8 +283,8 @@ def sweep_command(sweep_file, out, workers, scheduler, dask_local, progress) -> 
             cells = []
             for p in s1.parameter.values:
                 a = dict(**{"class": cls}, parameter=p)
-                cells.append(f"{p}: S1 {_fmt(float(s1.sel(a)))} +- {_fmt(float(s1c.sel(a)))}, "
-                             f"ST {_fmt(float(st.sel(a)))} +- {_fmt(float(stc.sel(a)))}")
+                cells.append(f"{p}: S1 {fmt(float(s1.sel(a)), 3)} +- {fmt(float(s1c.sel(a)), 3)}, "
+                             f"ST {fmt(float(st.sel(a)), 3)} +- {fmt(float(stc.sel(a)), 3)}")
             click.echo(f"  {cls:>12s}  " + "; ".join(cells))
         if skipped:
             click.echo("  no indices: " + "; ".join(skipped))

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from simcam.units import WGS84_F
+
 __all__ = ["CHOSEN", "chosen_values", "seed_distribution", "published_criterion"]
 
 #: the values the paper lost (scenario fields), chosen in data/default.toml
@@ -123,7 +125,7 @@ def world_synthesis(sc, seed: int = 0, *, trials: int | None = None) -> dict | N
     x1, x3 = sy.field_points(sc)
     x1, x3 = np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
     paper = sy.evaluate(know, true, x1, x3, backend="numpy")
-    flat = scale * rt.WGS84_F
+    flat = scale * WGS84_F
     vt = np.array([wd.world_motion(row, geo.PARAMS, x1, x3, flat) for row in true])
     vk = paper.v_know
     sk, st = np.hypot(vk[..., 0], vk[..., 1]), np.hypot(vt[..., 0], vt[..., 1])

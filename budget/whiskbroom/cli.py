@@ -13,6 +13,7 @@ from pathlib import Path
 
 import click
 
+from budget.runner.numbers import fmt
 from simcam.infra.cli import overwrite_option
 
 __all__ = ["synthesize_command", "run_synthesis", "main"]
@@ -157,7 +158,7 @@ def _claims_lines(dist, crit) -> list[str]:
 def _world_lines(w) -> list[str]:
     """Markdown of the synthesis with its truth side in the world (ray trace to the ellipsoid)."""
     out = ["", f"The synthesis's truth side in the world ({w['trials']} trials, {w['mirror_rate_error_deg_s']:g} deg/s): "
-               f"V_true ray-traced to the ellipsoid of flattening {w['flattening']:.6g} (simcam.whiskbroom.raytrace), "
+               f"V_true ray-traced to the ellipsoid of flattening {fmt(w['flattening'], 6)} (simcam.whiskbroom.raytrace), "
                f"the knowledge the paper's chain on its sphere:", "",
            "| truth | Delta V_P mm/s | max abs Delta beta deg | abs eps q | abs eta q | N pub | N impr |",
            "|---|---|---|---|---|---|---|"]

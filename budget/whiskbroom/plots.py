@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from budget.figures import figure_markdown
+from budget.runner.numbers import fmt
 
 __all__ = ["plot_beta_hist", "plot_dv_hist", "plot_ground_trace", "plot_mtf_vs_stages",
            "plot_motion_field", "plot_trial_mtf", "plot_mtf_errors", "figure_markdown"]
@@ -34,8 +35,8 @@ def plot_beta_hist(result, path):
     ax.set_ylabel("trials")
     ax.set_title(f"Drift angle, {result.trials.size} trials (array turned {result.array_angle_deg:.2f} deg)",
                  fontsize=10)
-    caption = (f"Drift angle of the worst column over {beta.size} trials: mean {beta.mean():+.3g} deg, "
-               f"sd {beta.std(ddof=1):.3g} deg, |beta| up to {np.abs(beta).max():.3g} deg, with the array "
+    caption = (f"Drift angle of the worst column over {beta.size} trials: mean {fmt(beta.mean(), 3, sign=True)} deg, "
+               f"sd {fmt(beta.std(ddof=1), 3)} deg, |beta| up to {fmt(np.abs(beta).max(), 3)} deg, with the array "
                f"turned by {result.array_angle_deg:.2f} deg.")
     return _save(plt, fig, path, caption)
 
@@ -53,8 +54,8 @@ def plot_dv_hist(result, path):
     ax.set_title("image-motion velocity residual per mirror-rate error", fontsize=10)
     sd = {k: float(np.std(v, ddof=1)) for k, v in samples.items()}
     caption = ("Delta V_P over the trials; its sd per mirror-rate error: "
-               + ", ".join(f"{k} {v:.3g} mm/s" for k, v in sd.items())
-               + (f" (the largest {max(sd.values()) / min(sd.values()):.2g} times the smallest)."
+               + ", ".join(f"{k} {fmt(v, 3)} mm/s" for k, v in sd.items())
+               + (f" (the largest {fmt(max(sd.values()) / min(sd.values()), 2)} times the smallest)."
                   if len(sd) > 1 and min(sd.values()) > 0 else "."))
     return _save(plt, fig, path, caption)
 
@@ -70,8 +71,8 @@ def plot_ground_trace(lat, lon, path):
     ax.legend()
     ax.set_title("Ground trace of one scan (one side)", fontsize=10)
     width = float(np.max(np.abs(lat[:, 0] - lat[:, -1])))
-    caption = (f"One scan sweeps {np.ptp(lon[:, lat.shape[1] // 2]):.3g} deg of longitude; the array's "
-               f"ends are up to {width:.3g} deg of latitude apart.")
+    caption = (f"One scan sweeps {fmt(np.ptp(lon[:, lat.shape[1] // 2]), 3)} deg of longitude; the array's "
+               f"ends are up to {fmt(width, 3)} deg of latitude apart.")
     return _save(plt, fig, path, caption)
 
 
@@ -122,7 +123,7 @@ def plot_motion_field(x1, x3, v, path):
     ax.set_title("Image-motion field over the arrays", fontsize=10)
     d = 1e3 * (s - centre)
     caption = (f"Nominal image-motion speed {centre:.3f} mm/s at the centre; over the arrays it differs by "
-               f"{d.min():+.3g} to {d.max():+.3g} um/s ({100 * np.ptp(s) / centre:.3g} % of it).")
+               f"{fmt(d.min(), 3, sign=True)} to {fmt(d.max(), 3, sign=True)} um/s ({fmt(100 * np.ptp(s) / centre, 3)} % of it).")
     return _save(plt, fig, path, caption)
 
 
@@ -143,8 +144,8 @@ def plot_trial_mtf(extra, scenario, path):
     i = int(np.argmin(np.abs(n - scenario.camera.tdi_stages)))
     t, p, im = (float(np.asarray(extra[k])[i]) for k in ("truth_along", "published", "improved_along"))
     caption = (f"Trial 0 at N = {n[i]:g} stages (dotted line): pixel-level MTF {t:.4f} along track; the "
-               f"published sinc predicts {p:.4f} ({p - t:+.2g}), the improved prediction {im:.4f} "
-               f"({im - t:+.2g}).")
+               f"published sinc predicts {p:.4f} ({fmt(p - t, 2, sign=True)}), the improved prediction {im:.4f} "
+               f"({fmt(im - t, 2, sign=True)}).")
     return _save(plt, fig, path, caption)
 
 
@@ -168,6 +169,6 @@ def plot_mtf_errors(result, path):
     ax.set_title("error of each MTF prediction over the trials", fontsize=10)
     ax.legend()
     caption = ("Estimate minus pixel-level MTF at Nyquist (along track) over the trials: "
-               + "; ".join(f"{v} mean {e.mean():+.2g}, sd {e.std(ddof=1) if e.size > 1 else 0.0:.2g}"
+               + "; ".join(f"{v} mean {fmt(e.mean(), 2, sign=True)}, sd {fmt(e.std(ddof=1) if e.size > 1 else 0.0, 2)}"
                            for v, e in errs.items()) + ".")
     return _save(plt, fig, path, caption)

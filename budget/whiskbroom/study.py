@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.units import WGS84_F
 
 __all__ = ["STUDY", "WhiskbroomStudy", "STAGE_CAP_FACTOR"]
 
@@ -120,7 +121,6 @@ class WhiskbroomStudy(Study):
         MTF of the worst column along and across for N = 1..cap, and the edge image's
         image path (a function of the time in line periods -> along, across pixels)."""
         from simcam.whiskbroom import geometry as geo
-        from simcam.whiskbroom import raytrace as rt
         from simcam.whiskbroom import tdi
         from simcam.whiskbroom import world as wd
 
@@ -129,7 +129,7 @@ class WhiskbroomStudy(Study):
         i = int(r.worst[0])
         x1, x3 = self._field(scenario)
         px1, px3 = x1[i:i + 1], x3[i:i + 1]
-        flat = eff.earth_flattening_scale * rt.WGS84_F
+        flat = eff.earth_flattening_scale * WGS84_F
         vk = r.v_know[0, i]
         vt = (wd.world_motion(true[0], geo.PARAMS, px1, px3, flat)[0]
               if eff.earth_flattening_scale > 0 else r.v_true[0, i])

@@ -16,7 +16,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspa
 
 import numpy as np  # noqa: E402
 
-from budget.scanmirror.pipeline import ARCSEC, Setup, run  # noqa: E402
+from budget.scanmirror.pipeline import Setup, run  # noqa: E402
+from simcam.units import RAD_PER_ARCSEC  # noqa: E402
 from simcam.scanmirror.scenario import default_text, from_dict  # noqa: E402
 
 NAMES = ("uncompensated", "without_estimate", "published", "improved")
@@ -58,7 +59,7 @@ def table(title, sc, trials, seed=0):
                 lat, lon = errs[n]
                 rows.setdefault((s, n), []).append((np.abs(lat).max(), np.abs(lon).max()))
     print(f"\n### {title} ({trials} trial{'s' if trials > 1 else ''})\n")
-    dt = np.array(dt) / ARCSEC
+    dt = np.array(dt) / RAD_PER_ARCSEC
     print(f"injected dtau at the dwell (mean) {dt[:, 0].mean(0).round(2).tolist()} arcsec; "
           f"published - injected {(dt[:, 1] - dt[:, 0]).mean(0).round(2).tolist()}, "
           f"improved - injected {(dt[:, 2] - dt[:, 0]).mean(0).round(3).tolist()} arcsec (means)\n")

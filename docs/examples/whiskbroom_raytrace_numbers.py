@@ -24,6 +24,7 @@ from simcam.whiskbroom import geometry as geo  # noqa: E402
 from simcam.whiskbroom import raytrace as rt  # noqa: E402
 from simcam.whiskbroom import scenario as wsc  # noqa: E402
 from simcam.whiskbroom import synthesis as sy  # noqa: E402
+from simcam.units import WGS84_F  # noqa: E402
 
 TRIALS = 1000
 
@@ -82,7 +83,7 @@ def main():
         print(f"   gamma {g:3.0f} deg (latitude {lat:5.1f}): max d|V| {ds.max():.2e} mm/s ({ds.max() / s.min():.1e} of V);"
               f" along TDI {dc[:, 0].max():.3f}, across {dc[:, 1].max():.3f} mm/s;"
               f" d beta {np.degrees(np.abs(rt.drift_angle(ve) - rt.drift_angle(vs))).max():.3f} deg")
-    vte = trace(true, rt.WGS84_F, x1, x3)
+    vte = trace(true, WGS84_F, x1, x3)
     for name, v in (("sphere", vt), ("WGS 84", vte)):
         dv, eps, eta, db = residuals(vk, v)
         eq, hq = np.quantile(np.abs(eps), 0.997), np.quantile(np.abs(eta), 0.997)

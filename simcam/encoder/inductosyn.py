@@ -49,12 +49,9 @@ from scipy.optimize import brentq
 from simcam.infra.errors import ScenarioError
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
 from simcam.effects import EffectsBase, WorldBase
-
-ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
-ARCSEC_PER_DEG = 3600.0
+from simcam.units import ARCSEC_PER_DEG
 
 __all__ = [
-    "ARCSEC_PER_RAD",
     "AutocollimatorParams",
     "CalibrationParams",
     "DriftParams",

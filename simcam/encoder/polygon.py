@@ -27,8 +27,6 @@ import numpy as np
 import pandas as pd
 
 from simcam.encoder.inductosyn import (
-    ARCSEC_PER_DEG,
-    ARCSEC_PER_RAD,
     AutocollimatorParams,
     Inductosyn,
     InductosynScenario,
@@ -36,6 +34,7 @@ from simcam.encoder.inductosyn import (
     _instrument_rng,
 )
 from simcam.noise_processes import random_walk, white_noise
+from simcam.units import ARCSEC_PER_DEG, ARCSEC_PER_RAD, SECONDS_PER_HOUR
 
 __all__ = [
     "FaceTaylor",
@@ -245,7 +244,7 @@ def autocollimator_error_arcsec(*, rng: np.random.Generator, t_s, noise_arcsec: 
     ``noise^2 dt / tau + q tau / 3`` (IEEE Std 952-1997, Annex C): slope -1/2, then +1/2.
     """
     w = white_noise(rng, t_s, noise_arcsec)
-    return w + random_walk(rng, t_s, drift_arcsec_per_sqrt_h / math.sqrt(3600.0))
+    return w + random_walk(rng, t_s, drift_arcsec_per_sqrt_h / math.sqrt(SECONDS_PER_HOUR))
 
 
 def pass_times_s(*, scenario: InductosynScenario) -> list[np.ndarray]:
@@ -328,8 +327,8 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     radius_mm = math.inf if w.face_curvature_arcsec_per_mm == 0 else ARCSEC_PER_RAD / w.face_curvature_arcsec_per_mm
     e_mm = eff.polygon_eccentricity_um * 1e-3
     tau = eff.polygon_tilt_arcsec / ARCSEC_PER_RAD
-    q_ac = eff.autocollimator_drift_arcsec_per_sqrt_h / math.sqrt(3600.0)
-    q_th = eff.thermal_drift_arcsec_per_sqrt_h / math.sqrt(3600.0)
+    q_ac = eff.autocollimator_drift_arcsec_per_sqrt_h / math.sqrt(SECONDS_PER_HOUR)
+    q_th = eff.thermal_drift_arcsec_per_sqrt_h / math.sqrt(SECONDS_PER_HOUR)
     trials = list(trials)
     out = [np.zeros((len(trials), n)) for n in sizes]
     for row, k in enumerate(trials):

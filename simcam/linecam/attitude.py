@@ -25,14 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from simcam.units import MU_EARTH_KM3_S2, WGS84_A_KM
+
 from .scenario import LineCamScenario
 
-__all__ = ["MU_EARTH_KM3_S2", "R_EARTH_KM", "orbit_state", "ScanPlan", "scan_plan", "strip_frame"]
-
-#: Earth's gravitational parameter, km^3 s^-2 (EGM2008 / IERS 2010)
-MU_EARTH_KM3_S2 = 398600.4418
-#: Earth's equatorial radius, km (WGS-84)
-R_EARTH_KM = 6378.137
+__all__ = ["orbit_state", "ScanPlan", "scan_plan", "strip_frame"]
 
 
 def orbit_state(scenario: LineCamScenario, t_s) -> tuple[np.ndarray, np.ndarray]:
@@ -41,7 +38,7 @@ def orbit_state(scenario: LineCamScenario, t_s) -> tuple[np.ndarray, np.ndarray]
     Returns arrays of shape ``t.shape + (3,)``.
     """
     o = scenario.orbit
-    a = R_EARTH_KM + o.altitude_km
+    a = WGS84_A_KM + o.altitude_km
     n = np.sqrt(MU_EARTH_KM3_S2 / a**3)
     inc, raan = np.radians(o.inclination_deg), np.radians(o.raan_deg)
     P = np.array([np.cos(raan), np.sin(raan), 0.0])
@@ -109,7 +106,12 @@ class ScanPlan:
 
 def rodrigues(rotvec) -> np.ndarray:
     """Rotation matrices (n, 3, 3) of rotation vectors (n, 3):
-    ``I + sin(a) K + (1 - cos(a)) K^2`` with ``K = [e]x`` (Rodrigues' formula)."""
+    ``I + sin(a) K + (1 - cos(a)) K^2`` with ``K = [e]x`` (Rodrigues' formula).
+
+    Written out, not ``Rotation.from_rotvec(...).as_matrix()``: the line-camera study is pinned
+    bit for bit (tests/test_linecam_effects.py, ideal world) and scipy's quaternion route
+    differs in the last bit, which moves its estimates.
+    """
     v = np.asarray(rotvec, dtype=float)
     a = np.linalg.norm(v, axis=-1)
     safe = np.where(a > 0, a, 1.0)

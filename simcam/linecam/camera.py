@@ -38,7 +38,9 @@ from scipy.spatial.transform import Rotation
 
 from simcam.distortion import BrownConradyDistortion
 
-from .scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
+from simcam.units import ARCSEC_PER_RAD
+
+from .scenario import PARAMETERS, LineCamScenario
 
 __all__ = ["CameraTruth", "camera_truth", "sample_y_mm"]
 

@@ -50,6 +50,7 @@ import numpy as np
 from pydantic import Field
 
 from simcam.effects import EffectsBase, WorldBase
+from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["LineCamEffects", "LineCamWorld", "JITTER_TONES_HZ", "JITTER_TONE_RATIOS", "T_SUN_K",
            "extra_distortion_px", "lateral_colour_px", "mean_colour_weight", "chromatic_centroid",
@@ -190,10 +191,9 @@ def effects_generator(seed_sequence: np.random.SeedSequence) -> np.random.Genera
 
 def jitter_components(effects: LineCamEffects, tau_s: float) -> list[dict]:
     """The jitter of one axis as :class:`simcam.noise_processes.NoiseComponent` specs (rad)."""
-    arcsec = np.pi / (180.0 * 3600.0)
-    comps = [dict(kind="tone", amplitude=effects.jitter_tones_arcsec * r * arcsec, frequency_hz=f)
+    comps = [dict(kind="tone", amplitude=effects.jitter_tones_arcsec * r * RAD_PER_ARCSEC, frequency_hz=f)
              for f, r in zip(JITTER_TONES_HZ, JITTER_TONE_RATIOS)]
-    comps.append(dict(kind="gauss_markov", amplitude=effects.jitter_band_arcsec * arcsec, tau_s=tau_s))
+    comps.append(dict(kind="gauss_markov", amplitude=effects.jitter_band_arcsec * RAD_PER_ARCSEC, tau_s=tau_s))
     return comps
 
 

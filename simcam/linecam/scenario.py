@@ -7,7 +7,6 @@ chosen (the patent gives none).
 
 from __future__ import annotations
 
-import math
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -18,13 +17,12 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings,
                                 load_scenario_file, model_hash, validate_model)
 
+from simcam.units import ARCSEC_PER_DEG
+
 from .effects import LineCamWorld
 
-__all__ = ["ARCSEC_PER_RAD", "LineCamScenario", "default_text", "from_dict", "load", "default",
+__all__ = ["LineCamScenario", "default_text", "from_dict", "load", "default",
            "PARAMETERS"]
-
-#: arcsec per radian
-ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
 
 #: calibration parameters in order: exterior rotation vector (3), interior (7)
 PARAMETERS = ("roll", "pitch", "yaw", "dx0", "dy0", "df", "k1", "k2", "p1", "p2")
@@ -163,7 +161,7 @@ class LabModel(_M):
     parallax: bool = True
     proper_motion: bool = True
     time_tag: Literal["mid_exposure", "readout"] = "mid_exposure"
-    match_radius_arcsec: Annotated[float, Field(gt=0, le=648000.0, allow_inf_nan=False)] = 120.0
+    match_radius_arcsec: Annotated[float, Field(gt=0, le=180.0 * ARCSEC_PER_DEG, allow_inf_nan=False)] = 120.0
     coverage_bins: Annotated[int, Field(ge=2, le=1000)] = 24
     max_iter: Annotated[int, Field(ge=1, le=1000)] = 30
     rcond: Annotated[float, Field(gt=0.0, lt=1e-2)] = 1e-6

@@ -30,11 +30,12 @@ from scipy.spatial.transform import Rotation
 from simcam import detector as _det
 from simcam.sky.apparent import aberration_first_order, apparent_directions
 from simcam.sky.catalogue import Catalogue, hipparcos
+from simcam.units import ARCSEC_PER_RAD
 
 from . import kernels as _k
 from .attitude import ScanPlan, orbit_state, rodrigues, scan_plan
 from .camera import CameraTruth
-from .scenario import ARCSEC_PER_RAD, LineCamScenario
+from .scenario import LineCamScenario
 from .signal import star_electron_rate
 
 __all__ = ["SkyStrip", "sky_strip", "world_sky_strip", "strip_radius_rad", "PassImages", "image_passes",

@@ -69,11 +69,11 @@ import numpy as np
 from pydantic import Field
 
 from simcam.effects import EffectsBase, WorldBase
+from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorEffects", "ScanMirrorWorld", "WorldEffects", "TrialEffects", "encoder_residual_arcsec",
            "tracker_error_series", "deviation_extra"]
 
-ARCSEC = np.pi / 180 / 3600
 #: the harmonic orders of seed 001's compensation (eq. 9): mechanical and electrical 1-2, and a constant
 _MECH_ORDERS = (1, 2)
 _ELEC_ORDERS = (1, 2)
@@ -179,10 +179,10 @@ def tracker_error_series(rng: np.random.Generator, t_s, *, bias_arcsec: float, f
 
     t = np.asarray(t_s, float)
     g_bias, g_fov, g_lfe = rng.spawn(3)
-    bias = bias_arcsec * ARCSEC * g_bias.standard_normal(3)
+    bias = bias_arcsec * RAD_PER_ARCSEC * g_bias.standard_normal(3)
     tu, inv = np.unique(t, return_inverse=True)
-    fov = np.stack([gauss_markov(g, tu, 1.0, tau_s) for g in g_fov.spawn(3)], -1)[inv] * (fov_arcsec * ARCSEC)
-    ab = g_lfe.standard_normal((3, 2, 3)) * (lfe_arcsec * ARCSEC / np.sqrt(3.0))  # (k, cos/sin, axis)
+    fov = np.stack([gauss_markov(g, tu, 1.0, tau_s) for g in g_fov.spawn(3)], -1)[inv] * (fov_arcsec * RAD_PER_ARCSEC)
+    ab = g_lfe.standard_normal((3, 2, 3)) * (lfe_arcsec * RAD_PER_ARCSEC / np.sqrt(3.0))  # (k, cos/sin, axis)
     k = np.arange(1, 4)
     wt = np.multiply.outer(t, k * orbit_rate_rad_s)  # (N, 3 harmonics)
     lfe = np.cos(wt) @ ab[:, 0, :] + np.sin(wt) @ ab[:, 1, :]
@@ -275,7 +275,7 @@ class WorldEffects:
                                      sigma3_arcsec=s3)
         eb = encoder_residual_arcsec(np.rad2deg(beta_rad), drift_seed=self.settings.encoder_scan_drift_seed,
                                      sigma3_arcsec=s3)
-        return alpha_rad - ea * ARCSEC, beta_rad - eb * ARCSEC
+        return alpha_rad - ea * RAD_PER_ARCSEC, beta_rad - eb * RAD_PER_ARCSEC
 
     def draw(self, rng: np.random.Generator, scan_t_s) -> TrialEffects:
         """One trial's draws from ``rng`` (a child of the trial's generator)."""
@@ -290,6 +290,6 @@ class WorldEffects:
         for f in frames:
             out.append(tr["total"][k:k + f.size])
             k += f.size
-        offset = e.deviation_daily_offset_arcsec * ARCSEC * g_dev.standard_normal(2)
+        offset = e.deviation_daily_offset_arcsec * RAD_PER_ARCSEC * g_dev.standard_normal(2)
         phases = g_dev.uniform(0.0, 2 * np.pi, 2)
         return TrialEffects(out, tr["total"][k:], tr, offset, phases, self)

@@ -29,21 +29,25 @@ def _trig(a):
 
 
 def rot_x(a) -> np.ndarray:
-    """Active rotation matrix about x by ``a`` (rad): ``R_x(a)``, shape ``a.shape + (3, 3)``."""
+    """Active rotation matrix about x by ``a`` (rad): ``R_x(a)``, shape ``a.shape + (3, 3)``.
+
+    Written out, not ``scipy.spatial.transform.Rotation``: the scan-mirror study is pinned bit for bit
+    (tests/test_scanmirror_effects.py, ideal world) and scipy's quaternion route differs in the last bit.
+    """
     a, c, s = _trig(a)
     o, z = np.ones_like(a), np.zeros_like(a)
     return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
 
 
 def rot_y(a) -> np.ndarray:
-    """Active rotation matrix about y by ``a`` (rad): ``R_y(a)``."""
+    """Active rotation matrix about y by ``a`` (rad): ``R_y(a)`` (written out: see :func:`rot_x`)."""
     a, c, s = _trig(a)
     o, z = np.ones_like(a), np.zeros_like(a)
     return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
 
 
 def rot_z(a) -> np.ndarray:
-    """Active rotation matrix about z by ``a`` (rad): ``R_z(a)``."""
+    """Active rotation matrix about z by ``a`` (rad): ``R_z(a)`` (written out: see :func:`rot_x`)."""
     a, c, s = _trig(a)
     o, z = np.ones_like(a), np.zeros_like(a)
     return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
@@ -51,7 +55,7 @@ def rot_z(a) -> np.ndarray:
 
 def rotvec_matrix(v) -> np.ndarray:
     """Active rotation matrix of the rotation vector ``v`` (..., 3) (rad), Rodrigues' formula
-    ``R = I + sin(t) K + (1 - cos t) K^2`` (Shuster 1993, eq. 98)."""
+    ``R = I + sin(t) K + (1 - cos t) K^2`` (Shuster 1993, eq. 98); written out: see :func:`rot_x`."""
     v = np.asarray(v, dtype=float)
     t = np.linalg.norm(v, axis=-1)
     safe = np.where(t > 0, t, 1.0)

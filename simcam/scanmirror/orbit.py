@@ -14,6 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from simcam.scanmirror.geometry import P_ORBIT, nominal_orbit_matrix_sr0, rot_x, rot_z
+from simcam.units import JGM3_RADIUS_KM, WGS84_F
 
 __all__ = ["EarthModel", "elements_to_state", "state_to_elements", "zonal_acceleration", "Orbit",
            "propagate", "orbit_frame_matrix_Ir", "earth_fixed_matrix_sI"]
@@ -25,12 +26,12 @@ class EarthModel:
     ``J_n = -sqrt(2 n + 1) C_n0`` from its normalised zonal coefficients; WGS-84 flattening."""
 
     mu_km3_s2: float = 398600.4415
-    radius_km: float = 6378.1363
+    radius_km: float = JGM3_RADIUS_KM
     j2: float = 1.0826360229829945e-3
     j3: float = -2.5324353457543954e-6
     j4: float = -1.619331205071e-6
     rotation_rad_s: float = 7.292115e-5
-    flattening: float = 1.0 / 298.257223563
+    flattening: float = WGS84_F
     zonal_degree: int = 4
 
 

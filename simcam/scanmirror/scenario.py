@@ -13,6 +13,7 @@ from pydantic import Field, field_validator, model_validator
 from simcam.infra.errors import ScenarioError
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
 from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
+from simcam.units import JGM3_RADIUS_KM
 
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
            "MirrorConfig", "StarSensingConfig", "ScanPlan", "ScanMirrorEffects", "ScanMirrorWorld"]
@@ -25,8 +26,8 @@ NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 class OrbitConfig(StrictModel):
     nominal_longitude_deg: Annotated[float, Field(ge=-180, le=360)] = 105.0
-    nominal_radius_km: Annotated[float, Field(gt=6378.1363 * 1.5)] = 42164.0
-    semi_major_axis_km: Annotated[float, Field(gt=6378.1363)] = 42164.0
+    nominal_radius_km: Annotated[float, Field(gt=JGM3_RADIUS_KM * 1.5)] = 42164.0
+    semi_major_axis_km: Annotated[float, Field(gt=JGM3_RADIUS_KM)] = 42164.0
     eccentricity: Annotated[float, Field(ge=0, lt=1)] = 0.001
     inclination_deg: Annotated[float, Field(ge=0, le=180)] = 0.5
     raan_deg: Annotated[float, Field(ge=-360, le=360)] = 105.5
@@ -40,7 +41,7 @@ class OrbitConfig(StrictModel):
 
     @model_validator(mode="after")
     def _perigee_above_earth(self):
-        if self.semi_major_axis_km * (1 - self.eccentricity) <= 6378.1363:
+        if self.semi_major_axis_km * (1 - self.eccentricity) <= JGM3_RADIUS_KM:
             raise ValueError("semi_major_axis_km * (1 - eccentricity): perigee inside the Earth")
         return self
 

@@ -24,7 +24,6 @@ from simcam.scanmirror.scanplan import evaluate_plan, plan_duration_s
 
 __all__ = ["ground_point_r0", "World", "deviation_components"]
 
-ARCSEC = np.pi / 180 / 3600
 E_Z = np.array([0.0, 0.0, 1.0])
 
 

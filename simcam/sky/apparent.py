@@ -25,11 +25,10 @@ from __future__ import annotations
 import numpy as np
 
 from simcam.sky.catalogue import EPOCH_JYEAR, Catalogue
+from simcam.units import C_LIGHT_KM_S
 
-__all__ = ["C_KM_S", "aberration_first_order", "apparent_directions", "observer_barycentric_velocity_km_s"]
+__all__ = ["aberration_first_order", "apparent_directions", "observer_barycentric_velocity_km_s"]
 
-#: speed of light (km/s)
-C_KM_S = 299792.458
 #: parallax given to stars whose catalogue parallax is <= this (mas): 1 Gpc, effectively infinite
 _MIN_PARALLAX_MAS = 1e-6
 
@@ -40,7 +39,7 @@ def aberration_first_order(u, velocity_km_s) -> np.ndarray:
     First order in v/c: ``u' = u + v/c - (u . v/c) u``, renormalised to unit length.
     """
     u = np.asarray(u, dtype=float)
-    b = np.asarray(velocity_km_s, dtype=float) / C_KM_S
+    b = np.asarray(velocity_km_s, dtype=float) / C_LIGHT_KM_S
     out = u + b - np.sum(u * b, axis=-1, keepdims=True) * u
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 

@@ -59,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simcam.sky.catalogue import EPOCH_JYEAR, Catalogue, hipparcos
+from simcam.units import ARCSEC_PER_DEG, MAS_PER_RAD
 
 __all__ = ["GAIA_EPOCH_JYEAR", "MATCH_RADIUS_ARCSEC", "GaiaFile", "GaiaMatch", "gaia_file", "gaia_match",
            "gaia_world", "hipparcos_pm_errors_mas_yr"]
@@ -76,7 +77,6 @@ _HEADER = b"GDR3"
 _HEADER_BYTES = 16
 _RECORD = np.dtype([("source_id", "<i8"), ("ra_deg", "<f8"), ("dec_deg", "<f8"), ("g_mag", "<f4"),
                     ("bp_mag", "<f4"), ("rp_mag", "<f4")])
-_MAS_PER_RAD = 180.0 / np.pi * 3600e3
 
 
 @dataclass(frozen=True)
@@ -217,7 +217,7 @@ class GaiaMatch:
         e_ra = np.column_stack([-np.sin(ra), np.cos(ra), np.zeros_like(ra)])
         e_dec = np.column_stack([-np.sin(dec) * np.cos(ra), -np.sin(dec) * np.sin(ra), np.cos(dec)])
         d = u_g - u_h
-        return np.sum(d * e_ra, axis=1) * _MAS_PER_RAD, np.sum(d * e_dec, axis=1) * _MAS_PER_RAD
+        return np.sum(d * e_ra, axis=1) * MAS_PER_RAD, np.sum(d * e_dec, axis=1) * MAS_PER_RAD
 
 
 @functools.lru_cache(maxsize=8)
@@ -240,7 +240,7 @@ def gaia_match(mag_limit: float) -> GaiaMatch:
     hdec = sc16.dec.to_value(u.deg)
     g = gaia_file()
     tree, rows = _gaia_tree(mag_limit + MATCH_MAX_G_MINUS_V)
-    chord = 2.0 * np.sin(np.radians(MATCH_RADIUS_ARCSEC / 3600.0) / 2.0)
+    chord = 2.0 * np.sin(np.radians(MATCH_RADIUS_ARCSEC / ARCSEC_PER_DEG) / 2.0)
     # the nearest source within the radius whose G is consistent with the star's V
     dist, idx = tree.query(_unit(np.radians(hra), np.radians(hdec)), k=_K_NEAREST, distance_upper_bound=chord)
     cand = rows[np.minimum(idx, rows.size - 1)]
@@ -253,7 +253,7 @@ def gaia_match(mag_limit: float) -> GaiaMatch:
     nan = np.full(cat.hip.size, np.nan)
     gra = np.where(ok, g.ra_deg[take], nan)
     gdec = np.where(ok, g.dec_deg[take], nan)
-    sep = np.where(ok, 2.0 * np.arcsin(np.minimum(dist, 2.0) / 2.0) * _MAS_PER_RAD, nan)
+    sep = np.where(ok, 2.0 * np.arcsin(np.minimum(dist, 2.0) / 2.0) * MAS_PER_RAD, nan)
     return GaiaMatch(mag_limit=mag_limit, hipparcos=cat, pm_ra_err_mas_yr=e_ra[keep], pm_dec_err_mas_yr=e_dec[keep],
                      hip_ra_deg=hra, hip_dec_deg=hdec, gaia_row=grow,
                      source_id=np.where(ok, g.source_id[take], 0), gaia_ra_deg=gra, gaia_dec_deg=gdec,

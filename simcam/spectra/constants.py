@@ -3,13 +3,14 @@ illuminant references), and the derived private constants the models use."""
 
 from __future__ import annotations
 
+from simcam.units import C_LIGHT_M_S
+
 # The SI defining constants (BIPM, The International System of Units, 9th ed. 2019, table 1):
 # exact by definition, so written here rather than importing scipy.constants (0.19 s of
 # start-up for four numbers); tests/test_spectra.py checks them against scipy.constants.
+# The speed of light, which the sky models use too, is simcam.units.C_LIGHT_M_S (imported above).
 H_PLANCK_J_S: float = 6.62607015e-34
 """Planck constant, J s (exact in SI 2019)."""
-C_LIGHT_M_S: float = 299792458.0
-"""Speed of light in vacuum, m s^-1 (exact)."""
 K_BOLTZMANN_J_K: float = 1.380649e-23
 """Boltzmann constant, J K^-1 (exact in SI 2019)."""
 ELEMENTARY_CHARGE_C: float = 1.602176634e-19

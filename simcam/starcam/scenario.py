@@ -29,9 +29,7 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 from simcam.infra.errors import ScenarioError
 from simcam.config_base import (ScenarioBase, StrictModel, ValidationSettings, model_hash, read_toml, validate_model)
 from simcam.effects import EffectsBase, WorldBase
-
-#: arcsec per radian (exact: 180 * 3600 / pi)
-ARCSEC_PER_RAD = 180.0 * 3600.0 / math.pi
+from simcam.units import ARCSEC_PER_RAD
 
 NonNeg = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 Pos = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]

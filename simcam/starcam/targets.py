@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcam.starcam.scenario import ARCSEC_PER_RAD, Scenario
+from simcam.starcam.scenario import Scenario
+from simcam.units import ARCSEC_PER_RAD
 
 #: SeedSequence spawn-key roots of the scenario-seed streams (fixed objects)
 STREAM_TARGET_MARKERS = 101

@@ -54,7 +54,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcam.starcam.scenario import ARCSEC_PER_RAD, Scenario
+from simcam.starcam.scenario import Scenario
+from simcam.units import ARCSEC_PER_RAD, SECONDS_PER_HOUR
 
 #: SeedSequence roots of the world's per-trial draws (run seed)
 STREAM_HEXAPOD = 402
@@ -185,7 +186,7 @@ def drift_px(scn: Scenario, seed: int) -> dict:
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM_DRIFT,)))
     phi = rng.uniform(0.0, 2.0 * math.pi)
     z = rng.normal(0.0, 1.0, (t.size, 2))
-    ramp = (rate / 3600.0) * t[:, None] * np.array([math.cos(phi), math.sin(phi)])[None, :]
+    ramp = (rate / SECONDS_PER_HOUR) * t[:, None] * np.array([math.cos(phi), math.sin(phi)])[None, :]
     # the recursion on Python floats (the same IEEE operations in the same order as on
     # numpy rows, a microsecond less per frame), its coefficients kept per timeline
     zu, zv = z[:, 0].tolist(), z[:, 1].tolist()

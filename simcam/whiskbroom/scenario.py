@@ -18,6 +18,7 @@ from pydantic import Field, model_validator
 from simcam.infra.errors import ScenarioError
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
 from simcam.effects import EffectsBase, WorldBase
+from simcam.units import EARTH_RATE_RAD_S, MU_EARTH_KM3_S2, SECONDS_PER_DAY, WGS84_A_KM
 
 __all__ = ["Distribution", "WhiskbroomEffects", "WhiskbroomWorld", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
            "VARIABLES", "default_text", "from_dict", "load", "default"]
@@ -78,9 +79,9 @@ class Orbit(StrictModel):
     # physical ranges: the Earth's constants within a factor of ~10 of theirs
     gamma0_deg: float = Field(default=0.0, ge=-3600, le=3600)
     gamma_step_deg: float = Field(default=0.36, ge=-3600, le=3600)
-    earth_radius_km: float = Field(default=6378.137, ge=1000, le=70000)
-    mu_km3_s2: float = Field(default=398600.4418, gt=0, le=4e6)
-    earth_rate_rad_s: float = Field(default=7.2921159e-5, ge=-1e-3, le=1e-3)
+    earth_radius_km: float = Field(default=WGS84_A_KM, ge=1000, le=70000)
+    mu_km3_s2: float = Field(default=MU_EARTH_KM3_S2, gt=0, le=4e6)
+    earth_rate_rad_s: float = Field(default=EARTH_RATE_RAD_S, ge=-1e-3, le=1e-3)
     j2: float = Field(default=1.08262668e-3, gt=0, le=0.1)
     nodal_rate_deg_day: float = Field(default=0.98564736, ge=-10, le=10)
 
@@ -232,7 +233,7 @@ class WhiskbroomScenario(ScenarioBase):
             return math.radians(o.inclination_deg)
         return sun_synchronous_inclination(
             o.altitude_km, mu_km3_s2=o.mu_km3_s2, earth_radius_km=o.earth_radius_km, j2=o.j2,
-            nodal_rate_rad_s=math.radians(o.nodal_rate_deg_day) / 86400.0)
+            nodal_rate_rad_s=math.radians(o.nodal_rate_deg_day) / SECONDS_PER_DAY)
 
     @property
     def orbit_speed_km_s(self) -> float:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri
 
+from simcam.units import RAD_PER_DEG
 from simcam.whiskbroom import geometry as geo
 from simcam.whiskbroom.scenario import ERROR_VARIABLES, VARIABLES, WhiskbroomScenario
 
@@ -301,7 +302,7 @@ def _complex_trial(sc, draws, gamma_rad):
     know = nominal_params(sc, gamma_rad).astype(complex)
     true = know.copy()
     P = geo.P
-    rad = np.pi / 180.0
+    rad = RAD_PER_DEG
     true[:, P["roll_rad"]] += rad * draws["roll_knowledge_deg"]
     true[:, P["pitch_rad"]] += rad * draws["pitch_knowledge_deg"]
     true[:, P["yaw_rad"]] += rad * draws["yaw_knowledge_deg"]

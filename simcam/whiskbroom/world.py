@@ -44,6 +44,7 @@ from numba import njit, prange
 
 from simcam.noise_processes import tones
 from simcam.whiskbroom.kernels import _trapezoid_cdf
+from simcam.units import RAD_PER_ARCSEC
 from simcam.whiskbroom import raytrace as rt
 
 __all__ = ["EFFECTS_SPAWN_KEY", "effects_rng", "world_motion", "rate_sensitivity", "jitter_angle",
@@ -57,9 +58,6 @@ EFFECTS_SPAWN_KEY = 2**30 + 22
 #: the effects that change the truth (the motion MTF); crosstalk changes only the edge image
 TRUTH_EFFECTS = frozenset({"earth_flattening_scale", "attitude_jitter_arcsec", "wheel_jitter_arcsec",
                            "mirror_rate_ripple_fraction"})
-
-_ARCSEC = math.pi / (180.0 * 3600.0)
-
 
 def effects_rng(seed: int, k: int, j: int) -> np.random.Generator:
     """The generator of effect ``j`` in trial ``k`` (common random numbers across cases)."""
@@ -90,7 +88,7 @@ def rate_sensitivity(true_row, names, x1, x3, flattening: float, which: str, h_r
 
 def jitter_angle(rng, t_s, amplitude_arcsec: float, tones_hz, weights) -> np.ndarray:
     """Roll-jitter angle (rad) at ``t_s``: ZY-3 class tones, phases uniform (from ``rng``)."""
-    amps = [amplitude_arcsec * _ARCSEC * w for w in weights]
+    amps = [amplitude_arcsec * RAD_PER_ARCSEC * w for w in weights]
     return tones(rng, t_s, amps, list(tones_hz))
 
 

@@ -13,10 +13,10 @@ import pytest
 from scipy.integrate import quad
 from scipy.special import j0
 
-from simcam.whiskbroom import raytrace as rt
 from simcam.whiskbroom import scenario as wsc
 from simcam.whiskbroom import tdi
 from simcam.whiskbroom import world as wd
+from simcam.units import WGS84_F
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -139,7 +139,7 @@ def test_mirror_rate_sensitivity_is_the_pure_scan_coefficient():
     row = sy.nominal_params(sc, 0.0)[0]
     f = sc.camera.focal_length_mm
     x1, x3 = np.array([0.0, 10.0, -20.0]), np.array([0.0, 5.0, 12.0])
-    g = wd.rate_sensitivity(row, geo.PARAMS, x1, x3, rt.WGS84_F, "mirror_rate_rad_s")
+    g = wd.rate_sensitivity(row, geo.PARAMS, x1, x3, WGS84_F, "mirror_rate_rad_s")
     np.testing.assert_allclose(g[:, 0], -2 * x1 * x3 / f, atol=1e-3)
     np.testing.assert_allclose(g[:, 1], -2 * (f**2 + x3**2) / f, rtol=1e-7)
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from simcam.infra.cli import overwrite_option
+from simcam.units import ARCSEC_PER_RAD
 import numpy as np
 
 __all__ = ["format_table", "optics_command", "write_plots"]
@@ -199,7 +200,7 @@ def optics_command(prescription, out, overwrite, no_cache, variant) -> None:
         ref_wavelength_nm=an.reference_wavelength_nm, wavelength_min_nm=an.wavelength_min_nm,
         wavelength_max_nm=an.wavelength_max_nm,
     )
-    scale = an.pixel_pitch_um * 1e-3 / prod.efl_mm * 206264.80624709636
+    scale = an.pixel_pitch_um * 1e-3 / prod.efl_mm * ARCSEC_PER_RAD
     click.echo(f"lens       {presc.name} (hash {presc.hash}): {len(presc.surfaces)} surfaces; {presc.description}")
     click.echo(f"tracer     Mitsuba {backend.variant}; {backend.note}")
     src = f"cache {cache_dir()}" if prod.from_cache else f"traced in {prod.elapsed_s:.2f} s"
