@@ -1,18 +1,31 @@
-"""The layers point one way: the simulated world (simcam) never imports the lab (budget), and
-no two modules import each other at module top level.
+"""The layers point one way: the simulated world (simcam) never imports the lab (budget),
+the infrastructure (simcam.infra) imports neither, and no two modules import each other,
+counting the imports inside functions.
 
 Every module of both packages is parsed with :mod:`ast` (nothing is imported or run); the
 import statements are resolved to module names of the two packages (relative imports
 included; ``from pkg import name`` counts as importing ``pkg.name`` when that is a module).
+A string ``"package.module:attribute"`` naming a module of the two packages (the registry's
+table of studies, the ``budget`` command's table of sub-commands) is an import too: the
+module holding it imports that one when the entry is used. Imports under
+``if TYPE_CHECKING:`` are never executed and are no edge.
+
+A package's ``__init__`` runs before its submodules: importing ``a.b`` imports ``a`` first,
+so ``a.b`` naming its own package ``a`` (``from a import c``) is no edge to ``a``.
 """
 
 from __future__ import annotations
 
 import ast
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("simcam", "budget")
+#: ``"package.module:attribute"``: a module imported by name when the entry is used
+_TARGET = re.compile(r"((?:simcam|budget)(?:\.\w+)*):\w+")
 
 
 def _modules() -> dict[str, Path]:
@@ -33,45 +46,118 @@ def _is_package(name: str) -> bool:
     return MODULES.get(name, Path()).name == "__init__.py"
 
 
-def _imports(name: str, *, top_level_only: bool) -> set[str]:
-    """Modules of simcam/budget that module ``name`` imports (all of them, or only those
-    executed when it is imported: statements at module level, outside functions and
-    ``if TYPE_CHECKING`` blocks)."""
+def _statements(body: list, *, into_functions: bool):
+    """The statements of ``body`` and of the blocks nested in it, ``if TYPE_CHECKING:``
+    blocks left out (their ``else`` kept); function bodies only if ``into_functions``."""
+    for node in body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not into_functions:
+            continue
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            yield from _statements(node.orelse, into_functions=into_functions)
+            continue
+        yield node
+        for field in ("body", "orelse", "finalbody", "handlers", "cases"):
+            child = getattr(node, field, None)
+            if isinstance(child, list):
+                yield from _statements(child, into_functions=into_functions)
+
+
+def _import_lines(name: str, *, top_level_only: bool) -> dict[str, list[int]]:
+    """Modules of simcam/budget that module ``name`` imports -> the lines that import them:
+    all of them, or only those executed when it is imported (statements at module level,
+    outside functions and ``if TYPE_CHECKING:`` blocks)."""
     tree = ast.parse(MODULES[name].read_text(encoding="utf-8"), filename=str(MODULES[name]))
     package = name if _is_package(name) else name.rpartition(".")[0]
+    found: dict[str, list[int]] = {}
 
-    def nodes(body):
-        for node in body:
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)) and top_level_only:
-                continue
-            if isinstance(node, ast.If) and top_level_only and "TYPE_CHECKING" in ast.unparse(node.test):
-                yield from nodes(node.orelse)
-                continue
-            yield node
-            for field in ("body", "orelse", "finalbody", "handlers"):
-                child = getattr(node, field, None)
-                if isinstance(child, list):
-                    yield from nodes(child)
+    def add(target: str, line: int) -> None:
+        if target.split(".")[0] in PACKAGES and target in MODULES:
+            found.setdefault(target, []).append(line)
 
-    found = set()
-    stream = nodes(tree.body) if top_level_only else ast.walk(tree)
-    for node in stream:
-        if isinstance(node, ast.Import):
-            targets = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
+    for stmt in _statements(tree.body, into_functions=not top_level_only):
+        for node in ast.iter_child_nodes(stmt) if not isinstance(stmt, (ast.Import, ast.ImportFrom)) else [stmt]:
+            if not top_level_only and isinstance(node, ast.expr):
+                for const in ast.walk(node):  # "module:attribute" entries
+                    if isinstance(const, ast.Constant) and isinstance(const.value, str):
+                        m = _TARGET.fullmatch(const.value)
+                        if m:
+                            add(m.group(1), const.lineno)
+        if isinstance(stmt, ast.Import):
+            for alias in stmt.names:
+                add(alias.name, stmt.lineno)
+        elif isinstance(stmt, ast.ImportFrom):
+            if stmt.level:
                 base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                mod = ".".join(base + ([node.module] if node.module else []))
+                base = base[: len(base) - (stmt.level - 1)]
+                mod = ".".join(base + ([stmt.module] if stmt.module else []))
             else:
-                mod = node.module or ""
-            targets = [mod] + [f"{mod}.{alias.name}" for alias in node.names]
-        else:
-            continue
-        for target in targets:
-            if target.split(".")[0] in PACKAGES and target in MODULES:
-                found.add(target)
+                mod = stmt.module or ""
+            for target in [mod] + [f"{mod}.{alias.name}" for alias in stmt.names]:
+                add(target, stmt.lineno)
     return found
+
+
+def _imports(name: str, *, top_level_only: bool) -> set[str]:
+    """Modules of simcam/budget that module ``name`` imports (:func:`_import_lines`)."""
+    return set(_import_lines(name, top_level_only=top_level_only))
+
+
+def _graph(*, top_level_only: bool) -> dict[str, dict[str, list[int]]]:
+    """module -> {module it imports -> lines}, without a module's edges to itself and to the
+    packages it lies in."""
+    return {name: {m: lines for m, lines in _import_lines(name, top_level_only=top_level_only).items()
+                   if m != name and not name.startswith(m + ".")}
+            for name in MODULES}
+
+
+def _components(graph: dict[str, dict]) -> list[list[str]]:
+    """The strongly connected components of ``graph`` of more than one module (Tarjan's
+    algorithm, iterative), each sorted, in the order of their first module."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out = []
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph[child]))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                comp = []
+                while True:
+                    m = stack.pop()
+                    on_stack.discard(m)
+                    comp.append(m)
+                    if m == node:
+                        break
+                if len(comp) > 1:
+                    out.append(sorted(comp))
+    return sorted(out)
+
+
+def _describe(graph: dict[str, dict[str, list[int]]], comp: list[str]) -> str:
+    inside = set(comp)
+    edges = [f"    {a} -> {b} (line {', '.join(map(str, lines))})"
+             for a in comp for b, lines in sorted(graph[a].items()) if b in inside]
+    return f"{len(comp)} modules: {', '.join(comp)}\n" + "\n".join(edges)
 
 
 def test_every_module_is_found():
@@ -84,24 +170,40 @@ def test_simcam_never_imports_budget():
     assert {k: v for k, v in offenders.items() if v} == {}
 
 
+def test_infra_imports_nothing_of_simcam_or_budget():
+    # simcam.infra is the bottom layer: errors, outputs, lifecycle, the command-line helpers
+    offenders = {name: sorted(m for m in _imports(name, top_level_only=False)
+                              if m != "simcam" and not m.startswith("simcam.infra"))
+                 for name in MODULES if name.startswith("simcam.infra")}
+    assert {k: v for k, v in offenders.items() if v} == {}
+
+
 def test_no_top_level_import_cycles():
-    # a package's __init__ runs before its submodules: importing ``a.b`` imports ``a`` first,
-    # so ``a.b`` naming its own package ``a`` (``from a import c``) is no edge to ``a``
-    graph = {name: {m for m in _imports(name, top_level_only=True) if m != name and not name.startswith(m + ".")}
-             for name in MODULES}
-    state: dict[str, int] = {}  # 1: on the current path, 2: done
-    cycles = []
+    graph = _graph(top_level_only=True)
+    comps = _components(graph)
+    assert comps == [], "top-level import cycles:\n" + "\n".join(_describe(graph, c) for c in comps)
 
-    def visit(node: str, path: list[str]) -> None:
-        state[node] = 1
-        for nxt in sorted(graph[node]):
-            if state.get(nxt) == 1:
-                cycles.append(path[path.index(nxt):] + [nxt])
-            elif nxt not in state:
-                visit(nxt, path + [nxt])
-        state[node] = 2
 
-    for name in sorted(graph):
-        if name not in state:
-            visit(name, [name])
-    assert cycles == [], "top-level import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+def test_no_import_cycles_counting_imports_inside_functions():
+    # an import inside a function is still a dependency: it only runs later
+    graph = _graph(top_level_only=False)
+    comps = _components(graph)
+    for comp in comps:
+        print(_describe(graph, comp))
+    assert comps == [], "import cycles (imports inside functions included):\n" + "\n".join(
+        _describe(graph, c) for c in comps)
+
+
+def test_components_are_found():
+    # the check itself: a cycle through a function-level import and a "module:attribute" entry
+    graph = {"a": {"b": [1]}, "b": {"c": [2]}, "c": {"a": [3]}, "d": {"a": [4]}, "e": {"e": [5]}}
+    assert _components(graph) == [["a", "b", "c"]]
+    assert "budget.starcam.study" in _import_lines("budget.runner.registry", top_level_only=False)
+    assert "budget.starcam.study" not in _import_lines("budget.runner.registry", top_level_only=True)
+
+
+def test_the_estimators_import_no_click():
+    # the lab's estimators are a library: importing them loads no command line
+    code = "import sys, budget.starcam.estimators; print('click' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
