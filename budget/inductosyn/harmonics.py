@@ -41,8 +41,15 @@ from simcam.infra.errors import UserInputError
 FULL_TURN_ARCSEC = 360.0 * 3600.0
 #: calibration angles beyond ten turns are not readings of one rotation
 MAX_ANGLE_DEG = 3600.0
+#: the harmonic coefficients the study validates (the constant e0 is not observable with a polygon)
+COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s",
+                "A_S3c", "A_S3s", "A_S4c", "A_S4s")
+#: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
+PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
 
 __all__ = [
+    "COEFFICIENTS",
+    "PUBLISHED_COEFFICIENTS",
     "CompensationModel",
     "DesignAnalysis",
     "DesignError",

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
 from budget.runner.study import ReportSection
 
 __all__ = ["FIGURES", "details", "drift_figures", "figure_arrays", "report_sections",
@@ -68,8 +69,6 @@ def figure_arrays(result) -> dict[str, np.ndarray]:
 def sequence_coefficients(result) -> np.ndarray:
     """The in-sequence coefficient vector of every trial (e0, A_L1c..A_L2s, A_S1c..A_S2s),
     the same numbers as ``run_trials``' ``c_long`` and ``c_short`` side by side."""
-    from budget.inductosyn.study import PUBLISHED_COEFFICIENTS
-
     cols = [result.aux["e0_in_sequence_arcsec"]]
     cols += [result.samples[("coefficient", "published", nm)] for nm in PUBLISHED_COEFFICIENTS]
     return np.stack(cols, axis=1)
@@ -174,8 +173,6 @@ def _figures_markdown(result, d: dict) -> str:
 
 
 def _coefficients_markdown(result, d: dict) -> str:
-    from budget.inductosyn.study import COEFFICIENTS
-
     lines = ["Bias (mean - truth, +- its standard error) and spread (sample std) over trials, arcsec; the "
              "truth is the projection of the continuous true error, as a function of the reading, on "
              "the same harmonics. A `*` marks a bias beyond 3 standard errors.", "",

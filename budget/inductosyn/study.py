@@ -29,17 +29,14 @@ seed-001 sections of the runner's report and the ``details`` of its JSON.
 
 from __future__ import annotations
 
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
+#: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
 __all__ = ["COEFFICIENTS", "POLYGON_PAIRS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
 
 _UNIT = "arcsec, 3 sigma"
 _PREPARED: dict = {}
-#: the harmonic coefficients validated (the constant e0 is not observable with a polygon)
-COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s",
-                "A_S3c", "A_S3s", "A_S4c", "A_S4s")
-#: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
-PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
 
 #: The polygon pairs the planner compares (``protocol_shapes``): (long faces, short faces).
 #: Long: a face count dividing the 360 pole pairs, so that every electrical harmonic samples
@@ -193,12 +190,6 @@ class InductosynStudy(Study):
 
         return report_sections(result, self._prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
-
-    # ------------------------------------------------------------ commands
-    def commands(self) -> list:
-        from budget.inductosyn.cli import commands
-
-        return commands()
 
 
 #: per-trial figures of run_trials kept in ``aux`` (no truth: the report summarises them)
