@@ -7,8 +7,9 @@ import statements are resolved to module names of the two packages (relative imp
 included; ``from pkg import name`` counts as importing ``pkg.name`` when that is a module).
 A string ``"package.module:attribute"`` naming a module of the two packages (the registry's
 table of studies, the ``budget`` command's table of sub-commands) is an import too: the
-module holding it imports that one when the entry is used. Imports under
-``if TYPE_CHECKING:`` are never executed and are no edge.
+module holding it imports that one when the entry is used; and the CLI's group builder
+(budget.runner.cli) imports each study's command module the registry's table names. Imports
+under ``if TYPE_CHECKING:`` are never executed and are no edge.
 
 A package's ``__init__`` runs before its submodules: importing ``a.b`` imports ``a`` first,
 so ``a.b`` naming its own package ``a`` (``from a import c``) is no edge to ``a``.
@@ -102,12 +103,29 @@ def _imports(name: str, *, top_level_only: bool) -> set[str]:
     return set(_import_lines(name, top_level_only=top_level_only))
 
 
+def _command_modules() -> dict[str, list[int]]:
+    """The study command modules the registry's table names (``cli_module="..."``) -> the lines
+    of registry.py naming them: the CLI's group builder (:mod:`budget.runner.cli`) imports
+    them by that name."""
+    tree = ast.parse(MODULES["budget.runner.registry"].read_text(encoding="utf-8"))
+    found: dict[str, list[int]] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.keyword) and node.arg == "cli_module" and isinstance(node.value, ast.Constant) \
+                and node.value.value in MODULES:
+            found.setdefault(node.value.value, []).append(node.value.lineno)
+    return found
+
+
 def _graph(*, top_level_only: bool) -> dict[str, dict[str, list[int]]]:
     """module -> {module it imports -> lines}, without a module's edges to itself and to the
-    packages it lies in."""
-    return {name: {m: lines for m, lines in _import_lines(name, top_level_only=top_level_only).items()
-                   if m != name and not name.startswith(m + ".")}
-            for name in MODULES}
+    packages it lies in; with every import, the group builder's imports of the study command
+    modules (:func:`_command_modules`, lines of registry.py)."""
+    graph = {name: {m: lines for m, lines in _import_lines(name, top_level_only=top_level_only).items()
+                    if m != name and not name.startswith(m + ".")}
+             for name in MODULES}
+    if not top_level_only:
+        graph["budget.runner.cli"].update(_command_modules())
+    return graph
 
 
 def _components(graph: dict[str, dict]) -> list[list[str]]:
@@ -200,6 +218,7 @@ def test_components_are_found():
     assert _components(graph) == [["a", "b", "c"]]
     assert "budget.starcam.study" in _import_lines("budget.runner.registry", top_level_only=False)
     assert "budget.starcam.study" not in _import_lines("budget.runner.registry", top_level_only=True)
+    assert "budget.starcam.cli" in _graph(top_level_only=False)["budget.runner.cli"]
 
 
 def test_the_estimators_import_no_click():

@@ -1,8 +1,7 @@
 """`budget inductosyn ...` (alias `budget harmonics`): calibration fits, design analysis
 and validation of the seed-001 inductosyn.
 
-The commands of the inductosyn study's group (:meth:`InductosynStudy.commands`, one group
-under both names). User mistakes raise :class:`simcam.infra.errors.ScenarioError` or
+The commands of the inductosyn study's group (:func:`commands`, one group under both names). User mistakes raise :class:`simcam.infra.errors.ScenarioError` or
 :class:`simcam.infra.errors.UserInputError`; ``budget.cli.main`` prints them as one line
 each and exits 2.
 """
@@ -236,7 +235,7 @@ def _summary_lines(result) -> list[str]:
 
 
 def _validate_command() -> click.Command:
-    from budget.runner.cli import validate_command_for
+    from budget.runner.validate_cmd import validate_command_for
 
     return validate_command_for(
         "inductosyn", more_lines=_summary_lines,
@@ -249,5 +248,5 @@ validate_command = _validate_command()
 
 
 def commands() -> list[click.Command]:
-    """The inductosyn study's commands besides the plain ``validate`` (which its own replaces)."""
+    """The inductosyn study's own commands (its ``validate`` replaces the runner's)."""
     return [scenario_command, design_command, fit_command, validate_command]

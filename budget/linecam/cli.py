@@ -500,7 +500,8 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 
 
-def commands() -> list:
+def commands() -> list[click.Command]:
+    """The linecam study's own commands: ``simulate`` and ``calibrate``."""
     return [simulate_cmd, calibrate_cmd]
 
 

@@ -186,16 +186,11 @@ class LineCamStudy(Study):
             return "the stated covariance is smaller than the actual scatter of the calibrated field."
         return None
 
-    # ------------------------------------------------------------ report and commands
+    # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from .report import report_sections
 
         return report_sections(result, Path(out_dir))
-
-    def commands(self) -> list:
-        from .cli import commands
-
-        return commands()
 
     # ------------------------------------------------------------ protocol planning
     def protocol_knobs(self, scenario) -> tuple:

@@ -10,7 +10,7 @@ import click
 from simcam.infra.cli import overwrite_option
 import numpy as np
 
-__all__ = ["simulate_command", "simulate", "write_simulate_report"]
+__all__ = ["commands", "simulate_command", "simulate", "write_simulate_report"]
 
 
 def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dict, object, dict]:
@@ -121,3 +121,8 @@ def simulate_command() -> click.Command:
             click.echo(f"report: {Path(report_dir) / 'report.md'}")
 
     return cmd
+
+
+def commands() -> list[click.Command]:
+    """The scanmirror study's own commands: ``simulate``."""
+    return [simulate_command()]

@@ -166,7 +166,7 @@ class ScanMirrorStudy(Study):
         slew = sum(segs[j].accel_s + segs[j].const_s + segs[j].decel_s for j in sorted(slews))
         return {"star dwells": dwell, "moves between dwells": move, "slews to and from the stars": slew}
 
-    # ------------------------------------------------------------ report and commands
+    # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
         from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
 
@@ -183,11 +183,6 @@ class ScanMirrorStudy(Study):
 
         md.append(figure_markdown(figs))  # each figure with its caption under it
         return [ReportSection("Scan mirror: deviation estimates and ground errors", "\n\n".join(md), [])]
-
-    def commands(self) -> list:
-        from budget.scanmirror.cli import simulate_command
-
-        return [simulate_command()]
 
 
 STUDY = ScanMirrorStudy()

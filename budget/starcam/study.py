@@ -543,13 +543,5 @@ class StarCameraStudy(Study):
         return (f"Over the {result.trials} trials the HSFE estimates sit against their truth: "
                 + "; ".join(parts) + ".")
 
-    def commands(self) -> list:
-        """``budget starcam simulate|measure|combine`` beside ``validate``: the lab's data."""
-        from budget.starcam.combine import combine_command
-        from budget.starcam.measure import measure_command
-        from budget.starcam.simulate import simulate_command
-
-        return [simulate_command, measure_command, combine_command]
-
 
 STUDY = StarCameraStudy()

@@ -15,7 +15,7 @@ import click
 
 from simcam.infra.cli import overwrite_option
 
-__all__ = ["synthesize_command", "run_synthesis", "main"]
+__all__ = ["commands", "synthesize_command", "run_synthesis", "main"]
 
 
 def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None, overwrite=False,
@@ -186,6 +186,11 @@ def _world_lines(w) -> list[str]:
 def synthesize_command(scenario, seed, trials, json_out, report_dir, overwrite, seeds, criterion_trials):
     run_synthesis(scenario, seed=seed, trials=trials, json_out=json_out, report_dir=report_dir, overwrite=overwrite,
                   seeds=seeds, criterion_trials=criterion_trials)
+
+
+def commands() -> list[click.Command]:
+    """The whiskbroom study's own commands: ``synthesize``."""
+    return [synthesize_command]
 
 
 def main(argv=None):

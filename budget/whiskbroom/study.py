@@ -290,10 +290,5 @@ class WhiskbroomStudy(Study):
         # the figures are placed in the text, each with its caption under it
         return [ReportSection("Whiskbroom TDI MTF", md + ("\n\n" + plots.figure_markdown(figs) if figs else ""), [])]
 
-    def commands(self) -> list:
-        from budget.whiskbroom.cli import synthesize_command
-
-        return [synthesize_command]
-
 
 STUDY = WhiskbroomStudy()
