@@ -38,6 +38,7 @@ from scipy.spatial.transform import Rotation
 
 from simcam.distortion import BrownConradyDistortion
 
+from .effects import extra_distortion_px
 from .scenario import ARCSEC_PER_RAD, PARAMETERS, LineCamScenario
 
 __all__ = ["CameraTruth", "camera_truth", "sample_y_mm"]
@@ -81,8 +82,6 @@ class CameraTruth:
 
     def extra_distortion(self, u_px, v_px):
         """The correction beyond Brown ``(Ex, Ey)``, px, at measured ``(x', y')`` px."""
-        from .effects import extra_distortion_px
-
         return extra_distortion_px(u_px, v_px, k3_edge_px=self.k3_edge_px, prism_edge_px=self.prism_edge_px,
                                    r_norm_px=0.5 * self.n_pixels)
 

@@ -69,6 +69,9 @@ import numpy as np
 from pydantic import Field
 
 from simcam.effects import EffectsBase, WorldBase
+from simcam.noise_processes import gauss_markov
+from simcam.sky.apparent import apparent_directions
+from simcam.sky.gaia import gaia_world
 
 __all__ = ["ScanMirrorEffects", "ScanMirrorWorld", "WorldEffects", "TrialEffects", "encoder_residual_arcsec",
            "tracker_error_series", "deviation_extra"]
@@ -175,8 +178,6 @@ def tracker_error_series(rng: np.random.Generator, t_s, *, bias_arcsec: float, f
     """The world's star-tracker error rotation (N, 3) (rad) at the times ``t_s`` (any order):
     bias + Gauss-Markov FOV error + orbit-periodic LFE (module docstring). Every component
     draws its numbers whatever its magnitude. Returns ``{"total", "bias", "fov", "lfe"}``."""
-    from simcam.noise_processes import gauss_markov
-
     t = np.asarray(t_s, float)
     g_bias, g_fov, g_lfe = rng.spawn(3)
     bias = bias_arcsec * ARCSEC * g_bias.standard_normal(3)
@@ -243,9 +244,6 @@ class WorldEffects:
 
     def _gaia_dwell(self, d, scenario):
         from astropy.time import Time, TimeDelta
-
-        from simcam.sky.apparent import apparent_directions
-        from simcam.sky.gaia import gaia_world
 
         cat = gaia_world(scenario.star_sensing.mag_limit)
         rows = np.searchsorted(cat.hip, d.hip)

@@ -27,14 +27,14 @@ from typing import Annotated, Any, Literal
 import tomli_w
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from simcam.infra.errors import ScenarioError
 from simcam.config_base import ScenarioBase, ValidationSettings, model_hash, read_toml, validate_model
 from simcam.effects import EffectsBase, WorldBase
+from simcam.infra.errors import ScenarioError
+from simcam.spectra import SpectraError, star_teff_k
 # the camera's own sections live in their own module (the lens simulator validates them)
 from simcam.starcam.instrument import ARCSEC_PER_RAD  # noqa: F401  (world, targets import it from here)
-from simcam.starcam.instrument import (CameraModel, DetectorModel, Finite, NonNeg, OpticsModel, Pair, Pos,
-                                       RenderModel)
-from simcam.starcam.instrument import SectionModel as _Model
+from simcam.starcam.instrument import (CameraModel, DetectorModel, Finite, NonNeg, OpticsModel, Pair, Pos, RenderModel,
+                                       SectionModel as _Model)
 
 
 # --------------------------------------------------------------------------- lab
@@ -55,8 +55,6 @@ class SourceModel(_Model):
 
     @model_validator(mode="after")
     def _known_type(self) -> SourceModel:
-        from simcam.spectra import SpectraError, star_teff_k
-
         try:
             star_teff_k(spectral_type=self.match_spectral_type)
         except SpectraError as exc:
@@ -408,8 +406,6 @@ class ValidationModel(ValidationSettings):
 
     @model_validator(mode="after")
     def _known_types(self) -> ValidationModel:
-        from simcam.spectra import SpectraError, star_teff_k
-
         names = list(self.lsfe_spectral_types) + ([] if self.calibration_spectrum in ("lamp", "population_mean")
                                                    else [self.calibration_spectrum])
         for st in names:
