@@ -29,6 +29,7 @@ arcsec, printed there as 2.7 and 145.6).
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import check_input_file
 
 #: one full turn in arcsec: no calibration reading errs by that much
 FULL_TURN_ARCSEC = 360.0 * 3600.0
@@ -596,10 +598,6 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
         not a finite number, a duplicated angle, or no data; the message names the file
         and the line.
     """
-    import csv
-
-    from simcam.infra.outputs import check_input_file
-
     path = str(path)
     check_input_file(path, what="calibration table")  # a FIFO or a device is not read (it would block)
     size = os.path.getsize(path)

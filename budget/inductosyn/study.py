@@ -29,8 +29,12 @@ seed-001 sections of the runner's report and the ``details`` of its JSON.
 
 from __future__ import annotations
 
-from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
+import numpy as np
+
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, sigma3_arcsec
+from budget.inductosyn.report import details, report_sections
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
+from simcam.config_base import model_hash
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
 __all__ = ["COEFFICIENTS", "POLYGON_PAIRS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
@@ -92,7 +96,6 @@ class InductosynStudy(Study):
 
     def _prepared(self, scenario):
         from budget.inductosyn.validate import prepare
-        from simcam.config_base import model_hash
 
         key = model_hash(scenario)
         if key not in _PREPARED:
@@ -104,8 +107,6 @@ class InductosynStudy(Study):
     posterior_steps = 1500
 
     def trial_batch(self, scenario, seed: int, ks: list[int]) -> list[TrialResult]:
-        import numpy as np
-
         from budget.inductosyn.validate import run_trials
 
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
@@ -140,7 +141,6 @@ class InductosynStudy(Study):
         return self.trial_batch(scenario, seed, [k])[0]
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.inductosyn.harmonics import HarmonicSpec, sigma3_arcsec
         from budget.inductosyn.validate import JOINT_ELEC, reference_coefficients
 
         p = self._prepared(scenario)
@@ -181,13 +181,9 @@ class InductosynStudy(Study):
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:
-        from budget.inductosyn.report import details
-
         return details(result, self._prepared(result.scenario))
 
     def report_sections(self, result, out_dir) -> list:
-        from budget.inductosyn.report import report_sections
-
         return report_sections(result, self._prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
 

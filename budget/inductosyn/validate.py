@@ -26,21 +26,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from budget.inductosyn.harmonics import (
-    HarmonicSpec,
-    calibrate_in_sequence,
-    design_matrix,
-    fit_joint,
-    sigma3_arcsec,
-)
+from budget.inductosyn.harmonics import (HarmonicSpec, calibrate_in_sequence, check_design, design_matrix, fit_joint,
+                                         sigma3_arcsec)
 from simcam.encoder.inductosyn import ARCSEC_PER_DEG, Inductosyn, InductosynScenario, world_encoder_params
-from simcam.encoder.polygon import (
-    face_taylor,
-    measure_polygon,
-    nominal_face_angles_deg,
-    quantise_arcsec,
-    world_alpha_arcsec,
-)
+from simcam.encoder.polygon import (face_taylor, measure_polygon, nominal_face_angles_deg, quantise_arcsec,
+                                    world_alpha_arcsec)
 
 __all__ = ["JOINT_ELEC", "LONG", "Prepared", "dense_stats", "prepare", "reference_coefficients",
            "run_trials", "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]
@@ -227,8 +217,6 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
     short_spec = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=pp, n_constants=0)
     joint_spec = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC, pole_pairs=pp,
                               n_constants=2)
-    from budget.inductosyn.harmonics import check_design
-
     check_design(angle_deg=al, spec=LONG, source="calibration.long_polygon")
     check_design(angle_deg=as_, spec=short_fit_spec, source="calibration.short_polygon")
     idx = np.r_[np.zeros(al.size, int), np.ones(as_.size, int)]

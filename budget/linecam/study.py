@@ -30,11 +30,17 @@ it has no camera parameters).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.distortion import OpticsError
+from simcam.infra.errors import ScenarioError
+from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
+
+from .report import report_sections
 
 __all__ = ["STUDY", "LineCamStudy", "LOS_POINTS"]
 
@@ -66,8 +72,6 @@ def _gauge_axes(scenario) -> tuple[str, ...]:
 def gauge_combination_vector(f_px: float, angle: str, px: str, sign: float):
     """Coefficients (arcsec per model unit: rad, px) of ``angle + sign px / F`` over the ten
     parameters (:data:`simcam.linecam.scenario.PARAMETERS`)."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
-
     g = np.zeros(len(PARAMETERS))
     g[PARAMETERS.index(angle)] = ARCSEC_PER_RAD
     g[PARAMETERS.index(px)] = sign * ARCSEC_PER_RAD / f_px
@@ -101,8 +105,6 @@ class LineCamStudy(Study):
     # ------------------------------------------------------------ scenario
 
     def check(self, scenario, *, where: str) -> None:
-        from simcam.infra.errors import ScenarioError
-
         if scenario.lab.grid_step_px >= scenario.camera.n_pixels:
             raise ScenarioError(f"{where}: lab.grid_step_px must be below camera.n_pixels")
 
@@ -142,12 +144,8 @@ class LineCamStudy(Study):
         return tuple(out)
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from simcam.infra.errors import ScenarioError
-
         from .calibrate import CalibrationError
         from .trial import simulate
-
-        from simcam.distortion import OpticsError
 
         try:
             simulation = simulate(scenario, trial_seed_sequence(seed, k))
@@ -188,8 +186,6 @@ class LineCamStudy(Study):
 
     # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from .report import report_sections
-
         return report_sections(result, Path(out_dir))
 
     # ------------------------------------------------------------ protocol planning
@@ -202,8 +198,6 @@ class LineCamStudy(Study):
         and one pass identified 5, at V 6.0 it has 25. The limit costs no lab time (the
         stars are imaged anyway); it trades the fainter stars' centroid noise against their
         number."""
-        from budget.runner.study import Knob
-
         return (Knob("observation.passes", "int", 1, 16, "passes",
                      "passes over the strip, each shifted across track by observation.shift_px"),
                 Knob("stars.mag_limit", "real", 6.0, scenario.stars.world_mag_limit, "mag",
@@ -215,8 +209,6 @@ class LineCamStudy(Study):
         ``camera.matched_rate_rad_s``), and between the starts of two passes
         ``observation.pass_interval_s`` elapse (the return and re-acquisition take what the
         scan leaves of it)."""
-        import math
-
         obs = scenario.observation
         scan_s = math.radians(scenario.stars.strip_length_deg) / scenario.camera.matched_rate_rad_s
         return {"scans": obs.passes * scan_s,
@@ -225,8 +217,6 @@ class LineCamStudy(Study):
 
 def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     """The estimates, per-trial truths and stated sigmas of one simulation."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD, PARAMETERS
-
     from .trial import to_report_units
 
     estimates, truths, sigmas = {}, {}, {}
@@ -283,8 +273,6 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
 
 def trial_extra(scenario, sim) -> dict:
     """What the report plots from trial 0 (small, picklable)."""
-    from simcam.linecam.scenario import ARCSEC_PER_RAD
-
     from .calibrate import separability
     from .model import NominalCamera, residuals
 
