@@ -25,6 +25,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("simcam", "budget")
+#: third-party libraries slow to import (a third of a second or more each on the lab's
+#: machines) or optional: a module of ours that imports one of them (at its top level, or
+#: through the modules of ours it imports there) is *heavy*, and only a heavy module may be
+#: imported inside a function, so that a command pays for it only when it uses it
+HEAVY_LIBRARIES = frozenset({
+    "numba",  # the JIT compiler (and every kernel module compiled with it)
+    "scipy", "pandas", "astropy", "colour",  # numerical and astronomical libraries
+    "matplotlib",  # figures, only when a report is written
+    "xarray", "dask", "distributed", "zarr", "SALib",  # the sweeps' stores and sensitivity analysis
+    "emcee",  # the inductosyn report's posterior band
+    "mitsuba",  # lens tracing (optional)
+    "tqdm", "psutil",  # a progress bar on a terminal, memory probes
+})
 #: ``"package.module:attribute"``: a module imported by name when the entry is used
 _TARGET = re.compile(r"((?:simcam|budget)(?:\.\w+)*):\w+")
 
@@ -68,7 +81,6 @@ def _import_lines(name: str, *, top_level_only: bool) -> dict[str, list[int]]:
     all of them, or only those executed when it is imported (statements at module level,
     outside functions and ``if TYPE_CHECKING:`` blocks)."""
     tree = ast.parse(MODULES[name].read_text(encoding="utf-8"), filename=str(MODULES[name]))
-    package = name if _is_package(name) else name.rpartition(".")[0]
     found: dict[str, list[int]] = {}
 
     def add(target: str, line: int) -> None:
@@ -83,19 +95,28 @@ def _import_lines(name: str, *, top_level_only: bool) -> dict[str, list[int]]:
                         m = _TARGET.fullmatch(const.value)
                         if m:
                             add(m.group(1), const.lineno)
-        if isinstance(stmt, ast.Import):
-            for alias in stmt.names:
-                add(alias.name, stmt.lineno)
-        elif isinstance(stmt, ast.ImportFrom):
-            if stmt.level:
-                base = package.split(".")
-                base = base[: len(base) - (stmt.level - 1)]
-                mod = ".".join(base + ([stmt.module] if stmt.module else []))
-            else:
-                mod = stmt.module or ""
-            for target in [mod] + [f"{mod}.{alias.name}" for alias in stmt.names]:
-                add(target, stmt.lineno)
+        for target in _import_lines_of(name, stmt):
+            add(target, stmt.lineno)
     return found
+
+
+def _import_lines_of(name: str, stmt: ast.stmt) -> set[str]:
+    """The modules of simcam/budget that the statement ``stmt`` of module ``name`` imports
+    (none when it is no import statement)."""
+    package = name if _is_package(name) else name.rpartition(".")[0]
+    if isinstance(stmt, ast.Import):
+        targets = [alias.name for alias in stmt.names]
+    elif isinstance(stmt, ast.ImportFrom):
+        if stmt.level:
+            base = package.split(".")
+            base = base[: len(base) - (stmt.level - 1)]
+            mod = ".".join(base + ([stmt.module] if stmt.module else []))
+        else:
+            mod = stmt.module or ""
+        targets = [mod] + [f"{mod}.{alias.name}" for alias in stmt.names]
+    else:
+        return set()
+    return {t for t in targets if t.split(".")[0] in PACKAGES and t in MODULES}
 
 
 def _imports(name: str, *, top_level_only: bool) -> set[str]:
@@ -178,6 +199,51 @@ def _describe(graph: dict[str, dict[str, list[int]]], comp: list[str]) -> str:
     return f"{len(comp)} modules: {', '.join(comp)}\n" + "\n".join(edges)
 
 
+def _top_level_libraries(name: str) -> set[str]:
+    """The heavy third-party libraries module ``name`` imports at its top level."""
+    tree = ast.parse(MODULES[name].read_text(encoding="utf-8"))
+    roots = set()
+    for stmt in _statements(tree.body, into_functions=False):
+        if isinstance(stmt, ast.Import):
+            roots |= {alias.name.split(".")[0] for alias in stmt.names}
+        elif isinstance(stmt, ast.ImportFrom) and not stmt.level and stmt.module:
+            roots.add(stmt.module.split(".")[0])
+    return roots & HEAVY_LIBRARIES
+
+
+def _heavy_modules() -> set[str]:
+    """The modules of ours whose import loads a heavy library (:data:`HEAVY_LIBRARIES`): their
+    own top-level imports, those of the modules of ours they import there, and of the
+    packages they lie in."""
+    graph = _graph(top_level_only=True)
+    for name in MODULES:  # importing a.b.c imports a and a.b first
+        parts = name.split(".")
+        graph[name] = {**graph[name], **{".".join(parts[:i]): [] for i in range(1, len(parts))
+                                         if ".".join(parts[:i]) in MODULES}}
+    heavy = {name for name in MODULES if _top_level_libraries(name)}
+    changed = True
+    while changed:
+        grown = {name for name in MODULES if name not in heavy and set(graph[name]) & heavy}
+        heavy |= grown
+        changed = bool(grown)
+    return heavy
+
+
+def _function_level_imports(name: str) -> list[tuple[int, list[str]]]:
+    """The import statements inside functions of module ``name`` that name modules of ours:
+    (line, the modules it names)."""
+    tree = ast.parse(MODULES[name].read_text(encoding="utf-8"))
+    top = {id(stmt) for stmt in _statements(tree.body, into_functions=False)}
+    out = []
+    for stmt in _statements(tree.body, into_functions=True):
+        if id(stmt) in top or not isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            continue
+        named = sorted(_import_lines_of(name, stmt))
+        if named:
+            out.append((stmt.lineno, named))
+    return out
+
+
 def test_every_module_is_found():
     assert "simcam.config_base" in MODULES and "budget.runner.study" in MODULES
 
@@ -219,6 +285,29 @@ def test_components_are_found():
     assert "budget.starcam.study" in _import_lines("budget.runner.registry", top_level_only=False)
     assert "budget.starcam.study" not in _import_lines("budget.runner.registry", top_level_only=True)
     assert "budget.starcam.cli" in _graph(top_level_only=False)["budget.runner.cli"]
+
+
+def test_imports_inside_functions_are_of_heavy_modules():
+    # an import inside a function hides a dependency and runs on every call: only a heavy
+    # module (HEAVY_LIBRARIES: a study's simulator and kernels, the plots, the stores) is
+    # imported there, never a light one, never to dodge a cycle
+    heavy = _heavy_modules()
+    offenders = {}
+    for name in MODULES:
+        light = [f"line {line}: {', '.join(named)}" for line, named in _function_level_imports(name)
+                 if not set(named) & heavy]
+        if light:
+            offenders[name] = light
+    for name, lines in sorted(offenders.items()):
+        print(f"{name}: " + "; ".join(lines))
+    assert offenders == {}, "light modules imported inside functions (move them to the top):\n" + "\n".join(
+        f"  {name}: " + "; ".join(lines) for name, lines in sorted(offenders.items()))
+
+
+def test_heavy_modules_are_found():
+    heavy = _heavy_modules()
+    assert {"budget.starcam.validate", "simcam.starcam.lens.simulator", "budget.centroid.core"} <= heavy
+    assert not {"budget.runner.registry", "budget.figures", "simcam.infra.errors"} & heavy
 
 
 def test_the_estimators_import_no_click():
