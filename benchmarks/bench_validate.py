@@ -67,7 +67,7 @@ def main() -> None:
     # the same trial's CPU time (each trial new: its hexapod errors and drift render new
     # scenes), in the ideal world (no world effects) and with the exact stamp route
     # (render.stamp_route = "exact": the wavelengths summed for every scene)
-    from budget.runner.cli import ideal_world_scenario
+    from budget.runner.validate_cmd import ideal_world_scenario
     from simcam.starcam.scenario import with_updates
 
     cpu = {}

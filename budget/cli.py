@@ -9,11 +9,16 @@ study (:mod:`budget.runner.registry`). Besides them: ``budget sweep`` and ``budg
 
 from __future__ import annotations
 
+import importlib
+
 import click
 
 from budget import __version__
-from simcam.infra.errors import UserInputError
+from budget.runner.cli import study_group
+from budget.runner.registry import aliases, study_names
 from simcam.infra.cli import run_cli
+from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import quick_teardown
 
 #: command name -> "module:attribute"; each module is imported only when its command runs
 #: (or when ``--help`` lists them), so a command pays only for its own imports
@@ -32,15 +37,9 @@ class _LazyGroup(click.Group):
     study (:mod:`budget.runner.registry`; an alias gives the same group), imported on first use."""
 
     def list_commands(self, ctx):
-        from budget.runner.registry import study_names
-
         return sorted(set(COMMANDS) | set(study_names()) | {"validate"} | set(self.commands))
 
     def get_command(self, ctx, cmd_name):
-        import importlib
-
-        from budget.runner.registry import aliases, study_names
-
         name = aliases().get(cmd_name, cmd_name)
         if name in self.commands:
             return self.commands[name]
@@ -54,8 +53,6 @@ class _LazyGroup(click.Group):
         elif name in MOVED:
             raise UserInputError(f"`budget {name}` is now `budget {MOVED[name]}`")
         elif name in study_names():
-            from budget.runner.cli import study_group
-
             cmd = study_group(name)
         else:
             return None
@@ -76,8 +73,6 @@ def cli() -> None:
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point (the process then skips the final garbage collections
     at its exit: :func:`simcam.infra.lifecycle.quick_teardown`)."""
-    from simcam.infra.lifecycle import quick_teardown
-
     quick_teardown()
     run_cli(cli, argv)
 

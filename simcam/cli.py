@@ -10,8 +10,11 @@ import numpy as np
 import pandas as pd
 
 from simcam import __version__
+from simcam.infra.cli import overwrite_option, run_cli
 from simcam.infra.errors import UserInputError
-from simcam.infra.cli import run_cli, overwrite_option
+from simcam.infra.lifecycle import progress as progress_bar
+from simcam.starcam.scenario import load, scenario_source_text, scenario_to_toml
+from simcam.starcam.targets import star_grid
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -26,8 +29,6 @@ def cli() -> None:
 def scenario_command(scenario: str | None, resolved: bool) -> None:
     """Print SCENARIO (default: the embedded seed-000 one) as TOML with its comments;
     --resolved: every field, defaults filled in."""
-    from simcam.starcam.scenario import load, scenario_source_text, scenario_to_toml
-
     scn = load(scenario)
     click.echo(f"# scenario hash {scn.hash}, simcam {__version__}")
     text = None if resolved else scenario_source_text(scenario)
@@ -54,9 +55,6 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, co
     """Render the star target of SCENARIO (default: embedded seed-000) to FITS + truth.csv."""
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
-    from simcam.starcam.scenario import load, scenario_to_toml
-    from simcam.infra.lifecycle import progress as progress_bar
-    from simcam.starcam.targets import star_grid
 
     t0 = time.perf_counter()
     if compress and mode != "full":

@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -27,6 +28,8 @@ from astropy.io import fits
 
 from simcam import __version__
 from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import announce_size, check_disk, check_memory, partial_prefix, remove_stale_partials
+from simcam.infra.outputs import apply_umask, check_output_dir, input_file_problem, is_earlier_output
 
 
 def frame_header(
@@ -73,11 +76,6 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
     left by a run that was killed outright (SIGKILL, power cut) are removed here, with a
     line on stderr (:func:`simcam.infra.lifecycle.remove_stale_partials`).
     """
-    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
-    from simcam.infra.outputs import apply_umask, check_output_dir
-
-    from simcam.infra.outputs import is_earlier_output
-
     out = Path(out)
     # the one rule (simcam.infra.outputs.check_output_dir): empty, an earlier output, or --overwrite
     check_output_dir(out, option="--out", replaceable=is_earlier_output, overwrite=overwrite)
@@ -137,10 +135,6 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
         Missing file, not FITS, truncated or damaged, no 2-D image, or every pixel NaN;
         the message names the file.
     """
-    import warnings
-
-    from simcam.infra.outputs import input_file_problem
-
     path = Path(path)
     if (why := input_file_problem(path)) is not None:  # a FIFO would block the reader forever
         raise UserInputError(f"{path}: {why}")
@@ -175,8 +169,6 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, fits.Header]:
 
 def read_windows(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, fits.Header]:
     """Read a windows file: pixels (frames, stars, h, w) float64, col0, row0, header."""
-    from simcam.infra.outputs import input_file_problem
-
     path = Path(path)
     if (why := input_file_problem(path)) is not None:
         raise UserInputError(f"{path}: {why}")
@@ -215,8 +207,6 @@ def check_render_request(scenario, *, frames: int, out, source: str, mode: str =
     (windows mode: the float64 window cube of all frames). Disk: ``frames`` frame files of
     :func:`frame_bytes` (an upper bound when compressed) or the uint16 window cube.
     """
-    from simcam.infra.lifecycle import announce_size, check_disk, check_memory
-
     rows, cols = scenario.detector.mosaic_shape
     det = scenario.detector
     if mode == "full":

@@ -200,7 +200,7 @@ def test_inputs_that_are_not_regular_files_are_named(tmp_path, device):
 # ----------------------------------------------------------------------------- all or nothing
 def test_sigterm_during_report_writing_leaves_neither_report_nor_json(tmp_path, monkeypatch):
     import budget.runner.report as report
-    from budget.runner.cli import run_and_write
+    from budget.runner.validate_cmd import run_and_write
     from toy_study import STUDY, Toy
 
     def interrupted_report(result, out_dir):
@@ -217,7 +217,7 @@ def test_sigterm_during_report_writing_leaves_neither_report_nor_json(tmp_path, 
 
 def test_validate_refuses_a_non_report_folder_before_running(tmp_path, monkeypatch):
     import budget.runner.run as run
-    from budget.runner.cli import run_and_write
+    from budget.runner.validate_cmd import run_and_write
     from toy_study import STUDY, Toy
 
     (tmp_path / "notes").mkdir()

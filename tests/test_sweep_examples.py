@@ -61,7 +61,7 @@ def _assert_identical_stores(a: Path, b: Path) -> None:
     assert bool(da.done.all()) and bool(db.done.all())
     # something was computed: on each class's own axes (the store holds the union of the
     # classes' axes, NaN where a class has no such axis) the truths and means are numbers
-    from budget.sweeps.evaluate import study_for_kind
+    from budget.sweeps.layout import study_for_kind
 
     study = study_for_kind(da.attrs["kind"])
     for spec in study.classes(study.load_scenario()):
@@ -103,7 +103,7 @@ def test_store_carries_each_class_unit_and_plots_only_classes_on_the_axis(tmp_pa
     """Seed 001's classes have different units and axes (3 sigma on ``angle``; coefficients
     in arcsec on ``A_L1c``...): the store names each class's unit, and a plot of one axis
     draws only the classes that have it (no empty panel)."""
-    from budget.sweeps.evaluate import study_for_kind
+    from budget.sweeps.layout import study_for_kind
     from budget.sweeps.plot import _classes_on, plot_store
 
     path = _tiny_example("polygon_faces.toml", tmp_path, keep={"calibration.short_polygon.faces": 2},

@@ -50,7 +50,7 @@ def test_world_line_names_the_effects_on():
 def test_ideal_world_on_a_study_without_effects_is_a_user_error():
     import pytest
 
-    from budget.runner.cli import ideal_world_scenario
+    from budget.runner.validate_cmd import ideal_world_scenario
     from simcam.infra.errors import UserInputError
     from toy_study import STUDY as TOY   # a study whose scenario has no world
 

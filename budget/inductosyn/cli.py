@@ -1,8 +1,7 @@
 """`budget inductosyn ...` (alias `budget harmonics`): calibration fits, design analysis
 and validation of the seed-001 inductosyn.
 
-The commands of the inductosyn study's group (:meth:`InductosynStudy.commands`, one group
-under both names). User mistakes raise :class:`simcam.infra.errors.ScenarioError` or
+The commands of the inductosyn study's group (:func:`commands`, one group under both names). User mistakes raise :class:`simcam.infra.errors.ScenarioError` or
 :class:`simcam.infra.errors.UserInputError`; ``budget.cli.main`` prints them as one line
 each and exits 2.
 """
@@ -13,10 +12,29 @@ import math
 
 import click
 import numpy as np
+import tomli_w
 
+import simcam
+from budget.figures import plt as _plt
+from budget.figures import save
+from budget.inductosyn.harmonics import (
+    HarmonicSpec,
+    accept,
+    alias_order,
+    analyse_design,
+    calibrate_in_sequence,
+    fit_joint,
+    fit_long_period,
+    fit_short_period,
+    read_calibration_csv,
+    sigma3_arcsec,
+)
+from budget.inductosyn.report import summary_lines
 from budget.runner.numbers import fmt
-from simcam.infra.errors import UserInputError
+from budget.runner.validate_cmd import validate_command_for
 from simcam.infra.cli import write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import check_run_outputs
 
 __all__ = ["commands", "design_command", "fit_command", "scenario_command", "validate_command"]
 
@@ -37,8 +55,6 @@ def _orders(text: str, what: str) -> tuple[int, ...]:
 @click.command("scenario")
 def scenario_command() -> None:
     """Print the resolved default inductosyn scenario (TOML, all fields)."""
-    import tomli_w
-
     from simcam.encoder.inductosyn import default
 
     click.echo(tomli_w.dumps(default().model_dump(mode="json", exclude_none=True)), nl=False)
@@ -53,7 +69,6 @@ def scenario_command() -> None:
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), default=None)
 def design_command(faces, pole_pairs, mech_orders, elec_orders, no_constant, json_out) -> None:
     """Rank, condition number and aliasing of a polygon calibration design."""
-    from budget.inductosyn.harmonics import HarmonicSpec, alias_order, analyse_design
     from simcam.encoder.polygon import nominal_face_angles_deg
 
     if faces < 3:
@@ -95,22 +110,9 @@ def design_command(faces, pole_pairs, mech_orders, elec_orders, no_constant, jso
 def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, requirement_arcsec,
                 json_out, plot_out) -> None:
     """Fit harmonics to calibration table(s) CSV (columns angle_deg, error_arcsec)."""
-    import simcam
-    from budget.inductosyn.harmonics import (
-        accept,
-        calibrate_in_sequence,
-        fit_joint,
-        fit_long_period,
-        fit_short_period,
-        read_calibration_csv,
-        sigma3_arcsec,
-    )
-
     if pole_pairs < 1:
         raise UserInputError("--pole-pairs: must be >= 1")
-    from simcam.infra.outputs import check_run_outputs  # outputs checked before the work
-
-    check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)
+    check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)  # before the work
     tables = [read_calibration_csv(path=f) for f in csv_files]
     nfiles = len(csv_files)
     if period in ("long", "short") and nfiles != 1:
@@ -178,9 +180,6 @@ def _plot_fit(fits, path, pole_pairs):
     returns the path with its caption (:func:`budget.figures.save`), from the numbers drawn:
     per fit the points, the 3 sigma before and after and the largest residual with where it
     lies, and a nuisance offset drawn with the model (fitted, not compensated)."""
-    from budget.figures import plt as _plt
-    from budget.figures import save
-
     plt = _plt()
     fig, axes = plt.subplots(len(fits), 2, figsize=(10, 3.6 * len(fits)), squeeze=False)
     parts = []
@@ -231,14 +230,10 @@ def _plot_fit(fits, path, pole_pairs):
 
 
 def _summary_lines(result) -> list[str]:
-    from budget.inductosyn.report import summary_lines
-
     return summary_lines(result)
 
 
 def _validate_command() -> click.Command:
-    from budget.runner.cli import validate_command_for
-
     return validate_command_for(
         "inductosyn", more_lines=_summary_lines,
         help_text="Monte Carlo validation of the polygon calibration on SCENARIO (default: the embedded "
@@ -250,5 +245,5 @@ validate_command = _validate_command()
 
 
 def commands() -> list[click.Command]:
-    """The inductosyn study's commands besides the plain ``validate`` (which its own replaces)."""
+    """The inductosyn study's own commands (its ``validate`` replaces the runner's)."""
     return [scenario_command, design_command, fit_command, validate_command]

@@ -29,6 +29,7 @@ arcsec, printed there as 2.7 and 145.6).
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 from dataclasses import dataclass, field
@@ -36,14 +37,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import check_input_file
 from simcam.units import ARCSEC_PER_DEG
 
 #: one full turn in arcsec: no calibration reading errs by that much
 FULL_TURN_ARCSEC = 360.0 * ARCSEC_PER_DEG
 #: calibration angles beyond ten turns are not readings of one rotation
 MAX_ANGLE_DEG = 3600.0
+#: the harmonic coefficients the study validates (the constant e0 is not observable with a polygon)
+COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s",
+                "A_S3c", "A_S3s", "A_S4c", "A_S4s")
+#: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
+PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
 
 __all__ = [
+    "COEFFICIENTS",
+    "PUBLISHED_COEFFICIENTS",
     "CompensationModel",
     "DesignAnalysis",
     "DesignError",
@@ -590,10 +599,6 @@ def read_calibration_csv(*, path) -> tuple[np.ndarray, np.ndarray]:
         not a finite number, a duplicated angle, or no data; the message names the file
         and the line.
     """
-    import csv
-
-    from simcam.infra.outputs import check_input_file
-
     path = str(path)
     check_input_file(path, what="calibration table")  # a FIFO or a device is not read (it would block)
     size = os.path.getsize(path)

@@ -19,6 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.figures import figure_markdown, overlaid_hist, save
+from budget.figures import plt as pyplot  # matplotlib.pyplot, set up on first use
+from budget.inductosyn.harmonics import (
+    COEFFICIENTS,
+    PUBLISHED_COEFFICIENTS,
+    HarmonicSpec,
+    design_matrix,
+    fit_joint,
+    posterior_band,
+    sigma3_arcsec,
+)
 from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
 from simcam.units import ARCSEC_PER_DEG
@@ -70,8 +81,6 @@ def figure_arrays(result) -> dict[str, np.ndarray]:
 def sequence_coefficients(result) -> np.ndarray:
     """The in-sequence coefficient vector of every trial (e0, A_L1c..A_L2s, A_S1c..A_S2s),
     the same numbers as ``run_trials``' ``c_long`` and ``c_short`` side by side."""
-    from budget.inductosyn.study import PUBLISHED_COEFFICIENTS
-
     cols = [result.aux["e0_in_sequence_arcsec"]]
     cols += [result.samples[("coefficient", "published", nm)] for nm in PUBLISHED_COEFFICIENTS]
     return np.stack(cols, axis=1)
@@ -85,7 +94,6 @@ def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
     run seed (``drift_seed``); the truth is the drifted encoder's error on the same dense grid
     of true angles.
     """
-    from budget.inductosyn.harmonics import HarmonicSpec, design_matrix
     from budget.inductosyn.validate import LONG, dense_stats
     from simcam.encoder.inductosyn import Inductosyn, apply_drift
 
@@ -113,7 +121,6 @@ def details(result, prepared) -> dict:
     requirement/3); the drift figures (:func:`drift_figures`). The per-coefficient bias and
     spread are the runner's statistics of class ``coefficient``.
     """
-    from budget.inductosyn.harmonics import sigma3_arcsec
     from budget.inductosyn.validate import reference_coefficients
 
     p = prepared
@@ -178,8 +185,6 @@ def _figures_markdown(result, d: dict) -> str:
 
 
 def _coefficients_markdown(result, d: dict) -> str:
-    from budget.inductosyn.study import COEFFICIENTS
-
     lines = ["Bias (mean - truth, +- its standard error) and spread (sample std) over trials, arcsec; the "
              "truth is the projection of the continuous true error, as a function of the reading, on "
              "the same harmonics. A `*` marks a bias beyond 3 standard errors.", "",
@@ -210,9 +215,7 @@ def _coefficients_markdown(result, d: dict) -> str:
 
 
 def _plt():
-    from budget.figures import plt
-
-    return plt()
+    return pyplot()
 
 
 def _s3(x) -> float:
@@ -221,8 +224,6 @@ def _s3(x) -> float:
 
 
 def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
-    from budget.figures import save
-
     plt = _plt()
     fig, ax = plt.subplots(3, 1, figsize=(9, 9))
     ax[0].plot(t, p.dense_before_arcsec, lw=0.3, color="C0", label="before (truth)")
@@ -252,8 +253,6 @@ def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
 
 
 def _plot_residual_distribution(rs, rj, figs: dict, path: Path) -> Path:
-    from budget.figures import overlaid_hist, save
-
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     overlaid_hist(ax[0], {"in sequence": rs, "joint": rj}, bins=80, density=True)
@@ -280,7 +279,6 @@ def _plot_residual_distribution(rs, rj, figs: dict, path: Path) -> Path:
 def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, path: Path) -> tuple[Path, str]:
     """emcee 90 % band of trial 0's joint-fit residual over three electrical periods, with
     the true residual (continuous reading) overlaid; the text says how much of it is inside."""
-    from budget.inductosyn.harmonics import fit_joint, posterior_band
     from budget.inductosyn.validate import JOINT_ELEC
 
     plt = _plt()
@@ -297,8 +295,6 @@ def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, pat
                                                 cal.short_polygon.face_error_arcsec))
     true_r = (band_r - band_t) * ARCSEC_PER_DEG - jf.evaluate_arcsec(angle_deg=band_r)
     true_r = true_r - r_joint_mean  # zero offset is unobservable: compare about the mean
-    from budget.figures import save
-
     fig, ax = plt.subplots(figsize=(9, 4))
     ax.fill_between(band_t, post["lower_arcsec"], post["upper_arcsec"], alpha=0.3,
                     label="90% credible band (emcee)")
@@ -339,8 +335,6 @@ def report_sections(result, prepared, out_dir, *, posterior_steps: int = 1500) -
     dist = _plot_residual_distribution(rs, rj, figure_arrays(result), out_dir / "residual_distribution.png")
     band, text = _posterior_band(p, ex, float(np.mean(r_joint)), result.seed, posterior_steps,
                                  out_dir / "posterior_band.png")
-    from budget.figures import figure_markdown
-
     # the figures are placed in the text, each with its caption under it
     secs.append(ReportSection(
         "Seed 001: error curves, residual distribution, posterior band",

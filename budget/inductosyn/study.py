@@ -29,17 +29,18 @@ seed-001 sections of the runner's report and the ``details`` of its JSON.
 
 from __future__ import annotations
 
-from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
+import numpy as np
 
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, sigma3_arcsec
+from budget.inductosyn.report import details, report_sections
+from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
+from simcam.config_base import model_hash
+
+#: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
 __all__ = ["COEFFICIENTS", "POLYGON_PAIRS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
 
 _UNIT = "arcsec, 3 sigma"
 _PREPARED: dict = {}
-#: the harmonic coefficients validated (the constant e0 is not observable with a polygon)
-COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s",
-                "A_S3c", "A_S3s", "A_S4c", "A_S4s")
-#: those the published procedure fits (eq 7: mechanical 1-2; eq 8: electrical 1-2)
-PUBLISHED_COEFFICIENTS = COEFFICIENTS[:8]
 
 #: The polygon pairs the planner compares (``protocol_shapes``): (long faces, short faces).
 #: Long: a face count dividing the 360 pole pairs, so that every electrical harmonic samples
@@ -95,7 +96,6 @@ class InductosynStudy(Study):
 
     def _prepared(self, scenario):
         from budget.inductosyn.validate import prepare
-        from simcam.config_base import model_hash
 
         key = model_hash(scenario)
         if key not in _PREPARED:
@@ -107,8 +107,6 @@ class InductosynStudy(Study):
     posterior_steps = 1500
 
     def trial_batch(self, scenario, seed: int, ks: list[int]) -> list[TrialResult]:
-        import numpy as np
-
         from budget.inductosyn.validate import run_trials
 
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
@@ -143,7 +141,6 @@ class InductosynStudy(Study):
         return self.trial_batch(scenario, seed, [k])[0]
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.inductosyn.harmonics import HarmonicSpec, sigma3_arcsec
         from budget.inductosyn.validate import JOINT_ELEC, reference_coefficients
 
         p = self._prepared(scenario)
@@ -184,21 +181,11 @@ class InductosynStudy(Study):
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:
-        from budget.inductosyn.report import details
-
         return details(result, self._prepared(result.scenario))
 
     def report_sections(self, result, out_dir) -> list:
-        from budget.inductosyn.report import report_sections
-
         return report_sections(result, self._prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
-
-    # ------------------------------------------------------------ commands
-    def commands(self) -> list:
-        from budget.inductosyn.cli import commands
-
-        return commands()
 
 
 #: per-trial figures of run_trials kept in ``aux`` (no truth: the report summarises them)

@@ -29,6 +29,7 @@ import numpy as np
 from budget.inductosyn.harmonics import (
     HarmonicSpec,
     calibrate_in_sequence,
+    check_design,
     design_matrix,
     fit_joint,
     sigma3_arcsec,
@@ -228,8 +229,6 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
     short_spec = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=pp, n_constants=0)
     joint_spec = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC, pole_pairs=pp,
                               n_constants=2)
-    from budget.inductosyn.harmonics import check_design
-
     check_design(angle_deg=al, spec=LONG, source="calibration.long_polygon")
     check_design(angle_deg=as_, spec=short_fit_spec, source="calibration.short_polygon")
     idx = np.r_[np.zeros(al.size, int), np.ones(as_.size, int)]

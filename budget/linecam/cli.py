@@ -28,11 +28,21 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-
-from budget.runner.numbers import fmt
-from simcam.infra.cli import overwrite_option
-from simcam.units import ARCSEC_PER_RAD, SECONDS_PER_DAY
 import numpy as np
+
+from budget.runner.html import write_html
+from budget.runner.numbers import fmt
+from budget.runner.study import trial_seed_sequence
+from simcam.infra.cli import overwrite_option, write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import StagedOutputs, apply_umask, check_input_file, check_run_outputs
+from simcam.linecam.scenario import PARAMETERS
+from simcam.sky.apparent import aberration_first_order, apparent_directions
+from simcam.sky.catalogue import CatalogueError, hipparcos
+from simcam.units import ARCSEC_PER_RAD, SECONDS_PER_DAY
+
+from .report import figure_markdown, plot_coverage, plot_los_error, plot_los_field, plot_residuals, plot_tracks
+from .study import STUDY, determined_combinations, gauge_combination_vector, trial_extra
 
 __all__ = ["commands", "read_observations", "calibrate_table", "CSV_COLUMNS"]
 
@@ -41,8 +51,6 @@ CSV_COLUMNS = ("time_s", "sample_px", "hip", "q_w", "q_x", "q_y", "q_z", "pos_x_
 
 
 def _scenario(path):
-    from .study import STUDY
-
     return STUDY.load_scenario(path)
 
 
@@ -59,19 +67,8 @@ def _scenario(path):
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
 @overwrite_option
 def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
-    from simcam.infra.cli import write_json_atomic
-    from simcam.linecam.scenario import PARAMETERS
-
-    from budget.runner.study import trial_seed_sequence
-
-    from .report import figure_markdown, plot_coverage, plot_los_error, plot_residuals, plot_tracks
-    from .study import trial_extra
-    from .trial import PARAM_UNITS, simulate, to_report_units
-
-    from simcam.infra.errors import UserInputError
-
     from .calibrate import CalibrationError
-    from simcam.infra.outputs import check_run_outputs
+    from .trial import PARAM_UNITS, simulate, to_report_units
 
     check_run_outputs(json_out=json_out, report_dir=report_dir, files={"--csv": csv_out}, inputs=(scenario,),
                       overwrite=overwrite)
@@ -94,8 +91,6 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
             sd = np.sqrt(max(c.cov[j, j], 0.0)) * abs(PARAM_UNITS[p][1])
             cols.append(f"{fmt(est):>10} {'not determined':>10s}" if p in undet else f"{fmt(est):>10} +-{fmt(sd, 3):>9}")
         click.echo(f"{p:10s} {PARAM_UNITS[p][0]:7s} {fmt(truth[j]):>10} " + " ".join(cols))
-    from .study import determined_combinations, gauge_combination_vector
-
     f_px = scn.camera.focal_length_mm / scn.camera.pitch_mm
     out["determined_combinations"] = {}
     for name, ang, px, sign in determined_combinations(ex["separability"]["null_space"], f_px):
@@ -124,8 +119,6 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
     click.echo(f"before calibration: rms {np.sqrt(np.mean(eb[0] ** 2)):.2f}\" along, "
                f"{np.sqrt(np.mean(eb[1] ** 2)):.2f}\" across")
     out["truth"] = dict(zip(PARAMETERS, truth.tolist()))
-    from simcam.infra.outputs import StagedOutputs, apply_umask
-
     with StagedOutputs() as staged:  # the table, the JSON and the report appear together or not at all
         if csv_out:
             tmp = staged.file(csv_out)
@@ -140,9 +133,7 @@ def simulate_cmd(scenario, seed, k, csv_out, json_out, report_dir, overwrite):
                     plot_los_error(ex, d / "los_error.png"), plot_coverage(ex, d / "coverage.png")]
             (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n"
                                            + figure_markdown(figs) + "\n")
-            from budget.runner.html import write_html  # its self-contained twin, simulate.html
-
-            write_html(d / "simulate.md")
+            write_html(d / "simulate.md")  # its self-contained twin, simulate.html
     if csv_out:
         click.echo(f"observations: {csv_out}")
     if report_dir:
@@ -179,13 +170,7 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     from astropy.time import Time
     from scipy.spatial.transform import Rotation
 
-    from simcam.infra.errors import UserInputError
-    from simcam.sky.apparent import aberration_first_order, apparent_directions
-    from simcam.sky.catalogue import CatalogueError, hipparcos
-
     from .model import Observations
-
-    from simcam.infra.outputs import check_input_file
 
     src = str(path)
     p = check_input_file(path, what="observation table")  # a FIFO or a device is not read
@@ -267,10 +252,6 @@ def check_observation_values(src: str, arr: dict, *, n_pixels: int) -> None:
     duplicated rows (counted twice, they overstate the stated precision by sqrt 2),
     non-physical times, positions and velocities, too few distinct stars, all samples at
     one pixel. ``arr``: the table's columns as float arrays (already finite)."""
-    import numpy as np
-
-    from simcam.infra.errors import UserInputError
-
     t = arr["time_s"]
     bad = np.flatnonzero(np.abs(t) > MAX_ABS_TIME_S)
     if bad.size:
@@ -318,10 +299,6 @@ def check_determined(calibrations: dict, *, source: str) -> None:
     not determine them. The joint fit removes its gauge directions by design (their
     zero variance is the gauge, stated as such); a non-finite stated uncertainty is refused.
     """
-    import numpy as np
-
-    from simcam.infra.errors import UserInputError
-
     for m, c in calibrations.items():
         cond = float(getattr(c, "condition", np.nan))
         if m != "improved" and (not np.isfinite(cond) or cond > MAX_CONDITION):
@@ -335,11 +312,14 @@ def check_determined(calibrations: dict, *, source: str) -> None:
 
 def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", "improved", "lookangle")) -> dict:
     """Both estimators on the observations; errors name ``source`` and the field."""
-    from simcam.infra.errors import UserInputError
-    from simcam.linecam.scenario import PARAMETERS
-
-    from .calibrate import (CalibrationError, calibrate_joint, calibrate_lookangle, calibrate_published, los_field,
-                            separability)
+    from .calibrate import (
+        CalibrationError,
+        calibrate_joint,
+        calibrate_lookangle,
+        calibrate_published,
+        los_field,
+        separability,
+    )
     from .model import NominalCamera
     from .trial import los_grid
 
@@ -390,14 +370,8 @@ def calibrate_table(obs, scn, *, source: str, solve=None, methods=("published", 
 @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write plots and a Markdown page.")
 @overwrite_option
 def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report_dir, overwrite):
-    from simcam.infra.errors import UserInputError
-    from simcam.infra.cli import write_json_atomic
-    from simcam.linecam.scenario import PARAMETERS
-
     from .model import los_angles, residuals
     from .trial import PARAM_UNITS, to_report_units
-
-    from simcam.infra.outputs import check_run_outputs
 
     # before any work: --json/--report are new files/folders or earlier outputs, not a
     # device and not the observation table or the scenario
@@ -444,8 +418,6 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
         sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
         # parameters the plan cannot separate are "not determined" (no sigma); what it does
         # determine of them is printed as the combinations
-        from .study import determined_combinations, gauge_combination_vector
-
         undet = set(sep.inseparable) if sep is not None else set()
         for j, p in enumerate(PARAMETERS):
             if p in c.solved:
@@ -465,14 +437,10 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
             "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
             "los_field": field}
-    from simcam.infra.outputs import StagedOutputs
-
     with StagedOutputs() as staged:  # the JSON and the report appear together or not at all
         if json_out:
             write_json_atomic(staged.file(json_out), payload)
         if report_dir:
-            from .report import figure_markdown, plot_coverage, plot_los_field, plot_residuals, plot_tracks
-
             d = staged.folder(report_dir)
             d.mkdir(parents=True, exist_ok=True)
             ex = {"sample": obs.sample, "t_s": t, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
@@ -495,14 +463,13 @@ def calibrate_cmd(observations, scenario, epoch, method, solve, json_out, report
             (d / "calibrate.md").write_text(f"# Line camera calibration from {src}\n\n" + "\n".join(rows) + "\n\n"
                                             + (note + "\n\n" if note else "")
                                             + figure_markdown(figs) + "\n")
-            from budget.runner.html import write_html  # its self-contained twin, calibrate.html
-
-            write_html(d / "calibrate.md")
+            write_html(d / "calibrate.md")  # its self-contained twin, calibrate.html
     if report_dir:
         click.echo(f"report: {Path(report_dir) / 'calibrate.md'}")
 
 
-def commands() -> list:
+def commands() -> list[click.Command]:
+    """The linecam study's own commands: ``simulate`` and ``calibrate``."""
     return [simulate_cmd, calibrate_cmd]
 
 

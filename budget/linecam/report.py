@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget import figures  # figures.save: looked up when called (a test spies on it)
 from budget.figures import figure_markdown
 from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
@@ -15,9 +16,7 @@ __all__ = ["plot_tracks", "plot_residuals", "plot_los_error", "plot_coverage", "
 
 
 def _plt():
-    from budget.figures import plt
-
-    return plt()
+    return figures.plt()
 
 
 def _rms(x) -> float:
@@ -27,8 +26,6 @@ def _rms(x) -> float:
 
 def plot_tracks(ex: dict, path: Path) -> Path:
     """Where the identified stars crossed the line: sample vs time tag, one colour per pass."""
-    from budget.figures import save
-
     plt = _plt()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     passes = np.unique(ex["pass"])
@@ -43,14 +40,12 @@ def plot_tracks(ex: dict, path: Path) -> Path:
     s = np.asarray(ex["sample"])
     caption = (f"Trial 0: {s.size} identified star crossings in {passes.size} passes, from sample "
                f"{s.min():.0f} to {s.max():.0f} of the {ex['n_pixels']} px line.")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def plot_residuals(ex: dict, path: Path) -> Path:
     """Image residuals (px) of every star before calibration (nominal camera) and after; the
     variants' markers differ (open and filled) so that coinciding residuals stay visible."""
-    from budget.figures import save
-
     plt = _plt()
     s = ex["sample"]
     n = s.size
@@ -72,14 +67,12 @@ def plot_residuals(ex: dict, path: Path) -> Path:
     parts = [f"{v} {rms[(v, 0)]:.3f} / {rms[(v, 1)]:.3f} px" for v in ex["residual_after_px"]]
     caption = (f"Trial 0, rms residual along / across track: before calibration {rms[('before', 0)]:.2f} / "
                f"{rms[('before', 1)]:.2f} px; after: " + ", ".join(parts) + ".")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def plot_los_error(ex: dict, path: Path) -> Path:
     """Calibrated minus true look angles over the whole line with the stated 1-sigma band; the
     caption gives each variant's rms error and how much of the line its stated sigma covers."""
-    from budget.figures import save
-
     plt = _plt()
     g = ex["grid"]
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
@@ -104,13 +97,11 @@ def plot_los_error(ex: dict, path: Path) -> Path:
                + "; ".join(f"{v} {name} rms {r:.3f} arcsec, within its stated 1 sigma over {100 * c:.0f} % "
                            "of the line" for v, name, r, c in parts)
                + " (nominal 68 % for a right 1 sigma).")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def plot_coverage(ex: dict, path: Path) -> Path:
     """Stars per bin of the line (step 7's coverage)."""
-    from budget.figures import save
-
     plt = _plt()
     bins = np.linspace(0, ex["n_pixels"], ex["coverage_bins"] + 1)
     fig, ax = plt.subplots(figsize=(8, 3.5))
@@ -124,7 +115,7 @@ def plot_coverage(ex: dict, path: Path) -> Path:
     caption = (f"{np.mean(counts > 0):.0%} of the {ex['coverage_bins']} bins of the line hold at least one "
                f"identified star (stacked by pass); the emptiest bin holds {counts.min()}, the fullest "
                f"{counts.max()}.")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def example_markdown(ex: dict) -> str:
@@ -179,13 +170,11 @@ def plot_los_field(payload: dict, path: Path) -> Path:
     axes[1].set_xlabel("detector along the line (px)")
     axes[0].set_title("calibrated LOS field (band: stated 1 sigma)")
     axes[0].legend(fontsize=7)
-    from budget.figures import save
-
     parts = []
     for m, r in payload["methods"].items():
         L = r["los_field"]
         parts.append(f"{m}: up to {np.max(np.abs(L['along_minus_nominal_arcsec'])):.2f} / "
                      f"{np.max(np.abs(L['across_minus_nominal_arcsec'])):.2f} arcsec from nominal, stated 1 sigma "
                      f"up to {np.max(L['sigma_along_arcsec']):.3f} / {np.max(L['sigma_across_arcsec']):.3f}")
-    return save(fig, path, "Calibrated look angles minus nominal, along / across track (no truth to compare "
+    return figures.save(fig, path, "Calibrated look angles minus nominal, along / across track (no truth to compare "
                 "with): " + "; ".join(parts) + ".")

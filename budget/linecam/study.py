@@ -30,12 +30,18 @@ it has no camera parameters).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.distortion import OpticsError
+from simcam.infra.errors import ScenarioError
+from simcam.linecam.scenario import PARAMETERS
 from simcam.units import ARCSEC_PER_RAD
+
+from .report import report_sections
 
 __all__ = ["STUDY", "LineCamStudy", "LOS_POINTS"]
 
@@ -67,8 +73,6 @@ def _gauge_axes(scenario) -> tuple[str, ...]:
 def gauge_combination_vector(f_px: float, angle: str, px: str, sign: float):
     """Coefficients (arcsec per model unit: rad, px) of ``angle + sign px / F`` over the ten
     parameters (:data:`simcam.linecam.scenario.PARAMETERS`)."""
-    from simcam.linecam.scenario import PARAMETERS
-
     g = np.zeros(len(PARAMETERS))
     g[PARAMETERS.index(angle)] = ARCSEC_PER_RAD
     g[PARAMETERS.index(px)] = sign * ARCSEC_PER_RAD / f_px
@@ -102,8 +106,6 @@ class LineCamStudy(Study):
     # ------------------------------------------------------------ scenario
 
     def check(self, scenario, *, where: str) -> None:
-        from simcam.infra.errors import ScenarioError
-
         if scenario.lab.grid_step_px >= scenario.camera.n_pixels:
             raise ScenarioError(f"{where}: lab.grid_step_px must be below camera.n_pixels")
 
@@ -143,12 +145,8 @@ class LineCamStudy(Study):
         return tuple(out)
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from simcam.infra.errors import ScenarioError
-
         from .calibrate import CalibrationError
         from .trial import simulate
-
-        from simcam.distortion import OpticsError
 
         try:
             simulation = simulate(scenario, trial_seed_sequence(seed, k))
@@ -187,16 +185,9 @@ class LineCamStudy(Study):
             return "the stated covariance is smaller than the actual scatter of the calibrated field."
         return None
 
-    # ------------------------------------------------------------ report and commands
+    # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from .report import report_sections
-
         return report_sections(result, Path(out_dir))
-
-    def commands(self) -> list:
-        from .cli import commands
-
-        return commands()
 
     # ------------------------------------------------------------ protocol planning
     def protocol_knobs(self, scenario) -> tuple:
@@ -208,8 +199,6 @@ class LineCamStudy(Study):
         and one pass identified 5, at V 6.0 it has 25. The limit costs no lab time (the
         stars are imaged anyway); it trades the fainter stars' centroid noise against their
         number."""
-        from budget.runner.study import Knob
-
         return (Knob("observation.passes", "int", 1, 16, "passes",
                      "passes over the strip, each shifted across track by observation.shift_px"),
                 Knob("stars.mag_limit", "real", 6.0, scenario.stars.world_mag_limit, "mag",
@@ -221,8 +210,6 @@ class LineCamStudy(Study):
         ``camera.matched_rate_rad_s``), and between the starts of two passes
         ``observation.pass_interval_s`` elapse (the return and re-acquisition take what the
         scan leaves of it)."""
-        import math
-
         obs = scenario.observation
         scan_s = math.radians(scenario.stars.strip_length_deg) / scenario.camera.matched_rate_rad_s
         return {"scans": obs.passes * scan_s,
@@ -231,8 +218,6 @@ class LineCamStudy(Study):
 
 def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     """The estimates, per-trial truths and stated sigmas of one simulation."""
-    from simcam.linecam.scenario import PARAMETERS
-
     from .trial import to_report_units
 
     estimates, truths, sigmas = {}, {}, {}

@@ -18,10 +18,18 @@ from functools import lru_cache
 import numpy as np
 
 from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
-from simcam.linecam.scenario import PARAMETERS, LineCamScenario
 from simcam.linecam.effects import effects_generator
-from simcam.linecam.world import (PassImages, SkyStrip, attitude_reports, image_passes, sky_strip, world_jitter,
-                                  world_sky_strip)
+from simcam.linecam.scenario import PARAMETERS, LineCamScenario
+from simcam.linecam.world import (
+    PassImages,
+    SkyStrip,
+    attitude_reports,
+    image_passes,
+    sky_strip,
+    world_jitter,
+    world_sky_strip,
+)
+from simcam.sky.catalogue import hipparcos
 from simcam.units import ARCSEC_PER_RAD
 
 from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
@@ -51,8 +59,6 @@ def region(scenario: LineCamScenario) -> Region:
     st, cam = scenario.stars, scenario.camera
     if st.region == "manual":
         return Region(ra_deg=st.ra_deg, dec_deg=st.dec_deg, stars=-1, candidates=0)
-    from simcam.sky.catalogue import hipparcos
-
     return choose_region(hipparcos(), mag_limit=st.mag_limit,
                          across_rad=cam.n_pixels * cam.pitch_mm / cam.focal_length_mm,
                          along_rad=math.radians(st.strip_length_deg), pa_deg=st.scan_pa_deg)

@@ -1,151 +1,59 @@
-"""The command-line face of every study: ``budget <study> validate`` and the study's own commands."""
+"""The command-line face of every study: the click group ``budget <study>``, with the runner's
+``validate``, ``robustness``, ``plan`` and ``scenario`` and the study's own commands.
+
+A study's own commands live in its command module (the registry's
+:attr:`~budget.runner.registry.StudyEntry.cli_module`), whose ``commands()`` returns them; a
+command of the study named ``validate`` replaces the runner's. The command module imports
+its study and the runner's commands, never the reverse, so only this builder imports it.
+"""
 
 from __future__ import annotations
 
+import importlib
+
 import click
 
-from simcam.infra.cli import overwrite_option
+from budget.runner.plan import has_knobs, plan_command_for
+from budget.runner.registry import entry, get_study, summary
+from budget.runner.robustness import robustness_command_for
+from budget.runner.scenario_cmd import scenario_command_for
+from budget.runner.validate_cmd import validate_command_for
 
-__all__ = ["run_and_write", "study_group", "validate_command_for"]
-
-
-def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
-                  dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
-                  overwrite=False, truth_size="adaptive"):
-    """What ``validate`` does once its options are read: run the study through the runner,
-    print the header and the table (then ``more_lines(result)``, if given: a study's own
-    summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
-
-    ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal;
-    ``overwrite`` lets the report replace a folder that is not an earlier report;
-    ``truth_size``: ``adaptive`` (truths sized to the run, :func:`budget.runner.run.run_study`)
-    or ``fixed`` (the scenario's own truth sizes).
-    """
-    import sys
-
-    from budget.runner.findings import findings_lines
-    from budget.runner.report import format_table, world_line, write_outputs, write_report
-    from budget.runner.run import run_study
-    from simcam.infra.outputs import check_run_outputs
-
-    if progress is None:
-        progress = sys.stderr.isatty()
-    check_run_outputs(json_out=json_out, report_dir=report_dir, overwrite=overwrite)  # refused before the work
-    if workers is None and scheduler is None and dask_local is None:
-        from budget.runner.executors import default_workers
-
-        workers = default_workers()
-    res = run_study(study, scenario, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
-                    scheduler=scheduler, dask_local=dask_local, progress=progress, truth_size=truth_size)
-    click.echo(f"{study.title}: scenario {getattr(scenario, 'name', '')} (hash {study.scenario_hash(scenario)}), "
-               f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
-               f"on {res.executor}")
-    click.echo(world_line(scenario))
-    click.echo(format_table(res))
-    click.echo("\n".join(findings_lines(res)))  # the findings in words
-    for line in (more_lines(res) if more_lines is not None else []):
-        click.echo(line)
-    write_outputs(res, json_out=json_out, report_dir=report_dir, write_report=write_report)
-    return res
+__all__ = ["own_commands", "study_group"]
 
 
-def ideal_world_scenario(study, scenario, *, source: str):
-    """``scenario`` with every ``world.effects`` magnitude 0 (``--ideal-world``); a study
-    without world effects is a one-line user error."""
-    from budget.runner.robustness import scenario_with_effects
-    from simcam.infra.errors import UserInputError
-    from simcam.effects import scenario_effects
-
-    effects = scenario_effects(scenario)
-    if effects is None:
-        raise UserInputError(f"--ideal-world: the {study.name} study has no [world.effects]")
-    return scenario_with_effects(study, scenario, {n: 0.0 for n in effects.names()},
-                                 source=f"{source} (--ideal-world)")
-
-
-def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None,
-                         more_lines=None) -> click.Command:
-    """``validate [SCENARIO] --trials --tolerance --seed --workers --scheduler --dask-local --json --report``.
-
-    ``more_lines(result)``: a study's own summary lines printed after the table (a study
-    whose :meth:`Study.commands` returns its own ``validate`` built here replaces the plain one).
-    """
-    from budget.runner.registry import summary
-
-    @click.command(name, help=help_text or f"Monte Carlo validation of the {study_name} study on SCENARIO "
-                                           f"(default: its embedded scenario). {summary(study_name)}")
-    @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
-    @click.option("--trials", type=click.IntRange(min=2), default=None,
-                  help="Number of Monte Carlo trials (default: the scenario's validation.trials).")
-    @click.option("--tolerance", type=click.FloatRange(min=0, min_open=True), default=None,
-                  help="Stop when every Monte Carlo standard error is below this (in the classes' unit).")
-    @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-    @click.option("--truth-size", "truth_size", type=click.Choice(["adaptive", "fixed"]), default="adaptive",
-                  show_default=True,
-                  help="adaptive: each sampled truth's standard error about a quarter of what the trials "
-                       "resolve (the scenario's truth sizes the most); fixed: the scenario's truth sizes.")
-    @click.option("--workers", type=click.IntRange(min=1), default=None,
-                  help="Local worker processes (default: all cores). Results do not depend on it.")
-    @click.option("--scheduler", default=None, help="Run the trials on a Dask cluster (tcp://HOST:PORT).")
-    @click.option("--dask-local", type=int, default=None, help="Run on a Dask LocalCluster of N processes.")
-    @click.option("--json", "json_out", type=click.Path(dir_okay=False), help="Write the results as JSON.")
-    @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a Markdown report with plots.")
-    @overwrite_option
-    @click.option("--ideal-world", is_flag=True, default=False,
-                  help="Turn every [world.effects] magnitude to 0: the world the lab's model assumes "
-                       "(default: the scenario's world, realistic in the embedded defaults).")
-    @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
-    def validate(scenario, trials, tolerance, seed, truth_size, workers, scheduler, dask_local, json_out, report_dir,
-                 overwrite, ideal_world, progress):
-        from budget.runner.registry import get_study
-
-        study = get_study(study_name)
-        scn = study.load_scenario(scenario)
-        if ideal_world:
-            scn = ideal_world_scenario(study, scn, source=str(scenario or f"embedded {study_name} default"))
-        run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
-                      workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
-                      report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
-                      truth_size=truth_size)
-
-    return validate
+def own_commands(study_name: str) -> list[click.Command]:
+    """The click commands of study ``study_name``'s command module (none without one)."""
+    e = entry(study_name)
+    if e is None or e.cli_module is None:
+        return []
+    return list(importlib.import_module(e.cli_module).commands())
 
 
 def study_group(study_name: str) -> click.Group:
     """The click group of a registered study: ``validate``, ``robustness``, ``plan`` (where its
-    default scenario declares protocol knobs) plus
-    :meth:`Study.commands` (a command of the study named ``validate`` replaces the plain one).
+    default scenario declares protocol knobs) plus the study's own commands
+    (:func:`own_commands`; one named ``validate`` replaces the runner's).
 
     The study module is imported only when the group is invoked (or asked for help), and a
     command runs without building the others: ``validate`` loads no scenario to learn
     whether the study has ``plan`` (the listing, ``--help``, builds them all).
     """
-    from budget.runner.registry import summary
 
     def _plan():
-        from budget.runner.plan import has_knobs, plan_command_for
-        from budget.runner.registry import get_study
-
         # a protocol with knobs: `plan` (budget.runner.plan)
         return plan_command_for(study_name) if has_knobs(get_study(study_name)) else None
 
-    def _robustness():
-        from budget.runner.robustness import robustness_command_for
-
-        return robustness_command_for(study_name)
-
     #: the runner's commands of every study, built on first use; the study's own replace them
-    generic = {"validate": lambda: validate_command_for(study_name), "robustness": _robustness, "plan": _plan}
+    generic = {"validate": lambda: validate_command_for(study_name),
+               "robustness": lambda: robustness_command_for(study_name), "plan": _plan}
 
     class _Lazy(click.Group):
         def _load_own(self) -> None:
             """The study's own commands, then every study's ``scenario`` (with comments)."""
             if getattr(self, "_own", None) is not None:
                 return
-            from budget.runner.registry import get_study
-            from budget.runner.scenario_cmd import scenario_command_for
-
-            own = get_study(study_name).commands()
+            own = own_commands(study_name)
             self._own = {cmd.name for cmd in own}
             for cmd in own:
                 self.add_command(cmd)

@@ -1,10 +1,12 @@
 """The registry of studies: one table, name -> where its :class:`~budget.runner.study.Study`
-lives and one line of help.
+lives, where its own commands live and one line of help.
 
 Nothing else in the machinery knows a study's name: the CLI, the sweep engine and the
 reports look studies up here (a test scans budget/runner and budget/sweeps for study names
 outside this table). Entries are imported only when used, so a command pays only for the
-study it runs.
+study it runs. The registry imports a study's module (:func:`get_study`), never its command
+module: that one imports the runner's commands, which look studies up here; the CLI's group
+builder (:func:`budget.runner.cli.study_group`) imports it.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import importlib.util
 from dataclasses import dataclass
 
 from budget.runner.study import Study
+from simcam.infra.errors import UserInputError
 
 __all__ = ["REGISTRY", "StudyEntry", "aliases", "entry", "get_study", "renamed", "study_names", "summary"]
 
@@ -21,11 +24,15 @@ __all__ = ["REGISTRY", "StudyEntry", "aliases", "entry", "get_study", "renamed",
 @dataclass(frozen=True)
 class StudyEntry:
     """One registered study: its name (CLI group, sweep ``kind``), where its instance lives
-    (``"module:attribute"``) and one line of help (shown without importing it)."""
+    (``"module:attribute"``), one line of help (shown without importing it) and the module
+    of its own commands."""
 
     name: str
     target: str
     summary: str
+    #: the module whose ``commands()`` returns the study's own click commands besides the
+    #: runner's (its own ``validate`` replaces the runner's); None: the runner's only
+    cli_module: str | None = None
     #: other names of its CLI group (the same command objects)
     aliases: tuple[str, ...] = ()
     #: names it had before (e.g. as a sweep file's ``kind``): refused, naming this one
@@ -39,15 +46,18 @@ class StudyEntry:
 #: every registered study, in the order the CLI lists them
 REGISTRY: tuple[StudyEntry, ...] = (
     StudyEntry("starcam", "budget.starcam.study:STUDY",
-               "Seed 000: star-camera TE, HSFE and LSFE lab methods.", former_names=("camera",)),
+               "Seed 000: star-camera TE, HSFE and LSFE lab methods.", cli_module="budget.starcam.cli",
+               former_names=("camera",)),
     StudyEntry("inductosyn", "budget.inductosyn.study:STUDY",
-               "Seed 001: polygon calibration of an inductosyn's harmonic errors.", aliases=("harmonics",)),
+               "Seed 001: polygon calibration of an inductosyn's harmonic errors.", cli_module="budget.inductosyn.cli",
+               aliases=("harmonics",)),
     StudyEntry("whiskbroom", "budget.whiskbroom.study:STUDY",
-               "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF."),
+               "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF.", cli_module="budget.whiskbroom.cli"),
     StudyEntry("scanmirror", "budget.scanmirror.study:STUDY",
-               "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars."),
+               "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars.",
+               cli_module="budget.scanmirror.cli"),
     StudyEntry("linecam", "budget.linecam.study:STUDY",
-               "Seed 004: star-based on-orbit calibration of a TDI line camera."),
+               "Seed 004: star-based on-orbit calibration of a TDI line camera.", cli_module="budget.linecam.cli"),
 )
 _BY_NAME = {e.name: e for e in REGISTRY}
 _ALIASES = {a: e.name for e in REGISTRY for a in e.aliases}
@@ -82,8 +92,6 @@ def summary(name: str) -> str:
 
 def get_study(name: str) -> Study:
     """The study registered as ``name``; an unknown name is an error listing the known ones."""
-    from simcam.infra.errors import UserInputError
-
     e = _BY_NAME.get(name)
     if e is None:
         raise UserInputError(f"unknown study {name!r}; known: {', '.join(study_names())}")

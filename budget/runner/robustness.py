@@ -61,10 +61,19 @@ from typing import Any
 import click
 import numpy as np
 
+import simcam
+from budget.runner.executors import default_workers, make_executor
+from budget.runner.html import write_html
 from budget.runner.numbers import fmt
-from budget.runner.study import ClassSpec, Study, TrialResult
-from simcam.infra.cli import overwrite_option
+from budget.runner.registry import get_study
+from budget.runner.report import staged_report, write_outputs
+from budget.runner.run import StudyResult
+from budget.runner.study import ClassSpec, Study, TrialResult, truth_identity
 from simcam.effects import scenario_effects
+from simcam.infra.cli import overwrite_option, write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import check_memory
+from simcam.infra.outputs import check_run_outputs
 
 __all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
            "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects",
@@ -174,8 +183,6 @@ def scenario_with_effects(study: Study, scenario: Any, values: dict[str, float],
 def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
     """The cases of a robustness run (module docstring); a scenario without
     ``world.effects`` is a :class:`simcam.infra.errors.UserInputError`."""
-    from simcam.infra.errors import UserInputError
-
     effects = scenario_effects(scenario)
     where = source or f"{study.name} scenario {getattr(scenario, 'name', '')}".strip()
     if effects is None or not effects.names():
@@ -190,8 +197,6 @@ def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
         # (Study.truth_fields: the hook sweeps share truths by)
         if depends is not None and not (set(active) & set(depends)):
             return True
-        from budget.runner.study import truth_identity
-
         return study.truth_fields(scn) is not None and truth_identity(study, scn) == truth_identity(study, ideal_scn)
 
     cases = [Case(IDEAL, ideal_scn, (), ideal, False)]
@@ -245,11 +250,6 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
     """Run every case of ``scenario`` (:func:`build_cases`) with ``trials`` trials each (default:
     the study's) and seed ``seed``, in one executor (:func:`budget.runner.executors.make_executor`;
     results do not depend on it)."""
-    from budget.runner.executors import make_executor
-    from budget.runner.result import StudyResult
-    from simcam.infra.errors import UserInputError
-    from simcam.infra.lifecycle import check_memory
-
     t0 = time.perf_counter()
     if trials is None:
         trials = study.default_trials(scenario)
@@ -486,8 +486,6 @@ class RobustnessResult:
     # ------------------------------------------------------------ output
     def to_json(self) -> dict:
         """JSON payload (schema ``budget.robustness/1``, module docstring)."""
-        from simcam import __version__
-
         cells = self.cells()
         effects = scenario_effects(self.scenario)
         depends = self.study.truth_depends_on_effects(self.scenario)
@@ -507,7 +505,7 @@ class RobustnessResult:
             }
         return {
             "schema": SCHEMA, "study": self.study.name, "title": self.study.title,
-            "seed_document": self.study.seed_document, "version": __version__,
+            "seed_document": self.study.seed_document, "version": simcam.__version__,
             "scenario_name": getattr(self.scenario, "name", None),
             "scenario_hash": self.study.scenario_hash(self.scenario),
             "scenario_toml": self.study.scenario_text(self.scenario),
@@ -564,9 +562,6 @@ class RobustnessResult:
     def write_report(self, out_dir: str | Path) -> Path:
         """Write ``report.md``, ``robustness.json`` and ``scenario.toml`` into ``out_dir``
         (a temporary sibling renamed into place: never a half-written report)."""
-        from budget.runner.report import staged_report
-        from simcam.infra.cli import write_json_atomic
-
         with staged_report(out_dir) as tmp:
             st = self.study
             effects = scenario_effects(self.scenario)
@@ -597,9 +592,7 @@ class RobustnessResult:
             (tmp / "scenario.toml").write_text(scenario_toml)
             write_json_atomic(tmp / "robustness.json", self.to_json())
             (tmp / "report.md").write_text("\n".join(lines))
-            from budget.runner.html import write_html  # its self-contained twin, report.html
-
-            write_html(tmp / "report.md")
+            write_html(tmp / "report.md")  # its self-contained twin, report.html
         return Path(out_dir) / "report.md"
 
 
@@ -636,9 +629,6 @@ def robustness_command_for(study_name: str) -> click.Command:
     def robustness(scenario, trials, seed, workers, scheduler, dask_local, json_out, report_dir, overwrite, progress):
         import sys
 
-        from budget.runner.registry import get_study
-        from simcam.infra.outputs import check_run_outputs
-
         study = get_study(study_name)
         scn = study.load_scenario(scenario)
         # the outputs are checked before the work and written together (or not at all)
@@ -646,8 +636,6 @@ def robustness_command_for(study_name: str) -> click.Command:
         if progress is None:
             progress = sys.stderr.isatty()
         if workers is None and scheduler is None and dask_local is None:
-            from budget.runner.executors import default_workers
-
             workers = default_workers()
         res = run_robustness(study, scn, trials=trials, seed=seed, workers=workers, scheduler=scheduler,
                              dask_local=dask_local, progress=progress,
@@ -656,8 +644,6 @@ def robustness_command_for(study_name: str) -> click.Command:
         click.echo(res.format_table())
         for s in res.sentences():
             click.echo(f"* {s}")
-        from budget.runner.report import write_outputs
-
         write_outputs(res, json_out=json_out, report_dir=report_dir)
 
     return robustness

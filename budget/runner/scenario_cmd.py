@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import click
 
+from budget.runner.registry import get_study
+
 __all__ = ["scenario_command_for"]
 
 
@@ -21,8 +23,6 @@ def scenario_command_for(study_name: str) -> click.Command:
     @click.option("--resolved", is_flag=True, help="Every field, defaults filled in (no comments).")
     def scenario(scenario, resolved):
         from pathlib import Path
-
-        from budget.runner.registry import get_study
 
         study = get_study(study_name)
         scn = study.load_scenario(scenario)  # a mistake is one error line naming file and field

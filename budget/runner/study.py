@@ -100,8 +100,9 @@ uses it, where two spellings mean one shape) and :meth:`Study.uncomputed_class` 
 the study is not computed by a scenario, for the planner's error).
 
 Presentation: :meth:`Study.report_sections` (sections and plots its report adds),
-:meth:`Study.details` (the study's own figures in the JSON result, under ``details``),
-:meth:`Study.commands` (extra click commands of its CLI group besides ``validate``).
+:meth:`Study.details` (the study's own figures in the JSON result, under ``details``). The
+study's own click commands live in its command module (:mod:`budget.runner.registry`), which
+imports the study, not the reverse.
 
 Randomness: trial ``k`` of a run with ``seed`` must draw only from
 ``numpy.random.SeedSequence(seed, spawn_key=(k,))`` (see :func:`trial_seed_sequence`),
@@ -531,7 +532,3 @@ class Study(ABC):
         samples, truths and :attr:`TrialResult.aux`); they go under ``details`` in the
         result's JSON (:meth:`budget.runner.run.StudyResult.to_json`). None by default."""
         return {}
-
-    def commands(self) -> list:
-        """Extra click commands of this study's CLI group besides ``validate``."""
-        return []

@@ -6,12 +6,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-
-from simcam.infra.cli import overwrite_option
-from simcam.units import RAD_PER_ARCSEC
 import numpy as np
 
-__all__ = ["simulate_command", "simulate", "write_simulate_report"]
+from budget.figures import figure_markdown
+from budget.runner.html import write_html
+from budget.scanmirror.plots import plot_deviation_timeline, plot_ground_error_maps, plot_scan_pattern
+from budget.scanmirror.study import STUDY
+from simcam.infra.cli import overwrite_option, write_json_atomic
+from simcam.infra.outputs import StagedOutputs, check_run_outputs
+from simcam.units import RAD_PER_ARCSEC
+
+__all__ = ["commands", "simulate_command", "simulate", "write_simulate_report"]
 
 
 def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dict, object, dict]:
@@ -48,8 +53,6 @@ def simulate(scenario, *, seed: int = 0, source: str | None = None) -> tuple[dic
 
 
 def write_simulate_report(summary, setup, out, report_dir) -> Path:
-    from budget.scanmirror.plots import plot_deviation_timeline, plot_ground_error_maps, plot_scan_pattern
-
     d = Path(report_dir)
     d.mkdir(parents=True, exist_ok=True)
     w = setup.world
@@ -80,13 +83,9 @@ def write_simulate_report(summary, setup, out, report_dir) -> Path:
                          f"{r['lat_rms_deg']:.5f} | {r['lon_rms_deg']:.5f} |")
     lines += ["", "Scan 1 has no deviation estimate yet: its `published`/`improved` rows compensate with "
               "dtau = 0, as the paper does.", ""]
-    from budget.figures import figure_markdown
-
     lines += [figure_markdown(figs)]  # each figure with its caption under it
     (d / "report.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    from budget.runner.html import write_html  # its self-contained twin, report.html
-
-    write_html(d / "report.md")
+    write_html(d / "report.md")  # its self-contained twin, report.html
     return d / "report.md"
 
 
@@ -100,11 +99,6 @@ def simulate_command() -> click.Command:
     @click.option("--report", "report_dir", type=click.Path(file_okay=False), help="Write a report with plots.")
     @overwrite_option
     def cmd(scenario, seed, json_out, report_dir, overwrite):
-        from budget.scanmirror.study import STUDY
-        from simcam.infra.cli import write_json_atomic
-
-        from simcam.infra.outputs import StagedOutputs, check_run_outputs
-
         check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)  # before the work
         scn = STUDY.load_scenario(scenario)
         source = scenario or "embedded scanmirror default"
@@ -122,3 +116,8 @@ def simulate_command() -> click.Command:
             click.echo(f"report: {Path(report_dir) / 'report.md'}")
 
     return cmd
+
+
+def commands() -> list[click.Command]:
+    """The scanmirror study's own commands: ``simulate``."""
+    return [simulate_command()]

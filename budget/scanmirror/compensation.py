@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from simcam.scanmirror.geometry import attitude_matrix_br
 from simcam.scanmirror.orbit import first_order_orbit_error_matrix
 
 __all__ = ["PARAMETERS", "first_order_forward", "FirstOrderCompensator", "exact_compensation"]
@@ -75,8 +76,6 @@ def exact_compensation(world, alpha0, beta0, dtau_x, dtau_y, att, A_r0r, R_km, *
     step is below ``tol_rad``). Returns the commanded (alpha, beta) (rad). On the sphere the
     numba kernel (:mod:`budget.scanmirror.kernels`) runs the same iterations point by point
     (``use_kernel=False``: the vectorised numpy path, used to test it)."""
-    from simcam.scanmirror.geometry import attitude_matrix_br
-
     if target is None:
         target = world.nominal_ground(alpha0, beta0)[..., :2]
     a, b = np.array(alpha0, float), np.array(beta0, float)

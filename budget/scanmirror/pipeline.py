@@ -16,6 +16,8 @@ import numpy as np
 
 from budget.scanmirror.compensation import FirstOrderCompensator, exact_compensation, ground_errors_deg
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
+from simcam.infra.errors import ScenarioError
+from simcam.infra.lifecycle import check_memory
 from simcam.scanmirror.effects import WorldEffects
 from simcam.scanmirror.geometry import rotvec_matrix
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
@@ -44,8 +46,6 @@ class Setup:
     def _check_size(self, duration_s: float) -> None:
         """Refuse, before allocating, a step that gives more samples than memory holds,
         naming the scenario field the step came from."""
-        from simcam.infra.lifecycle import check_memory
-
         sc = self.scenario
         field_name = "ground_step_s"
         for sect in ("compensation", "validation"):
@@ -70,8 +70,6 @@ class Setup:
         self.latlon0 = w.latlon(self.g0)
         if np.isnan(self.g0).any():
             j = int(np.flatnonzero(np.isnan(self.g0[:, 0]))[0])
-            from simcam.infra.errors import ScenarioError
-
             raise ScenarioError(
                 f"{self.source}: scan_plan.segments: area scan {int(self.scan[j])} leaves the Earth disc at "
                 f"t = {self.t_s[j]:.1f} s (alpha {np.rad2deg(self.alpha0[j]):.3f} deg, beta "

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget import figures  # figures.save: looked up when called (a test spies on it)
 from budget.runner.numbers import fmt
 from simcam.units import ARCSEC_PER_RAD
 
@@ -14,16 +15,12 @@ __all__ = ["plot_dtau_errors", "plot_trial_ground_errors", "plot_ground_error_ma
 
 
 def _plt():
-    from budget.figures import plt
-
-    return plt()
+    return figures.plt()
 
 
 def plot_dtau_errors(result, path: Path) -> Path:
     """Histograms of estimate minus injected deviation (arcsec), per axis and variant; the
     caption compares the variants' rms errors (from the samples drawn)."""
-    from budget.figures import overlaid_hist, save
-
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     rms = {}
@@ -36,7 +33,7 @@ def plot_dtau_errors(result, path: Path) -> Path:
                 errs[f"{v} (mean {err.mean():+.2f}, std {err.std():.2f})"] = err
                 rms[(v, axis)] = float(np.sqrt(np.mean(err ** 2)))
         if errs:
-            overlaid_hist(ax, errs, bins=40)
+            figures.overlaid_hist(ax, errs, bins=40)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.set_xlabel(f"estimated - injected dtau_{axis} (arcsec)")
         ax.set_ylabel("trials")
@@ -55,7 +52,7 @@ def plot_dtau_errors(result, path: Path) -> Path:
             parts.append(f"on {axis} the {v} estimate's rms error is {fmt(r, 3)} arcsec")
     caption = (f"Estimate minus injected deviation over {result.trials} trials (0 = exact): "
                + "; ".join(parts) + ".") if parts else "No deviation estimates in this run."
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def _nominal_latlon(world, g0):
@@ -72,8 +69,6 @@ def _max_errors_caption(errors: dict) -> str:
 
 def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
     """Latitude and longitude errors (deg) against time over the last scan, for each variant."""
-    from budget.figures import save
-
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     t = extra["t_s"]
@@ -90,7 +85,7 @@ def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
                       "within +-0.001 deg)", fontsize=9)
     text, _ = _max_errors_caption(extra["errors"])
     caption = f"Trial 0, last area scan; largest |latitude or longitude error|, smallest first: {text}."
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
@@ -98,8 +93,6 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
     per scan, one column per compensation (uncompensated, without estimate, published, improved),
     all panels on one colour scale (one colour bar) so that they compare."""
     from matplotlib.colors import LogNorm
-
-    from budget.figures import save
 
     plt = _plt()
     scans = sorted(out["errors"])
@@ -140,15 +133,13 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
                + (f"; the best compensation ({order[0]}) is {fmt(worst['uncompensated'] / worst[order[0]], 3)} "
                   "times below uncompensated." if worst[order[0]] > 0 and order[0] != "uncompensated"
                   else "."))
-    return save(fig, path, caption, dpi=100, layout=False)
+    return figures.save(fig, path, caption, dpi=100, layout=False)
 
 
 def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: float, path: Path) -> Path:
     """The injected deviation (arcsec) over the timeline and the estimates from the star dwell,
     held from the dwell's end on; the caption gives each estimate's error at the dwell's end
     and the largest drift of the deviation after it (from the curves drawn)."""
-    from budget.figures import save
-
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(10, 5), sharex=True)
     i_end = int(np.clip(np.searchsorted(t_s, dwell_end_s), 0, len(t_s) - 1))
@@ -170,14 +161,12 @@ def plot_deviation_timeline(t_s, dtau_x, dtau_y, estimates: dict, dwell_end_s: f
     caption = (f"Estimate minus injected deviation at the dwell's end (t = {dwell_end_s:.0f} s), arcsec: "
                + ", ".join(parts) + f"; after the dwell the injected deviation still moves by up to "
                f"{drift:.2f} arcsec (peak to peak), which a held estimate cannot follow.")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)
 
 
 def plot_scan_pattern(world, t_s, alpha_rad, beta_rad, scan, star, path: Path) -> Path:
     """The scan pattern in optical scan angles (E-W 2 (beta + 45 deg), N-S alpha) with the Earth
     disc seen from the nominal orbit, the area scans and the star dwell."""
-    from budget.figures import save
-
     plt = _plt()
     ew = np.rad2deg(2 * (beta_rad + np.pi / 4))
     ns = np.rad2deg(alpha_rad)
@@ -217,4 +206,4 @@ def plot_scan_pattern(world, t_s, alpha_rad, beta_rad, scan, star, path: Path) -
     caption = (f"{len(scans)} area scans " + ("cover the same field (their outlines drawn a little apart), "
                                                if same else "cover ")
                + f"{span_ew:.1f} x {span_ns:.1f} deg (E-W x N-S) of optical angle; the Earth disc has a radius of {rdisc:.2f} deg{dwell}.")
-    return save(fig, path, caption)
+    return figures.save(fig, path, caption)

@@ -28,7 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.figures import figure_markdown
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
+from simcam.scanmirror.scanplan import evaluate_plan
 from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorStudy", "STUDY"]
@@ -73,7 +76,6 @@ class ScanMirrorStudy(Study):
         key = scenario.hash
         if key not in _SETUP:
             _SETUP.clear()
-            from simcam.scanmirror.scanplan import evaluate_plan
             from simcam.scanmirror.world import World
 
             w = World(scenario)
@@ -167,10 +169,8 @@ class ScanMirrorStudy(Study):
         slew = sum(segs[j].accel_s + segs[j].const_s + segs[j].decel_s for j in sorted(slews))
         return {"star dwells": dwell, "moves between dwells": move, "slews to and from the stars": slew}
 
-    # ------------------------------------------------------------ report and commands
+    # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
-
         out_dir = Path(out_dir)
         figs = [plot_dtau_errors(result, out_dir / "scanmirror_dtau_errors.png")]
         md = ["Errors of the deviation estimates (estimate minus injected), all trials. The published "
@@ -180,15 +180,8 @@ class ScanMirrorStudy(Study):
             figs.append(plot_trial_ground_errors(result.study, result.scenario, result.example.extra,
                                                  out_dir / "scanmirror_ground_errors_trial0.png"))
             md.append("Trial 0: ground errors over the last area scan, uncompensated and after each compensation.")
-        from budget.figures import figure_markdown
-
         md.append(figure_markdown(figs))  # each figure with its caption under it
         return [ReportSection("Scan mirror: deviation estimates and ground errors", "\n\n".join(md), [])]
-
-    def commands(self) -> list:
-        from budget.scanmirror.cli import simulate_command
-
-        return [simulate_command()]
 
 
 STUDY = ScanMirrorStudy()

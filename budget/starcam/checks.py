@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from simcam.infra.errors import ScenarioError
+from simcam.starcam.targets import calibration_grid, star_grid
 
 __all__ = ["check_geometry"]
 
@@ -22,7 +23,6 @@ def check_geometry(scenario, *, where: str) -> None:
     from budget.starcam.protocols import PROTOCOLS, make_plan
     from simcam.starcam import optics
     from simcam.starcam.render import StarCamera
-    from simcam.starcam.targets import calibration_grid, star_grid
 
     cam = StarCamera(scenario, parallel=False)
     scn = scenario

@@ -27,6 +27,7 @@ from typing import Any
 import click
 
 from budget.starcam.estimators import attitude_error, low_spatial_frequency_error, single_star_error
+from simcam.config_base import read_toml
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import ScenarioError
 
@@ -123,9 +124,7 @@ def load_budget_toml(path: str | Path) -> tuple[dict[str, dict[str, float]], int
     """
     path = Path(path)
     source = str(path)
-    from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
-
-    data = read_toml(path=path, source=source)
+    data = read_toml(path=path, source=source)  # strict: missing, non-UTF-8, empty, invalid
     allowed = set(COMPONENTS) | set(TOTALS) | {"stars"}
     unknown = sorted(set(data) - allowed)
     if unknown:

@@ -29,6 +29,7 @@ numbered each in their own raster order).
 
 from __future__ import annotations
 
+import math
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -37,8 +38,10 @@ import click
 import numpy as np
 import pandas as pd
 
-from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import progress as progress_bar
+from simcam.infra.outputs import StagedOutputs, apply_umask, check_run_outputs, input_file_problem
 from simcam.starcam.scenario import ValidationModel
 from simcam.units import ARCSEC_PER_DEG
 
@@ -50,8 +53,6 @@ DEFAULT_THRESHOLD_SIGMA = float(ValidationModel.model_fields["threshold_sigma"].
 def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     """Read and validate a manifest CSV (see module docstring)."""
     path = Path(path)
-    from simcam.infra.outputs import input_file_problem
-
     if (why := input_file_problem(path)) is not None:  # a FIFO would block, /dev/null read as empty
         raise UserInputError(f"{path}: {why}")
     if not path.is_file():
@@ -227,8 +228,6 @@ def measure_frames(
         if reference is None:
             raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
         rp = Path(reference)
-        from simcam.infra.outputs import input_file_problem
-
         if (why := input_file_problem(rp)) is not None:
             raise UserInputError(f"--reference {rp}: {why}")
         if not rp.is_file():
@@ -248,8 +247,6 @@ def measure_frames(
                 got = "an empty cell" if pd.isna(raw) else repr(str(raw))
                 raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
             ref_table[c] = v
-    from simcam.infra.lifecycle import progress as progress_bar
-
     tables = []
     prev_xy = None
     bar = progress_bar(total=len(m), desc="frames", unit="frame", enabled=progress)
@@ -355,8 +352,6 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
 
     if window_px % 2 == 0:
         raise UserInputError(f"--window {window_px}: must be odd")
-    from simcam.infra.outputs import StagedOutputs, check_run_outputs
-
     # before any frame is read: the outputs are files (not a device), not an input, in a
     # writable folder
     check_run_outputs(json_out=json_out, files={"--centroids": centroids_out},
@@ -387,8 +382,6 @@ def header_plate_scale(info: dict) -> float:
     """The plate scale from the first frame's PLTSCALE keyword: a finite positive number of
     arcsec/px, else one error naming the file (was: a traceback for ``'abc'``, an error
     without the file for 0)."""
-    import math
-
     raw, where = info.get("plate_scale_arcsec"), info.get("plate_scale_file", "the first frame")
     if raw is None:
         raise UserInputError(f"{where}: no PLTSCALE keyword in the header; pass --plate-scale (arcsec/px)")
@@ -404,8 +397,6 @@ def header_plate_scale(info: dict) -> float:
 
 def _write_measure_outputs(staged, cen, results, protocol, directory, method, ps, centroids_out, json_out):
     if centroids_out:
-        from simcam.infra.outputs import apply_umask
-
         tmp = staged.file(centroids_out)
         cen.to_csv(tmp, index=False)
         apply_umask(tmp, is_dir=False)

@@ -22,13 +22,16 @@ Plans (seed 000, section 1):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
 
-from simcam.starcam.scenario import LAB_PROTOCOLS, Scenario
+from simcam import spectra
+from simcam.starcam.geometry import Mosaic
+from simcam.starcam.scenario import LAB_PROTOCOLS, Scenario, with_updates
+from simcam.starcam.sources import SourceSpectra
 from simcam.starcam.targets import calibration_grid, platform_offsets_px, star_grid
 
 #: the lab protocols in acquisition order (``validation.protocols`` names those a validation runs)
@@ -236,7 +239,6 @@ def reference_table(scenario: Scenario, camera=None, *, marker_seed: int | None 
 def _reference_points(scenario: Scenario, camera=None, *, marker_seed: int | None = None):
     """:func:`reference_table` as the estimators' rows (:class:`budget.starcam.estimators.common._Rows`)."""
     from budget.starcam.estimators.common import _Rows
-    from simcam.starcam.geometry import Mosaic
 
     lay = calibration_grid(scenario, marker_seed=marker_seed)
     mosaic = camera.mosaic if camera is not None else Mosaic.from_model(scenario.detector)
@@ -417,8 +419,6 @@ def _drifted_chains(camera, scene, drift):
     """One window chain per frame of a scene whose image drifts by ``drift[0]`` (frames, 2) px
     about the scene's own position, with gradients at the commanded placement ``drift[1]``
     (:meth:`simcam.starcam.render.StarCamera.drift_chain`)."""
-    from dataclasses import replace
-
     drift, nominal = drift
     chain, gx, gy = camera.drift_chain(scene, nominal)
     for f in range(drift.shape[0]):
@@ -522,8 +522,6 @@ def lab_spectral_scenario(scenario: Scenario) -> Scenario:
     """The camera as the lab believes it to be: the scenario with ``lab.knowledge``'s stated
     errors applied to the QE peak, the filters' centres and widths and the lamp's colour
     temperature (the stellar Teff error is applied in :func:`spectral_design`)."""
-    from simcam.starcam.scenario import with_updates
-
     k = scenario.lab.knowledge
     filters = [dict(f.model_dump(mode="python"), center_nm=f.center_nm + k.filter_center_nm_error,
                     width_nm=f.width_nm + k.filter_width_nm_error) for f in scenario.lab.filters]
@@ -554,9 +552,6 @@ def spectral_design(scenario: Scenario) -> dict:
     and not the simulator's own spectra. The returned filter keys are the filters' nominal
     centres (as the centroid table labels them).
     """
-    from simcam import spectra
-    from simcam.starcam.sources import SourceSpectra
-
     lab = lab_spectral_scenario(scenario)
     k = scenario.lab.knowledge
     sp = SourceSpectra(lab)

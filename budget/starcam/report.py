@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.figures import save
+from budget.figures import plt as pyplot  # matplotlib.pyplot, set up on first use
 
 
 def _plt():
-    from budget.figures import plt
-
-    return plt()
+    return pyplot()
 
 
 def _rms(x) -> float:
@@ -34,8 +34,6 @@ def _rms(x) -> float:
 def plot_hsfe_residuals(est, path: Path, *, finding: str = ""):
     """HSFE residuals delta_j(k) of one trial (seed 000 fig. 6); the caption gives their rms per
     axis (from the residuals drawn) and ``finding`` (the run's verdict on the class)."""
-    from budget.figures import save
-
     plt = _plt()
     r = est.residuals
     fig, axs = plt.subplots(1, 2, figsize=(10, 3.5), sharey=True)
@@ -58,8 +56,6 @@ def plot_hsfe_residuals(est, path: Path, *, finding: str = ""):
 def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float):
     """Per-star colour differences per corner field, one trial (seed 000 fig. 7); the caption
     gives the mean shift of each filter against the reference (from the points drawn)."""
-    from budget.figures import save
-
     plt = _plt()
     good = centroids[centroids["flag"] == 0]
     m = good.groupby(["field", "filter_nm", "star"])[["x", "y"]].mean()
@@ -97,8 +93,6 @@ def plot_chromatic_residuals(centroids, path: Path, reference_filter_nm: float):
 def plot_distortion_residuals(est, path: Path):
     """Residual vectors at the grid points before and after the cubic fit (seed 000 fig. 8),
     both panels on one arrow scale; the caption gives the rms before and after."""
-    from budget.figures import save
-
     plt = _plt()
     r = est.residuals
     fig, axs = plt.subplots(1, 2, figsize=(11, 3.8))

@@ -8,14 +8,19 @@ Renders every condition of a protocol's acquisition plan as full FITS frames, wi
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
 import numpy as np
 import pandas as pd
 
+import simcam
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
-from simcam.infra.cli import overwrite_option
+from simcam.infra.cli import overwrite_option, write_json_atomic
+from simcam.infra.lifecycle import progress as progress_bar
+from simcam.starcam.scenario import load, scenario_to_toml
+from simcam.starcam.targets import calibration_grid, star_grid
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
@@ -27,18 +32,12 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     large output is announced on stderr (:func:`simcam.io.check_render_request`);
     ``compress`` writes Rice tile-compressed frames (lossless).
     """
-    from dataclasses import replace
-
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
-    from simcam.starcam.scenario import scenario_to_toml
-    from simcam.starcam.targets import calibration_grid, star_grid
 
     plan = make_plan(protocol, scenario, seed=seed, dark_frames=dark_frames)
     if frames is not None:
         plan = replace(plan, conditions=tuple(replace(c, frames=frames) for c in plan.conditions))
-    from simcam.infra.lifecycle import progress as progress_bar
-
     n_files = sum(c.frames + plan.dark_frames for c in plan.conditions)
     io.check_render_request(scenario, frames=n_files, out=out, source=source, compress=compress)
     cam = StarCamera(scenario)
@@ -117,20 +116,15 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out, compress,
                      progress) -> None:
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget starcam measure`."""
-    from simcam.starcam.scenario import load
-
     scn = load(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite, compress=compress, progress=progress,
                               source=str(scenario or "<embedded scenario>"))
     if json_out:
-        from simcam import __version__
-        from simcam.infra.cli import write_json_atomic
-
         write_json_atomic(json_out, {
             "protocol": protocol, "out": str(out), "frames": int(len(m)),
             "conditions": int(m["condition"].nunique()), "dark_frames": int((m["dark"] == 1).sum()),
-            "scenario_hash": scn.hash, "seed": seed, "version": __version__,
+            "scenario_hash": scn.hash, "seed": seed, "version": simcam.__version__,
         })
     click.echo(f"{protocol}: wrote {len(m)} frames ({m['condition'].nunique()} condition(s)) to {out}; "
                f"try: budget starcam measure {protocol} {out}" + (f" --reference {out}/reference.csv" if protocol == "distortion" else ""))

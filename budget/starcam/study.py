@@ -8,10 +8,18 @@ scenario's plate scale, as seed 000 reports them).
 
 from __future__ import annotations
 
+import math
+from itertools import combinations
 from pathlib import Path
 
+from budget.figures import figure_markdown
 from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
+from budget.starcam.checks import check_geometry
+from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
+from budget.starcam.warm import prewarm
+from simcam.infra.errors import ScenarioError
+from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS, scenario_to_toml, with_updates
 
 __all__ = ["STUDY", "StarCameraStudy"]
 
@@ -65,13 +73,9 @@ class StarCameraStudy(Study):
     scenario_module = "simcam.starcam.scenario"
 
     def scenario_text(self, scenario) -> str:
-        from simcam.starcam.scenario import scenario_to_toml
-
         return scenario_to_toml(scenario)
 
     def check(self, scenario, *, where: str) -> None:
-        from budget.starcam.checks import check_geometry
-
         check_geometry(scenario, where=where)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -101,8 +105,6 @@ class StarCameraStudy(Study):
         worker_init()
 
     def prewarm(self, scenario) -> None:
-        from budget.starcam.warm import prewarm
-
         prewarm(scenario)
 
     @staticmethod
@@ -230,11 +232,6 @@ class StarCameraStudy(Study):
         ``"filters 500/600"`` with the filter sets only, ``"grid, filters 500/600/800"`` with
         both (centres in nm, ascending). A test the plan does not open keeps the scenario's
         shape. Every shape takes the same knobs."""
-        from itertools import combinations
-
-        from simcam.infra.errors import ScenarioError
-        from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS
-
         opened = set(scenario.protocols.plan_knobs)
         run = set(scenario.validation.protocols)
         dims: list[dict[str, dict]] = []
@@ -328,8 +325,6 @@ class StarCameraStudy(Study):
         need = protocols_for(classes) or ("te",)
         if set(need) == set(scenario.validation.protocols):
             return scenario
-        from simcam.starcam.scenario import with_updates
-
         return with_updates(scenario, {"validation.protocols": list(need)}).with_source(scenario.source)
 
     def lab_time_s(self, scenario) -> dict[str, float]:
@@ -408,8 +403,6 @@ class StarCameraStudy(Study):
             return ("the lab's imperfect spectral model (its stated QE, filter, lamp and Teff errors) and, on a "
                     "noisy camera, the static pixel error that changes between filters and enters the slope.")
         if cls == "lsfe_c1":
-            import math
-
             scn = result.scenario
             tgt = scn.lab.calibration_target
             n_pts = tgt.rows * tgt.cols
@@ -469,10 +462,6 @@ class StarCameraStudy(Study):
         return None
 
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
-
-        from budget.figures import figure_markdown
-
         ex = (result.example.extra.get("kept", {}) if result.example else {})
         figs = []
         if "hsfe" in ex:
@@ -543,14 +532,6 @@ class StarCameraStudy(Study):
             return ""
         return (f"Over the {result.trials} trials the HSFE estimates sit against their truth: "
                 + "; ".join(parts) + ".")
-
-    def commands(self) -> list:
-        """``budget starcam simulate|measure|combine`` beside ``validate``: the lab's data."""
-        from budget.starcam.combine import combine_command
-        from budget.starcam.measure import measure_command
-        from budget.starcam.simulate import simulate_command
-
-        return [simulate_command, measure_command, combine_command]
 
 
 STUDY = StarCameraStudy()

@@ -70,12 +70,13 @@ No truth calls an estimator of :mod:`budget.starcam.estimators` or the lab's spe
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace as dreplace
 
 import numpy as np
 
 from budget.starcam.protocols import centroid_options, make_plan
 from simcam import spectra
+from simcam.starcam.correction import lamp_image_focal_px, poly_design
 from simcam.starcam.render import Placement
 from simcam.starcam.targets import calibration_grid, star_grid
 
@@ -236,8 +237,6 @@ def cramer_rao_bound_px(camera, scene, *, step_px: float = 1e-3):
     ``d mu_p / dx`` by central differences of the exact pixel-integrated image. The bound
     ignores the off-diagonal information (x and y nearly decouple for a symmetric PSF).
     """
-    from dataclasses import replace as dreplace
-
     from simcam.detector import dsnu_map, prnu_map
 
     p = scene.placement
@@ -525,8 +524,6 @@ def lsfe_c1_truth(camera) -> ClassTruth:
 
     Neither route uses the lab's centroid tables, reference coordinates or estimators.
     """
-    from simcam.starcam.correction import lamp_image_focal_px, poly_design
-
     scn = camera.scenario
     lay = calibration_grid(scn)
     n = scn.validation.field_grid * 4

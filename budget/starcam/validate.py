@@ -20,6 +20,7 @@ import warnings
 import numpy as np
 
 from budget.starcam.protocols import PROTOCOLS, estimate, make_plan, simulate
+from simcam.config_base import model_hash
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -85,8 +86,6 @@ def _camera_key(scenario) -> str:
     """The scenario's hash with the truth sizes set to 0 (:data:`TRUTH_SIZE_FIELDS`), kept for
     the last scenario object: scenarios are frozen, and a run's trials share one (a model
     copy, a JSON dump and a SHA-256 fewer per trial)."""
-    from simcam.config_base import model_hash
-
     hit = _LAST_CAMERA_KEY.get("last")
     if hit is None or hit[0] is not scenario:
         fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}

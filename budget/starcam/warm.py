@@ -36,6 +36,8 @@ import json
 
 import numpy as np
 
+from simcam import numba_warm  # numba_warm.compiling_in_parallel: looked up when called (a test replaces it)
+
 
 def options(scenario) -> dict:
     """What a validation of ``scenario`` compiles besides the stamps and the fixed pattern:
@@ -57,7 +59,6 @@ def prewarm(scenario) -> None:
     from budget.starcam import kernels_trial as kt
     from budget.starcam import kernels_truth as ktr
     from simcam.kernels import detector as kd
-    from simcam.numba_warm import compiling_in_parallel
     from simcam.starcam.kernels import psf as kp
     from simcam.starcam.kernels import windows as kw
 
@@ -67,7 +68,7 @@ def prewarm(scenario) -> None:
     check += [kd.expose_windows_frames_serial] if opts["windows"] else []
     check += [ktr.cv_tables, ktr.expose_centroid_cv_serial] if opts["truth"] else []
     arg = json.dumps(opts)
-    with compiling_in_parallel([("budget.starcam.warm:compile_support", arg)], check=check) as cold:
+    with numba_warm.compiling_in_parallel([("budget.starcam.warm:compile_support", arg)], check=check) as cold:
         if cold:
             compile_stamps_and_exposure(arg)
 

@@ -35,14 +35,20 @@ from __future__ import annotations
 
 import math
 import os
+import platform
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+import simcam
+from budget.runner.run import run_study, sized_truths_scenario, truth_targets, with_targets
+from budget.sweeps.layout import STOPPED_BY, class_layout, labels, schema, study_for_kind, truth_has_variant
+from budget.sweeps.values import point_seed as seed_of  # truth_seed_of has a parameter point_seed
+
 __all__ = [
-    "STOPPED_BY",
     "PointResult",
     "PointTask",
     "TruthPartTask",
@@ -50,79 +56,7 @@ __all__ = [
     "evaluate_truth_part",
     "truth_seed_of",
     "truths_scenario",
-    "labels",
-    "schema",
-    "class_units",
-    "study_for_kind",
 ]
-
-#: codes of ``stopped_by`` (CF flag values)
-STOPPED_BY = ("trials", "tolerance", "max_trials")
-
-
-def study_for_kind(kind: str):
-    """The registered study a sweep ``kind`` names."""
-    from budget.runner.registry import get_study
-
-    return get_study(kind)
-
-
-def _layout(kind: str):
-    study = study_for_kind(kind)
-    classes = study.classes(study.load_scenario())
-    axes: list[str] = []
-    for c in classes:
-        for a in c.axes:
-            if a not in axes:
-                axes.append(a)
-    return study, classes, tuple(axes)
-
-
-def labels(kind: str) -> dict[str, tuple[str, ...]]:
-    """Coordinate labels of the class, axis and variant dimensions of ``kind``."""
-    study, classes, axes = _layout(kind)
-    return {"class": tuple(c.name for c in classes), "axis": axes, "variant": tuple(study.variants)}
-
-
-def class_units(kind: str) -> dict[str, str]:
-    """The unit of each class of ``kind`` (the store's ``class_units`` attribute)."""
-    return {c.name: c.unit for c in _layout(kind)[1]}
-
-
-def truth_has_variant(kind: str) -> bool:
-    """Whether the truth of ``kind`` has a variant dimension (some class's truth is per trial)."""
-    return any(c.per_trial_truth for c in _layout(kind)[1])
-
-
-def schema(kind: str, evaluate: str) -> dict[str, tuple[tuple[str, ...], str, dict]]:
-    """Variables of a point: name -> (dimensions besides the point's, dtype, attributes)."""
-    ca, cav = ("class", "axis"), ("class", "axis", "variant")
-    u = "the class's unit (class_units attribute)"
-    tdims = cav if truth_has_variant(kind) else ca
-    out: dict[str, tuple[tuple[str, ...], str, dict]] = {
-        "truth": (tdims, "f8", {"units": u, "long_name": "truth of the error class (mean over trials where "
-                                "it is drawn per trial)"}),
-        "truth_se": (tdims, "f8", {"units": u, "long_name": "Monte Carlo standard error of the truth (0 = exact)"}),
-    }
-    if evaluate == "validate":
-        out["mean"] = (cav, "f8", {"units": u, "long_name": "mean estimate over trials"})
-        out["bias"] = (cav, "f8", {"units": u, "long_name": "mean estimate minus truth"})
-        out["spread"] = (cav, "f8", {"units": u, "long_name": "sample sd of the estimate over trials "
-                                     "(of estimate - truth where the truth is drawn per trial)"})
-        out["se_bias"] = (cav, "f8", {"units": u, "long_name": "Monte Carlo standard error of the bias "
-                                      "(with the truth's own)"})
-        out["se_spread"] = (cav, "f8", {"units": u, "long_name": "Monte Carlo standard error of the spread"})
-        out["ci95_low"] = (cav, "f8", {"units": u, "long_name": "2.5 % quantile of the estimates"})
-        out["ci95_high"] = (cav, "f8", {"units": u, "long_name": "97.5 % quantile of the estimates"})
-        out["trials"] = ((), "i4", {"long_name": "Monte Carlo trials run"})
-        out["stopped_by"] = ((), "i1", {"long_name": "why the trials stopped",
-                                       "flag_values": list(range(len(STOPPED_BY))),
-                                       "flag_meanings": " ".join(STOPPED_BY)})
-    out["seed"] = ((), "u8", {"long_name": "seed of the point (docs/sweeps.md)"})
-    out["compute_s"] = ((), "f8", {"units": "s", "long_name": "wall time of the point in its worker "
-                                   "(not a result: varies from run to run)"})
-    return out
-
 
 @dataclass(frozen=True)
 class PointTask:
@@ -168,8 +102,6 @@ def truth_seed_of(study, scenario, sweep_seed: int, values: dict, point_seed: in
     (``point_seed`` itself when they are all of them)."""
     if common:
         return point_seed
-    from budget.sweeps.values import point_seed as seed_of
-
     fields = study.truth_fields(scenario)
     rel = {k: v for k, v in values.items() if truth_relevant(fields, k)}
     return point_seed if len(rel) == len(values) else seed_of(sweep_seed, rel)
@@ -181,8 +113,6 @@ def _truth_size(task) -> str:
 
 def truths_scenario(study, task) -> tuple[Any, dict]:
     """The scenario a point's truths are computed on and their targets (module docstring)."""
-    from budget.runner.run import sized_truths_scenario, truth_targets
-
     if _truth_size(task) == "fixed":
         return task.scenario, {}
     targets = truth_targets(study.classes(task.scenario), tolerance=task.tolerance)
@@ -194,8 +124,6 @@ def evaluate_truth_part(task: TruthPartTask) -> TruthPartTask:
     """A run of pieces of a shared truth: the task with ``parts`` replaced by their results
     (each piece a pure function of the scenario, the truth seed and the piece, so how the
     pieces are batched changes no number)."""
-    from dataclasses import replace
-
     study = study_for_kind(task.kind)
     return replace(task, parts=tuple(study.truth_part(task.scenario, task.truth_seed, p) for p in task.parts))
 
@@ -214,9 +142,7 @@ class PointResult:
 
 
 def _evaluate(task: PointTask) -> dict:
-    from budget.runner.run import run_study
-
-    study, classes, axes = _layout(task.kind)
+    study, classes, axes = class_layout(task.kind)
     lab = labels(task.kind)
     cls_i = {c: i for i, c in enumerate(lab["class"])}
     ax_i = {a: j for j, a in enumerate(axes)}
@@ -233,8 +159,6 @@ def _evaluate(task: PointTask) -> dict:
 
     given = task.truths
     if given is None and task.truth_seed not in (None, task.seed):
-        from budget.runner.run import with_targets
-
         tscn, targets = truths_scenario(study, task)
         given = with_targets(study.truths(tscn, task.truth_seed), targets)
     if task.evaluate == "truth":
@@ -268,11 +192,6 @@ def _evaluate(task: PointTask) -> dict:
 
 def evaluate_point(task: PointTask) -> PointResult:
     """Compute one point (see the module docstring); pure in the task."""
-    import platform
-    import warnings
-
-    import simcam
-
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         # clipped variances and flagged stars are expected at some points (as in validate)

@@ -16,18 +16,18 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+from budget.runner.executors import InlineExecutor, make_executor, worker_setup
+from budget.sweeps.evaluate import TruthPartTask, evaluate_point, evaluate_truth_part
+from budget.sweeps.layout import study_for_kind
+
 __all__ = ["SweepRunner", "make_runner"]
 
 
 def _init_for_kind(kind: str) -> None:
-    from budget.sweeps.evaluate import study_for_kind
-
     study_for_kind(kind).worker_init()
 
 
 def _evaluate(task):
-    from budget.sweeps.evaluate import TruthPartTask, evaluate_point, evaluate_truth_part
-
     if isinstance(task, TruthPartTask):  # a piece of a truth shared by points
         return evaluate_truth_part(task)
     return evaluate_point(task)
@@ -64,8 +64,6 @@ class SweepRunner:
 def make_runner(*, kind: str, workers: int | None = None, scheduler: str | None = None,
                 dask_local: int | None = None, inline: bool = False) -> SweepRunner:
     """The runner asked for (at most one option; default all local cores), set up for ``kind``."""
-    from budget.runner.executors import InlineExecutor, make_executor, worker_setup
-
     if inline:
         worker_setup(_init_for_kind, (kind,))
         return SweepRunner(InlineExecutor())

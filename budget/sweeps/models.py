@@ -35,8 +35,10 @@ from typing import Any, Literal
 
 from pydantic import Field, model_validator
 
+from budget.runner.registry import renamed, study_names
+from budget.sweeps.layout import truth_has_variant
+from simcam.config_base import StrictModel, validate_model
 from simcam.infra.errors import ScenarioError
-from simcam.config_base import StrictModel
 
 __all__ = ["RENAMED", "DistSpec", "SensitivitySpec", "SweepSpec", "parse_sweep"]
 
@@ -155,9 +157,6 @@ class SweepSpec(StrictModel):
         if not self.parameters and self.sensitivity is None:
             raise ValueError("nothing to do: give [parameters] (a grid) and/or [sensitivity]")
         _check_eval(self.evaluate, self.trials, self.tolerance)
-        from budget.runner.registry import study_names
-        from budget.sweeps.evaluate import truth_has_variant
-
         known = study_names(available_only=False)
         if self.kind not in known:
             raise ValueError(f"kind: {self.kind!r} is not a registered study (known: {', '.join(known)})")
@@ -179,10 +178,6 @@ def _check_eval(evaluate, trials, tolerance) -> None:
 
 def parse_sweep(text: str, *, source: str) -> SweepSpec:
     """Parse sweep TOML text into a :class:`SweepSpec` (ScenarioError naming the field)."""
-    from simcam.config_base import validate_model
-
-    from budget.runner.registry import renamed, study_names
-
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

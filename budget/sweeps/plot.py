@@ -19,13 +19,21 @@ from __future__ import annotations
 import functools
 import math
 import re
+import shutil
+import textwrap
 from pathlib import Path
 
 import click
 import numpy as np
 
+from budget.figures import figure_markdown, save
+from budget.runner.html import write_html
 from budget.runner.numbers import fmt
+from budget.sweeps.layout import study_for_kind
+from budget.sweeps.store import open_sobol, open_sweep
 from simcam.infra.cli import overwrite_option
+from simcam.infra.errors import UserInputError
+from simcam.infra.outputs import check_output_dir, is_earlier_plots
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
 
@@ -58,8 +66,6 @@ def _panels(n: int):
 
 def _suptitle(fig, text: str, fontsize: float = 9) -> None:
     """A figure title wrapped to the figure's width (a long sweep title is cut otherwise)."""
-    import textwrap
-
     width_chars = max(40, int(fig.get_figwidth() * 72 / (0.55 * fontsize)))
     lines = [textwrap.fill(line, width_chars) for line in text.split("\n")]
     fig.suptitle("\n".join(lines), fontsize=fontsize)
@@ -127,8 +133,6 @@ def _class_label(ds, cls) -> str:
 def _labels(kind: str) -> dict:
     """Class name -> label of the study ``kind`` (empty where it is not a registered study)."""
     try:
-        from budget.sweeps.evaluate import study_for_kind
-
         study = study_for_kind(kind)
         return {c.name: c.label or c.name for c in study.classes(study.load_scenario())}
     except Exception:  # noqa: BLE001 - a label is a courtesy: the name stands in
@@ -179,8 +183,6 @@ def _mark_flat(ax, flat: bool, rng: float, unit: str) -> bool:
 
 def _line_figure(ds, xdim, xname, axis, variant, out_dir):
     import matplotlib.pyplot as plt
-
-    from budget.figures import save
 
     others = [d for d in ds.attrs.get("point_dims", []) if d not in (xdim,) and ds.sizes.get(d, 1) > 1]
     series = others[0] if others and xdim != "point" else None
@@ -271,8 +273,6 @@ def _line_figure(ds, xdim, xname, axis, variant, out_dir):
 
 
 def _heatmaps(ds, axis, variant, out_dir):
-    from budget.figures import save
-
     dims = [d for d in ds.attrs.get("point_dims", []) if d != "point" and ds.sizes[d] > 1]
     if len(dims) < 2:
         return []
@@ -370,8 +370,6 @@ def precision_table(ds, *, axis: str, precision: float) -> list[dict]:
 
 
 def _relative_spread_figure(ds, axis, precision, out_dir):
-    from budget.figures import save
-
     if "spread" not in ds:
         return None
     xs = _x_axes(ds)
@@ -424,8 +422,6 @@ def _relative_spread_figure(ds, axis, precision, out_dir):
 
 
 def _sobol_figure(sob, title, axis, out_dir, ds=None):
-    from budget.figures import save
-
     s = sob.sel(axis=axis) if "axis" in sob.dims else sob
     extra = [dd for dd in s.S1.dims if dd not in ("class", "parameter")]
     lab = (lambda c: _class_label(ds, c)) if ds is not None else str
@@ -485,13 +481,6 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     import matplotlib
 
     matplotlib.use("Agg")
-    from budget.sweeps.store import open_sobol, open_sweep
-    from simcam.infra.errors import UserInputError
-
-    import shutil
-
-    from simcam.infra.outputs import check_output_dir, is_earlier_plots
-
     ds = open_sweep(store)
     out_dir = Path(out_dir)
     files: list[Path] = []
@@ -525,9 +514,6 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
 def _write_page(ds, files, out_dir) -> None:
     """``report.md`` (each figure with its caption under it) and its self-contained twin
     ``report.html`` beside the figures."""
-    from budget.figures import figure_markdown
-    from budget.runner.html import write_html
-
     md = [f"# {ds.attrs.get('title', 'Sweep')}: figures", "",
           f"Sweep `{ds.attrs.get('kind', '')}` ({ds.attrs.get('evaluate', '')}), hash "
           f"`{ds.attrs.get('sweep_hash', '')}`, seed {ds.attrs.get('seed', '')}.", "", figure_markdown(files), ""]
@@ -565,8 +551,6 @@ def _draw(ds, sob, ax_name, variant, precision, out_dir) -> list[Path]:
 @overwrite_option
 def plot_command(store, out_dir, axis, variant, precision, overwrite) -> None:
     """Draw the results of the sweep store STORE (budget sweep ... --out STORE)."""
-    from budget.sweeps.store import open_sweep
-
     store_p = Path(store)
     out = Path(out_dir) if out_dir else store_p.parent / f"{store_p.name}_plots"
     files = plot_store(store, out, axis=axis, variant=variant, precision=precision, overwrite=overwrite)

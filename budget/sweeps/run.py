@@ -23,14 +23,22 @@ import math
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import click
 
+import simcam
 from budget.runner.numbers import fmt
+from budget.runner.run import with_targets
+from budget.runner.study import truth_identity
+from budget.sweeps.evaluate import PointTask, TruthPartTask, truth_seed_of, truths_scenario
+from budget.sweeps.execute import make_runner
+from budget.sweeps.layout import study_for_kind
+from budget.sweeps.sensitivity import analyze_samples
 from budget.sweeps.spec import Sweep, load_sweep
-from budget.sweeps.store import open_sensitivity, open_sobol, open_sweep
+from budget.sweeps.store import StoreWriter, check_store, create_store, open_sensitivity, open_sobol, open_sweep
+from simcam.infra.errors import UserInputError
 
 __all__ = [
     "SweepReport",
@@ -74,8 +82,6 @@ class SweepReport:
 def plan_tasks(sweep: Sweep) -> tuple[list, list]:
     """Point tasks of the grid and of the Sobol samples, each with its truth seed
     (:func:`budget.sweeps.evaluate.truth_seed_of`)."""
-    from budget.sweeps.evaluate import PointTask, study_for_kind, truth_seed_of
-
     s = sweep.spec
     study = study_for_kind(s.kind)
     grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials, s.tolerance,
@@ -102,12 +108,6 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
     :data:`TRUTH_TASKS_PER_WORKER` tasks per worker in all). ``share=False`` computes one per point (the same
     numbers: tests). Returns the tasks and the number of truths computed.
     """
-    from dataclasses import replace
-
-    from budget.runner.run import with_targets
-    from budget.runner.study import truth_identity
-    from budget.sweeps.evaluate import TruthPartTask, study_for_kind, truths_scenario
-
     if not tasks:
         return tasks, 0
     study = study_for_kind(tasks[0].kind)
@@ -166,10 +166,6 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         Before any work: bad sweep file, a point the scenario or simulator rejects, a
         store of another sweep, an unreachable scheduler.
     """
-    from budget.sweeps.execute import make_runner
-    from budget.sweeps.store import StoreWriter, check_store, create_store
-    from simcam.infra.errors import UserInputError
-
     say = echo or (lambda _msg: None)
     sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
     grid_tasks, sens_tasks = plan_tasks(sw)
@@ -197,13 +193,9 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
             + (f", {len(sens_tasks)} Sobol sample(s)" if sens_tasks else "")
             + (f"; resuming: {report.already_done + report.samples_already_done} already in {out}"
                if state == "resume" else "") + f"; on {runner.description}")
-        import simcam
-
         if scheduler is None and (todo_grid or todo_sens):
             # a first run's kernels compiled once on this machine's cores, before the workers
             # need them (each point then loads them from numba's cache)
-            from budget.sweeps.evaluate import study_for_kind
-
             study_for_kind(sw.spec.kind).prewarm((todo_grid or todo_sens)[0].scenario)
         todo = todo_grid + todo_sens
         todo, report.truths_computed = share_truths(runner, todo, share=truths_shared)
@@ -241,8 +233,6 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
                 if bar:
                     bar.close()
         if sens_tasks and not writer.sobol_complete():
-            from budget.sweeps.sensitivity import analyze_samples
-
             writer.write_sobol(analyze_samples(open_sensitivity(out), sw))
             report.sobol = True
     report.wall_s = time.perf_counter() - t0

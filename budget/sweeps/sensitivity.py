@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from budget.sweeps.spec import salib_problem, sensitivity_seed
+
 __all__ = ["analyze_samples", "sobol_indices"]
 
 
@@ -55,8 +57,6 @@ def analyze_samples(samples, sweep):
     dimensions (class, axis[, variant]) and ``parameter``, and ``note``.
     """
     import xarray as xr
-
-    from budget.sweeps.spec import salib_problem, sensitivity_seed
 
     sens = sweep.spec.sensitivity
     problem = salib_problem(sens)

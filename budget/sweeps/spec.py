@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from budget.runner.registry import get_study
 from budget.sweeps.dotted import set_dotted
 from budget.sweeps.models import DistSpec, SensitivitySpec, SweepSpec, parse_sweep
 from budget.sweeps.values import (
@@ -41,6 +42,7 @@ from budget.sweeps.values import (
     sensitivity_seed,
     sobol_samples,
 )
+from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 from simcam.infra.errors import ScenarioError
 
 __all__ = [
@@ -68,8 +70,6 @@ __all__ = [
 
 # --------------------------------------------------------------------------- the study of a kind
 def _study(kind: str):
-    from budget.runner.registry import get_study
-
     return get_study(kind)
 
 
@@ -172,8 +172,6 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
         mismatched zip lengths, a point or Sobol sample the scenario rejects (naming the
         point, the key and what is wrong) or that the simulator could not run.
     """
-    from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
-
     p = Path(path)
     if not p.is_file():
         raise ScenarioError(f"{p}: sweep file not found")

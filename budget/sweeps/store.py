@@ -7,7 +7,7 @@ dataset):
 * root group: the grid. Dimensions: the swept parameters (``mode = "product"``, or a
   single parameter) or ``point`` with each parameter as a coordinate along it (``zip``),
   then ``class``, ``axis`` and ``variant``. Variables: see
-  :func:`budget.sweeps.evaluate.schema`, plus ``done`` (1 once a point is complete).
+  :func:`budget.sweeps.layout.schema`, plus ``done`` (1 once a point is complete).
   Attributes: the sweep file's text, its hash, name, seed, the package version, the
   base scenario (TOML) and its hash, kind, mode, evaluation settings.
 * group ``sensitivity``: the Sobol samples (dimension ``sample``; ``X`` the parameter
@@ -32,7 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
+import simcam
+from budget.sweeps.layout import class_units, labels, schema
+from budget.sweeps.spec import scenario_hash, scenario_text
 from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import announce_size, check_disk, partial_prefix, remove_stale_partials
+from simcam.infra.outputs import apply_umask, check_output_dir
 
 __all__ = [
     "FORMAT",
@@ -59,10 +64,6 @@ def _fill(dtype: str):
 
 def store_attrs(sweep) -> dict:
     """Root attributes of a sweep's store."""
-    import simcam
-    from budget.sweeps.evaluate import class_units
-    from budget.sweeps.spec import scenario_hash, scenario_text
-
     s = sweep.spec
     return {
         "title": s.name or Path(sweep.path).stem, "sweep_format": FORMAT, "sweep_hash": sweep.hash,
@@ -91,8 +92,6 @@ def _template(point_dims, point_shape, point_coords, kind, evaluate, attrs):
     import dask.array as da
     import xarray as xr
 
-    from budget.sweeps.evaluate import labels, schema
-
     lab = labels(kind)
     data_vars, enc = {}, {}
     for name, (dims, dtype, vattrs) in schema(kind, evaluate).items():
@@ -116,10 +115,6 @@ _BLOCK_BYTES = 4096
 def store_bytes(sweep) -> float:
     """Disk the finished store takes, at least: one chunk file per point (and Sobol sample)
     per variable, each at least one file-system block."""
-    import numpy as np
-
-    from budget.sweeps.evaluate import labels, schema
-
     def per_point(kind, evaluate):
         lab = labels(kind)
         total = _BLOCK_BYTES  # the done flag
@@ -137,8 +132,6 @@ def store_bytes(sweep) -> float:
 
 def check_store_size(path, sweep) -> None:
     """Refuse a store that cannot fit on the disk at ``path`` (before it is created)."""
-    from simcam.infra.lifecycle import announce_size, check_disk
-
     need = store_bytes(sweep)
     check_disk(path, need, what=f"{getattr(sweep, 'path', 'sweep')}: parameters: a store of "
                                  f"{len(sweep.points)} point(s)")
@@ -153,9 +146,6 @@ def create_store(path: str | os.PathLike, sweep) -> None:
     parent = path.parent if str(path.parent) else Path(".")
     check_store_size(path, sweep)  # refused before anything is created
     parent.mkdir(parents=True, exist_ok=True)
-    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
-    from simcam.infra.outputs import apply_umask
-
     # a store a killed run left half-created (.NAME.partial.<pid>.*, its PID gone) is
     # removed here and said so on stderr; this run's own is removed on any failure below
     remove_stale_partials(path)
@@ -224,10 +214,6 @@ def check_store(path: str | os.PathLike, sweep) -> str:
     A store made from a different sweep file (another hash), by another package
     version, or a path that holds something else, is refused before any work.
     """
-    import simcam
-
-    from simcam.infra.outputs import check_output_dir
-
     path = Path(path)
     if not path.exists() or (path.is_dir() and not any(path.iterdir())):
         # a new store (or an empty folder it is renamed onto): its location is checked
@@ -255,8 +241,6 @@ class StoreWriter:
 
     def __init__(self, path: str | os.PathLike, sweep):
         import zarr
-
-        from budget.sweeps.evaluate import schema
 
         self.path = Path(path)
         self.sweep = sweep

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from simcam.infra.errors import ScenarioError
+from simcam.infra.lifecycle import check_memory
 
 if TYPE_CHECKING:
     from budget.sweeps.models import SensitivitySpec, SweepSpec
@@ -75,8 +76,6 @@ def _value_count(spec: Any) -> float:
 
 def _check_count(n: float, *, what: str, per: int = _BYTES_PER_VALUE, unit: str = "value") -> None:
     """Refuse, before it is built, a list of ``n`` items that cannot fit in memory."""
-    from simcam.infra.lifecycle import check_memory
-
     check_memory(float(n) * per, what=f"{what}: {float(n):.4g} {unit}s (at least {per} bytes each)")
 
 

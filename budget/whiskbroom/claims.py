@@ -18,7 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from budget.whiskbroom import estimators as est
+from budget.whiskbroom.study import STUDY
 from simcam.units import WGS84_F
+from simcam.whiskbroom import geometry as geo
+from simcam.whiskbroom import raytrace as rt
 
 __all__ = ["CHOSEN", "chosen_values", "seed_distribution", "published_criterion"]
 
@@ -76,8 +80,6 @@ def published_criterion(sc, seed: int = 0, trials: int = 200, *, n_time: int | N
     the pixel-level simulation (along the TDI direction, N = the array's stages), and the
     static clocking factor ``MTF(0, 0)`` beside ``sinc(pi/(2 n_phase))``.
     """
-    from budget.whiskbroom import estimators as est
-    from budget.whiskbroom.study import STUDY
     from simcam.whiskbroom import tdi
 
     cam = sc.camera
@@ -108,8 +110,6 @@ def world_synthesis(sc, seed: int = 0, *, trials: int | None = None) -> dict | N
     with ``dv_min_mm_s``, ``dv_max_mm_s``, ``dbeta_max_abs_deg``, ``eps_quantile``,
     ``eta_quantile``, ``n_max_published``, ``n_max_improved``.
     """
-    from simcam.whiskbroom import geometry as geo
-    from simcam.whiskbroom import raytrace as rt
     from simcam.whiskbroom import synthesis as sy
     from simcam.whiskbroom import world as wd
 

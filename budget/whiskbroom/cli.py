@@ -12,23 +12,25 @@ import math
 from pathlib import Path
 
 import click
+import numpy as np
 
+from budget.runner.html import write_html
 from budget.runner.numbers import fmt
-from simcam.infra.cli import overwrite_option
+from budget.whiskbroom import claims, plots
+from simcam.infra.cli import overwrite_option, run_cli, write_json_atomic
+from simcam.infra.outputs import StagedOutputs, check_output_dir, check_run_outputs, is_earlier_report
+from simcam.whiskbroom import geometry as geo
+from simcam.whiskbroom import scenario as wsc
 
-__all__ = ["synthesize_command", "run_synthesis", "main"]
+__all__ = ["commands", "synthesize_command", "run_synthesis", "main"]
 
 
 def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, report_dir=None, overwrite=False,
                   echo=click.echo, seeds=20, criterion_trials=200):
-    from simcam.infra.outputs import StagedOutputs, check_run_outputs, is_earlier_report
-    from simcam.whiskbroom import scenario as wsc
     from simcam.whiskbroom import synthesis as sy
 
     check_run_outputs(json_out=json_out, inputs=(scenario_path,))  # before the work
     if report_dir:
-        from simcam.infra.outputs import check_output_dir
-
         check_output_dir(report_dir, option="--report", inputs=(scenario_path,), replaceable=is_earlier_report,
                          overwrite=overwrite)
     sc = wsc.load(scenario_path)
@@ -56,8 +58,6 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
     dist = crit = wsyn = None
     claim_md = []
     if seeds:
-        from budget.whiskbroom import claims
-
         dist = claims.seed_distribution(sc, range(seeds), trials=trials)
         crit = claims.published_criterion(sc, seed, criterion_trials) if criterion_trials else None
         claim_md = _claims_lines(dist, crit)
@@ -86,17 +86,11 @@ def run_synthesis(scenario_path=None, *, seed=0, trials=None, json_out=None, rep
 
 
 def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, report_dir, claim_md) -> None:
-    import numpy as np
-
-    from simcam.infra.cli import write_json_atomic
-    from simcam.whiskbroom import geometry as geo
     from simcam.whiskbroom import synthesis as sy
 
     if json_out:
         write_json_atomic(staged.file(json_out), payload)
     if report_dir:
-        from budget.whiskbroom import plots
-
         out = staged.folder(report_dir)
         out.mkdir(parents=True, exist_ok=True)
         figs = [plots.plot_beta_hist(res, out / "beta_hist.png"), plots.plot_dv_hist(res, out / "dv_hist.png"),
@@ -122,9 +116,7 @@ def _write_outputs(staged, sc, seed, res, sob, hdr, rows, payload, json_out, rep
             md += ["", "## The paper's claims as distributions over seeds", ""] + claim_md
         md += ["", plots.figure_markdown(figs)]  # each figure with its caption under it
         (out / "report.md").write_text("\n".join(md) + "\n")
-        from budget.runner.html import write_html  # its self-contained twin, report.html
-
-        write_html(out / "report.md")
+        write_html(out / "report.md")  # its self-contained twin, report.html
 
 
 def _claims_lines(dist, crit) -> list[str]:
@@ -189,10 +181,13 @@ def synthesize_command(scenario, seed, trials, json_out, report_dir, overwrite, 
                   seeds=seeds, criterion_trials=criterion_trials)
 
 
+def commands() -> list[click.Command]:
+    """The whiskbroom study's own commands: ``synthesize``."""
+    return [synthesize_command]
+
+
 def main(argv=None):
     """Local entry for manual testing (``python -m budget.whiskbroom.cli synthesize``)."""
-    from simcam.infra.cli import run_cli
-
     group = click.Group("whiskbroom", commands={"synthesize": synthesize_command})
     run_cli(group, argv)
 

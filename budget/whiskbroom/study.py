@@ -25,7 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.whiskbroom import estimators as est
+from budget.whiskbroom import plots
 from simcam.units import WGS84_F
+from simcam.whiskbroom import geometry as geo
+from simcam.whiskbroom.scenario import VARIABLES
 
 __all__ = ["STUDY", "WhiskbroomStudy", "STAGE_CAP_FACTOR"]
 
@@ -81,7 +85,6 @@ class WhiskbroomStudy(Study):
 
     def _draw(self, scenario, seed: int, k: int):
         from simcam.whiskbroom import synthesis as sy
-        from simcam.whiskbroom.scenario import VARIABLES
 
         rng = np.random.default_rng(trial_seed_sequence(seed, k))
         u = np.clip(rng.random(len(VARIABLES)), 1e-300, None)[None, :]
@@ -120,7 +123,6 @@ class WhiskbroomStudy(Study):
         """The truth under the world's effects (:mod:`simcam.whiskbroom.world`): the motion
         MTF of the worst column along and across for N = 1..cap, and the edge image's
         image path (a function of the time in line periods -> along, across pixels)."""
-        from simcam.whiskbroom import geometry as geo
         from simcam.whiskbroom import tdi
         from simcam.whiskbroom import world as wd
 
@@ -195,7 +197,6 @@ class WhiskbroomStudy(Study):
         return img
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
-        from budget.whiskbroom import estimators as est
         from simcam.whiskbroom import tdi
 
         cam, t, thr = scenario.camera, scenario.tdi, scenario.synthesis.mtf_threshold
@@ -263,8 +264,6 @@ class WhiskbroomStudy(Study):
 
     # ------------------------------------------------------------ report
     def report_sections(self, result, out_dir: Path) -> list[ReportSection]:
-        from budget.whiskbroom import plots
-
         out_dir = Path(out_dir)
         figs = []
         ex = result.example.extra if result.example is not None else {}
@@ -289,11 +288,6 @@ class WhiskbroomStudy(Study):
               f"figures over 20 seeds).")
         # the figures are placed in the text, each with its caption under it
         return [ReportSection("Whiskbroom TDI MTF", md + ("\n\n" + plots.figure_markdown(figs) if figs else ""), [])]
-
-    def commands(self) -> list:
-        from budget.whiskbroom.cli import synthesize_command
-
-        return [synthesize_command]
 
 
 STUDY = WhiskbroomStudy()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import os
 import sys
 import tempfile
@@ -17,6 +18,8 @@ from typing import Any
 import click
 
 from simcam.infra.errors import Interrupted, ScenarioError, UserInputError
+from simcam.infra.lifecycle import handle_termination
+from simcam.infra.outputs import apply_umask, check_output_file, os_error_message
 
 
 def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
@@ -27,8 +30,6 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     removed, worker processes ended) and end in one line and exit status 128 + signal.
     A request that does not fit in memory is one ``error:`` line and status 2.
     """
-    from simcam.infra.lifecycle import handle_termination
-
     try:
         with handle_termination():
             group.main(args=argv, standalone_mode=False)
@@ -59,8 +60,6 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
         # file system remounted read-only): one line naming the file, no traceback
         if exc.errno not in _USER_ERRNOS:
             raise
-        from simcam.infra.outputs import os_error_message
-
         where = exc.filename or ""
         click.echo(f"error: {where}{': ' if where else ''}{os_error_message(exc)}", err=True)
         sys.exit(2)
@@ -91,8 +90,6 @@ def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "-
     the device); a link to a regular file is written through, so it stays a link. A
     failed write (disk full) is a :class:`UserInputError` naming the file.
     """
-    from simcam.infra.outputs import apply_umask, check_output_file, os_error_message
-
     path = check_output_file(path, option=option)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
@@ -113,8 +110,6 @@ def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "-
 
 def _finite_or_null(obj: Any) -> Any:
     """Replace NaN and infinities (not valid JSON) by null, recursively."""
-    import math
-
     import numpy as np
 
     if isinstance(obj, dict):

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Iterable, Iterator
 
 from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import check_disk, partial_prefix, remove_stale_partials
 
 __all__ = [
     "StagedOutputs", "apply_umask", "check_input_file", "check_output_dir", "check_output_file",
@@ -110,8 +111,6 @@ def _same_file(a: Path, b: Path) -> bool:
 
 def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
     """Parent is a folder, writable, on a writable file system; name short enough; space."""
-    from simcam.infra.lifecycle import check_disk
-
     # the nearest existing ancestor must be a folder (a path under a regular file is refused)
     anc = p.absolute().parent
     while not os.path.lexists(anc) and anc != anc.parent:
@@ -253,8 +252,6 @@ class StagedOutputs:
         self._items: list[tuple[Path, Path, bool]] = []
 
     def _stage(self, final: str | os.PathLike, is_dir: bool) -> Path:
-        from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
-
         final = Path(final)
         final.parent.mkdir(parents=True, exist_ok=True)
         remove_stale_partials(final)

@@ -37,9 +37,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from simcam.distortion import BrownConradyDistortion
-
 from simcam.units import ARCSEC_PER_RAD
 
+from .effects import extra_distortion_px
 from .scenario import PARAMETERS, LineCamScenario
 
 __all__ = ["CameraTruth", "camera_truth", "sample_y_mm"]
@@ -83,8 +83,6 @@ class CameraTruth:
 
     def extra_distortion(self, u_px, v_px):
         """The correction beyond Brown ``(Ex, Ey)``, px, at measured ``(x', y')`` px."""
-        from .effects import extra_distortion_px
-
         return extra_distortion_px(u_px, v_px, k3_edge_px=self.k3_edge_px, prism_edge_px=self.prism_edge_px,
                                    r_norm_px=0.5 * self.n_pixels)
 

@@ -49,7 +49,9 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field
 
+from simcam import spectra
 from simcam.effects import EffectsBase, WorldBase
+from simcam.noise_processes import sample
 from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["LineCamEffects", "LineCamWorld", "JITTER_TONES_HZ", "JITTER_TONE_RATIOS", "T_SUN_K",
@@ -142,8 +144,6 @@ def chromatic_centroid(weight_per_nm, wavelength_nm, position_px) -> float:
 
 
 def _grid_and_qe(qe_model):
-    from simcam import spectra
-
     lam = spectra.wavelength_grid_nm(start_nm=300.0, end_nm=1100.0, step_nm=2.0)
     qe = spectra.cmos_qe_array(wavelength_nm=lam, peak_qe=qe_model.peak_qe, peak_nm=qe_model.peak_nm,
                                blue_cutoff_nm=qe_model.blue_cutoff_nm, red_cutoff_nm=qe_model.red_cutoff_nm)
@@ -152,8 +152,6 @@ def _grid_and_qe(qe_model):
 
 @lru_cache(maxsize=8)
 def _colour_table(qe_model):
-    from simcam import spectra
-
     lam, qe = _grid_and_qe(qe_model)
     g = (LAMBDA_REF_NM / lam) ** 2
     temps = np.geomspace(2000.0, 50000.0, 96)
@@ -203,8 +201,6 @@ class Jitter:
     :func:`jitter_components` through :func:`simcam.noise_processes.sample`."""
 
     def __init__(self, effects: LineCamEffects, tau_s: float, rng: np.random.Generator, t0_s: float, t1_s: float):
-        from simcam.noise_processes import sample
-
         n = int(np.ceil((t1_s - t0_s) / JITTER_STEP_S)) + 2
         self.t0_s = float(t0_s)
         self.tau_s = JITTER_STEP_S * np.arange(n)  # since t0_s, exact

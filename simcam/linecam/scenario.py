@@ -14,8 +14,9 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings,
-                                load_scenario_file, model_hash, validate_model)
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file,
+                                model_hash, validate_model)
+from simcam.limits import check_epoch_utc
 
 from simcam.units import ARCSEC_PER_DEG
 
@@ -94,8 +95,6 @@ class OrbitModel(_M):
     @classmethod
     def _epoch(cls, v: str) -> str:
         """Parsed when the scenario loads (was: a 79-line astropy traceback at the first use)."""
-        from simcam.limits import check_epoch_utc
-
         return check_epoch_utc(v)
     altitude_km: Annotated[float, Field(gt=100.0, lt=100000.0)] = 600.0
     inclination_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 97.8

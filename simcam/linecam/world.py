@@ -30,13 +30,15 @@ from scipy.spatial.transform import Rotation
 from simcam import detector as _det
 from simcam.sky.apparent import aberration_first_order, apparent_directions
 from simcam.sky.catalogue import Catalogue, hipparcos
+from simcam.sky.gaia import gaia_world
 from simcam.units import ARCSEC_PER_RAD
 
 from . import kernels as _k
 from .attitude import ScanPlan, orbit_state, rodrigues, scan_plan
 from .camera import CameraTruth
+from .effects import Jitter, lateral_colour_px
 from .scenario import LineCamScenario
-from .signal import star_electron_rate
+from .signal import star_electron_rate, teff_from_b_v
 
 __all__ = ["SkyStrip", "sky_strip", "world_sky_strip", "strip_radius_rad", "PassImages", "image_passes",
            "AttitudeReports", "attitude_reports", "world_jitter", "crossing_times", "SUBSTEPS"]
@@ -111,8 +113,6 @@ def world_sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float)
 def _catalogue(mag_limit: float, gaia_pm_error_sigmas: float, gaia_sky_seed: int) -> Catalogue:
     if gaia_pm_error_sigmas == 0.0:
         return hipparcos()
-    from simcam.sky.gaia import gaia_world
-
     return gaia_world(mag_limit, pm_error_scale=gaia_pm_error_sigmas, rng=np.random.default_rng(gaia_sky_seed))
 
 
@@ -303,9 +303,6 @@ def image_passes(scenario: LineCamScenario, camera: CameraTruth, strip: SkyStrip
     bv = np.where(np.isfinite(bv), bv, 0.6)
     colour_px = scenario.world.effects.lateral_colour_px
     if colour_px != 0.0:
-        from .effects import lateral_colour_px
-        from .signal import teff_from_b_v
-
         r_n = 0.5 * cam.n_pixels
         y_px = s - 0.5 * (cam.n_pixels - 1) - camera.principal_point_mm[1] / p
         shift = lateral_colour_px(cam.qe, teff_from_b_v(bv), edge_px=colour_px) * y_px / r_n
@@ -372,8 +369,6 @@ def world_jitter(scenario: LineCamScenario, plan: ScanPlan, rng: np.random.Gener
     """The world's attitude jitter over all passes (:class:`simcam.linecam.effects.Jitter`), or None
     when both jitter magnitudes are 0 (``rng``: the effects' own stream,
     :func:`simcam.linecam.effects.effects_generator`)."""
-    from .effects import Jitter
-
     fx = scenario.world.effects
     if fx.jitter_tones_arcsec == 0.0 and fx.jitter_band_arcsec == 0.0:
         return None

@@ -69,6 +69,9 @@ import numpy as np
 from pydantic import Field
 
 from simcam.effects import EffectsBase, WorldBase
+from simcam.noise_processes import gauss_markov
+from simcam.sky.apparent import apparent_directions
+from simcam.sky.gaia import gaia_world
 from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorEffects", "ScanMirrorWorld", "WorldEffects", "TrialEffects", "encoder_residual_arcsec",
@@ -147,7 +150,8 @@ def _encoder(drift_seed: int):
     """The seed-001 encoder's residual after drift and compensation, tabulated over the turn
     (grid deg, residual arcsec), and its 3 sigma (arcsec): the drifted encoder's error
     (:meth:`Inductosyn.error_arcsec`) minus the compensation fitted to the undrifted one."""
-    from simcam.encoder.inductosyn import Inductosyn, apply_drift, default as default_scenario
+    from simcam.encoder.inductosyn import Inductosyn, apply_drift
+    from simcam.encoder.inductosyn import default as default_scenario
 
     sc = default_scenario()
     calibrated = Inductosyn(params=sc.encoder)
@@ -175,8 +179,6 @@ def tracker_error_series(rng: np.random.Generator, t_s, *, bias_arcsec: float, f
     """The world's star-tracker error rotation (N, 3) (rad) at the times ``t_s`` (any order):
     bias + Gauss-Markov FOV error + orbit-periodic LFE (module docstring). Every component
     draws its numbers whatever its magnitude. Returns ``{"total", "bias", "fov", "lfe"}``."""
-    from simcam.noise_processes import gauss_markov
-
     t = np.asarray(t_s, float)
     g_bias, g_fov, g_lfe = rng.spawn(3)
     bias = bias_arcsec * RAD_PER_ARCSEC * g_bias.standard_normal(3)
@@ -243,9 +245,6 @@ class WorldEffects:
 
     def _gaia_dwell(self, d, scenario):
         from astropy.time import Time, TimeDelta
-
-        from simcam.sky.apparent import apparent_directions
-        from simcam.sky.gaia import gaia_world
 
         cat = gaia_world(scenario.star_sensing.mag_limit)
         rows = np.searchsorted(cat.hip, d.hip)

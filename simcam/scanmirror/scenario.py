@@ -10,9 +10,19 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from simcam.config_base import (
+    BatchTrials,
+    ScenarioBase,
+    StrictModel,
+    Trials,
+    ValidationSettings,
+    load_scenario_file,
+    validate_model,
+)
 from simcam.infra.errors import ScenarioError
-from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
+from simcam.limits import check_epoch_utc
 from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
+from simcam.scanmirror.scanplan import evaluate_plan, segment_durations
 from simcam.units import JGM3_RADIUS_KM
 
 __all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
@@ -48,9 +58,7 @@ class OrbitConfig(StrictModel):
     @field_validator("epoch_utc")
     @classmethod
     def _epoch(cls, v: str) -> str:
-        from simcam.limits import check_epoch_utc  # one line (astropy's message listed every format: 11 lines)
-
-        return check_epoch_utc(v)
+        return check_epoch_utc(v)  # one line (astropy's message listed every format: 11 lines)
 
 
 class AttitudeConfig(StrictModel):
@@ -191,8 +199,6 @@ class ScanMirrorScenario(ScenarioBase):
             plan = self.scan_plan
         if ss.dwells == 1:
             return plan
-        from simcam.scanmirror.scanplan import evaluate_plan, segment_durations
-
         segs = list(plan.segments)
         starts = np.concatenate([[0.0], np.cumsum(segment_durations(segs))])
         out = []

@@ -20,6 +20,8 @@ import numpy as np
 from simcam.infra.errors import ScenarioError
 from simcam.scanmirror.geometry import attitude_matrix_br, mirror_normal_body
 from simcam.scanmirror.orbit import orbit_frame_matrix_Ir
+from simcam.sky.apparent import apparent_directions
+from simcam.sky.catalogue import hipparcos
 
 __all__ = ["DwellStars", "detector_coordinates", "find_dwell_stars", "body_to_inertial"]
 
@@ -68,9 +70,6 @@ def find_dwell_stars(world, *, source: str = "scenario") -> list[DwellStars]:
     brighter than the limit in its field.
     """
     from astropy.time import Time, TimeDelta
-
-    from simcam.sky.apparent import apparent_directions
-    from simcam.sky.catalogue import hipparcos
 
     sc = world.scenario
     ss = sc.star_sensing

@@ -58,6 +58,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simcam.sky.apparent import _skycoord
 from simcam.sky.catalogue import EPOCH_JYEAR, Catalogue, hipparcos
 from simcam.units import ARCSEC_PER_DEG, MAS_PER_RAD
 
@@ -225,8 +226,6 @@ def gaia_match(mag_limit: float) -> GaiaMatch:
     """Cross-match the hip2 stars with V <= ``mag_limit`` (Catalogue.v_mag) with Gaia DR3 (cached per limit)."""
     import astropy.units as u
 
-    from simcam.sky.apparent import _skycoord
-
     mag_limit = float(mag_limit)
     if not np.isfinite(mag_limit):
         raise ValueError(f"mag_limit: must be finite, got {mag_limit}")
@@ -269,8 +268,6 @@ def _world_unperturbed(mag_limit: float) -> Catalogue:
 def _build_world(m: GaiaMatch, dpm_ra, dpm_dec) -> Catalogue:
     import astropy.units as u
     from astropy.coordinates import SkyCoord
-
-    from simcam.sky.apparent import _skycoord
 
     cat = m.hipparcos
     pm_ra = cat.pm_ra_mas_yr.copy()

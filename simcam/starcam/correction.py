@@ -5,7 +5,7 @@ an earlier calibration; that model carries the errors of its own calibration. Th
 LSFE-C1 test (eqs 17-30) is run on such a camera, so the quantity it can measure is the
 displacement the *calibrated* camera still makes, not the raw lens distortion.
 
-Model (``optics.distortion_correction``, :class:`simcam.starcam.scenario.DistortionCorrectionModel`):
+Model (``optics.distortion_correction``, :class:`simcam.starcam.instrument.DistortionCorrectionModel`):
 at the points ``p_i`` of an earlier calibration grid, the camera's measured position
 (mosaic px) of the lamp's image is ``m_i = M(D(p_i) + s_lamp(D(p_i)))`` (``D`` the
 distortion, ``s_lamp`` the lamp-weighted lateral colour, ``M`` focal plane to mosaic),

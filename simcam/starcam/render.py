@@ -28,15 +28,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from simcam.starcam import optics
-from simcam.infra.errors import ScenarioError
 from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
+from simcam.infra.errors import ScenarioError
+from simcam.rng import child_keys, key_from_seed
+from simcam.starcam import optics
+from simcam.starcam.correction import fit_onboard_correction
 from simcam.starcam.geometry import Mosaic
 from simcam.starcam.kernels.windows import add_stamps_windows
-from simcam.rng import child_keys, key_from_seed
 from simcam.starcam.scenario import Scenario
 from simcam.starcam.sources import SourceSpectra
 from simcam.starcam.targets import TargetLayout
+from simcam.starcam.world import world_motion
 
 #: SeedSequence spawn-key roots
 STREAM_DETECTOR = 201  # scenario seed -> PRNU/DSNU maps
@@ -184,8 +186,6 @@ class StarCamera:
         """The world's hexapod pose errors and target drift for run seed ``seed``
         (:func:`simcam.starcam.world.world_motion`; None when those effects are off). The
         last seed's is kept."""
-        from simcam.starcam.world import world_motion
-
         hit = self.__dict__.get("_world_motion")
         if hit is None or hit[0] != seed:
             hit = (seed, world_motion(self.scenario, seed))
@@ -245,8 +245,6 @@ class StarCamera:
         (:class:`simcam.starcam.correction.OnboardCorrection`, from ``optics.distortion_correction``),
         or None for an uncalibrated camera. Computed once."""
         if "_onboard" not in self.__dict__:
-            from simcam.starcam.correction import fit_onboard_correction
-
             self.__dict__["_onboard"] = fit_onboard_correction(self)
         return self.__dict__["_onboard"]
 

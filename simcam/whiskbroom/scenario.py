@@ -15,13 +15,24 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from simcam.infra.errors import ScenarioError
-from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file, validate_model)
+from simcam.config_base import (
+    BatchTrials,
+    ScenarioBase,
+    StrictModel,
+    Trials,
+    ValidationSettings,
+    load_scenario_file,
+    validate_model,
+)
 from simcam.effects import EffectsBase, WorldBase
+from simcam.infra.errors import ScenarioError
+from simcam.infra.lifecycle import check_memory
+from simcam.limits import nonfinite_fields
 from simcam.units import EARTH_RATE_RAD_S, MU_EARTH_KM3_S2, SECONDS_PER_DAY, WGS84_A_KM
+from simcam.whiskbroom.geometry import sun_synchronous_inclination
 
 __all__ = ["Distribution", "WhiskbroomEffects", "WhiskbroomWorld", "WhiskbroomScenario", "STATE_VARIABLES", "ERROR_VARIABLES",
-           "VARIABLES", "default_text", "from_dict", "load", "default"]
+           "VARIABLES", "check_sizes", "default_text", "from_dict", "load", "default"]
 
 #: the six true-state (operating) values drawn per trial
 STATE_VARIABLES = ("roll_deg", "pitch_deg", "yaw_deg", "roll_rate_deg_s", "pitch_rate_deg_s",
@@ -226,8 +237,6 @@ class WhiskbroomScenario(ScenarioBase):
     @property
     def inclination_rad(self) -> float:
         """Orbit inclination: given, or sun-synchronous from the J2 nodal rate."""
-        from simcam.whiskbroom.geometry import sun_synchronous_inclination
-
         o = self.orbit
         if not o.sun_synchronous:
             return math.radians(o.inclination_deg)
@@ -249,8 +258,6 @@ def default_text() -> str:
 def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
     """Validate a mapping; every problem is a line ``source: field.path: message``."""
     scenario = validate_model(WhiskbroomScenario, data, source=source).with_source(source)
-    from simcam.limits import nonfinite_fields
-
     problems = nonfinite_fields(scenario)  # NaN and +-inf in any float field
     orbit = scenario.orbit
     if orbit.sun_synchronous and orbit.inclination_deg is not None:
@@ -268,10 +275,46 @@ def from_dict(data: dict, *, source: str = "scenario") -> WhiskbroomScenario:
             problems.append(f"orbit.altitude_km: {exc}")
     if problems:
         raise ScenarioError("\n".join(f"{source}: {p}" for p in problems))
-    from simcam.whiskbroom.synthesis import check_sizes
-
     check_sizes(scenario, source=source)  # sizes refused before any allocation, naming the field
     return scenario
+
+
+#: float64 work arrays per (trial, field point) of one mirror-rate level in
+#: :func:`simcam.whiskbroom.synthesis.synthesize` (parameters, motion, residuals, quantiles),
+#: plus the two kept per level (beta and Delta V_P): a lower bound, so nothing feasible is refused
+_SYNTH_ARRAYS, _SYNTH_KEPT = 12, 4
+#: bytes per Sobol sample row (17 variables drawn, their parameter rows, the motion)
+_SOBOL_ROW_BYTES = 8 * 60
+
+
+def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int | None = None,
+                trials_what: str | None = None) -> None:
+    """Refuse, before any allocation, a scenario whose arrays cannot fit in memory, naming
+    the fields (:class:`simcam.infra.errors.ResourceLimitError`, one line).
+
+    Estimates: the synthesis holds ``trials x field points`` float64 arrays
+    (:data:`_SYNTH_ARRAYS` of them, and :data:`_SYNTH_KEPT` per mirror-rate level); the
+    Sobol analysis ``sobol_base_samples x 19`` rows; one validation trial the TDI
+    accumulators (``tdi_stages x tdi.columns`` complex, twice) and the edge image
+    (``edge_lines x edge_columns x edge_oversampling^2`` float64, three arrays).
+    """
+    cam, syn, t = sc.camera, sc.synthesis, sc.tdi
+    k = float(syn.trials if trials is None else trials)
+    points = float(cam.n_chips) * syn.field_cols_per_chip * syn.field_rows + 1.0
+    levels = len(syn.mirror_rate_errors_deg_s)
+    tw = trials_what or f"synthesis.trials = {syn.trials}"
+    check_memory(8.0 * k * points * (_SYNTH_ARRAYS + _SYNTH_KEPT * levels),
+                 what=f"{source}: {tw} x {points:.0f} field points (camera.n_chips x "
+                      "synthesis.field_cols_per_chip x synthesis.field_rows)")
+    # the report's motion field: every 64th column of every chip x about 5 rows, ~10 arrays
+    check_memory(8.0 * 10 * (float(cam.n_chips) * cam.chip_cols / 64.0 + 1) * 5,
+                 what=f"{source}: camera.n_chips x camera.chip_cols = {cam.n_chips} x {cam.chip_cols}")
+    check_memory(float(syn.sobol_base_samples) * (len(VARIABLES) + 2) * _SOBOL_ROW_BYTES,
+                 what=f"{source}: synthesis.sobol_base_samples = {syn.sobol_base_samples}")
+    check_memory(2.0 * 16.0 * cam.tdi_stages * t.columns,
+                 what=f"{source}: camera.tdi_stages x tdi.columns = {cam.tdi_stages} x {t.columns}")
+    check_memory(3.0 * 8.0 * t.edge_lines * t.edge_columns * float(t.edge_oversampling) ** 2,
+                 what=f"{source}: tdi.edge_lines x tdi.edge_columns = {t.edge_lines} x {t.edge_columns}")
 
 
 def load(path: str | Path | None = None) -> WhiskbroomScenario:

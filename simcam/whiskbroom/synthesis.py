@@ -29,7 +29,7 @@ from scipy.special import ndtri
 
 from simcam.units import RAD_PER_DEG
 from simcam.whiskbroom import geometry as geo
-from simcam.whiskbroom.scenario import ERROR_VARIABLES, VARIABLES, WhiskbroomScenario
+from simcam.whiskbroom.scenario import ERROR_VARIABLES, VARIABLES, WhiskbroomScenario, check_sizes
 
 __all__ = ["trial_uniforms", "standard_draws", "nominal_params", "trial_params",
            "field_points", "full_field_points", "array_angle", "evaluate", "Residuals",
@@ -136,46 +136,6 @@ def _layout(sc: WhiskbroomScenario, rows, cols, beta):
     q = np.asarray(cols, dtype=float) * p
     x = r[:, None, None] * tau + q[None, :, None] * lam
     return x[..., 0].ravel(), x[..., 1].ravel()
-
-
-#: float64 work arrays per (trial, field point) of one mirror-rate level in
-#: :func:`synthesize` (parameters, motion, residuals, quantiles), plus the two kept per
-#: level (beta and Delta V_P): a lower bound, so nothing feasible is refused
-_SYNTH_ARRAYS, _SYNTH_KEPT = 12, 4
-#: bytes per Sobol sample row (17 variables drawn, their parameter rows, the motion)
-_SOBOL_ROW_BYTES = 8 * 60
-
-
-def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int | None = None,
-                trials_what: str | None = None) -> None:
-    """Refuse, before any allocation, a scenario whose arrays cannot fit in memory, naming
-    the fields (:class:`simcam.infra.errors.ResourceLimitError`, one line).
-
-    Estimates: the synthesis holds ``trials x field points`` float64 arrays
-    (:data:`_SYNTH_ARRAYS` of them, and :data:`_SYNTH_KEPT` per mirror-rate level); the
-    Sobol analysis ``sobol_base_samples x 19`` rows; one validation trial the TDI
-    accumulators (``tdi_stages x tdi.columns`` complex, twice) and the edge image
-    (``edge_lines x edge_columns x edge_oversampling^2`` float64, three arrays).
-    """
-    from simcam.infra.lifecycle import check_memory
-
-    cam, syn, t = sc.camera, sc.synthesis, sc.tdi
-    k = float(syn.trials if trials is None else trials)
-    points = float(cam.n_chips) * syn.field_cols_per_chip * syn.field_rows + 1.0
-    levels = len(syn.mirror_rate_errors_deg_s)
-    tw = trials_what or f"synthesis.trials = {syn.trials}"
-    check_memory(8.0 * k * points * (_SYNTH_ARRAYS + _SYNTH_KEPT * levels),
-                 what=f"{source}: {tw} x {points:.0f} field points (camera.n_chips x "
-                      "synthesis.field_cols_per_chip x synthesis.field_rows)")
-    # the report's motion field: every 64th column of every chip x about 5 rows, ~10 arrays
-    check_memory(8.0 * 10 * (float(cam.n_chips) * cam.chip_cols / 64.0 + 1) * 5,
-                 what=f"{source}: camera.n_chips x camera.chip_cols = {cam.n_chips} x {cam.chip_cols}")
-    check_memory(float(syn.sobol_base_samples) * (len(VARIABLES) + 2) * _SOBOL_ROW_BYTES,
-                 what=f"{source}: synthesis.sobol_base_samples = {syn.sobol_base_samples}")
-    check_memory(2.0 * 16.0 * cam.tdi_stages * t.columns,
-                 what=f"{source}: camera.tdi_stages x tdi.columns = {cam.tdi_stages} x {t.columns}")
-    check_memory(3.0 * 8.0 * t.edge_lines * t.edge_columns * float(t.edge_oversampling) ** 2,
-                 what=f"{source}: tdi.edge_lines x tdi.edge_columns = {t.edge_lines} x {t.edge_columns}")
 
 
 class SynthesisError(ValueError):

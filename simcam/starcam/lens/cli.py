@@ -9,10 +9,13 @@ import time
 from pathlib import Path
 
 import click
+import numpy as np
 
 from simcam.infra.cli import overwrite_option
+from simcam.starcam.lens.backend import get_backend
+from simcam.starcam.lens.prescription import load_prescription
+from simcam.starcam.lens.products import cache_dir, lens_products
 from simcam.units import ARCSEC_PER_RAD
-import numpy as np
 
 __all__ = ["format_table", "optics_command", "write_plots"]
 
@@ -177,9 +180,6 @@ def optics_command(prescription, out, overwrite, no_cache, variant) -> None:
     """Trace the lens PRESCRIPTION (TOML file or embedded:NAME, default embedded:star_camera):
     paraxial data, distortion, lateral colour, spots and PSFs, and their fit to the
     simulator's optics models."""
-    from simcam.starcam.lens.backend import get_backend
-    from simcam.starcam.lens.prescription import load_prescription
-    from simcam.starcam.lens.products import cache_dir, lens_products
     from simcam.starcam.lens.simulator import simulator_optics
 
     t0 = time.perf_counter()

@@ -47,8 +47,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
+from simcam.config_base import StrictModel, read_toml, validate_model
 from simcam.infra.errors import ScenarioError
-from simcam.config_base import StrictModel, validate_model
 from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.glass import AIR, Glass, get_glass
 from simcam.starcam.lens.surface import SurfaceShape
@@ -358,12 +358,9 @@ def load_prescription(ref: str | Path) -> Prescription:
         if not path.is_file():
             raise LensError(f"{path}: lens prescription file not found (or use embedded:NAME, one of "
                             f"{', '.join(embedded_lens_names())})")
-        from simcam.config_base import read_toml  # strict: non-UTF-8, empty, invalid
-        from simcam.infra.errors import ScenarioError
-
         source = str(path)
         try:
-            return prescription_from_dict(read_toml(path=path, source=source), source=source)
+            return prescription_from_dict(read_toml(path=path, source=source), source=source)  # strict TOML
         except ScenarioError as exc:
             raise LensError(str(exc)) from None
     try:

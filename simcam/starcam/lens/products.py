@@ -51,6 +51,8 @@ from pathlib import Path
 
 import numpy as np
 
+import simcam
+from simcam.infra.lifecycle import safe_filename
 from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.paraxial import paraxial
 from simcam.starcam.lens.prescription import PRODUCTS_VERSION, load_prescription
@@ -86,8 +88,6 @@ def cache_path(prescription) -> Path:
     """Cache file of a prescription's products: ``cache_dir()/NAME-HASH.nc``, where NAME is
     the prescription's name made a safe file name (:func:`simcam.infra.lifecycle.safe_filename`):
     a name from an input file never leads out of the cache folder."""
-    from simcam.infra.lifecycle import safe_filename
-
     return cache_dir() / f"{safe_filename(prescription.name, default='lens')}-{prescription.hash}.nc"
 
 
@@ -241,8 +241,6 @@ class LensProducts:
             v = getattr(self, k)
             ds.attrs[k] = v if not isinstance(v, (np.floating, np.integer)) else v.item()
         ds.attrs["products_version"] = PRODUCTS_VERSION
-        import simcam
-
         ds.attrs["simcam_version"] = simcam.__version__
         return ds
 

@@ -44,8 +44,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from pydantic import ValidationError
 from scipy.interpolate import CubicSpline
 
+from simcam.starcam.instrument import (CameraModel, DetectorModel, DistortionModel, LateralColourModel, OpticsModel,
+                                       PSFModel, RenderModel)
 from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.paraxial import paraxial
 from simcam.starcam.lens.prescription import Prescription, load_prescription
@@ -265,8 +268,6 @@ def _as_dict(container) -> dict:
 
 def _validated(model_cls, raw):
     """``model_cls`` from a dict or instance, or None when invalid (reported by the main validation)."""
-    from pydantic import ValidationError
-
     if isinstance(raw, model_cls):
         return raw
     try:
@@ -303,20 +304,18 @@ def apply_lens(data: dict) -> dict:
         aperture that contradicts the lens, a field or wavelength range the lens does not
         cover, a lens-set value given with another value.
     """
-    from simcam.starcam import scenario as sc
-
     optics_raw = _get(data, "optics")
     lens_ref = _get(optics_raw, "lens")
     if lens_ref is None:
         return data
     if not isinstance(lens_ref, str) or not lens_ref.strip():
         raise ValueError(f"optics.lens: expected a lens file path or 'embedded:NAME', got {lens_ref!r}")
-    camera = _validated(sc.CameraModel, _get(data, "camera"))
-    render = _validated(sc.RenderModel, _get(data, "render"))
-    detector = _validated(sc.DetectorModel, _get(data, "detector"))
+    camera = _validated(CameraModel, _get(data, "camera"))
+    render = _validated(RenderModel, _get(data, "render"))
+    detector = _validated(DetectorModel, _get(data, "detector"))
     lc_raw = _get(optics_raw, "lateral_colour")
-    r_norm = _get(optics_raw, "r_norm_px", sc.OpticsModel.model_fields["r_norm_px"].default)
-    ref_wl = _get(lc_raw, "ref_wavelength_nm", sc.LateralColourModel.model_fields["ref_wavelength_nm"].default)
+    r_norm = _get(optics_raw, "r_norm_px", OpticsModel.model_fields["r_norm_px"].default)
+    ref_wl = _get(lc_raw, "ref_wavelength_nm", LateralColourModel.model_fields["ref_wavelength_nm"].default)
     if camera is None or render is None or detector is None or not isinstance(r_norm, (int, float)) \
             or not isinstance(ref_wl, (int, float)) or r_norm <= 0 or ref_wl <= 0:
         return data
@@ -369,7 +368,7 @@ def apply_lens(data: dict) -> dict:
     psf_raw = _get(optics_raw, "psf")
     want_psf = sections["optics.psf"]
     if _given(optics_raw, "psf") and _as_dict(psf_raw):
-        psf = _validated(sc.PSFModel, psf_raw)
+        psf = _validated(PSFModel, psf_raw)
         if psf is None:
             return data
         given = _as_dict(psf_raw)
@@ -388,7 +387,7 @@ def apply_lens(data: dict) -> dict:
     want_d = sections["optics.distortion"]
     if _given(optics_raw, "distortion") and _as_dict(dist_raw):
         given = {**want_d, **_as_dict(dist_raw)}
-        dm = _validated(sc.DistortionModel, given)
+        dm = _validated(DistortionModel, given)
         if dm is None:
             return data
         try:
