@@ -11,7 +11,7 @@ __all__ = ["run_and_write", "study_group", "validate_command_for"]
 
 def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
                   dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
-                  overwrite=False, truth_size="adaptive"):
+                  overwrite=False, truth_size="adaptive", inputs=()):
     """What ``validate`` does once its options are read: run the study through the runner,
     print the header and the table (then ``more_lines(result)``, if given: a study's own
     summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
@@ -19,7 +19,8 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal;
     ``overwrite`` lets the report replace a folder that is not an earlier report;
     ``truth_size``: ``adaptive`` (truths sized to the run, :func:`budget.runner.run.run_study`)
-    or ``fixed`` (the scenario's own truth sizes).
+    or ``fixed`` (the scenario's own truth sizes); ``inputs``: the files the command read (the
+    scenario file), never an output.
     """
     import sys
 
@@ -30,7 +31,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
 
     if progress is None:
         progress = sys.stderr.isatty()
-    check_run_outputs(json_out=json_out, report_dir=report_dir, overwrite=overwrite)  # refused before the work
+    check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=inputs, overwrite=overwrite)  # before the work
     if workers is None and scheduler is None and dask_local is None:
         from budget.runner.executors import default_workers
 
@@ -106,7 +107,7 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
         run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
                       report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
-                      truth_size=truth_size)
+                      truth_size=truth_size, inputs=(scenario,))
 
     return validate
 

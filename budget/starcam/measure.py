@@ -39,6 +39,7 @@ import pandas as pd
 
 from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
+from simcam.infra.outputs import CommandInputs, command_inputs
 from simcam.starcam.scenario import ValidationModel
 
 MANIFEST_COLUMNS = ("file", "condition", "frame", "filter_nm", "field", "dark")
@@ -74,6 +75,12 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
         raise UserInputError(f"{path}: no rows")
     if m["file"].isna().any():
         raise UserInputError(f"{path}: row {int(np.flatnonzero(m['file'].isna())[0]) + 2}: empty file name")
+    if m.duplicated().any():  # the same frame twice would be measured twice
+        row = int(np.flatnonzero(m.duplicated())[0])
+        text = m.astype(str)  # NaN equal to NaN
+        first = int(np.flatnonzero((text == text.iloc[row]).all(axis=1))[0])
+        raise UserInputError(f"{path}: row {row + 2} repeats row {first + 2} ({m['file'].iloc[row]}); "
+                             "list each frame once")
     for c in ("dark", "frame", "filter_nm"):
         if c in m.columns:
             v = pd.to_numeric(m[c], errors="coerce")
@@ -102,6 +109,20 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     if "frame" not in m.columns:
         m["frame"] = m.groupby(["condition", "dark"]).cumcount()
     return m
+
+
+def dataset_inputs(protocol: str, directory: str | Path, *, manifest: str | Path | None = None,
+                   reference: str | Path | None = None, allow_outside: bool = False) -> CommandInputs:
+    """Every file ``measure`` reads: the manifest, each frame it lists (lit and dark) and the
+    reference table; no output may be one of them (:mod:`simcam.infra.outputs`). The manifest
+    is read and checked here (a bad one is refused before anything else)."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise UserInputError(f"{directory}: frame directory not found")
+    mpath = Path(manifest) if manifest else directory / "manifest.csv"
+    m = read_manifest(mpath, protocol=protocol)
+    _confine(m, directory, mpath, allow_outside=allow_outside)
+    return command_inputs(mpath, reference, [directory / str(f) for f in m["file"]])
 
 
 def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool) -> None:
@@ -135,19 +156,34 @@ def _check_pixels(path, data: np.ndarray) -> None:
                                  f"{what}); mark bad pixels one by one, not whole lines")
 
 
-def _load(directory: Path, files) -> list[np.ndarray]:
+def _load(directory: Path, files, scale: dict) -> list[np.ndarray]:
+    """The frames ``files`` of ``directory``, checked: finite pixels, one shape, and one plate
+    scale (``scale`` holds the first frame's header ``PLTSCALE`` and file: frames of two
+    plate scales measured with one would scale every estimate wrongly)."""
     from simcam.io import read_frame
 
     out = []
     shape = None
     for f in files:
-        data, _ = read_frame(directory / f)
+        data, header = read_frame(directory / f)
         _check_pixels(directory / f, data)
         if shape is not None and data.shape != shape:
             raise UserInputError(f"{directory / f}: shape {data.shape} differs from the first frame's {shape}")
         shape = data.shape
+        _check_plate_scale(directory / f, header.get("PLTSCALE"), scale)
         out.append(data)
     return out
+
+
+def _check_plate_scale(path: Path, value, scale: dict) -> None:
+    """Refuse a frame whose header ``PLTSCALE`` differs from the first frame's that has one."""
+    if value is None:
+        return
+    if "value" not in scale:
+        scale.update(value=value, file=path)
+    elif value != scale["value"]:
+        raise UserInputError(f"{path}: header PLTSCALE = {value!r} differs from {scale['file']}'s "
+                             f"{scale['value']!r}; the frames of one dataset have one plate scale")
 
 
 @contextmanager
@@ -251,6 +287,7 @@ def measure_frames(
 
     tables = []
     prev_xy = None
+    scale: dict = {}  # the first header PLTSCALE and its file: every frame must have the same
     bar = progress_bar(total=len(m), desc="frames", unit="frame", enabled=progress)
     for cond in conditions:
         rows = lit[lit["condition"] == cond].sort_values("frame")
@@ -258,10 +295,13 @@ def measure_frames(
             raise UserInputError(f"{manifest or directory / 'manifest.csv'}: condition {cond}: {len(rows)} frame(s) "
                                  f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
         if rows["frame"].duplicated().any():
-            raise UserInputError(f"condition {cond}: frame {int(rows['frame'][rows['frame'].duplicated()].iloc[0])} listed twice")
-        frames = _load(directory, rows["file"])
+            dup = rows[rows["frame"].duplicated(keep=False)]
+            raise UserInputError(f"{mpath}: condition {cond}: frame {int(dup['frame'].iloc[0])} listed twice (rows "
+                                 f"{', '.join(str(int(i) + 2) for i in dup.index[:2])}: "
+                                 f"{', '.join(map(str, dup['file'].iloc[:2]))})")
+        frames = _load(directory, rows["file"], scale)
         darks = m[(m["dark"] == 1) & ((m["condition"] == cond) | m["condition"].isna())]
-        dark = np.mean(_load(directory, darks["file"]), axis=0) if len(darks) else None
+        dark = np.mean(_load(directory, darks["file"], scale), axis=0) if len(darks) else None
         stack = np.mean(np.asarray(frames, dtype=np.float64), axis=0)
         first = subtract_dark(stack, dark=dark) if dark is not None else stack
         field = str(rows["field"].iloc[0]) if "field" in rows.columns and protocol == "chromatic" else ""
@@ -356,10 +396,10 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
         raise UserInputError(f"--window {window_px}: must be odd")
     from simcam.infra.outputs import StagedOutputs, check_run_outputs
 
-    # before any frame is read: the outputs are files (not a device), not an input, in a
-    # writable folder
-    check_run_outputs(json_out=json_out, files={"--centroids": centroids_out},
-                      inputs=(manifest, reference, Path(directory) / "manifest.csv"))
+    # before any frame is read: the outputs are files (not a device), none of the inputs (the
+    # manifest, the frames it lists, the reference), in a writable folder
+    inputs = dataset_inputs(protocol, directory, manifest=manifest, reference=reference, allow_outside=allow_outside)
+    check_run_outputs(json_out=json_out, files={"--centroids": centroids_out}, inputs=inputs)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cen, ref, info = measure_frames(protocol, directory, manifest=manifest, reference=reference, method=method,

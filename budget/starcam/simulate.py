@@ -16,16 +16,18 @@ import pandas as pd
 
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
 from simcam.infra.cli import overwrite_option
+from simcam.infra.outputs import check_run_outputs
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
                           frames: int | None = None, overwrite: bool = False, compress: bool = False,
-                          progress: bool = False, source: str = "<embedded scenario>") -> pd.DataFrame:
+                          progress: bool = False, source: str = "<embedded scenario>", inputs=()) -> pd.DataFrame:
     """Render the plan of ``protocol`` to FITS frames in ``out``; return the manifest.
 
     The request is checked against the memory and the free disk before any work, and a
     large output is announced on stderr (:func:`simcam.io.check_render_request`);
-    ``compress`` writes Rice tile-compressed frames (lossless).
+    ``compress`` writes Rice tile-compressed frames (lossless); ``out`` never holds one of
+    ``inputs`` (the scenario file).
     """
     from dataclasses import replace
 
@@ -47,7 +49,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     # the world's hexapod pose errors and target drift (simcam.starcam.world): in the
     # frames, not in the plan or the headers (which hold what the lab commanded)
     motion = cam.world_motion(seed)
-    with io.atomic_directory(out, overwrite=overwrite) as tmp:
+    with io.atomic_directory(out, overwrite=overwrite, inputs=inputs) as tmp:
         for c in plan.conditions:
             lay = calibration_grid(scenario) if c.target == "calibration_grid" else star_grid(scenario, center_px=c.field_center_px)
             stream = 1000 * PROTOCOL_STREAM[protocol] + c.index
@@ -119,10 +121,11 @@ def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwri
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget starcam measure`."""
     from simcam.starcam.scenario import load
 
+    check_run_outputs(json_out=json_out, inputs=(scenario,))  # before the frames: never over the scenario
     scn = load(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite, compress=compress, progress=progress,
-                              source=str(scenario or "<embedded scenario>"))
+                              source=str(scenario or "<embedded scenario>"), inputs=(scenario,))
     if json_out:
         from simcam import __version__
         from simcam.infra.cli import write_json_atomic

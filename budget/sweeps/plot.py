@@ -491,6 +491,8 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
 
     from simcam.infra.outputs import check_output_dir, is_earlier_plots
 
+    if precision is not None and not (math.isfinite(precision) and precision > 0):
+        raise UserInputError(f"--precision {precision}: must be a finite number > 0 (a relative spread, e.g. 0.1)")
     ds = open_sweep(store)
     out_dir = Path(out_dir)
     files: list[Path] = []
@@ -508,7 +510,7 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
         raise UserInputError(f"{store}: no point of the sweep is done yet; run `budget sweep` into it first")
     # the folder is checked before, and created only when a figure is drawn; a failure
     # removes a folder this call created (no empty plots folder left behind)
-    check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite)
+    check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite, inputs=(store,))
     created = not out_dir.exists()
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

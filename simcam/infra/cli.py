@@ -91,9 +91,9 @@ def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "-
     the device); a link to a regular file is written through, so it stays a link. A
     failed write (disk full) is a :class:`UserInputError` naming the file.
     """
-    from simcam.infra.outputs import apply_umask, check_output_file, os_error_message
+    from simcam.infra.outputs import JSON_TEMPORARY_NAME_BYTES, apply_umask, check_output_file, os_error_message
 
-    path = check_output_file(path, option=option)
+    path = check_output_file(path, option=option, temp_bytes=JSON_TEMPORARY_NAME_BYTES)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
