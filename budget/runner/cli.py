@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from budget.arguments import checked_command
 from simcam.infra.cli import overwrite_option
 
 __all__ = ["run_and_write", "study_group", "validate_command_for"]
@@ -109,7 +110,7 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
                       report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
                       truth_size=truth_size, inputs=(scenario,))
 
-    return validate
+    return checked_command(validate)  # the option values checked as the API's arguments
 
 
 def study_group(study_name: str) -> click.Group:
@@ -135,8 +136,10 @@ def study_group(study_name: str) -> click.Group:
 
         return robustness_command_for(study_name)
 
-    #: the runner's commands of every study, built on first use; the study's own replace them
-    generic = {"validate": lambda: validate_command_for(study_name), "robustness": _robustness, "plan": _plan}
+    #: the runner's commands of every study, built on first use (their option values checked as
+    #: the API's arguments, budget.arguments, before any work); the study's own replace them
+    generic = {"validate": lambda: validate_command_for(study_name),
+               "robustness": lambda: checked_command(_robustness()), "plan": lambda: checked_command(_plan())}
 
     class _Lazy(click.Group):
         def _load_own(self) -> None:
