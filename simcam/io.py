@@ -75,7 +75,7 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False, inputs=
     nor holds one of ``inputs`` (the files the command read).
     """
     from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
-    from simcam.infra.outputs import apply_umask, check_output_dir
+    from simcam.infra.outputs import apply_umask, check_output_dir, failed_write
 
     from simcam.infra.outputs import is_earlier_output
 
@@ -88,8 +88,10 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False, inputs=
     apply_umask(tmp, is_dir=True)  # mkdtemp makes it 0700; the output gets the user's umask
     try:
         yield tmp
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if (err := failed_write(exc, out, tmp=tmp)) is not None:  # the disk filled: name the file under out
+            raise err from None
         raise
     if out.exists():
         shutil.rmtree(out)

@@ -164,3 +164,151 @@ def test_folder_outputs_of_every_writer_refuse_a_folder_holding_their_input(tmp_
                             "--json", str(d / "scenario.toml")])
     _one_error(code, err, "is an input of this command")
     assert (d / "scenario.toml").read_text() == TINY and not (tmp_path / "new").exists()
+
+
+def test_the_same_calibration_table_twice_and_a_plot_format_are_refused_before_the_fit(tmp_path, monkeypatch):
+    import budget.inductosyn.harmonics as harmonics
+
+    a = np.arange(0.0, 360.0, 15.0)
+    body = "angle_deg,error_arcsec\n" + "".join(f"{x},{3 * np.sin(np.radians(x)) + 0.1 * i}\n"
+                                                for i, x in enumerate(a))
+    p = tmp_path / "p.csv"
+    p.write_text(body)
+    (tmp_path / "copy.csv").write_text(body)
+    (tmp_path / "link.csv").symlink_to(p)
+
+    def fitted(*a, **k):
+        raise AssertionError("the fit ran")
+
+    for name in ("fit_joint", "fit_long_period"):
+        monkeypatch.setattr(harmonics, name, fitted)
+    cases = [([p, p, "--period", "both"], f"{p}: the same calibration table given twice"),
+             ([p, tmp_path / "link.csv", "--period", "both"], "the same calibration table given twice"),
+             ([p, tmp_path / "copy.csv", "--period", "both"], f"copy.csv: the same table as {p}"),
+             ([p, "--period", "long", "--plot", tmp_path / "out.txt"], "--plot"),
+             ([p, "--period", "long", "--plot", tmp_path / "out"], "no suffix names the figure format")]
+    for args, named in cases:
+        code, _, err = _budget(["inductosyn", "fit", *map(str, args)])
+        line = _one_error(code, err, named)
+        if "out.txt" in line:
+            assert "the suffix .txt is no figure format; give one of" in line and ".png" in line
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["copy.csv", "link.csv", "p.csv"]
+
+
+def test_manifest_repeats_and_two_plate_scales_name_the_manifest_and_both_values(tmp_path):
+    lab = tmp_path / "lab"
+    _dataset(lab, dark=False)
+    m = lab / "manifest.csv"
+    rows = m.read_text().splitlines()
+    m.write_text("\n".join(rows + [rows[2]]) + "\n")  # row 5 repeats row 3
+    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    _one_error(code, err, f"{m}: row 5 repeats row 3 (c000_f0001.fits)")
+    m.write_text("\n".join(rows[:3] + ["c000_f0001.fits,0,0,0"]) + "\n")  # frame 0 listed twice
+    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    _one_error(code, err, f"{m}: condition 0: frame 0 listed twice (rows 2, 4")
+    m.write_text("\n".join(rows) + "\n")
+    (lab / "c000_f0002.fits").unlink()
+    _fits(lab / "c000_f0002.fits", plate_scale=5.5, seed=2)  # was measured with the first one's 11
+    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    _one_error(code, err, f"{lab / 'c000_f0002.fits'}: header PLTSCALE = 5.5 differs from "
+                          f"{lab / 'c000_f0000.fits'}'s 11.0")
+
+
+def test_observation_table_literal_nan_and_a_table_repeated_twice(tmp_path):
+    from budget.linecam.cli import CSV_COLUMNS, check_observation_values
+    from test_reliability_outputs import _obs_arrays
+
+    a = _obs_arrays()
+    lines = [",".join(CSV_COLUMNS)] + [",".join(repr(float(a[c][i])) for c in CSV_COLUMNS) for i in range(40)]
+    obs = tmp_path / "obs.csv"
+    for cell, got in (("nan", "'nan'"), ("NA", "'NA'"), ("", "an empty cell")):
+        rows = list(lines)
+        rows[3] = cell + rows[3][rows[3].index(","):]  # time_s of row 4
+        obs.write_text("\n".join(rows) + "\n")
+        code, _, err = _budget(["linecam", "calibrate", str(obs)])
+        _one_error(code, err, f"{obs}: time_s: not a finite number in row 4 (got {got})")
+    twice = {k: np.concatenate([v, v]) for k, v in a.items()}  # said "row 3 repeats row 3"
+    with pytest.raises(UserInputError, match=r"obs.csv: rows: row 42 repeats row 2 \(40 duplicated row"):
+        check_observation_values("obs.csv", twice, n_pixels=6144)
+
+
+def test_sweep_field_both_fixed_and_varied_and_plot_precision_nan(tmp_path):
+    from budget.sweeps.models import parse_sweep
+    from budget.sweeps.plot import plot_store
+    from simcam.infra.errors import ScenarioError
+
+    text = ('kind = "starcam"\nseed = 1\nevaluate = "truth"\n[fixed]\n"detector.prnu_rms" = 0.01\n'
+            '[parameters]\n"detector.prnu_rms" = [0.0, 0.02]\n')
+    with pytest.raises(ScenarioError, match=r"^s.toml: parameters: 'detector.prnu_rms' is also in \[fixed\]"):
+        parse_sweep(text, source="s.toml")
+    with pytest.raises(ScenarioError, match=r"parameters: 'detector.prnu_rms' is also in \[fixed\] \('detector'"):
+        parse_sweep(text.replace('"detector.prnu_rms" = 0.01', 'detector = {prnu_rms = 0.01}'), source="s.toml")
+    parse_sweep(text.replace('"detector.prnu_rms" = 0.01', '"detector.dsnu_rms_e" = 0.5'), source="s.toml")
+    for bad in (float("nan"), float("inf")):
+        with pytest.raises(UserInputError, match=r"--precision (nan|inf): must be a finite number > 0"):
+            plot_store(tmp_path / "st", tmp_path / "pl", precision=bad)
+    assert not (tmp_path / "pl").exists()
+
+
+# ----------------------------------------------------------------------------- messages that name the thing
+def test_a_write_that_fills_the_disk_names_the_file(tmp_path, monkeypatch):
+    from simcam.infra.outputs import StagedOutputs, naming_failed_writes
+    from simcam.io import atomic_directory
+
+    def full(filename=None):
+        return OSError(errno.ENOSPC, "No space left on device", *([str(filename)] if filename else []))
+
+    with pytest.raises(UserInputError, match=rf"^{tmp_path / 'rep' / 'fig.png'}: no space left on the device$"):
+        with StagedOutputs() as st:
+            folder = st.folder(tmp_path / "rep")  # a figure inside the staged report, named by matplotlib
+            raise full(folder / "fig.png")
+    with pytest.raises(UserInputError, match=rf"^{tmp_path / 'c.csv'}: no space left on the device$"):
+        with StagedOutputs() as st:
+            st.file(tmp_path / "a.json")
+            st.file(tmp_path / "c.csv")
+            raise full()  # a write to an open file names none: the output being written
+    with pytest.raises(UserInputError, match=rf"^{tmp_path / 'out' / 'frame_0000.fits'}: no space left"):
+        with atomic_directory(tmp_path / "out") as tmp:
+            raise full(tmp / "frame_0000.fits")
+    with pytest.raises(UserInputError, match=rf"^--plot {tmp_path / 'f.png'}: no space left on the device$"):
+        with naming_failed_writes(tmp_path / "f.png", option="--plot"):
+            raise full()
+    with pytest.raises(ValueError, match="not a write"):
+        with naming_failed_writes(tmp_path / "f.png"):
+            raise ValueError("not a write")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # nothing half-written left
+
+
+def test_a_json_name_too_long_for_its_temporary_name_is_refused_before_the_work(tmp_path, monkeypatch):
+    import budget.runner.run
+
+    def ran(*a, **k):
+        raise AssertionError("the work started")
+
+    monkeypatch.setattr(budget.runner.run, "run_study", ran)
+    name = tmp_path / ("v" * 245 + ".json")  # 250 bytes: a valid name, its temporary sibling is not
+    code, _, err = _budget(["scanmirror", "validate", "--trials", "2", "--json", str(name)])
+    _one_error(code, err, f"--json {name}: the name vvvv", "it is written first under a temporary name",
+               "give a name of at most")
+    check_output_file(tmp_path / ("v" * 200 + ".json"))  # short enough
+
+
+def test_a_reader_that_leaves_early_ends_the_printing_not_the_command(tmp_path):
+    """``validate --json v.json | head -1`` exited 1 and wrote no JSON: stdout to a pipe whose
+    reader has gone (closed before the command starts, so every print meets a broken pipe)."""
+    import subprocess
+    import sys
+
+    c = tmp_path / "c.toml"
+    c.write_text("stars = 10\n" + "".join(f"[{k}]\nx = 0.5\ny = 0.5\n"
+                                          for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2")))
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "budget", "starcam", "combine", str(c), "--json",
+                            str(tmp_path / "c.json")], stdout=w, stderr=subprocess.PIPE, text=True, timeout=300,
+                           cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])})
+    finally:
+        os.close(w)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert '"single_star"' in (tmp_path / "c.json").read_text()

@@ -16,6 +16,7 @@ import numpy as np
 
 from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
+from simcam.infra.outputs import check_distinct_inputs, check_run_outputs, naming_failed_writes
 
 __all__ = ["commands", "design_command", "fit_command", "scenario_command", "validate_command"]
 
@@ -107,8 +108,7 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
 
     if pole_pairs < 1:
         raise UserInputError("--pole-pairs: must be >= 1")
-    from simcam.infra.outputs import check_distinct_inputs, check_run_outputs  # checked before the work
-
+    # before the work: the outputs, the same table given twice, a figure format for --plot
     check_distinct_inputs(csv_files, what="calibration table")  # counted twice, the sigmas would shrink
     check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)
     if plot_out:
@@ -171,7 +171,8 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
     if json_out:
         write_json_atomic(json_out, payload)
     if plot_out:
-        figure = _plot_fit(fits, plot_out, pole_pairs)
+        with naming_failed_writes(plot_out, option="--plot"):  # the disk filled: name the figure
+            figure = _plot_fit(fits, plot_out, pole_pairs)
         click.echo(f"plot: {figure}")
         click.echo(f"  {figure.caption}")
 

@@ -186,6 +186,72 @@ def _check_plate_scale(path: Path, value, scale: dict) -> None:
                              f"{scale['value']!r}; the frames of one dataset have one plate scale")
 
 
+def _read_reference(reference) -> pd.DataFrame:
+    """The distortion protocol's ``--reference`` table (star, x_ref, y_ref; finite positions)."""
+    if reference is None:
+        raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
+    rp = Path(reference)
+    from simcam.infra.outputs import input_file_problem
+
+    if (why := input_file_problem(rp)) is not None:
+        raise UserInputError(f"--reference {rp}: {why}")
+    if not rp.is_file():
+        raise UserInputError(f"{rp}: reference file not found")
+    try:
+        ref_table = pd.read_csv(rp, encoding="utf-8")
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        raise UserInputError(f"{rp}: not a readable CSV table ({str(exc).splitlines()[0] if str(exc) else ''})") from None
+    miss = [c for c in ("star", "x_ref", "y_ref") if c not in ref_table.columns]
+    if miss:
+        raise UserInputError(f"{rp}: missing column(s) {', '.join(miss)}")
+    for c in ("x_ref", "y_ref"):
+        v = pd.to_numeric(ref_table[c], errors="coerce")
+        if not np.isfinite(v.to_numpy(float)).all():
+            row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
+            raw = ref_table[c].iloc[row]
+            got = "an empty cell" if pd.isna(raw) else repr(str(raw))
+            raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
+        ref_table[c] = v
+    return ref_table
+
+
+def _method_options(method: str, weight_sigma_px) -> dict:
+    """The centroid method's own options: IWCoG needs the PSF's Gaussian sigma."""
+    if method != "iwcog":
+        return {}
+    if weight_sigma_px is None:
+        raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
+    return {"weight_sigma_px": float(weight_sigma_px)}
+
+
+def _check_condition_count(mpath, protocol: str, conditions: list) -> None:
+    """TE and distortion take one condition, HSFE at least two (hexapod poses)."""
+    if protocol in ("te", "distortion") and len(conditions) != 1:
+        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
+    if protocol == "hsfe" and len(conditions) < 2:
+        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
+
+
+def _adc_max(path, header) -> int | None:
+    """The ADC's largest value from the frame's ``BITDEPTH`` keyword (None without one)."""
+    try:
+        return 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
+    except (TypeError, ValueError, OverflowError):
+        raise UserInputError(f"{path}: header BITDEPTH = {header['BITDEPTH']!r} is not a number of bits") from None
+
+
+def _check_condition_rows(mpath, cond, rows: pd.DataFrame) -> None:
+    """A condition has at least 2 lit frames, each frame number once."""
+    if len(rows) < 2:
+        raise UserInputError(f"{mpath}: condition {cond}: {len(rows)} frame(s) "
+                             f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
+    if rows["frame"].duplicated().any():
+        dup = rows[rows["frame"].duplicated(keep=False)]
+        raise UserInputError(f"{mpath}: condition {cond}: frame {int(dup['frame'].iloc[0])} listed twice (rows "
+                             f"{', '.join(str(int(i) + 2) for i in dup.index[:2])}: "
+                             f"{', '.join(map(str, dup['file'].iloc[:2]))})")
+
+
 @contextmanager
 def _frame_context(path, cond):
     """The centroid core names its own arguments (``noise_dn``, ``threshold_dn``), which
@@ -236,53 +302,19 @@ def measure_frames(
     directory = Path(directory)
     if not directory.is_dir():
         raise UserInputError(f"{directory}: frame directory not found")
-    method_options = {}
-    if method == "iwcog":
-        if weight_sigma_px is None:
-            raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
-        method_options["weight_sigma_px"] = float(weight_sigma_px)
-    m = read_manifest(manifest or directory / "manifest.csv", protocol=protocol)
-    _confine(m, directory, manifest or directory / "manifest.csv", allow_outside=allow_outside)
+    method_options = _method_options(method, weight_sigma_px)
+    mpath = manifest or directory / "manifest.csv"
+    m = read_manifest(mpath, protocol=protocol)
+    _confine(m, directory, mpath, allow_outside=allow_outside)
     lit = m[m["dark"] == 0]
     conditions = sorted(lit["condition"].dropna().unique().tolist())
-    mpath = manifest or directory / "manifest.csv"
-    if protocol in ("te", "distortion") and len(conditions) != 1:
-        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
-    if protocol == "hsfe" and len(conditions) < 2:
-        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
+    _check_condition_count(mpath, protocol, conditions)
     _, header = read_frame(directory / lit["file"].iloc[0])
-    try:
-        adc_max = 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
-    except (TypeError, ValueError, OverflowError):
-        raise UserInputError(f"{directory / lit['file'].iloc[0]}: header BITDEPTH = {header['BITDEPTH']!r} "
-                             "is not a number of bits") from None
+    adc_max = _adc_max(directory / lit["file"].iloc[0], header)
     ref_table = None
     ref_xy_by_field: dict = {}
     if protocol == "distortion":
-        if reference is None:
-            raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
-        rp = Path(reference)
-        from simcam.infra.outputs import input_file_problem
-
-        if (why := input_file_problem(rp)) is not None:
-            raise UserInputError(f"--reference {rp}: {why}")
-        if not rp.is_file():
-            raise UserInputError(f"{rp}: reference file not found")
-        try:
-            ref_table = pd.read_csv(rp, encoding="utf-8")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-            raise UserInputError(f"{rp}: not a readable CSV table ({str(exc).splitlines()[0] if str(exc) else ''})") from None
-        miss = [c for c in ("star", "x_ref", "y_ref") if c not in ref_table.columns]
-        if miss:
-            raise UserInputError(f"{rp}: missing column(s) {', '.join(miss)}")
-        for c in ("x_ref", "y_ref"):
-            v = pd.to_numeric(ref_table[c], errors="coerce")
-            if not np.isfinite(v.to_numpy(float)).all():
-                row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
-                raw = ref_table[c].iloc[row]
-                got = "an empty cell" if pd.isna(raw) else repr(str(raw))
-                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
-            ref_table[c] = v
+        ref_table = _read_reference(reference)
     from simcam.infra.lifecycle import progress as progress_bar
 
     tables = []
@@ -291,14 +323,7 @@ def measure_frames(
     bar = progress_bar(total=len(m), desc="frames", unit="frame", enabled=progress)
     for cond in conditions:
         rows = lit[lit["condition"] == cond].sort_values("frame")
-        if len(rows) < 2:
-            raise UserInputError(f"{manifest or directory / 'manifest.csv'}: condition {cond}: {len(rows)} frame(s) "
-                                 f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
-        if rows["frame"].duplicated().any():
-            dup = rows[rows["frame"].duplicated(keep=False)]
-            raise UserInputError(f"{mpath}: condition {cond}: frame {int(dup['frame'].iloc[0])} listed twice (rows "
-                                 f"{', '.join(str(int(i) + 2) for i in dup.index[:2])}: "
-                                 f"{', '.join(map(str, dup['file'].iloc[:2]))})")
+        _check_condition_rows(mpath, cond, rows)
         frames = _load(directory, rows["file"], scale)
         darks = m[(m["dark"] == 1) & ((m["condition"] == cond) | m["condition"].isna())]
         dark = np.mean(_load(directory, darks["file"], scale), axis=0) if len(darks) else None

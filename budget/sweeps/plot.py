@@ -489,7 +489,7 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
 
     import shutil
 
-    from simcam.infra.outputs import check_output_dir, is_earlier_plots
+    from simcam.infra.outputs import check_output_dir, is_earlier_plots, naming_failed_writes
 
     if precision is not None and not (math.isfinite(precision) and precision > 0):
         raise UserInputError(f"--precision {precision}: must be a finite number > 0 (a relative spread, e.g. 0.1)")
@@ -513,9 +513,10 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite, inputs=(store,))
     created = not out_dir.exists()
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
-        _write_page(ds, files, out_dir)
+        with naming_failed_writes(out_dir, option="--out"):  # the disk filled: name the figure
+            out_dir.mkdir(parents=True, exist_ok=True)
+            files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
+            _write_page(ds, files, out_dir)
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)

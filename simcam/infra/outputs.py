@@ -38,7 +38,8 @@ from simcam.infra.errors import UserInputError
 
 __all__ = [
     "CommandInputs", "StagedOutputs", "apply_umask", "check_distinct_inputs", "check_input_file",
-    "check_output_dir", "check_output_file", "command_inputs", "file_kind", "os_error_message", "umask",
+    "check_output_dir", "check_output_file", "command_inputs", "failed_write", "file_kind", "naming_failed_writes",
+    "os_error_message", "umask",
 ]
 
 
@@ -303,6 +304,44 @@ def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: 
     return p
 
 
+#: errors of a write that are the machine's state, not a bug: reported as one line naming the file
+WRITE_ERRNOS = frozenset(getattr(errno, n) for n in ("ENOSPC", "EROFS", "ENAMETOOLONG", "ENOTDIR", "EACCES",
+                                                     "EPERM", "EDQUOT", "EISDIR", "EFBIG") if hasattr(errno, n))
+
+
+def failed_write(exc: BaseException, final: str | os.PathLike, *, tmp: str | os.PathLike | None = None,
+                 option: str | None = None) -> UserInputError | None:
+    """The one-line error of a write into ``final`` that failed for the machine's state
+    (``WRITE_ERRNOS``: the disk full, a read-only file system ...), naming the file: the
+    error's own file name (inside the temporary ``tmp`` it is written to, the name it would
+    have had under ``final``), else ``final`` itself (a write to an open file names none).
+    None for any other exception."""
+    if not isinstance(exc, OSError) or exc.errno not in WRITE_ERRNOS:
+        return None
+    where = os.fsdecode(exc.filename) if exc.filename else str(final)
+    if tmp is not None and exc.filename:
+        t = os.fspath(tmp)
+        if where == t or where.startswith(t + os.sep):
+            where = str(final) + where[len(t):]
+    lead = f"{option} " if option and where == str(final) else ""
+    return UserInputError(f"{lead}{where}: {os_error_message(exc)}")
+
+
+@contextmanager
+def naming_failed_writes(final: str | os.PathLike, *, tmp: str | os.PathLike | None = None,
+                         option: str | None = None) -> Iterator[None]:
+    """A write into ``final`` (a file or a folder, written at ``tmp`` if given) that fails
+    for the machine's state is one :class:`UserInputError` naming the file
+    (:func:`failed_write`)."""
+    try:
+        yield
+    except OSError as exc:
+        err = failed_write(exc, final, tmp=tmp, option=option)
+        if err is None:
+            raise
+        raise err from None
+
+
 def os_error_message(exc: OSError) -> str:
     """A short reason for a failed write: ``no space left on the device`` and the like."""
     reasons = {errno.ENOSPC: "no space left on the device", errno.EROFS: "read-only file system",
@@ -369,6 +408,17 @@ class StagedOutputs:
         """A temporary path (not yet existing) to create the folder ``final`` at."""
         return self._stage(final, True)
 
+    def _named(self, exc: BaseException) -> UserInputError | None:
+        """:func:`failed_write` of ``exc`` for the staged output it names (or the last staged)."""
+        if not self._items or not isinstance(exc, OSError):
+            return None
+        name = os.fsdecode(exc.filename) if exc.filename else ""
+        for tmp, final, _is_dir in self._items:
+            if name == str(tmp) or name.startswith(str(tmp) + os.sep):
+                return failed_write(exc, final, tmp=tmp)
+        tmp, final, _ = self._items[-1]
+        return failed_write(exc, final, tmp=tmp)
+
     def __enter__(self) -> "StagedOutputs":
         return self
 
@@ -385,6 +435,8 @@ class StagedOutputs:
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is not None:
             self._discard()
+            if (err := self._named(exc)) is not None:  # the disk filled: name the output, not its temporary
+                raise err from None
             return False
         try:
             with held_signals():
