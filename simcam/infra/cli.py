@@ -109,6 +109,9 @@ class _PipeStdout(io.TextIOBase):
     def fileno(self) -> int:
         return self._fd
 
+    def writable(self) -> bool:
+        return True
+
     def isatty(self) -> bool:
         return False
 
