@@ -37,6 +37,8 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from budget.arguments import check_arguments
+
 __all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
 
@@ -139,6 +141,7 @@ def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, 
     progress : bool
         A progress bar on stderr.
     """
+    check_arguments(locals())  # each argument's type and range, named, before any work
     from budget.runner.executors import default_workers
     from budget.runner.run import run_study
 
@@ -156,6 +159,7 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
     """What each method's claim survives of the world's effects
     (:func:`budget.runner.robustness.run_robustness`); ``study`` and ``scenario`` as for
     :func:`validate`. Returns its ``RobustnessResult`` (``write_report(folder)``, ``to_json()``)."""
+    check_arguments(locals())  # each argument's type and range, named, before any work
     from budget.runner.executors import default_workers
     from budget.runner.robustness import run_robustness
 
@@ -179,6 +183,7 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
     ``workers`` defaults to 1: a plan runs many short validations. ``sure``: how sure the
     recommended protocol is to pass the re-validation (0.5: the boundary protocol). ``fix``:
     knobs pinned, ``{field: value}`` (or texts ``"FIELD=VALUE"``)."""
+    check_arguments(locals())  # each argument's type and range, named, before any work
     from budget.runner.executors import default_workers
     from budget.runner.plan import plan_protocol
 
@@ -197,6 +202,7 @@ def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False
     """Run the design-trade sweep ``sweep_file`` (docs/sweeps.md) into the Zarr store ``out``
     (resumed when it holds this sweep) and return the store opened as an
     :class:`xarray.Dataset`."""
+    check_arguments(locals())  # each argument's type and range, named, before any work
     import xarray as xr
 
     from budget.sweeps.run import run_sweep

@@ -78,7 +78,7 @@ def render_command(scenario, n_frames, seed, mode, filter_nm, out, overwrite, co
     hdr_kw = dict(scenario=scn, seed=seed, condition=0, filter_nm=filter_nm,
                   platform_dx_px=0.0, platform_dy_px=0.0, label="target")
     peak_dn = []
-    with io.atomic_directory(out, overwrite=overwrite) as tmp:
+    with io.atomic_directory(out, overwrite=overwrite, inputs=(scenario,)) as tmp:
         if mode == "full":
             expected = cam.expected_frame_e(scene)
             bar = progress_bar(total=n_frames, desc="frames", unit="frame", enabled=progress)

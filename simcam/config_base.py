@@ -9,23 +9,107 @@ file is one error naming it).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
 import tomllib
+import types
+import typing
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_serializer
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_serializer, model_validator
+from pydantic_core import PydanticCustomError
 
 from simcam.infra.errors import ScenarioError
 from simcam.infra.outputs import input_file_problem
 
 
 class StrictModel(BaseModel):
-    """Frozen model that forbids unknown keys and validates on assignment/creation."""
+    """Frozen model that forbids unknown keys and validates on assignment/creation.
 
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=False, validate_default=True)
+    A boolean is never a number: ``true`` where a field (or an element of a list, tuple or
+    mapping field) takes an int or a float is refused, naming the field (pydantic would
+    read it as 1; :func:`bool_where_number`). Every float is finite (``allow_inf_nan``
+    off: a NaN or an infinity is refused, naming the field); a field's physical range is
+    declared beside it (``Field(ge=..., le=...)``, the reason in its description) and a
+    value outside it is refused with the range (:func:`format_validation_error`).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=False, validate_default=True,
+                              allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_boolean_for_a_number(cls, data: Any) -> Any:
+        # a model-level check (a field validator may not sit on a union's discriminator);
+        # format_validation_error puts the field named in the context on the error's path
+        if isinstance(data, dict):
+            for name, value in data.items():
+                if isinstance(value, (bool, np.bool_, list, tuple, dict)) and bool_where_number(
+                        value, _field_annotation(cls, name)):
+                    raise PydanticCustomError(BOOL_NOT_NUMBER, "a boolean (true/false) is not a number; give a number",
+                                              {"field": str(name), "value": value})
+        return data
+
+
+#: the pydantic error type of a boolean given for a number (its context names the field)
+BOOL_NOT_NUMBER = "bool_not_number"
+
+
+@functools.cache
+def _field_annotation(cls: type[BaseModel], name: str) -> Any:
+    info = cls.model_fields.get(name)
+    return None if info is None else info.annotation
+
+
+def _alternatives(ann: Any) -> list[Any]:
+    """The types ``ann`` admits at its top level: through ``Annotated`` and unions."""
+    origin = typing.get_origin(ann)
+    if origin is Annotated:
+        return _alternatives(typing.get_args(ann)[0])
+    if origin in (typing.Union, types.UnionType):
+        return [t for a in typing.get_args(ann) for t in _alternatives(a)]
+    return [ann]
+
+
+def _elements(alts: list[Any], value: Any) -> list[list[Any]] | None:
+    """For a list/tuple ``value``: the annotations its elements may have, per element (None
+    when no alternative is a sequence)."""
+    per: list[list[Any]] = [[] for _ in value]
+    found = False
+    for a in alts:
+        origin, args = typing.get_origin(a), typing.get_args(a)
+        if origin in (list, tuple, set, frozenset, typing.Sequence) or a in (list, tuple):
+            found = True
+            if origin is tuple and args and args[-1] is not Ellipsis:
+                for i in range(min(len(value), len(args))):
+                    per[i].append(args[i])
+            else:
+                for i in range(len(value)):
+                    per[i].append(args[0] if args else Any)
+    return per if found else None
+
+
+def bool_where_number(value: Any, ann: Any) -> bool:
+    """Whether ``value`` holds a boolean where the annotation ``ann`` takes a number (an int
+    or a float, and not a bool), at the top level or inside a list, tuple or mapping."""
+    if ann is None:
+        return False
+    alts = _alternatives(ann)
+    if isinstance(value, (bool, np.bool_)):
+        return any(a in (int, float) for a in alts) and not any(a in (bool, Any) for a in alts)
+    if isinstance(value, (list, tuple)):
+        per = _elements(alts, value)
+        return per is not None and any(bool_where_number(v, typing.Union[tuple(p)] if len(p) > 1 else p[0])
+                                       for v, p in zip(value, per) if p)
+    if isinstance(value, dict):
+        vals = [typing.get_args(a)[1] for a in alts if typing.get_origin(a) is dict and len(typing.get_args(a)) == 2]
+        return bool(vals) and any(bool_where_number(v, typing.Union[tuple(vals)] if len(vals) > 1 else vals[0])
+                                  for v in value.values())
+    return False
 
 
 #: a number of Monte Carlo trials: at least 2 (a spread needs two; the CLI's ``--trials`` too)
@@ -118,10 +202,15 @@ class ScenarioBase(StrictModel):
 
 #: pydantic's bound checks: a NaN or infinity fails them with a misleading message
 _BOUND_TYPES = ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "multiple_of")
+#: the errors of a value outside its field's range (or not finite): shown with the range
+_RANGE_TYPES = (*_BOUND_TYPES, "finite_number")
 
 
-def format_validation_error(err: ValidationError, *, source: str | None = None) -> str:
-    """Render a pydantic ValidationError as lines ``file: field.path: message``."""
+def format_validation_error(err: ValidationError, *, source: str | None = None,
+                            model: type[BaseModel] | None = None) -> str:
+    """Render a pydantic ValidationError as lines ``file: field.path: message``; a value out
+    of its field's range (or not finite) names the range declared beside the field in
+    ``model``, e.g. ``must be a finite number; its range is [0, 3600] (got inf)``."""
     lines = []
     prefix = f"{source}: " if source else ""
     for e in err.errors():
@@ -130,8 +219,14 @@ def format_validation_error(err: ValidationError, *, source: str | None = None) 
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         inp = e.get("input")
-        if isinstance(inp, float) and not math.isfinite(inp) and e["type"] in _BOUND_TYPES:
+        if e["type"] == BOOL_NOT_NUMBER:  # raised by the model for one of its fields
+            loc = ".".join(str(p) for p in (*e["loc"], e["ctx"]["field"]))
+            inp = e["ctx"]["value"]
+        if e["type"] == "finite_number" or (isinstance(inp, float) and not math.isfinite(inp)
+                                             and e["type"] in _BOUND_TYPES):
             msg = "must be a finite number"  # not "should be less than 1" for a NaN
+        if e["type"] in _RANGE_TYPES and model is not None and (rng := declared_range(model, e["loc"])):
+            msg += f"; its range is {rng}"
         shown = "" if e["type"] in ("extra_forbidden", "missing") else f" (got {inp!r})"
         if len(shown) > 80:
             shown = shown[:77] + "...)"
@@ -139,12 +234,60 @@ def format_validation_error(err: ValidationError, *, source: str | None = None) 
     return "\n".join(lines)
 
 
+def _leaf_types(ann: Any) -> list[Any]:
+    """Every type inside ``ann``: through ``Annotated``, unions and containers."""
+    if typing.get_origin(ann) is Annotated:
+        return _leaf_types(typing.get_args(ann)[0])
+    args = typing.get_args(ann)
+    return [t for a in args if a is not Ellipsis for t in _leaf_types(a)] if args else [ann]
+
+
+def _bounds(ann: Any, metadata: list) -> dict[str, float]:
+    """The ``ge``/``gt``/``le``/``lt`` bounds of a field: its metadata and the ``Annotated``
+    metadata inside its annotation (an element's bounds for a list or tuple field)."""
+    found: dict[str, float] = {}
+    todo, items = [ann], list(metadata)
+    while todo:
+        a = todo.pop()
+        if typing.get_origin(a) is Annotated:
+            items += list(typing.get_args(a)[1:])
+        todo += [x for x in typing.get_args(a) if x is not Ellipsis]
+    for m in items:
+        for k in ("ge", "gt", "le", "lt"):
+            v = getattr(m, k, None)
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                found.setdefault(k, v)
+    return found
+
+
+def declared_range(model: type[BaseModel], loc: tuple) -> str | None:
+    """The range declared beside the field at ``loc`` (a pydantic error's location) in
+    ``model``: ``[0, 3600]``, ``(0, 1)``; None when it has not two bounds."""
+    models: list[Any] = [model]
+    field = None
+    for part in loc:
+        hit = next((m.model_fields[part] for m in models if isinstance(part, str) and part in m.model_fields), None)
+        if hit is None:  # a list index, a union's tag, a validator's name
+            continue
+        field = hit
+        models = [t for t in _leaf_types(hit.annotation) if isinstance(t, type) and issubclass(t, BaseModel)]
+    if field is None:
+        return None
+    b = _bounds(field.annotation, field.metadata)
+    lo = ("[", b["ge"]) if "ge" in b else ("(", b["gt"]) if "gt" in b else None
+    hi = ("]", b["le"]) if "le" in b else (")", b["lt"]) if "lt" in b else None
+    if lo is None or hi is None:
+        return None
+    return f"{lo[0]}{lo[1]:g}, {hi[1]:g}{hi[0]}"
+
+
 def validate_model(model_cls: type[BaseModel], data: dict[str, Any], *, source: str | None = None):
-    """Validate ``data`` into ``model_cls`` or raise :class:`ScenarioError` naming fields."""
+    """Validate ``data`` into ``model_cls`` or raise :class:`ScenarioError` naming fields
+    (and, for a value out of range, the range declared beside the field)."""
     try:
         return model_cls.model_validate(data)
     except ValidationError as err:
-        raise ScenarioError(format_validation_error(err, source=source)) from None
+        raise ScenarioError(format_validation_error(err, source=source, model=model_cls)) from None
 
 
 def model_hash(model: BaseModel) -> str:

@@ -68,25 +68,31 @@ def frame_header(
 
 
 @contextmanager
-def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False):
+def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False, inputs=()):
     """Yield a temporary directory that replaces ``out`` only if the block completes.
 
     The temporary folder ``.NAME.partial.<pid>.*`` is removed on any exception, SIGINT,
     and (under :func:`simcam.infra.lifecycle.handle_termination`) SIGTERM; folders of this kind
     left by a run that was killed outright (SIGKILL, power cut) are removed here, with a
-    line on stderr (:func:`simcam.infra.lifecycle.remove_stale_partials`).
+    line on stderr (:func:`simcam.infra.lifecycle.remove_stale_partials`). ``out`` never is
+    nor holds one of ``inputs`` (the files the command read).
     """
+    from simcam.infra.outputs import failed_write
+
+
     out = Path(out)
     # the one rule (simcam.infra.outputs.check_output_dir): empty, an earlier output, or --overwrite
-    check_output_dir(out, option="--out", replaceable=is_earlier_output, overwrite=overwrite)
+    check_output_dir(out, option="--out", replaceable=is_earlier_output, overwrite=overwrite, inputs=inputs)
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(out)
     tmp = Path(tempfile.mkdtemp(prefix=partial_prefix(out), dir=out.parent))
     apply_umask(tmp, is_dir=True)  # mkdtemp makes it 0700; the output gets the user's umask
     try:
         yield tmp
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if (err := failed_write(exc, out, tmp=tmp)) is not None:  # the disk filled: name the file under out
+            raise err from None
         raise
     if out.exists():
         shutil.rmtree(out)

@@ -34,7 +34,7 @@ from budget.runner.numbers import fmt
 from budget.runner.validate_cmd import validate_command_for
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
-from simcam.infra.outputs import check_run_outputs
+from simcam.infra.outputs import check_distinct_inputs, check_run_outputs, naming_failed_writes
 
 __all__ = ["commands", "design_command", "fit_command", "scenario_command", "validate_command"]
 
@@ -112,8 +112,13 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
     """Fit harmonics to calibration table(s) CSV (columns angle_deg, error_arcsec)."""
     if pole_pairs < 1:
         raise UserInputError("--pole-pairs: must be >= 1")
-    check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)  # before the work
+    # before the work: the outputs, the same table given twice, a figure format for --plot
+    check_distinct_inputs(csv_files, what="calibration table")  # counted twice, the sigmas would shrink
+    check_run_outputs(json_out=json_out, files={"--plot": plot_out}, inputs=csv_files)
+    if plot_out:
+        _check_figure_format(plot_out)
     tables = [read_calibration_csv(path=f) for f in csv_files]
+    _check_distinct_tables(tables, csv_files)
     nfiles = len(csv_files)
     if period in ("long", "short") and nfiles != 1:
         raise UserInputError(f"--period {period} takes one CSV file, got {nfiles}")
@@ -170,9 +175,35 @@ def fit_command(csv_files, period, pole_pairs, mech_orders, elec_orders, require
     if json_out:
         write_json_atomic(json_out, payload)
     if plot_out:
-        figure = _plot_fit(fits, plot_out, pole_pairs)
+        with naming_failed_writes(plot_out, option="--plot"):  # the disk filled: name the figure
+            figure = _plot_fit(fits, plot_out, pole_pairs)
         click.echo(f"plot: {figure}")
         click.echo(f"  {figure.caption}")
+
+
+def _check_figure_format(path) -> None:
+    """Refuse, before the fit, a ``--plot`` name whose suffix names no figure format
+    matplotlib writes (``out.txt``, or no suffix)."""
+    from pathlib import Path
+
+    from matplotlib.backend_bases import FigureCanvasBase  # only with --plot: matplotlib is heavy
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in formats:
+        got = f"the suffix .{suffix} is no figure format" if suffix else "no suffix names the figure format"
+        raise UserInputError(f"--plot {path}: {got}; give one of .{', .'.join(sorted(formats))} (e.g. fit.png)")
+
+
+def _check_distinct_tables(tables, paths) -> None:
+    """Refuse two tables with the same angles and errors (a copy of one table): the fit would
+    count every point twice and shrink its stated sigmas by sqrt(2)."""
+    for j in range(1, len(tables)):
+        for i in range(j):
+            (a1, e1), (a2, e2) = tables[i], tables[j]
+            if a1.shape == a2.shape and np.array_equal(a1, a2) and np.array_equal(e1, e2):
+                raise UserInputError(f"{paths[j]}: the same table as {paths[i]} (every angle and error equal); "
+                                     "give each calibration table once")
 
 
 def _plot_fit(fits, path, pole_pairs):

@@ -175,7 +175,8 @@ def read_observations(path, scn, *, epoch_utc: str | None = None):
     src = str(path)
     p = check_input_file(path, what="observation table")  # a FIFO or a device is not read
     try:
-        df = pd.read_csv(p, encoding="utf-8-sig")
+        # only an empty cell is missing: a literal "nan" or "NA" is kept as written, and named so
+        df = pd.read_csv(p, encoding="utf-8-sig", keep_default_na=False, na_values=[""])
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         raise UserInputError(f"{src}: not a readable CSV table ({str(exc).splitlines()[0]})") from None
     missing = [c for c in CSV_COLUMNS if c not in df.columns]
@@ -271,8 +272,9 @@ def check_observation_values(src: str, arr: dict, *, n_pixels: int) -> None:
     _, first, inverse, counts = np.unique(table, axis=0, return_index=True, return_inverse=True,
                                           return_counts=True)
     if np.any(counts > 1):
-        dup = int(np.flatnonzero(counts[np.ravel(inverse)] > 1)[1]) if counts.max() > 1 else 0
-        k = int(np.ravel(inverse)[dup])
+        inverse = np.ravel(inverse)
+        dup = int(np.flatnonzero(first[inverse] != np.arange(inverse.size))[0])  # the first later copy
+        k = int(inverse[dup])
         raise UserInputError(f"{src}: rows: row {dup + 2} repeats row {int(first[k]) + 2} "
                              f"({int((counts - 1).clip(0).sum())} duplicated row(s)); a repeated observation "
                              "is counted twice and overstates the stated precision: remove the duplicates")

@@ -13,6 +13,7 @@ import importlib
 
 import click
 
+from budget.arguments import checked_command
 from budget.runner.plan import has_knobs, plan_command_for
 from budget.runner.registry import entry, get_study, summary
 from budget.runner.robustness import robustness_command_for
@@ -46,7 +47,8 @@ def study_group(study_name: str) -> click.Group:
 
     #: the runner's commands of every study, built on first use; the study's own replace them
     generic = {"validate": lambda: validate_command_for(study_name),
-               "robustness": lambda: robustness_command_for(study_name), "plan": _plan}
+               "robustness": lambda: checked_command(robustness_command_for(study_name)),
+               "plan": lambda: checked_command(_plan())}
 
     class _Lazy(click.Group):
         def _load_own(self) -> None:

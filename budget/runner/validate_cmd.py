@@ -9,6 +9,7 @@ import sys
 
 import click
 
+from budget.arguments import checked_command
 from budget.runner import report, run  # their functions looked up when called (tests replace them)
 from budget.runner.executors import default_workers
 from budget.runner.findings import findings_lines
@@ -25,7 +26,7 @@ __all__ = ["ideal_world_scenario", "run_and_write", "validate_command_for"]
 
 def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
                   dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
-                  overwrite=False, truth_size="adaptive"):
+                  overwrite=False, truth_size="adaptive", inputs=()):
     """What ``validate`` does once its options are read: run the study through the runner,
     print the header and the table (then ``more_lines(result)``, if given: a study's own
     summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
@@ -37,7 +38,7 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     """
     if progress is None:
         progress = sys.stderr.isatty()
-    check_run_outputs(json_out=json_out, report_dir=report_dir, overwrite=overwrite)  # refused before the work
+    check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=inputs, overwrite=overwrite)  # before the work
     if workers is None and scheduler is None and dask_local is None:
         workers = default_workers()
     res = run.run_study(study, scenario, trials=trials, tolerance=tolerance, seed=seed, workers=workers,
@@ -103,6 +104,6 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
         run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
                       report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
-                      truth_size=truth_size)
+                      truth_size=truth_size, inputs=(scenario,))
 
-    return validate
+    return checked_command(validate)  # the option values checked as the API's arguments

@@ -30,6 +30,7 @@ from budget.starcam.estimators import attitude_error, low_spatial_frequency_erro
 from simcam.config_base import read_toml
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import ScenarioError
+from simcam.infra.outputs import check_run_outputs
 
 __all__ = ["BudgetCombination", "combine_budget", "format_budget", "load_budget_toml", "combine_command"]
 
@@ -235,6 +236,7 @@ def combine_command(file: Path, json_out: Path | None, tolerance_arcsec: float) 
         raise click.BadParameter("must be finite and >= 0", param_hint="--tolerance")
     if not file.is_file():
         raise FileNotFoundError(2, "No such file", str(file))
+    check_run_outputs(json_out=json_out, inputs=(file,))  # before the work: never over FILE (or a link to it)
     components, n_stars, given = load_budget_toml(file)
     result = combine_budget(components=components, n_stars=n_stars, given=given,
                             tolerance_arcsec=tolerance_arcsec)

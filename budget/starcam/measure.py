@@ -41,7 +41,8 @@ import pandas as pd
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import progress as progress_bar
-from simcam.infra.outputs import StagedOutputs, apply_umask, check_run_outputs, input_file_problem
+from simcam.infra.outputs import (CommandInputs, StagedOutputs, apply_umask, check_run_outputs, command_inputs,
+                                  input_file_problem)
 from simcam.starcam.scenario import ValidationModel
 from simcam.units import ARCSEC_PER_DEG
 
@@ -76,6 +77,12 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
         raise UserInputError(f"{path}: no rows")
     if m["file"].isna().any():
         raise UserInputError(f"{path}: row {int(np.flatnonzero(m['file'].isna())[0]) + 2}: empty file name")
+    if m.duplicated().any():  # the same frame twice would be measured twice
+        row = int(np.flatnonzero(m.duplicated())[0])
+        text = m.astype(str)  # NaN equal to NaN
+        first = int(np.flatnonzero((text == text.iloc[row]).all(axis=1))[0])
+        raise UserInputError(f"{path}: row {row + 2} repeats row {first + 2} ({m['file'].iloc[row]}); "
+                             "list each frame once")
     for c in ("dark", "frame", "filter_nm"):
         if c in m.columns:
             v = pd.to_numeric(m[c], errors="coerce")
@@ -104,6 +111,20 @@ def read_manifest(path: str | Path, *, protocol: str) -> pd.DataFrame:
     if "frame" not in m.columns:
         m["frame"] = m.groupby(["condition", "dark"]).cumcount()
     return m
+
+
+def dataset_inputs(protocol: str, directory: str | Path, *, manifest: str | Path | None = None,
+                   reference: str | Path | None = None, allow_outside: bool = False) -> CommandInputs:
+    """Every file ``measure`` reads: the manifest, each frame it lists (lit and dark) and the
+    reference table; no output may be one of them (:mod:`simcam.infra.outputs`). The manifest
+    is read and checked here (a bad one is refused before anything else)."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise UserInputError(f"{directory}: frame directory not found")
+    mpath = Path(manifest) if manifest else directory / "manifest.csv"
+    m = read_manifest(mpath, protocol=protocol)
+    _confine(m, directory, mpath, allow_outside=allow_outside)
+    return command_inputs(mpath, reference, [directory / str(f) for f in m["file"]])
 
 
 def _confine(m: pd.DataFrame, directory: Path, manifest, *, allow_outside: bool) -> None:
@@ -137,19 +158,100 @@ def _check_pixels(path, data: np.ndarray) -> None:
                                  f"{what}); mark bad pixels one by one, not whole lines")
 
 
-def _load(directory: Path, files) -> list[np.ndarray]:
+def _load(directory: Path, files, scale: dict) -> list[np.ndarray]:
+    """The frames ``files`` of ``directory``, checked: finite pixels, one shape, and one plate
+    scale (``scale`` holds the first frame's header ``PLTSCALE`` and file: frames of two
+    plate scales measured with one would scale every estimate wrongly)."""
     from simcam.io import read_frame
 
     out = []
     shape = None
     for f in files:
-        data, _ = read_frame(directory / f)
+        data, header = read_frame(directory / f)
         _check_pixels(directory / f, data)
         if shape is not None and data.shape != shape:
             raise UserInputError(f"{directory / f}: shape {data.shape} differs from the first frame's {shape}")
         shape = data.shape
+        _check_plate_scale(directory / f, header.get("PLTSCALE"), scale)
         out.append(data)
     return out
+
+
+def _check_plate_scale(path: Path, value, scale: dict) -> None:
+    """Refuse a frame whose header ``PLTSCALE`` differs from the first frame's that has one."""
+    if value is None:
+        return
+    if "value" not in scale:
+        scale.update(value=value, file=path)
+    elif value != scale["value"]:
+        raise UserInputError(f"{path}: header PLTSCALE = {value!r} differs from {scale['file']}'s "
+                             f"{scale['value']!r}; the frames of one dataset have one plate scale")
+
+
+def _read_reference(reference) -> pd.DataFrame:
+    """The distortion protocol's ``--reference`` table (star, x_ref, y_ref; finite positions)."""
+    if reference is None:
+        raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
+    rp = Path(reference)
+    from simcam.infra.outputs import input_file_problem
+
+    if (why := input_file_problem(rp)) is not None:
+        raise UserInputError(f"--reference {rp}: {why}")
+    if not rp.is_file():
+        raise UserInputError(f"{rp}: reference file not found")
+    try:
+        ref_table = pd.read_csv(rp, encoding="utf-8")
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+        raise UserInputError(f"{rp}: not a readable CSV table ({str(exc).splitlines()[0] if str(exc) else ''})") from None
+    miss = [c for c in ("star", "x_ref", "y_ref") if c not in ref_table.columns]
+    if miss:
+        raise UserInputError(f"{rp}: missing column(s) {', '.join(miss)}")
+    for c in ("x_ref", "y_ref"):
+        v = pd.to_numeric(ref_table[c], errors="coerce")
+        if not np.isfinite(v.to_numpy(float)).all():
+            row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
+            raw = ref_table[c].iloc[row]
+            got = "an empty cell" if pd.isna(raw) else repr(str(raw))
+            raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
+        ref_table[c] = v
+    return ref_table
+
+
+def _method_options(method: str, weight_sigma_px) -> dict:
+    """The centroid method's own options: IWCoG needs the PSF's Gaussian sigma."""
+    if method != "iwcog":
+        return {}
+    if weight_sigma_px is None:
+        raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
+    return {"weight_sigma_px": float(weight_sigma_px)}
+
+
+def _check_condition_count(mpath, protocol: str, conditions: list) -> None:
+    """TE and distortion take one condition, HSFE at least two (hexapod poses)."""
+    if protocol in ("te", "distortion") and len(conditions) != 1:
+        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
+    if protocol == "hsfe" and len(conditions) < 2:
+        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
+
+
+def _adc_max(path, header) -> int | None:
+    """The ADC's largest value from the frame's ``BITDEPTH`` keyword (None without one)."""
+    try:
+        return 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
+    except (TypeError, ValueError, OverflowError):
+        raise UserInputError(f"{path}: header BITDEPTH = {header['BITDEPTH']!r} is not a number of bits") from None
+
+
+def _check_condition_rows(mpath, cond, rows: pd.DataFrame) -> None:
+    """A condition has at least 2 lit frames, each frame number once."""
+    if len(rows) < 2:
+        raise UserInputError(f"{mpath}: condition {cond}: {len(rows)} frame(s) "
+                             f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
+    if rows["frame"].duplicated().any():
+        dup = rows[rows["frame"].duplicated(keep=False)]
+        raise UserInputError(f"{mpath}: condition {cond}: frame {int(dup['frame'].iloc[0])} listed twice (rows "
+                             f"{', '.join(str(int(i) + 2) for i in dup.index[:2])}: "
+                             f"{', '.join(map(str, dup['file'].iloc[:2]))})")
 
 
 @contextmanager
@@ -202,64 +304,29 @@ def measure_frames(
     directory = Path(directory)
     if not directory.is_dir():
         raise UserInputError(f"{directory}: frame directory not found")
-    method_options = {}
-    if method == "iwcog":
-        if weight_sigma_px is None:
-            raise UserInputError("--method iwcog needs --weight-sigma-px (the PSF's Gaussian sigma, px)")
-        method_options["weight_sigma_px"] = float(weight_sigma_px)
-    m = read_manifest(manifest or directory / "manifest.csv", protocol=protocol)
-    _confine(m, directory, manifest or directory / "manifest.csv", allow_outside=allow_outside)
+    method_options = _method_options(method, weight_sigma_px)
+    mpath = manifest or directory / "manifest.csv"
+    m = read_manifest(mpath, protocol=protocol)
+    _confine(m, directory, mpath, allow_outside=allow_outside)
     lit = m[m["dark"] == 0]
     conditions = sorted(lit["condition"].dropna().unique().tolist())
-    mpath = manifest or directory / "manifest.csv"
-    if protocol in ("te", "distortion") and len(conditions) != 1:
-        raise UserInputError(f"{mpath}: {protocol}: expected one condition, the manifest has {len(conditions)}")
-    if protocol == "hsfe" and len(conditions) < 2:
-        raise UserInputError(f"{mpath}: hsfe: needs at least 2 conditions (hexapod poses), the manifest has {len(conditions)}")
+    _check_condition_count(mpath, protocol, conditions)
     _, header = read_frame(directory / lit["file"].iloc[0])
-    try:
-        adc_max = 2 ** int(header["BITDEPTH"]) - 1 if "BITDEPTH" in header else None
-    except (TypeError, ValueError, OverflowError):
-        raise UserInputError(f"{directory / lit['file'].iloc[0]}: header BITDEPTH = {header['BITDEPTH']!r} "
-                             "is not a number of bits") from None
+    adc_max = _adc_max(directory / lit["file"].iloc[0], header)
     ref_table = None
     ref_xy_by_field: dict = {}
     if protocol == "distortion":
-        if reference is None:
-            raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
-        rp = Path(reference)
-        if (why := input_file_problem(rp)) is not None:
-            raise UserInputError(f"--reference {rp}: {why}")
-        if not rp.is_file():
-            raise UserInputError(f"{rp}: reference file not found")
-        try:
-            ref_table = pd.read_csv(rp, encoding="utf-8")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-            raise UserInputError(f"{rp}: not a readable CSV table ({str(exc).splitlines()[0] if str(exc) else ''})") from None
-        miss = [c for c in ("star", "x_ref", "y_ref") if c not in ref_table.columns]
-        if miss:
-            raise UserInputError(f"{rp}: missing column(s) {', '.join(miss)}")
-        for c in ("x_ref", "y_ref"):
-            v = pd.to_numeric(ref_table[c], errors="coerce")
-            if not np.isfinite(v.to_numpy(float)).all():
-                row = int(np.flatnonzero(~np.isfinite(v.to_numpy(float)))[0])
-                raw = ref_table[c].iloc[row]
-                got = "an empty cell" if pd.isna(raw) else repr(str(raw))
-                raise UserInputError(f"{rp}: row {row + 2}: {c} must be a finite number, got {got}")
-            ref_table[c] = v
+        ref_table = _read_reference(reference)
     tables = []
     prev_xy = None
+    scale: dict = {}  # the first header PLTSCALE and its file: every frame must have the same
     bar = progress_bar(total=len(m), desc="frames", unit="frame", enabled=progress)
     for cond in conditions:
         rows = lit[lit["condition"] == cond].sort_values("frame")
-        if len(rows) < 2:
-            raise UserInputError(f"{manifest or directory / 'manifest.csv'}: condition {cond}: {len(rows)} frame(s) "
-                                 f"({', '.join(map(str, rows['file']))}); at least 2 are needed")
-        if rows["frame"].duplicated().any():
-            raise UserInputError(f"condition {cond}: frame {int(rows['frame'][rows['frame'].duplicated()].iloc[0])} listed twice")
-        frames = _load(directory, rows["file"])
+        _check_condition_rows(mpath, cond, rows)
+        frames = _load(directory, rows["file"], scale)
         darks = m[(m["dark"] == 1) & ((m["condition"] == cond) | m["condition"].isna())]
-        dark = np.mean(_load(directory, darks["file"]), axis=0) if len(darks) else None
+        dark = np.mean(_load(directory, darks["file"], scale), axis=0) if len(darks) else None
         stack = np.mean(np.asarray(frames, dtype=np.float64), axis=0)
         first = subtract_dark(stack, dark=dark) if dark is not None else stack
         field = str(rows["field"].iloc[0]) if "field" in rows.columns and protocol == "chromatic" else ""
@@ -352,10 +419,10 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
 
     if window_px % 2 == 0:
         raise UserInputError(f"--window {window_px}: must be odd")
-    # before any frame is read: the outputs are files (not a device), not an input, in a
-    # writable folder
-    check_run_outputs(json_out=json_out, files={"--centroids": centroids_out},
-                      inputs=(manifest, reference, Path(directory) / "manifest.csv"))
+    # before any frame is read: the outputs are files (not a device), none of the inputs (the
+    # manifest, the frames it lists, the reference), in a writable folder
+    inputs = dataset_inputs(protocol, directory, manifest=manifest, reference=reference, allow_outside=allow_outside)
+    check_run_outputs(json_out=json_out, files={"--centroids": centroids_out}, inputs=inputs)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         cen, ref, info = measure_frames(protocol, directory, manifest=manifest, reference=reference, method=method,

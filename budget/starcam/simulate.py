@@ -19,18 +19,20 @@ import simcam
 from budget.starcam.protocols import PROTOCOL_STREAM, PROTOCOLS, make_plan, reference_table
 from simcam.infra.cli import overwrite_option, write_json_atomic
 from simcam.infra.lifecycle import progress as progress_bar
+from simcam.infra.outputs import check_run_outputs
 from simcam.starcam.scenario import load, scenario_to_toml
 from simcam.starcam.targets import calibration_grid, star_grid
 
 
 def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path, dark_frames: int = 0,
                           frames: int | None = None, overwrite: bool = False, compress: bool = False,
-                          progress: bool = False, source: str = "<embedded scenario>") -> pd.DataFrame:
+                          progress: bool = False, source: str = "<embedded scenario>", inputs=()) -> pd.DataFrame:
     """Render the plan of ``protocol`` to FITS frames in ``out``; return the manifest.
 
     The request is checked against the memory and the free disk before any work, and a
     large output is announced on stderr (:func:`simcam.io.check_render_request`);
-    ``compress`` writes Rice tile-compressed frames (lossless).
+    ``compress`` writes Rice tile-compressed frames (lossless); ``out`` never holds one of
+    ``inputs`` (the scenario file).
     """
     from simcam import io
     from simcam.starcam.render import Placement, StarCamera
@@ -46,7 +48,7 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
     # the world's hexapod pose errors and target drift (simcam.starcam.world): in the
     # frames, not in the plan or the headers (which hold what the lab commanded)
     motion = cam.world_motion(seed)
-    with io.atomic_directory(out, overwrite=overwrite) as tmp:
+    with io.atomic_directory(out, overwrite=overwrite, inputs=inputs) as tmp:
         for c in plan.conditions:
             lay = calibration_grid(scenario) if c.target == "calibration_grid" else star_grid(scenario, center_px=c.field_center_px)
             stream = 1000 * PROTOCOL_STREAM[protocol] + c.index
@@ -116,10 +118,11 @@ def write_protocol_frames(protocol: str, scenario, *, seed: int, out: str | Path
 def simulate_command(protocol, scenario, seed, frames, dark_frames, out, overwrite, json_out, compress,
                      progress) -> None:
     """Write a simulated lab dataset of PROTOCOL (FITS + manifest) for `budget starcam measure`."""
+    check_run_outputs(json_out=json_out, inputs=(scenario,))  # before the frames: never over the scenario
     scn = load(scenario)
     m = write_protocol_frames(protocol, scn, seed=seed, out=out, dark_frames=dark_frames, frames=frames,
                               overwrite=overwrite, compress=compress, progress=progress,
-                              source=str(scenario or "<embedded scenario>"))
+                              source=str(scenario or "<embedded scenario>"), inputs=(scenario,))
     if json_out:
         write_json_atomic(json_out, {
             "protocol": protocol, "out": str(out), "frames": int(len(m)),

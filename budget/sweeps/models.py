@@ -196,4 +196,19 @@ def parse_sweep(text: str, *, source: str) -> SweepSpec:
         raise ScenarioError(f"{source}: kind = {kind!r} is a former name: write kind = {renamed(kind)!r}")
     if isinstance(kind, str) and kind not in known.split(", "):
         raise ScenarioError(f"{source}: kind: {kind!r} is not a registered study ({known})")
-    return validate_model(SweepSpec, data, source=source)
+    spec = validate_model(SweepSpec, data, source=source)
+    _check_fixed_not_varied(spec, source=source)
+    return spec
+
+
+def _check_fixed_not_varied(spec: SweepSpec, *, source: str) -> None:
+    """Refuse a field both in ``[fixed]`` and varied (``[parameters]``, ``[sensitivity.parameters]``),
+    itself or through a table holding it: the varied values would silently replace the fixed one."""
+    varied = [("parameters", k) for k in spec.parameters]
+    if spec.sensitivity is not None:
+        varied += [("sensitivity.parameters", k) for k in spec.sensitivity.parameters]
+    for fixed in spec.fixed:
+        for table, key in varied:
+            if key == fixed or key.startswith(fixed + ".") or fixed.startswith(key + "."):
+                raise ScenarioError(f"{source}: {table}: {key!r} is also in [fixed] ({fixed!r} = "
+                                    f"{spec.fixed[fixed]!r}); a field is either fixed or varied: remove one")

@@ -481,6 +481,11 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     import matplotlib
 
     matplotlib.use("Agg")
+    from budget.sweeps.store import open_sweep
+    from simcam.infra.outputs import naming_failed_writes
+
+    if precision is not None and not (math.isfinite(precision) and precision > 0):
+        raise UserInputError(f"--precision {precision}: must be a finite number > 0 (a relative spread, e.g. 0.1)")
     ds = open_sweep(store)
     out_dir = Path(out_dir)
     files: list[Path] = []
@@ -498,12 +503,13 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
         raise UserInputError(f"{store}: no point of the sweep is done yet; run `budget sweep` into it first")
     # the folder is checked before, and created only when a figure is drawn; a failure
     # removes a folder this call created (no empty plots folder left behind)
-    check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite)
+    check_output_dir(out_dir, option="--out", replaceable=is_earlier_plots, overwrite=overwrite, inputs=(store,))
     created = not out_dir.exists()
     try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
-        _write_page(ds, files, out_dir)
+        with naming_failed_writes(out_dir, option="--out"):  # the disk filled: name the figure
+            out_dir.mkdir(parents=True, exist_ok=True)
+            files = [f for a in ax_names for f in _draw(ds, sob, a, variant, precision, out_dir)]
+            _write_page(ds, files, out_dir)
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)

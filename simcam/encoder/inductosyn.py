@@ -174,7 +174,7 @@ class PitchHarmonic(StrictModel):
 
     domain: Literal["mechanical", "electrical"]
     order: int = Field(ge=1)
-    amplitude_arcsec: float = Field(ge=0)
+    amplitude_arcsec: float = Field(ge=0, le=3600, description="at most 1 deg: a scale's pitch error")
     phase_deg: float = 0.0
 
 
@@ -190,7 +190,7 @@ class InductosynParams(StrictModel):
 
     pole_pairs: int = Field(360, ge=1, le=100000)
     resolution_deg: float = Field(0.0001, ge=0, lt=1)
-    reading_noise_arcsec: float = Field(0.0, ge=0)
+    reading_noise_arcsec: float = Field(0.0, ge=0, le=3600, description="at most 1 deg, 10 pole pitches of the scale")
     mechanical: MechanicalErrors = MechanicalErrors()
     electrical: ElectricalErrors = ElectricalErrors()
     pitch_harmonics: tuple[PitchHarmonic, ...] = ()
@@ -203,11 +203,11 @@ class DriftParams(StrictModel):
     from 2.7 to 5.4 arcsec (3 sigma). Each parameter moves by a normal draw of this size.
     """
 
-    offset_std: float = Field(0.0, ge=0)
-    imbalance_std: float = Field(0.0, ge=0)
-    quadrature_std_deg: float = Field(0.0, ge=0)
-    eccentricity_std_um: float = Field(0.0, ge=0)
-    ellipticity_std_ppm: float = Field(0.0, ge=0)
+    offset_std: float = Field(0.0, ge=0, le=0.4, description="at most the offsets' own range (0.4)")
+    imbalance_std: float = Field(0.0, ge=0, le=0.5, description="at most the imbalances' own range (0.5)")
+    quadrature_std_deg: float = Field(0.0, ge=0, le=20, description="at most the quadrature error's range (20 deg)")
+    eccentricity_std_um: float = Field(0.0, ge=0, le=1e4, description="at most 1 cm: a scale's centring")
+    ellipticity_std_ppm: float = Field(0.0, ge=0, le=1e5, description="at most the ellipticity's range (1e5 ppm)")
 
 
 class PolygonParams(StrictModel):
@@ -222,15 +222,15 @@ class PolygonParams(StrictModel):
     """
 
     faces: int = Field(ge=3, le=720)
-    face_error_arcsec: float = Field(0.0, ge=0)
+    face_error_arcsec: float = Field(0.0, ge=0, le=3600, description="at most 1 deg: a polygon face's angle")
     mount_offset_arcsec: float = 0.0
 
 
 class AutocollimatorParams(StrictModel):
     """Autocollimator: 1-sigma noise and reading resolution (0 = continuous)."""
 
-    noise_arcsec: float = Field(0.0, ge=0)
-    resolution_arcsec: float = Field(0.0, ge=0)
+    noise_arcsec: float = Field(0.0, ge=0, le=3600, description="at most 1 deg, beyond an autocollimator's field")
+    resolution_arcsec: float = Field(0.0, ge=0, le=3600, description="at most 1 deg, as noise_arcsec")
 
 
 class CalibrationParams(StrictModel):
@@ -278,30 +278,32 @@ class InductosynEffects(EffectsBase):
     (the rig: :func:`~simcam.encoder.polygon.world_alpha_arcsec`) and
     :func:`world_encoder_params` (the encoder). How each differs from the lab-known fields
     (``calibration.*.face_error_arcsec``, ``calibration.autocollimator.noise_arcsec``,
-    ``encoder.pitch_harmonics``, ``drift``) is in docs/inductosyn.md, "World effects".
+    ``encoder.pitch_harmonics``, ``drift``) is in docs/inductosyn.md, "World effects". The
+    ranges beside the fields: angles at most 1 deg (3600 arcsec; the rig's small-angle
+    models, a hundred times the sourced sizes and more), the polygon's centring at most 1 cm.
     """
 
     polygon_face_error_arcsec: float = Field(
         0.05, ge=0, description="residual face-angle error of THE polygon after its certificate correction, 1 sigma "
         "per face, closure sum = 0, the same in every calibration: NMI polygon uncertainties 0.02-0.1 arcsec "
-        "(EUROMET project 371 comparison; Estler, J. Res. NIST 103:141, 1998)")
+        "(EUROMET project 371 comparison; Estler, J. Res. NIST 103:141, 1998)", le=3600)
     autocollimator_drift_arcsec_per_sqrt_h: float = Field(
         0.05, ge=0, description="autocollimator zero drift, random walk, rms change after 1 h: 0.02-0.1 arcsec/h "
-        "for an electronic autocollimator in a laboratory (EURAMET cg-22, 2017; engineering estimate)")
+        "for an electronic autocollimator in a laboratory (EURAMET cg-22, 2017; engineering estimate)", le=3600)
     polygon_eccentricity_um: float = Field(
         20.0, ge=0, description="centring of the polygon on its adapter, 10-50 um, remounted each calibration: a "
         "translation leaves a flat face's reading unchanged, a face's curvature turns it into beam walk "
-        "<= 0.01-0.03 arcsec (geometry; engineering estimate)")
+        "<= 0.01-0.03 arcsec (geometry; engineering estimate)", le=1e4)
     polygon_tilt_arcsec: float = Field(
         20.0, ge=0, description="tilt of the polygon's axis to the axis of rotation, remounted each calibration; "
         "with the faces' pyramidal errors (world.pyramidal_error_arcsec) it gives -tau gamma_i cos(theta_i - phi) "
-        "(small-angle rotation of the face normal; tau = 20 arcsec, gamma = 5 arcsec: 2.4e-9 rad)")
+        "(small-angle rotation of the face normal; tau = 20 arcsec, gamma = 5 arcsec: 2.4e-9 rad)", le=3600)
     electrical_harmonic_3_arcsec: float = Field(
         0.5, ge=0, description="3rd electrical harmonic of the reading error, outside the published eq 8 orders: "
         "resolver/inductosyn signal harmonics give 3rd/4th electrical errors of 0.3-2 arcsec (Kuntz et al., "
-        "arXiv:2205.08472; HEIDENHAIN, Position Encoders for Servo Drives, interpolation error)")
+        "arXiv:2205.08472; HEIDENHAIN, Position Encoders for Servo Drives, interpolation error)", le=3600)
     nonharmonic_arcsec: float = Field(
-        0.3, ge=0, description="rms of an irregular pitch error of the scale, mechanical orders 3 to "
+        0.3, ge=0, le=3600, description="rms of an irregular pitch error of the scale, mechanical orders 3 to "
         "world.nonharmonic_max_order with 1/m amplitudes: graduation errors not periodic in a fitted order "
         "(HEIDENHAIN, Position Encoders for Servo Drives, position error within one revolution; engineering "
         "estimate)")
@@ -309,7 +311,7 @@ class InductosynEffects(EffectsBase):
         0.05, ge=0, description="random walk of each fitted harmonic coefficient (mechanical 1-2, electrical 1-2) "
         "during the calibration, rms change after 1 h: seed 001 sec. 4.3 gives 1.1 arcsec per coefficient "
         "after temperature cycling over tens of K; a lab holding +-1 K over a few hours gives a few percent of "
-        "that (engineering estimate)")
+        "that (engineering estimate)", le=3600)
 
 
 class InductosynWorld(WorldBase):
@@ -332,7 +334,7 @@ class InductosynWorld(WorldBase):
     """
 
     effects: InductosynEffects = InductosynEffects()
-    pyramidal_error_arcsec: float = Field(5.0, ge=0)
+    pyramidal_error_arcsec: float = Field(5.0, ge=0, le=3600, description="at most 1 deg: the small-angle model")
     face_curvature_arcsec_per_mm: float = Field(0.5, ge=0)
     nonharmonic_max_order: int = Field(72, ge=3, le=2000)
     instrument_seed: int = Field(1, ge=0)

@@ -7,19 +7,23 @@ and exits with status 2, without a traceback.
 
 from __future__ import annotations
 
-import errno
+import io
 import json
 import math
 import os
+import stat
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import click
 
 from simcam.infra.errors import Interrupted, ScenarioError, UserInputError
 from simcam.infra.lifecycle import handle_termination
-from simcam.infra.outputs import apply_umask, check_output_file, os_error_message
+from simcam.infra.outputs import (JSON_TEMPORARY_NAME_BYTES, WRITE_ERRNOS, apply_umask, check_output_file,
+                                  os_error_message)
 
 
 def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
@@ -31,7 +35,7 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     A request that does not fit in memory is one ``error:`` line and status 2.
     """
     try:
-        with handle_termination():
+        with handle_termination(), _stdout_reader_may_leave():
             group.main(args=argv, standalone_mode=False)
     except Interrupted as exc:
         click.echo(f"interrupted ({exc.name})", err=True)
@@ -71,8 +75,78 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
 
 
 #: errors of a write that are the machine's state, not a bug: reported as one line
-_USER_ERRNOS = frozenset(getattr(errno, n) for n in ("ENOSPC", "EROFS", "ENAMETOOLONG", "ENOTDIR", "EACCES",
-                                                     "EPERM", "EDQUOT", "EISDIR", "EFBIG") if hasattr(errno, n))
+_USER_ERRNOS = WRITE_ERRNOS
+
+
+class _PipeStdout(io.TextIOBase):
+    """``sys.stdout`` on a pipe whose reader may leave (``| head -1``): once it has, the rest of
+    the text goes to ``/dev/null`` (the command's outputs are still written, nothing is said)."""
+
+    def __init__(self, stream, fd: int):
+        super().__init__()
+        self._stream, self._fd = stream, fd
+
+    def _gone(self) -> None:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, self._fd)  # the buffered text, and what follows, go nowhere
+        os.close(devnull)
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+            self._stream.flush()
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def writable(self) -> bool:
+        return True
+
+    def isatty(self) -> bool:
+        return False
+
+    @property
+    def encoding(self) -> str:
+        return self._stream.encoding
+
+    @property
+    def errors(self) -> str | None:
+        return self._stream.errors
+
+
+@contextmanager
+def _stdout_reader_may_leave() -> Iterator[None]:
+    """Where stdout is a pipe or a socket, a reader that leaves early (``budget ... validate --json
+    v.json | head -1``) ends the printing, not the command: its files are written and it exits
+    as it would have, without a word (was: exit 1, no JSON)."""
+    out = sys.stdout
+    try:
+        fd = out.fileno()
+        mode = os.fstat(fd).st_mode
+    except (AttributeError, OSError, ValueError):  # a StringIO (tests), a closed stdout
+        yield
+        return
+    if not (stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)):
+        yield
+        return
+    sys.stdout = _PipeStdout(out, fd)
+    try:
+        yield
+    finally:
+        sys.stdout = out
+        try:
+            out.flush()
+        except BrokenPipeError:
+            _PipeStdout(out, fd)._gone()
 
 
 def _error_lines(text: str) -> None:
@@ -90,7 +164,7 @@ def write_json_atomic(path: str | os.PathLike, payload: Any, *, option: str = "-
     the device); a link to a regular file is written through, so it stays a link. A
     failed write (disk full) is a :class:`UserInputError` naming the file.
     """
-    path = check_output_file(path, option=option)
+    path = check_output_file(path, option=option, temp_bytes=JSON_TEMPORARY_NAME_BYTES)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:

@@ -5,6 +5,10 @@ The rules (docs/reliability.md):
 * an output is a regular file or a folder that the command creates or was told to
   overwrite, never a device, a FIFO or a socket (an atomic rename over ``/dev/null``
   would replace the device node), and never the same file as one of the command's inputs;
+* the inputs are sacred: every file a command reads (its scenario, tables, a manifest and
+  the frames it lists) is compared by its real path (symbolic links followed) with every
+  output before any work (:class:`CommandInputs`); an output that is an input, or a folder
+  that holds one, is refused, with or without ``--overwrite``;
 * its location is checked before any work: the parent is a folder (not a file), it is
   writable, the file system is not read-only, the name fits the file system's limit, and
   there is room for the estimated size;
@@ -26,6 +30,7 @@ import signal
 import stat
 import tempfile
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -33,8 +38,9 @@ from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import check_disk, partial_prefix, remove_stale_partials
 
 __all__ = [
-    "StagedOutputs", "apply_umask", "check_input_file", "check_output_dir", "check_output_file",
-    "file_kind", "os_error_message", "umask",
+    "CommandInputs", "StagedOutputs", "apply_umask", "check_distinct_inputs", "check_input_file",
+    "check_output_dir", "check_output_file", "command_inputs", "failed_write", "file_kind", "naming_failed_writes",
+    "os_error_message", "umask",
 ]
 
 
@@ -102,14 +108,100 @@ def check_input_file(path: str | os.PathLike, *, what: str = "file") -> Path:
     return p
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
+def _places(path: str | os.PathLike) -> tuple[str, str]:
+    """Where ``path`` is: its absolute path as given and its real path (links followed)."""
+    return os.path.abspath(path), os.path.realpath(path)
 
 
-def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
+@dataclass(frozen=True)
+class CommandInputs:
+    """The files a command reads, each as given and where it really is.
+
+    Attributes
+    ----------
+    given : tuple of str
+        The inputs as the user (or the command) named them.
+    places : tuple of tuple of str
+        For each input its absolute path and its real path (symbolic links followed), so
+        that an input reached through a link, or a link inside a folder, is recognised.
+    """
+
+    given: tuple[str, ...] = ()
+    places: tuple[tuple[str, str], ...] = ()
+
+    def same_as(self, path: str | os.PathLike) -> str | None:
+        """The input (as given) that ``path`` is, by real path or as the same file (a hard
+        link), or None."""
+        real = os.path.realpath(path)
+        for src, (_, src_real) in zip(self.given, self.places):
+            if real == src_real:
+                return src
+            try:
+                if os.path.samefile(path, src_real):
+                    return src
+            except OSError:
+                pass
+        return None
+
+    def inside(self, folder: str | os.PathLike) -> str | None:
+        """The input (as given) that is ``folder`` or lies inside it (as given or by real
+        path), or None: replacing the folder would delete it."""
+        roots = {os.path.join(r, "") for r in _places(folder)}
+        for src, places in zip(self.given, self.places):
+            if any(os.path.join(p, "").startswith(root) for p in places for root in roots):
+                return src
+        return None
+
+
+def command_inputs(*inputs) -> CommandInputs:
+    """The :class:`CommandInputs` of ``inputs``: paths, None (skipped), iterables of paths
+    (a manifest's frames) or other :class:`CommandInputs`, in order, each once."""
+    given: list[str] = []
+    places: list[tuple[str, str]] = []
+
+    def add(item) -> None:
+        if item is None:
+            return
+        if isinstance(item, CommandInputs):
+            pairs = zip(item.given, item.places)
+        elif isinstance(item, (str, bytes, os.PathLike)):
+            pairs = [(os.fsdecode(item), _places(item))]
+        else:
+            for sub in item:
+                add(sub)
+            return
+        for g, p in pairs:
+            if p not in places:
+                given.append(g)
+                places.append(p)
+
+    for item in inputs:
+        add(item)
+    return CommandInputs(tuple(given), tuple(places))
+
+
+def check_distinct_inputs(paths: Iterable, *, what: str = "input") -> None:
+    """Refuse one file given twice (also through a link or a hard link): a table counted twice
+    would shrink the stated uncertainties by sqrt(2)."""
+    seen = command_inputs()
+    for path in paths:
+        if (first := seen.same_as(path)) is not None:
+            via = "" if os.fspath(first) == os.fspath(path) else f" ({path} is {first})"
+            raise UserInputError(f"{path}: the same {what} given twice{via}; give each once")
+        seen = command_inputs(seen, path)
+
+
+#: how much longer than an output's name the name of its temporary sibling may be: a
+#: staged output is ``.NAME.partial.<pid>.<random>`` (:func:`simcam.infra.lifecycle.partial_prefix`,
+#: a PID of up to 7 digits, ``mkstemp``'s 8 random characters: 26 bytes more), and a JSON file
+#: is written there through ``write_json_atomic``'s own ``.STAGED.<random>`` (10 more)
+STAGED_NAME_BYTES = len(".") + len(".partial.") + 7 + len(".") + 8
+#: the same for a file written directly by ``write_json_atomic`` (``.NAME.<random>``)
+JSON_TEMPORARY_NAME_BYTES = len("..") + 8
+TEMPORARY_NAME_BYTES = STAGED_NAME_BYTES + JSON_TEMPORARY_NAME_BYTES
+
+
+def _check_location(p: Path, *, option: str, need_bytes: float, temp_bytes: int = TEMPORARY_NAME_BYTES) -> None:
     """Parent is a folder, writable, on a writable file system; name short enough; space."""
     # the nearest existing ancestor must be a folder (a path under a regular file is refused)
     anc = p.absolute().parent
@@ -121,10 +213,17 @@ def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
         name_max = os.pathconf(anc, "PC_NAME_MAX")
     except (OSError, ValueError):
         name_max = 255
-    for part in p.absolute().parts[len(anc.parts):]:
-        if len(os.fsencode(part)) > name_max:
-            raise UserInputError(f"{option} {p}: the name {part[:40]}... has {len(os.fsencode(part))} bytes; "
+    parts = p.absolute().parts[len(anc.parts):]
+    for i, part in enumerate(parts):
+        size = len(os.fsencode(part))
+        if size > name_max:
+            raise UserInputError(f"{option} {p}: the name {part[:40]}... has {size} bytes; "
                                  f"this file system allows at most {name_max}")
+        if i == len(parts) - 1 and size + temp_bytes > name_max:
+            # the output is written first under a longer temporary name beside it
+            raise UserInputError(f"{option} {p}: the name {part[:40]}... has {size} bytes; it is written first "
+                                 f"under a temporary name up to {temp_bytes} bytes longer, and this file system "
+                                 f"allows at most {name_max}: give a name of at most {name_max - temp_bytes} bytes")
     try:
         vfs = os.statvfs(anc)
         read_only = bool(vfs.f_flag & os.ST_RDONLY)
@@ -139,13 +238,14 @@ def _check_location(p: Path, *, option: str, need_bytes: float) -> None:
 
 
 def check_output_file(path: str | os.PathLike, *, option: str = "--json", inputs: Iterable = (),
-                      need_bytes: float = 0.0) -> Path:
+                      need_bytes: float = 0.0, temp_bytes: int = TEMPORARY_NAME_BYTES) -> Path:
     """Check, before the work, that ``path`` can take a file output. Returns the path to
     write (a symbolic link to a regular file is followed, so the link stays a link).
 
     Refused: a device, FIFO or socket (also through a link), a folder, a link to a
-    folder, one of ``inputs`` (same file), a parent that is a file, not writable or
-    read-only, a name longer than the file system allows, too little free space.
+    folder, one of ``inputs`` (paths or :class:`CommandInputs`; the same file by real path,
+    links followed), a parent that is a file, not writable or read-only, a name longer than
+    the file system allows (with its temporary name, ``temp_bytes`` longer), too little free space.
     """
     p = Path(path)
     target = p
@@ -163,10 +263,9 @@ def check_output_file(path: str | os.PathLike, *, option: str = "--json", inputs
                                      "to regular files")
         if p.is_symlink():
             target = Path(os.path.realpath(p))
-    for src in inputs:
-        if src is not None and os.path.lexists(p) and _same_file(p, Path(src)):
-            raise UserInputError(f"{option} {p}: is an input of this command ({src}); give another name")
-    _check_location(target, option=option, need_bytes=need_bytes)
+    if (src := command_inputs(inputs).same_as(p)) is not None:
+        raise UserInputError(f"{option} {p}: is an input of this command ({src}); give another name")
+    _check_location(target, option=option, need_bytes=need_bytes, temp_bytes=temp_bytes)
     return target
 
 
@@ -177,9 +276,10 @@ def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: 
     The one rule of every command that writes a folder: an existing folder is used only
     when it is empty, is an earlier output of the same kind (``replaceable(path)``, e.g.
     :func:`is_earlier_report`), or the user gave ``--overwrite`` (``overwrite=True``).
-    Refused otherwise, naming ``--overwrite``; refused always: an existing file or device,
-    an input of the command (or a folder holding one), and the location checks of
-    :func:`check_output_file`.
+    Refused otherwise, naming ``--overwrite``; refused always (``--overwrite`` never deletes
+    an input): an existing file or device, an input of the command or a folder holding one
+    (``inputs`` as for :func:`check_output_file`; as given and by real path), and the
+    location checks of :func:`check_output_file`.
     """
     p = Path(path)
     if os.path.lexists(p):
@@ -191,18 +291,54 @@ def check_output_dir(path: str | os.PathLike, *, option: str = "--out", inputs: 
             raise UserInputError(f"{option} {p}: is {file_kind(st.st_mode)}, not a folder")
         if p.is_symlink():
             raise UserInputError(f"{option} {p}: is a symbolic link; give the folder itself")
+        # before the --overwrite rule: replacing the folder would delete the input, with or without it
+        if (src := command_inputs(inputs).inside(p)) is not None:
+            what = "is" if command_inputs(src).same_as(p) else "holds"
+            raise UserInputError(f"{option} {p}: {what} an input of this command ({src}); give another folder")
         if (st is not None and not overwrite and any(p.iterdir())
                 and not (replaceable is not None and replaceable(p))):
             raise UserInputError(f"{option} {p}: exists, is not empty and is not an earlier output of this "
                                  "command; give a new folder, or add --overwrite to replace it")
-        for src in inputs:
-            if src is None:
-                continue
-            s = os.path.realpath(src)
-            if s == os.path.realpath(p) or s.startswith(os.path.realpath(p) + os.sep):
-                raise UserInputError(f"{option} {p}: holds an input of this command ({src}); give another folder")
-    _check_location(p, option=option, need_bytes=need_bytes)
+    _check_location(p, option=option, need_bytes=need_bytes, temp_bytes=STAGED_NAME_BYTES)
     return p
+
+
+#: errors of a write that are the machine's state, not a bug: reported as one line naming the file
+WRITE_ERRNOS = frozenset(getattr(errno, n) for n in ("ENOSPC", "EROFS", "ENAMETOOLONG", "ENOTDIR", "EACCES",
+                                                     "EPERM", "EDQUOT", "EISDIR", "EFBIG") if hasattr(errno, n))
+
+
+def failed_write(exc: BaseException, final: str | os.PathLike, *, tmp: str | os.PathLike | None = None,
+                 option: str | None = None) -> UserInputError | None:
+    """The one-line error of a write into ``final`` that failed for the machine's state
+    (``WRITE_ERRNOS``: the disk full, a read-only file system ...), naming the file: the
+    error's own file name (inside the temporary ``tmp`` it is written to, the name it would
+    have had under ``final``), else ``final`` itself (a write to an open file names none).
+    None for any other exception."""
+    if not isinstance(exc, OSError) or exc.errno not in WRITE_ERRNOS:
+        return None
+    where = os.fsdecode(exc.filename) if exc.filename else str(final)
+    if tmp is not None and exc.filename:
+        t = os.fspath(tmp)
+        if where == t or where.startswith(t + os.sep):
+            where = str(final) + where[len(t):]
+    lead = f"{option} " if option and where == str(final) else ""
+    return UserInputError(f"{lead}{where}: {os_error_message(exc)}")
+
+
+@contextmanager
+def naming_failed_writes(final: str | os.PathLike, *, tmp: str | os.PathLike | None = None,
+                         option: str | None = None) -> Iterator[None]:
+    """A write into ``final`` (a file or a folder, written at ``tmp`` if given) that fails
+    for the machine's state is one :class:`UserInputError` naming the file
+    (:func:`failed_write`)."""
+    try:
+        yield
+    except OSError as exc:
+        err = failed_write(exc, final, tmp=tmp, option=option)
+        if err is None:
+            raise
+        raise err from None
 
 
 def os_error_message(exc: OSError) -> str:
@@ -269,6 +405,17 @@ class StagedOutputs:
         """A temporary path (not yet existing) to create the folder ``final`` at."""
         return self._stage(final, True)
 
+    def _named(self, exc: BaseException) -> UserInputError | None:
+        """:func:`failed_write` of ``exc`` for the staged output it names (or the last staged)."""
+        if not self._items or not isinstance(exc, OSError):
+            return None
+        name = os.fsdecode(exc.filename) if exc.filename else ""
+        for tmp, final, _is_dir in self._items:
+            if name == str(tmp) or name.startswith(str(tmp) + os.sep):
+                return failed_write(exc, final, tmp=tmp)
+        tmp, final, _ = self._items[-1]
+        return failed_write(exc, final, tmp=tmp)
+
     def __enter__(self) -> "StagedOutputs":
         return self
 
@@ -285,6 +432,8 @@ class StagedOutputs:
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is not None:
             self._discard()
+            if (err := self._named(exc)) is not None:  # the disk filled: name the output, not its temporary
+                raise err from None
             return False
         try:
             with held_signals():
@@ -333,7 +482,7 @@ def check_run_outputs(*, json_out=None, report_dir=None, inputs: Iterable = (), 
     """The checks of a command's outputs before its work: a file location for the JSON
     (and each of ``files``, option -> path, e.g. ``{"--csv": csv_out}``), a new folder or
     an earlier report for the report, none of them an input, no two the same path."""
-    inputs = [i for i in inputs if i is not None]
+    inputs = command_inputs(inputs)
     outs = [("--json", json_out)] + list((files or {}).items())
     given = [(o, p) for o, p in outs if p]
     for opt, p in given:

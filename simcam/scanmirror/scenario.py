@@ -47,7 +47,7 @@ class OrbitConfig(StrictModel):
     zonal_degree: Literal[0, 2, 3, 4] = 4
     epoch_utc: str = "2012-03-01T00:00:00"
     earth_shape: Literal["sphere", "ellipsoid"] = "sphere"
-    knowledge_sigma_km: NonNeg = 0.1
+    knowledge_sigma_km: NonNeg = Field(0.1, le=1000.0, description="at most 1000 km: beyond it no orbit is known")
 
     @model_validator(mode="after")
     def _perigee_above_earth(self):

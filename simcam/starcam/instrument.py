@@ -104,8 +104,8 @@ class PSFModel(SectionModel):
     """
 
     kind: Literal["gaussian", "airy"] = "gaussian"
-    sigma0_px: NonNeg = 0.8
-    sigma_r2_px: Finite = 0.1
+    sigma0_px: NonNeg = Field(0.8, le=100.0, description="at most 100 px: a wider core is no star image on a chip")
+    sigma_r2_px: Finite = Field(0.1, ge=-100.0, le=100.0, description="within +-100 px, as sigma0_px")
 
     @model_validator(mode="after")
     def _width(self) -> PSFModel:
@@ -188,8 +188,8 @@ class DistortionCorrectionModel(SectionModel):
     cols: Annotated[int, Field(ge=2, le=64)] = 8
     extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
     order: Annotated[int, Field(ge=1, le=7)] = 3
-    marker_error_3sigma_arcsec: NonNeg = 0.5
-    centroid_noise_px: NonNeg = 0.002
+    marker_error_3sigma_arcsec: NonNeg = Field(0.5, le=3600.0, description="at most 1 deg: a marker's position")
+    centroid_noise_px: NonNeg = Field(0.002, le=100.0, description="at most 100 px: a centroid of a star image")
 
     @model_validator(mode="after")
     def _determined(self) -> DistortionCorrectionModel:
@@ -234,7 +234,7 @@ class ChipModel(SectionModel):
     rotation_deg: Finite = 0.0
     gain_e_per_dn: Pos = 1.0
     offset_dn: NonNeg = 100.0
-    read_noise_e: NonNeg = 3.0
+    read_noise_e: NonNeg = Field(3.0, le=1e5, description="at most 1e5 e: beyond any full well, no sensor's noise")
     full_well_e: Pos = 4000.0
 
 
@@ -257,7 +257,7 @@ class DetectorModel(SectionModel):
     bits: Annotated[int, Field(ge=8, le=16)] = 12
     prnu_rms: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.01
     dark_current_e_per_s: NonNeg = 20.0
-    dsnu_rms_e: NonNeg = 1.0
+    dsnu_rms_e: NonNeg = Field(1.0, le=1e6, description="at most 1e6 e: beyond any full well, no sensor's pattern")
     background_e_per_s: NonNeg = 10.0
     qe: QEModel = QEModel()
     chips: Annotated[tuple[ChipModel, ...], Field(strict=False)] = (

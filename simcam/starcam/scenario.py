@@ -83,7 +83,7 @@ class PinholeGridModel(_Model):
     cols: Annotated[int, Field(ge=1, le=64)] = 5
     spacing_mm: Pos = 2.0
     pinhole_diameter_um: NonNeg = 15.0
-    marker_error_3sigma_um: NonNeg = 0.0
+    marker_error_3sigma_um: NonNeg = Field(0.0, le=1e4, description="at most 1 cm: a pinhole's position on its plate")
 
 
 class CalibrationGridModel(_Model):
@@ -98,7 +98,7 @@ class CalibrationGridModel(_Model):
     cols: Annotated[int, Field(ge=2, le=64)] = 8
     extent_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.85
     pinhole_diameter_um: NonNeg = 15.0
-    marker_error_3sigma_arcsec: NonNeg = 0.5
+    marker_error_3sigma_arcsec: NonNeg = Field(0.5, le=3600.0, description="at most 1 deg: a marker's position")
 
 
 class PlatformModel(_Model):
@@ -108,7 +108,7 @@ class PlatformModel(_Model):
     rms per axis, drawn per pose from the run seed.
     """
 
-    positioning_noise_px: NonNeg = 0.0
+    positioning_noise_px: NonNeg = Field(0.0, le=1000.0, description="at most 1000 px: a pose error on the chip")
 
 
 class LabKnowledgeModel(_Model):
@@ -126,10 +126,10 @@ class LabKnowledgeModel(_Model):
     camera exactly (the estimator then shares the simulator's spectral inputs).
     """
 
-    qe_peak_nm_error: Finite = 20.0
-    filter_center_nm_error: Finite = 3.0
-    filter_width_nm_error: Finite = 2.0
-    lamp_temperature_k_error: Finite = 50.0
+    qe_peak_nm_error: Finite = Field(20.0, ge=-1000.0, le=1000.0, description="within +-1000 nm: the lab's curves")
+    filter_center_nm_error: Finite = Field(3.0, ge=-1000.0, le=1000.0, description="within +-1000 nm, as qe_peak")
+    filter_width_nm_error: Finite = Field(2.0, ge=-1000.0, le=1000.0, description="within +-1000 nm, as qe_peak")
+    lamp_temperature_k_error: Finite = Field(50.0, ge=-1e4, le=1e4, description="within +-10000 K: a lamp's colour")
     star_teff_fraction_error: Annotated[float, Field(gt=-0.5, lt=0.5, allow_inf_nan=False)] = 0.03
 
 
@@ -383,7 +383,7 @@ class ValidationModel(ValidationSettings):
     new_maps_per_trial: bool = False
     new_markers_per_trial: bool = True
     centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
-    threshold_sigma: Pos = 3.0
+    threshold_sigma: Pos = Field(3.0, le=1000.0, description="at most 1000 noise sigmas: above it no pixel is kept")
     dark_frames: Annotated[int, Field(ge=0)] = 0
     te_truth_frames: Annotated[int, Field(ge=10)] = 1000
     hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 400
@@ -426,38 +426,34 @@ class StarCameraEffects(EffectsBase):
     :class:`simcam.starcam.optics.HigherOrderRadialDistortion` (distortion beyond the cubic)
     and :mod:`simcam.detector` (non-linearity). Sources: Janesick, *Photon Transfer*,
     SPIE PM170 (2007), ch. 7; Gpixel GSENSE4040 data sheet; Andor sCMOS architecture notes;
-    the project's traced lens ``embedded:star_camera`` (docs/lens.md).
+    the project's traced lens ``embedded:star_camera`` (docs/lens.md). The ranges beside the
+    fields: the distortion terms within +-100 px at the corner (beyond, stars leave the
+    mosaic), beta in (-1, 1) (``s (1 - beta s / FW)`` stays monotonic), the hexapod's and
+    the drift's sizes at most 60 arcsec (10 px per move at the plate scale, 100 x the data sheets).
     """
 
     distortion_r5_px_at_corner: float = Field(
-        1.47, description="traced embedded lens (embedded:star_camera): fifth-order radial distortion 1.47 px at "
+        1.47, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): fifth-order radial distortion 1.47 px at "
         "the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights, which no cubic removes "
         "(sized at the corner of the scenario's mosaic; not added when optics.lens traces a lens, which has its own)")
     distortion_r7_px_at_corner: float = Field(
-        0.081, description="traced embedded lens (embedded:star_camera): seventh-order radial distortion 0.081 px "
+        0.081, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): seventh-order radial distortion 0.081 px "
         "at the mosaic corner in the same fit")
     nonlinearity_beta: float = Field(
-        0.008, description="CMOS integral non-linearity 0.2 % of full scale typical (Gpixel GSENSE4040 data "
+        0.008, gt=-1.0, lt=1.0, description="CMOS integral non-linearity 0.2 % of full scale typical (Gpixel GSENSE4040 data "
         "sheet; Janesick, Photon Transfer, ch. 7): s_out = s (1 - beta s / FW), INL = beta / 4, so beta = 0.008")
     hexapod_repeatability_arcsec: float = Field(
-        0.5, description="hexapod rotation repeatability per move, 1 sigma per axis (PI H-840 class: 2-5 urad, "
+        0.5, ge=0.0, le=60.0, description="hexapod rotation repeatability per move, 1 sigma per axis (PI H-840 class: 2-5 urad, "
         "0.4-1 arcsec; engineering estimate, data sheet not retrieved)")
     hexapod_backlash_arcsec: float = Field(
-        1.0, description="hexapod rotation backlash b (error b sign(move) per commanded axis): about 1 um of "
+        1.0, ge=0.0, le=60.0, description="hexapod rotation backlash b (error b sign(move) per commanded axis): about 1 um of "
         "strut lost motion over a 0.2 m joint separation, 5 urad (engineering estimate)")
     drift_rate_arcsec_per_h: float = Field(
-        0.05, description="collimator/target thermal drift ramp, 0.02-0.2 arcsec/h at 20 +- 1 C (an Al mount, "
+        0.05, ge=0.0, le=60.0, description="collimator/target thermal drift ramp, 0.02-0.2 arcsec/h at 20 +- 1 C (an Al mount, "
         "50 mm lever, 0.1 K/h in a 1 m collimator gives 0.024 arcsec/h; engineering estimate)")
     drift_random_arcsec: float = Field(
-        0.03, description="collimator/target drift, first-order Gauss-Markov part: stationary sigma per axis "
+        0.03, ge=0.0, le=60.0, description="collimator/target drift, first-order Gauss-Markov part: stationary sigma per axis "
         "(same thermal budget as the ramp, wandering over world.drift_time_constant_s; engineering estimate)")
-
-    @model_validator(mode="after")
-    def _beta(self) -> StarCameraEffects:
-        if not -1.0 < self.nonlinearity_beta < 1.0:
-            raise ValueError(f"nonlinearity_beta: must be in (-1, 1) (s_out = s (1 - beta s / FW)), "
-                             f"got {self.nonlinearity_beta!r}")
-        return self
 
 
 class StarCameraWorld(WorldBase):

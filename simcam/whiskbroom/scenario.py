@@ -100,8 +100,8 @@ class Orbit(StrictModel):
 class Camera(StrictModel):
     # physical ranges: a 100 m focal length, a 1 mm pixel, 10^4 stages, 1000
     # chips of 10^6 columns are beyond any camera; beyond them the image motion overflows
-    focal_length_mm: float = Field(gt=0, le=1e5)
-    pixel_pitch_um: float = Field(gt=0, le=1e3)
+    focal_length_mm: float = Field(ge=1, le=1e5, description="1 mm to 100 m: no imaging camera is outside it")
+    pixel_pitch_um: float = Field(ge=0.1, le=1e3, description="0.1 um (below the wavelength) to 1 mm")
     tdi_stages: int = Field(ge=1, le=10000)
     n_chips: int = Field(default=3, ge=1, le=1000)
     chip_cols: int = Field(default=4096, ge=2, le=1_000_000)
@@ -151,7 +151,7 @@ class Tdi(StrictModel):
     time_samples_per_phase: int = Field(default=64, ge=1)
     aperture_samples: int = Field(default=16, ge=1)
     signal_e_per_stage: float = Field(default=400.0, gt=0, le=1e9)
-    read_noise_e: float = Field(default=30.0, ge=0)
+    read_noise_e: float = Field(default=30.0, ge=0, le=1e5, description="at most 1e5 e: no CCD reads with more")
     noise: bool = True
     edge_angle_deg: float = Field(default=5.0, gt=0, lt=45)
     edge_lines: int = Field(default=32, ge=8)
@@ -171,7 +171,10 @@ class Validation(ValidationSettings):
 class WhiskbroomEffects(EffectsBase):
     """Unmodelled effects of the whiskbroom camera's world (0 = off). Only the
     simulator's truth route (:mod:`simcam.whiskbroom.world`) reads them; the lab's predictions
-    (published and improved sinc) and its slanted-edge measurement never do."""
+    (published and improved sinc) and its slanted-edge measurement never do. The ranges beside
+    the fields: the attitude jitter at most 100 arcsec (40 x ZY-3's, about 20 px of image
+    motion: beyond it the slanted edge is smeared past its bins), the wheel's at most 10 arcsec
+    (100 x the sourced upper end)."""
 
     earth_flattening_scale: float = Field(
         default=1.0, ge=0, le=1.5,
@@ -179,13 +182,13 @@ class WhiskbroomEffects(EffectsBase):
                     "image motion is ray-traced to that ellipsoid (simcam.whiskbroom.raytrace); 0 = the "
                     "paper's sphere through the paper's own V_P chain")
     attitude_jitter_arcsec: float = Field(
-        default=2.4, ge=0,
+        default=2.4, ge=0, le=100,
         description="roll amplitude of the dominant ZY-3 jitter tone, 0.65 Hz, 0.5-1.5 px cross-track "
                     "= 1.2-3.6 arcsec (Tong et al., IEEE TGRS, 2015, doi:10.1109/TGRS.2014.2379435); "
                     "the gyro tones 0.21/0.56/1.12 Hz at 0.07/0.04/0.04 arcsec (Tang et al., Sensors "
                     "20:736, 2020, Table 1) scale with it (world.jitter_tone_weights)")
     wheel_jitter_arcsec: float = Field(
-        default=0.03, ge=0,
+        default=0.03, ge=0, le=10,
         description="roll amplitude of a reaction-wheel structural-mode tone (world.wheel_tone_hz): "
                     "0.01-0.1 arcsec at 10-200 Hz, an engineering estimate (structural modes dominate the "
                     "rigid-body 1e-9 rad; QuickBird's 4.3 Hz line 0.1 m, Tang et al. 2020; model form "

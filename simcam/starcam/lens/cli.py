@@ -227,7 +227,8 @@ def optics_command(prescription, out, overwrite, no_cache, variant) -> None:
 
         from simcam import io
 
-        with io.atomic_directory(out, overwrite=overwrite) as tmp:
+        lens_file = () if str(prescription).startswith("embedded:") else (prescription,)
+        with io.atomic_directory(out, overwrite=overwrite, inputs=lens_file) as tmp:
             prod.save(tmp / "products.nc")
             rows = []
             p_mm = an.pixel_pitch_um * 1e-3

@@ -107,7 +107,7 @@ class SurfaceModel(_Model):
     """
 
     name: str = ""
-    radius_mm: float
+    radius_mm: float = Field(allow_inf_nan=True)  # inf or -inf: a plane (the one infinite value of a scenario)
     thickness_mm: NonNeg
     glass: Annotated[str, Field(min_length=1)] = "air"
     semi_diameter_mm: Pos
