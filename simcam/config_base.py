@@ -175,6 +175,12 @@ class ScenarioBase(StrictModel):
         """Where the scenario came from (not part of its content)."""
         return self._source
 
+    def to_toml(self) -> str:
+        """The resolved scenario as TOML text (what a JSON result carries)."""
+        import tomli_w
+
+        return tomli_w.dumps(self.model_dump(mode="json", exclude_none=True))
+
     @model_serializer(mode="wrap")
     def _validation_last(self, handler):
         # the base's fields come first in pydantic's order; a dump (a scenario's TOML) reads

@@ -33,14 +33,21 @@ import numpy as np
 
 from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, sigma3_arcsec
 from budget.inductosyn.report import details, report_sections
+from budget.runner.capabilities import (
+    BatchedTrials,
+    CheckedScenario,
+    Plannable,
+    Prepared,
+    Presented,
+    ProtocolShapes,
+    WorldEffects,
+)
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
-from simcam.config_base import model_hash
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
 __all__ = ["COEFFICIENTS", "POLYGON_PAIRS", "PUBLISHED_COEFFICIENTS", "STUDY", "InductosynStudy"]
 
 _UNIT = "arcsec, 3 sigma"
-_PREPARED: dict = {}
 
 #: The polygon pairs the planner compares (``protocol_shapes``): (long faces, short faces).
 #: Long: a face count dividing the 360 pole pairs, so that every electrical harmonic samples
@@ -55,7 +62,8 @@ _PREPARED: dict = {}
 POLYGON_PAIRS = ((12, 11), (12, 13), (18, 17), (24, 23), (36, 37))
 
 
-class InductosynStudy(Study):
+class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffects, Plannable, ProtocolShapes,
+                      Presented):
     """Seed 001: polygon calibration of an inductosyn's long- and short-period errors."""
 
     name = "inductosyn"
@@ -63,6 +71,7 @@ class InductosynStudy(Study):
     seed_document = "001"
     variants = ("published", "improved")
     scenario_module = "simcam.encoder.inductosyn"
+    trials_per_task = 2000  # vectorised: a chunk costs little more than one trial
 
     def check(self, scenario, *, where: str) -> None:
         # the calibration designs (24-face long, short and joint) separate the harmonics
@@ -91,17 +100,11 @@ class InductosynStudy(Study):
         start of the calibration, where the drift is 0) change only the measured tables."""
         return {"electrical_harmonic_3_arcsec", "nonharmonic_arcsec"}
 
-    def chunk_trials(self, scenario) -> int:
-        return 2000  # vectorised: a chunk costs little more than one trial
-
-    def _prepared(self, scenario):
+    def setup(self, scenario):
+        """The calibration designs and the dense truth grid (:func:`budget.inductosyn.validate.prepare`)."""
         from budget.inductosyn.validate import prepare
 
-        key = model_hash(scenario)
-        if key not in _PREPARED:
-            _PREPARED.clear()
-            _PREPARED[key] = prepare(scenario=scenario, dense_step_deg=scenario.validation.dense_step_deg)
-        return _PREPARED[key]
+        return prepare(scenario=scenario, dense_step_deg=scenario.validation.dense_step_deg)
 
     #: emcee steps of the posterior band in the report (trial 0's joint fit)
     posterior_steps = 1500
@@ -111,7 +114,7 @@ class InductosynStudy(Study):
 
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
             return [self.trial(scenario, seed, k) for k in ks]
-        r = run_trials(prepared=self._prepared(scenario), trials=len(ks), seed=seed, first_trial=ks[0])
+        r = run_trials(prepared=self.prepared(scenario), trials=len(ks), seed=seed, first_trial=ks[0])
         # the same columns in both variants' coefficient vectors: c_long = e0, A_L..;
         # c_short = A_S1c..A_S2s; c_joint = e0 of each table, A_L.., A_S1c..A_S4s
         seq = np.concatenate([r["c_long"][:, 1:], r["c_short"]], axis=1)
@@ -143,7 +146,7 @@ class InductosynStudy(Study):
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         from budget.inductosyn.validate import JOINT_ELEC, reference_coefficients
 
-        p = self._prepared(scenario)
+        p = self.prepared(scenario)
         out = {("before", "angle"): Truth(float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)), 0.0,
                                           {"dense_points": int(p.dense_true_deg.size)})}
         names = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC).names()
@@ -181,10 +184,10 @@ class InductosynStudy(Study):
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:
-        return details(result, self._prepared(result.scenario))
+        return details(result, self.prepared(result.scenario))
 
     def report_sections(self, result, out_dir) -> list:
-        return report_sections(result, self._prepared(result.scenario), out_dir,
+        return report_sections(result, self.prepared(result.scenario), out_dir,
                                posterior_steps=self.posterior_steps)
 
 

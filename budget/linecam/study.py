@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.capabilities import CheckedScenario, Plannable, Presented, WorldEffects
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
 from simcam.distortion import OpticsError
 from simcam.infra.errors import ScenarioError
@@ -94,7 +95,7 @@ def determined_combinations(null_space: list[dict], f_px: float) -> list[tuple[s
     return out
 
 
-class LineCamStudy(Study):
+class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
     """Seed 004: star-observation calibration of a TDI line camera."""
 
     name = "linecam"
@@ -102,6 +103,7 @@ class LineCamStudy(Study):
     seed_document = "004"
     variants = ("published", "improved", "lookangle")
     scenario_module = "simcam.linecam.scenario"
+    trials_per_task = 20
 
     # ------------------------------------------------------------ scenario
 
@@ -168,9 +170,6 @@ class LineCamStudy(Study):
         bias, Gaia world, star colour against the solar reference, line-rate mismatch) change
         what the lab measures, not the camera."""
         return {"distortion_k3_edge_px", "thin_prism_edge_px"}
-
-    def chunk_trials(self, scenario) -> int:
-        return 20
 
     def likely_cause(self, result, key, stats):
         cls, var, ax = key

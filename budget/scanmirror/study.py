@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from budget.figures import figure_markdown
+from budget.runner.capabilities import CheckedScenario, Plannable, Prepared, Presented, WorldEffects
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
 from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
 from simcam.scanmirror.scanplan import evaluate_plan
@@ -36,10 +37,8 @@ from simcam.units import RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorStudy", "STUDY"]
 
-_SETUP: dict = {}
 
-
-class ScanMirrorStudy(Study):
+class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable, Presented):
     name = "scanmirror"
     title = "GEO two-axis scan mirror: normal deviation from stars and compensated ground error (seed 003)"
     seed_document = "003"
@@ -47,14 +46,12 @@ class ScanMirrorStudy(Study):
     #: compensation with dtau = 0 (as the paper does for scan 1): a reference, it does not estimate
     reference_variants = ("without_estimate",)
     scenario_module = "simcam.scanmirror.scenario"
+    trials_per_task = 50  # about 10 ms a trial
 
     # ------------------------------------------------------------ scenario
 
     def check(self, scenario, *, where: str) -> None:
-        self._setup(scenario, source=where)
-
-    def chunk_trials(self, scenario) -> int:
-        return 50  # about 10 ms a trial
+        self._build_setup(scenario, source=where)
 
     # ------------------------------------------------------------ the method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -70,24 +67,24 @@ class ScanMirrorStudy(Study):
                       role="residual"),
         )
 
-    def _setup(self, scenario, *, source: str | None = None):
+    def setup(self, scenario):
+        """The world's timeline, the ground grid of the last area scan and the dwells' stars
+        (:class:`budget.scanmirror.pipeline.Setup`)."""
+        return self._build_setup(scenario, source=scenario.source)
+
+    @staticmethod
+    def _build_setup(scenario, *, source: str):
         from budget.scanmirror.pipeline import Setup
+        from simcam.scanmirror.world import World
 
-        key = scenario.hash
-        if key not in _SETUP:
-            _SETUP.clear()
-            from simcam.scanmirror.world import World
-
-            w = World(scenario)
-            last = int(evaluate_plan(scenario.effective_plan, np.arange(0.0, w.duration_s, 0.5)).scan.max())
-            _SETUP[key] = Setup(scenario, scenario.validation.ground_step_s, scans=(last,),
-                                source=source or scenario.source)
-        return _SETUP[key]
+        w = World(scenario)
+        last = int(evaluate_plan(scenario.effective_plan, np.arange(0.0, w.duration_s, 0.5)).scan.max())
+        return Setup(scenario, scenario.validation.ground_step_s, scans=(last,), source=source)
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         from budget.scanmirror.pipeline import run
 
-        setup = self._setup(scenario)
+        setup = self.prepared(scenario)
         o = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)))
         last = max(o["errors"])
         est, truths, sig = {}, {}, {}

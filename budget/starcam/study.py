@@ -13,13 +13,25 @@ from itertools import combinations
 from pathlib import Path
 
 from budget.figures import figure_markdown
+from budget.runner.capabilities import (
+    CheckedScenario,
+    Plannable,
+    Presented,
+    ProtocolShapes,
+    SeparablePlans,
+    SharedTruths,
+    SizedTruths,
+    SplitTruths,
+    Warmup,
+    WorldEffects,
+)
 from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 from budget.starcam.checks import check_geometry
 from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
 from budget.starcam.warm import prewarm
 from simcam.infra.errors import ScenarioError
-from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS, scenario_to_toml, with_updates
+from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS, with_updates
 
 __all__ = ["STUDY", "StarCameraStudy"]
 
@@ -63,7 +75,8 @@ def _paths(prefix: str, node: dict) -> list[str]:
     return out
 
 
-class StarCameraStudy(Study):
+class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, SharedTruths, WorldEffects,
+                      Plannable, ProtocolShapes, SeparablePlans, Presented):
     """Seed 000: a star camera's TE, HSFE and LSFE lab methods."""
 
     name = "starcam"
@@ -71,9 +84,6 @@ class StarCameraStudy(Study):
     seed_document = "000"
     variants = ("published", "improved")
     scenario_module = "simcam.starcam.scenario"
-
-    def scenario_text(self, scenario) -> str:
-        return scenario_to_toml(scenario)
 
     def check(self, scenario, *, where: str) -> None:
         check_geometry(scenario, where=where)

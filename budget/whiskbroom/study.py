@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.runner.capabilities import Prepared, Presented, WorldEffects
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
 from budget.whiskbroom import estimators as est
 from budget.whiskbroom import plots
@@ -47,7 +48,7 @@ def _mtf_floor(scenario) -> float:
     return float(2.0 * phi**2 / (24.0 * scenario.tdi.time_samples_per_phase**2))
 
 
-class WhiskbroomStudy(Study):
+class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
     """Seed 002: whiskbroom TDICCD image-motion residual and the MTF it leaves."""
 
     name = "whiskbroom"
@@ -55,6 +56,7 @@ class WhiskbroomStudy(Study):
     seed_document = "002"
     variants = ("published", "improved", "edge")
     scenario_module = "simcam.whiskbroom.scenario"
+    trials_per_task = 20
 
     # ------------------------------------------------------------ the method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -70,18 +72,13 @@ class WhiskbroomStudy(Study):
                       per_trial_truth=True),
         )
 
-    def chunk_trials(self, scenario) -> int:
-        return 20
-
-    def _field(self, scenario):
+    def setup(self, scenario):
+        """The field points the worst column is searched over (the centre first,
+        :func:`simcam.whiskbroom.synthesis.field_points`)."""
         from simcam.whiskbroom import synthesis as sy
 
-        key = scenario.hash
-        cache = self.__dict__.setdefault("_field_cache", {})
-        if key not in cache:
-            x1, x3 = sy.field_points(scenario)
-            cache[key] = (np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3]))
-        return cache[key]
+        x1, x3 = sy.field_points(scenario)
+        return np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
 
     def _draw(self, scenario, seed: int, k: int):
         from simcam.whiskbroom import synthesis as sy
@@ -90,7 +87,7 @@ class WhiskbroomStudy(Study):
         u = np.clip(rng.random(len(VARIABLES)), 1e-300, None)[None, :]
         draws = sy.standard_draws(scenario, u)
         know, true = sy.trial_params(scenario, draws, [k])
-        x1, x3 = self._field(scenario)
+        x1, x3 = self.prepared(scenario)
         r = sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
         # a scenario outside the model's domain is one error line, not NaN estimates
         sy.check_finite_residuals(scenario, r, scenario.errors.mirror_rate_deg_s.scale,
@@ -129,7 +126,7 @@ class WhiskbroomStudy(Study):
         cam, t, w = scenario.camera, scenario.tdi, scenario.world
         eff = w.effects
         i = int(r.worst[0])
-        x1, x3 = self._field(scenario)
+        x1, x3 = self.prepared(scenario)
         px1, px3 = x1[i:i + 1], x3[i:i + 1]
         flat = eff.earth_flattening_scale * WGS84_F
         vk = r.v_know[0, i]

@@ -531,6 +531,10 @@ class Scenario(ScenarioBase):
                 "the optical axis, backlash and an error on every move)")
         return self
 
+    def to_toml(self) -> str:
+        """The resolved scenario as TOML that :func:`load` accepts back (:func:`scenario_to_toml`)."""
+        return scenario_to_toml(self)
+
     @cached_property
     def hash(self) -> str:
         """Scenario hash: SHA-256 prefix of the canonical JSON of the resolved scenario
