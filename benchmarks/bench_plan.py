@@ -65,7 +65,7 @@ def main() -> None:
         return separable(args)
     study = ToyStudy(record=True)
     scn = study.load_scenario()
-    n = args.trials or study.default_trials(scn)
+    n = args.trials or scn.validation.trials
     opt = analytic_optimum(scn, args.bound / sure_margin(args.sure, n, 0.95))
     setup = scn.lab.setup_time_s
     rows, ratios, costs, cpu_plan, cpu_val = [], [], [], [], []

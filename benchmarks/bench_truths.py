@@ -37,6 +37,7 @@ import warnings
 if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks._common import bench_parser, emit_result, figure, format_table, print_machine  # noqa: E402
+from budget.runner.capabilities import capability, SizedTruths
 
 
 def _timed(fn):
@@ -82,10 +83,10 @@ def main() -> None:
     targets = truth_targets(study.classes(scn), samples=samples, trial_truths=tt, trials=args.trials)
     from budget.starcam.validate import truths as starcam_truths
 
-    study.truths(study.truth_size_for(scn, 2, targets), 2)  # the truth kernels' cache warm
+    study.truths(capability(study, SizedTruths).truth_size_for(scn, 2, targets), 2)  # the truth kernels' cache warm
     runs = []
     for rep in range(3):   # best of 3 (CPU); other seeds each time: no scene cached twice
-        sized, size_wall, size_cpu = _timed(lambda: study.truth_size_for(scn, 10 + rep, targets))
+        sized, size_wall, size_cpu = _timed(lambda: capability(study, SizedTruths).truth_size_for(scn, 10 + rep, targets))
         ada, ada_wall, ada_cpu = _timed(lambda: study.truths(sized, 10 + rep))
         runs.append((size_cpu + ada_cpu, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu))
     _, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu = min(runs, key=lambda r: r[0])

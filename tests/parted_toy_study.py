@@ -6,6 +6,7 @@ for bit. Imported by spawned workers too."""
 
 import numpy as np
 
+from budget.runner.capabilities import SplitTruths
 from budget.runner.study import Truth
 from sized_toy_study import SizedToyStudy
 
@@ -13,7 +14,7 @@ from sized_toy_study import SizedToyStudy
 N_PARTS = 7
 
 
-class PartedToyStudy(SizedToyStudy):
+class PartedToyStudy(SizedToyStudy, SplitTruths):
     name = "parted_toy"
 
     def _draws(self, scenario) -> int:

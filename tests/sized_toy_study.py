@@ -2,18 +2,15 @@
 its ``truth_size_for`` returns a scenario whose truth standard error *is* the target, so a
 test reads back exactly what the runner asked for. Imported by spawned workers too."""
 
-import copy
-
+from budget.runner.capabilities import SizedTruths
 from toy_study import ToyStudy
 
 
-class SizedToyStudy(ToyStudy):
+class SizedToyStudy(ToyStudy, SizedTruths):
     name = "sized_toy"
 
     def truth_size_for(self, scenario, seed, target_se):
-        out = copy.copy(scenario)
-        out.truth_se = float(target_se[("variance", "a")])
-        return out
+        return scenario.model_copy(update={"truth_se": float(target_se[("variance", "a")])})
 
 
 STUDY = SizedToyStudy()

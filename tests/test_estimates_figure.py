@@ -7,11 +7,18 @@ import pytest
 
 from budget.runner.run import run_study
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.config_base import ValidationSettings
 
 
 class _Scn:
     hash = "estimates"
     name = "estimates"
+
+    validation = ValidationSettings(trials=40, max_trials=400, batch_trials=40)
+    source = "test"
+
+    def to_toml(self):
+        return ""
 
     def model_dump(self, mode="json", exclude_none=True):
         return {"name": "estimates"}
@@ -34,15 +41,6 @@ class SpreadStudy(Study):
 
     def from_dict(self, data, *, source):
         return _Scn()
-
-    def default_trials(self, scenario):
-        return 40
-
-    def max_trials(self, scenario):
-        return 400
-
-    def batch_trials(self, scenario):
-        return 40
 
     def classes(self, scenario):
         return (ClassSpec("level", "level", "mm", ("a",)),

@@ -13,11 +13,18 @@ import pytest
 from budget.runner.findings import RULES, findings, findings_json, findings_lines, findings_markdown
 from budget.runner.run import run_study
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.config_base import ValidationSettings
 
 
 class _Scn:
     hash = "rules"
     name = "rules"
+
+    validation = ValidationSettings(trials=400, max_trials=4000, batch_trials=100)
+    source = "test"
+
+    def to_toml(self):
+        return ""
 
     def model_dump(self, mode="json", exclude_none=True):
         return {"name": "rules"}
@@ -49,15 +56,6 @@ class RulesStudy(Study):
 
     def from_dict(self, data, *, source):
         return _Scn()
-
-    def default_trials(self, scenario):
-        return 400
-
-    def max_trials(self, scenario):
-        return 4000
-
-    def batch_trials(self, scenario):
-        return 100
 
     def classes(self, scenario):
         return (ClassSpec("offset", "offset", self.unit, ("a",), "", per_trial_truth=True),

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from toy_study import STUDY, Toy
 
+from budget.runner.capabilities import Presented, Warmup
 from budget.runner.report import format_table, write_report
 from budget.runner.run import run_study
 from budget.runner.stats import key_statistics
@@ -126,7 +127,7 @@ def test_json_and_report(tmp_path):
     assert (other / "data.txt").read_text() == "keep"
 
 
-class _AuxToy(type(STUDY)):
+class _AuxToy(type(STUDY), Presented):
     """The toy study with per-trial auxiliary figures (its trial number, a copy of an estimate) and details."""
 
     def trial(self, scenario, seed, k):
@@ -157,7 +158,7 @@ def test_aux_kept_for_every_trial_in_order_and_details_in_the_json(workers):
 _THREADS_AT_INIT: list[int] = []
 
 
-class _ThreadsToy(type(STUDY)):
+class _ThreadsToy(type(STUDY), Warmup):
     """The toy study reporting, per trial, the numba threads of the thread that runs it
     and those it had when the study's own worker set-up ran."""
 

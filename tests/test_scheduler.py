@@ -164,19 +164,17 @@ def _first_meeting(study, scn, seed, tol, batch, cap):
 def test_adaptive_stopping_stops_at_the_first_batch_meeting_the_tolerance(scn, tol, order):
     sched = _scheduler(STUDY, scn, tolerance=tol, seed=2)
     done = sched.run(FakeExecutor(workers=2, order=order, seed=3))
-    want = _first_meeting(STUDY, scn, 2, tol, STUDY.batch_trials(scn), scn.max_trials)
+    want = _first_meeting(STUDY, scn, 2, tol, scn.validation.batch_trials, scn.validation.max_trials)
     assert (done.trials, done.stopped_by) == want
     assert sorted(sched.state.trials) == list(range(done.trials))
 
 
 def test_stopping_defaults_to_the_scenarios_tolerance_then_its_trials():
-    class TolToy(ToyStudy):
-        def default_tolerance(self, scenario):
-            return 0.3
+    with_tolerance = Toy(trials=33).model_copy(update={"validation": Toy().validation.model_copy(update={"tolerance": 0.3})})
 
     assert Stopping.of(STUDY, Toy(trials=33), None, None) == Stopping(33, None, 20000, 100)
-    assert Stopping.of(TolToy(), Toy(trials=33), None, None) == Stopping(None, 0.3, 20000, 100)
-    assert Stopping.of(TolToy(), Toy(trials=33), 12, None).trials == 12
+    assert Stopping.of(STUDY, with_tolerance, None, None) == Stopping(None, 0.3, 20000, 100)
+    assert Stopping.of(STUDY, with_tolerance, 12, None).trials == 12
     assert Stopping(33, None, 20000, 100).pilot_trials == PILOT_TRIALS
     assert Stopping(5, None, 20000, 100).pilot_trials == 5
     assert Stopping(None, 0.3, 20000, 100).pilot_trials == 0

@@ -13,46 +13,53 @@ Each trial draws ``m`` values from N(mu_k, sigma^2), with mu_k itself drawn per 
 """
 
 import numpy as np
+from pydantic import model_validator
 
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth, trial_seed_sequence
+from simcam.config_base import ScenarioBase, ValidationSettings
 
 
-class Toy:
-    hash = "toy"
-    name = "toy"
+class Toy(ScenarioBase):
+    """The toy's scenario: ``Toy(m=8, sigma=2.0, trials=50, truth_se=0.0, max_trials=20000)``
+    (``trials`` and ``max_trials`` go to its ``validation``; 100 trials between two
+    convergence checks)."""
 
-    def __init__(self, m=8, sigma=2.0, trials=50, truth_se=0.0, max_trials=20000):
-        self.m, self.sigma, self.trials = m, sigma, trials
-        self.truth_se, self.max_trials = truth_se, max_trials
+    name: str = "toy"
+    m: int = 8
+    sigma: float = 2.0
+    truth_se: float = 0.0
+    validation: ValidationSettings = ValidationSettings(trials=50, max_trials=20000, batch_trials=100)
 
-    def model_dump(self, mode="json", exclude_none=True):
-        return {"m": self.m, "sigma": self.sigma, "trials": self.trials,
-                "truth_se": self.truth_se, "max_trials": self.max_trials}
+    @model_validator(mode="before")
+    @classmethod
+    def _counts_to_validation(cls, data):
+        if isinstance(data, dict) and ({"trials", "max_trials"} & data.keys()):
+            data = dict(data)
+            counts = {k: data.pop(k) for k in ("trials", "max_trials") if k in data}
+            data["validation"] = {"trials": 50, "max_trials": 20000, "batch_trials": 100, **counts}
+        return data
+
+
+def default_text() -> str:
+    """The toy's embedded default scenario."""
+    return "m = 8\n"
+
+
+def from_dict(data: dict, *, source: str) -> Toy:
+    """The toy scenario of a mapping."""
+    return Toy(**data)
+
 
 
 class ToyStudy(Study):
     name = "toy"
     title = "toy study"
     seed_document = "none"
-
-    def default_text(self):
-        return "m = 8\n"
-
-    def from_dict(self, data, *, source):
-        return Toy(**data)
+    scenario_module = "toy_study"
 
     def classes(self, scenario):
         return (ClassSpec("mean", "sample mean", "1", ("a",), "mean of m draws", per_trial_truth=True),
                 ClassSpec("variance", "sample variance", "1", ("a",), "variance of m draws"))
-
-    def default_trials(self, scenario):
-        return scenario.trials
-
-    def max_trials(self, scenario):
-        return scenario.max_trials
-
-    def batch_trials(self, scenario):
-        return 100
 
     def trial(self, scenario, seed, k):
         rng = np.random.default_rng(trial_seed_sequence(seed, k))

@@ -34,8 +34,9 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field
 
+from budget.runner.capabilities import WorldEffects
 from budget.runner.study import ClassSpec, Study, TrialResult, Truth, trial_seed_sequence
-from simcam.config_base import StrictModel, model_hash, validate_model
+from simcam.config_base import StrictModel, ValidationSettings, model_hash, validate_model
 from simcam.effects import EffectsBase, WorldBase
 
 
@@ -66,6 +67,20 @@ class ToyWorldScenario(StrictModel):
     def hash(self) -> str:
         return model_hash(self)
 
+    @property
+    def validation(self) -> ValidationSettings:
+        """The run settings: ``trials`` of the scenario, 100 between two convergence checks."""
+        return ValidationSettings(trials=self.trials, max_trials=20000, batch_trials=100)
+
+    @property
+    def source(self) -> str:
+        return "toy world"
+
+    def to_toml(self) -> str:
+        import tomli_w
+
+        return tomli_w.dumps(self.model_dump(mode="json"))
+
 
 DEFAULT_TEXT = """\
 name = "toy-world"
@@ -89,34 +104,31 @@ def _busy(n: int) -> None:
         a = np.tanh(a @ a * 0.01)
 
 
-class ToyWorldStudy(Study):
+def default_text() -> str:
+    """The toy world's embedded default scenario."""
+    return DEFAULT_TEXT
+
+
+def from_dict(data: dict, *, source: str) -> ToyWorldScenario:
+    """The toy world scenario of a mapping."""
+    return validate_model(ToyWorldScenario, data, source=source)
+
+
+
+class ToyWorldStudy(Study, WorldEffects):
     name = "toyworld"
     title = "toy world study"
     seed_document = "none"
+    scenario_module = "toy_world_study"
 
     def __init__(self, *, depends: set[str] | None = frozenset({"extra_noise_units"}),
                  claims: dict | None = None):
         self.depends = None if depends is None else set(depends)
         self.claims = dict(claims or {})
 
-    def default_text(self):
-        return DEFAULT_TEXT
-
-    def from_dict(self, data, *, source):
-        return validate_model(ToyWorldScenario, data, source=source)
-
     def classes(self, scenario):
         return (ClassSpec("mean", "sample mean", "units", ("a",), "mean of m samples", per_trial_truth=True),
                 ClassSpec("variance", "sample variance", "units^2", ("a",), "variance of the noise"))
-
-    def default_trials(self, scenario):
-        return scenario.trials
-
-    def max_trials(self, scenario):
-        return 20000
-
-    def batch_trials(self, scenario):
-        return 100
 
     def truth_depends_on_effects(self, scenario):
         return None if self.depends is None else set(self.depends)

@@ -49,7 +49,8 @@ if TYPE_CHECKING:
 
 __all__ = ["BatchedTrials", "CAPABILITIES", "CheckedScenario", "Plannable", "Prepared", "Presented",
            "ProtocolShapes", "SeparablePlans", "SharedTruths", "SizedTruths", "SplitTruths", "Warmup",
-           "WorldEffects", "capability", "declared_capabilities", "prepared"]
+           "WorldEffects", "capability", "declared_capabilities", "missing_members", "prepared",
+           "undeclared_members"]
 
 
 @runtime_checkable
@@ -85,10 +86,13 @@ class Warmup(Protocol):
 
     def prewarm(self, scenario: ScenarioBase) -> None:
         """Once in the run's own process before any trial or truth (e.g. compile kernels in
-        parallel processes, :func:`simcam.numba_warm.compiling_in_parallel`)."""
+        parallel processes, :func:`simcam.numba_warm.compiling_in_parallel`). Optional."""
+        return None
 
     def worker_init(self) -> None:
-        """Once in each worker process, after the runner has set one numba thread there."""
+        """Once in each worker process, after the runner has set one numba thread there.
+        Optional."""
+        return None
 
 
 @runtime_checkable
@@ -240,12 +244,8 @@ class _OneByOne(_Default):
         return [self.study.trial(scenario, seed, k) for k in ks]
 
 
-class _NoWarmup(_Default):
-    def prewarm(self, scenario):
-        return None
-
-    def worker_init(self):
-        return None
+class _NoWarmup(_Default, Warmup):
+    """No start-up work (:class:`Warmup`'s defaults)."""
 
 
 class _WholeTruths(_Default):
@@ -317,7 +317,7 @@ def declared_capabilities(cls: type) -> tuple[type, ...]:
 
 
 #: members a capability's protocol implements itself (the rest each study must write)
-OPTIONAL_MEMBERS = frozenset({"WorldEffects.claim", "ProtocolShapes.shape_value", "SeparablePlans.uncomputed_class",
+OPTIONAL_MEMBERS = frozenset({"Warmup.prewarm", "Warmup.worker_init", "WorldEffects.claim", "ProtocolShapes.shape_value", "SeparablePlans.uncomputed_class",
                               "Presented.report_sections", "Presented.likely_cause", "Presented.details"})
 
 
@@ -333,6 +333,21 @@ def missing_members(cls: type) -> list[str]:
             if getattr(cls, name) is member:
                 missing.append(qual)
     return missing
+
+
+def undeclared_members(cls: type) -> list[str]:
+    """Methods ``cls`` defines under a capability's member name without declaring that
+    capability: the machinery would never call them, so :class:`budget.runner.study.Study`
+    refuses such a class instead of ignoring the method."""
+    declared = declared_capabilities(cls)
+    out = []
+    for proto in CAPABILITIES:
+        if proto in declared:
+            continue
+        for name, member in vars(proto).items():
+            if not name.startswith("_") and callable(member) and hasattr(cls, name):
+                out.append(f"{name} (declare {proto.__name__})")
+    return out
 
 
 # ------------------------------------------------------------------ the set-up cache

@@ -16,6 +16,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from budget.runner.capabilities import capability, Presented
 
 from budget.runner.numbers import fmt
 
@@ -258,7 +259,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                   "against its spread.", "",
                   "![estimates](estimates.png)", "",
                   plot_estimates(result, tmp / "estimates.png", fdata).caption, ""]
-        for sec in study.report_sections(result, tmp):
+        for sec in capability(study, Presented).report_sections(result, tmp):
             lines += [f"## {sec.title}", "", sec.markdown, ""]
             for fig in sec.figures:
                 lines += [f"![{Path(fig).stem}]({Path(fig).name})", ""]

@@ -34,6 +34,7 @@ from budget.runner.html import markdown_to_html
 from budget.runner.report import format_table
 from budget.runner.stats import key_statistics
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
+from budget.runner.capabilities import capability, Presented
 
 __all__ = ["SCHEMA", "STATISTICS", "StudyResult"]
 
@@ -114,7 +115,7 @@ class StudyResult:
 
     @cached_property
     def _study_details(self) -> dict:
-        return self.study.details(self)
+        return capability(self.study, Presented).details(self)
 
     def class_spec(self, name: str) -> ClassSpec:
         """The :class:`ClassSpec` called ``name``."""

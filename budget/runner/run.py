@@ -35,6 +35,7 @@ from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZE
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import check_memory
+from budget.runner.capabilities import capability, Warmup
 
 __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
            "sized_truths_scenario", "truth_targets", "with_targets"]
@@ -42,7 +43,7 @@ __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyR
 
 def _worker_init(study: Study) -> None:
     """A worker's set-up for ``study`` (after the runner's own, :func:`budget.runner.executors.worker_setup`)."""
-    study.worker_init()
+    capability(study, Warmup).worker_init()
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:
@@ -130,7 +131,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
             # a first run compiles its kernels on this machine's cores before the workers are
             # given a task, so that they load them from numba's cache instead of each
             # compiling them again (a remote cluster's workers have their own caches)
-            study.prewarm(scenario)
+            capability(study, Warmup).prewarm(scenario)
         with _progress(progress, study, stopping) as on_trials:
             done = plan.run(executor, on_trials)
     a = done.arrays

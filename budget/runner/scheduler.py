@@ -44,6 +44,7 @@ import numpy as np
 
 from budget.runner.stats import converged
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
+from budget.runner.capabilities import BatchedTrials, capability, SizedTruths, SplitTruths
 
 __all__ = ["MAX_TRIALS", "PILOT_TRIALS", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "RunState", "ScheduledRun",
            "Scheduler", "Stopping", "TrialArrays", "TrialChunk", "TrialChunkDone", "TruthPart", "TruthPartDone",
@@ -90,7 +91,7 @@ class TrialChunk:
     def run(self) -> TrialChunkDone:
         """The trials (:meth:`Study.trial_batch`); only trial 0 keeps its ``extra`` (the
         report's), so that little travels back."""
-        results = tuple(self.study.trial_batch(self.scenario, self.seed, list(self.trials)))
+        results = tuple(capability(self.study, BatchedTrials).trial_batch(self.scenario, self.seed, list(self.trials)))
         for k, r in zip(self.trials, results):
             if k != 0:
                 r.extra = {}
@@ -110,7 +111,7 @@ class TruthPart:
 
     def run(self) -> TruthPartDone:
         """The piece (:meth:`Study.truth_part`)."""
-        return TruthPartDone(self.index, self.study.truth_part(self.scenario, self.seed, self.part))
+        return TruthPartDone(self.index, capability(self.study, SplitTruths).truth_part(self.scenario, self.seed, self.part))
 
 
 def run_task(task: TrialChunk | TruthPart) -> TrialChunkDone | TruthPartDone:
@@ -195,7 +196,7 @@ def truth_targets(classes, *, tolerance: float | None = None, samples: dict | No
 
 def sized_truths_scenario(study: Study, scenario: Any, seed: int, targets: dict) -> Any:
     """The scenario the truths are computed on: :meth:`Study.truth_size_for` (no targets: as given)."""
-    return study.truth_size_for(scenario, seed, targets) if targets else scenario
+    return capability(study, SizedTruths).truth_size_for(scenario, seed, targets) if targets else scenario
 
 
 def with_targets(truths: dict, targets: dict) -> dict:
@@ -245,11 +246,11 @@ class Stopping:
         scenario's tolerance, else its number of trials; the cap is the study's, at most
         :data:`MAX_TRIALS`."""
         if trials is None and tolerance is None:
-            tolerance = study.default_tolerance(scenario)
+            tolerance = scenario.validation.tolerance
             if tolerance is None:
-                trials = study.default_trials(scenario)
-        return cls(trials=trials, tolerance=tolerance, cap=min(study.max_trials(scenario), MAX_TRIALS),
-                   batch=study.batch_trials(scenario))
+                trials = scenario.validation.trials
+        return cls(trials=trials, tolerance=tolerance, cap=min(scenario.validation.max_trials, MAX_TRIALS),
+                   batch=scenario.validation.batch_trials)
 
     @property
     def most_trials(self) -> int:
@@ -323,7 +324,7 @@ class Scheduler:
             raise ValueError(f"truth_size must be one of {TRUTH_SIZES}, got {truth_size!r}")
         self.study, self.scenario, self.seed = study, scenario, seed
         self.stopping, self.classes, self.truth_size = stopping, classes, truth_size
-        self.chunk = study.chunk_trials(scenario)
+        self.chunk = study.trials_per_task
         self.state = RunState(truths=truths, truths_started=truths is not None)
         self._given = truths is not None
         #: where the tasks run (:mod:`budget.runner.executors`), given to :meth:`run`
@@ -382,7 +383,7 @@ class Scheduler:
         if self.executor.workers <= 1:
             s.truths = self.study.truths(s.truth_scenario, self.seed)
         else:
-            s.truth_parts = list(self.study.truth_parts(s.truth_scenario, self.seed))
+            s.truth_parts = list(capability(self.study, SplitTruths).truth_parts(s.truth_scenario, self.seed))
             s.queue.extend(TruthPart(self.study, s.truth_scenario, self.seed, i, p)
                            for i, p in enumerate(s.truth_parts))
         s.truths_started = True
@@ -423,7 +424,7 @@ class Scheduler:
         s = self.state
         s.truth_part_values[done.index] = done.value
         if len(s.truth_part_values) == len(s.truth_parts):
-            s.truths = self.study.truths_from_parts(s.truth_scenario, self.seed,
+            s.truths = capability(self.study, SplitTruths).truths_from_parts(s.truth_scenario, self.seed,
                                                     [s.truth_part_values[i] for i in range(len(s.truth_parts))])
 
     def should_stop(self) -> bool:

@@ -45,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from budget.runner.capabilities import SharedTruths, capability, missing_members, prepared
-from simcam.config_base import ScenarioBase
+from budget.runner.capabilities import SharedTruths, capability, missing_members, prepared, undeclared_members
+from simcam.config_base import ScenarioBase, load_scenario_file
 
 __all__ = ["CLASS_ROLES", "ClassSpec", "Key", "Knob", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
            "Truth", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
@@ -226,6 +226,14 @@ class ReportSection:
     figures: list[Path] = field(default_factory=list)
 
 
+#: hooks of the earlier contract and what replaced them (a study still defining one is refused)
+RETIRED_HOOKS = {
+    "default_trials": "the scenario's validation.trials", "default_tolerance": "the scenario's validation.tolerance",
+    "max_trials": "the scenario's validation.max_trials", "batch_trials": "the scenario's validation.batch_trials",
+    "chunk_trials": "the class attribute trials_per_task",
+}
+
+
 class Study(ABC):
     """One lab method on one instrument: identity, scenario, and the three methods of the core
     (see the module docstring); capabilities are named among the bases."""
@@ -250,6 +258,12 @@ class Study(ABC):
         missing = missing_members(cls)
         if missing:
             raise TypeError(f"{cls.__name__} declares capabilities without implementing {', '.join(missing)}")
+        retired = [f"{name} (now {RETIRED_HOOKS[name]})" for name in RETIRED_HOOKS if hasattr(cls, name)]
+        if retired:
+            raise TypeError(f"{cls.__name__} defines hooks the study contract no longer has: {', '.join(retired)}")
+        undeclared = undeclared_members(cls)
+        if undeclared:
+            raise TypeError(f"{cls.__name__} defines capability methods without declaring them: {', '.join(undeclared)}")
 
     # ------------------------------------------------------------ scenario
     def _scenario_module(self):
@@ -269,8 +283,13 @@ class Study(ABC):
         return self._scenario_module().from_dict(data, source=source)
 
     def load_scenario(self, path: str | Path | None = None) -> ScenarioBase:
-        """The scenario at ``path`` (strict TOML) or, for None, the embedded default."""
-        return self._scenario_module().load(path)
+        """The scenario at ``path`` (strict TOML) or, for None, the embedded default: the scenario
+        module's ``load`` where it has one, else :meth:`default_text` and :meth:`from_dict`
+        through :func:`simcam.config_base.load_scenario_file`."""
+        module = self._scenario_module() if self.scenario_module else None
+        if module is not None and hasattr(module, "load"):
+            return module.load(path)
+        return load_scenario_file(path, from_dict=self.from_dict, default_text=self.default_text, study=self.name)
 
     def scenario_hash(self, scenario: ScenarioBase) -> str:
         """Hash of the scenario's canonical content."""
