@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from budget.runner.capabilities import CheckedScenario
 from budget.runner.plan import (BUDGET_VALIDATIONS, SCHEMA, plan_protocol, resolution, validation_seed)
 from budget.runner.study import trial_seed_sequence
 from budget.runner.toy import TOY, ToyStudy, analytic_optimum
@@ -264,7 +265,7 @@ def test_a_plan_does_not_depend_on_workers():
     assert one["evaluations"] == two["evaluations"] and one["validation"] == two["validation"]
 
 
-class _Picky(ToyStudy):
+class _Picky(ToyStudy, CheckedScenario):
     """The toy with protocols it refuses: fewer than 3 positions (its check) and fewer than 3
     frames (its trials raise, as a fit with too few data would)."""
 

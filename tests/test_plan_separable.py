@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from budget.runner.capabilities import SeparablePlans
 from budget.runner.plan import (BUDGET_VALIDATIONS, REVALIDATED_BEST, decompose, parse_requirements, plan_protocol,
                                 resolution, validation_seed)
 from budget.runner.study import trial_seed_sequence
@@ -25,7 +26,7 @@ N = 200  # the toy's validation.trials
 C = 0.95
 
 
-class _OneGroupToy(ToyStudy):
+class _OneGroupToy(ToyStudy, SeparablePlans):
     """The two-knob toy declaring that both knobs change the offset: one group, no restriction."""
 
     def field_classes(self, scenario):

@@ -188,7 +188,8 @@ class SeparablePlans(Protocol):
 
     def restrict_classes(self, scenario: ScenarioBase, classes: frozenset[str]) -> ScenarioBase | None:
         """A scenario computing only what ``classes`` need, with the same numbers for them on
-        the same seed; None where the study cannot restrict."""
+        the same seed; None where the study cannot restrict. Optional: None by default."""
+        return None
 
     def uncomputed_class(self, scenario: ScenarioBase, name: str) -> str | None:
         """Why a class of the study is not computed by ``scenario``, naming the field that leaves
@@ -283,9 +284,6 @@ class _Joint(_Default, SeparablePlans):
     def field_classes(self, scenario):
         return {}
 
-    def restrict_classes(self, scenario, classes):
-        return None
-
 
 class _CommonReport(_Default, Presented):
     """The common report only (:class:`Presented`'s defaults)."""
@@ -317,7 +315,8 @@ def declared_capabilities(cls: type) -> tuple[type, ...]:
 
 
 #: members a capability's protocol implements itself (the rest each study must write)
-OPTIONAL_MEMBERS = frozenset({"Warmup.prewarm", "Warmup.worker_init", "WorldEffects.claim", "ProtocolShapes.shape_value", "SeparablePlans.uncomputed_class",
+OPTIONAL_MEMBERS = frozenset({"Warmup.prewarm", "Warmup.worker_init", "WorldEffects.claim", "ProtocolShapes.shape_value", "SeparablePlans.restrict_classes",
+                              "SeparablePlans.uncomputed_class",
                               "Presented.report_sections", "Presented.likely_cause", "Presented.details"})
 
 

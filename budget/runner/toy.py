@@ -65,6 +65,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
+from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, SharedTruths
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth, trial_seed_sequence
 from simcam.config_base import ScenarioBase, StrictModel, ValidationSettings, load_scenario_file, validate_model
 
@@ -144,7 +145,7 @@ def load(path=None) -> ToyScenario:
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="toy")
 
 
-class ToyStudy(Study):
+class ToyStudy(Study, Plannable, ProtocolShapes, SharedTruths):
     """The toy study (module docstring); ``knobs`` names the knobs it offers the planner."""
 
     name = "toy"
@@ -340,7 +341,7 @@ class SplitToyScenario(ScenarioBase):
     validation: ValidationSettings = ValidationSettings()
 
 
-class SplitToyStudy(Study):
+class SplitToyStudy(Study, Plannable, ProtocolShapes, SharedTruths, SeparablePlans):
     """The separable toy (module docstring). ``knobs``: the protocols whose frames are knobs;
     ``shapes``: the four patterns of ``b`` and ``c`` (``bgrid-cgrid``, ``bgrid-cline``, ...);
     ``separable``: declare :meth:`field_classes`; ``restrict``: support :meth:`restrict_classes`;

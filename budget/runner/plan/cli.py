@@ -13,6 +13,7 @@ from budget.runner.plan.quantiles import DEFAULT_SURE
 from budget.runner.plan.requirements import DEFAULT_CONFIDENCE, parse_fixes, parse_requirements
 from budget.runner.plan.trials import BUDGET_VALIDATIONS, MIN_TRIALS
 from budget.runner.report import write_outputs
+from budget.runner.capabilities import Plannable
 from budget.runner.study import Study
 from simcam.infra.cli import overwrite_option
 from simcam.infra.outputs import check_run_outputs
@@ -21,9 +22,10 @@ __all__ = ["has_knobs", "plan_command_for"]
 
 
 def has_knobs(study: Study) -> bool:
-    """Whether the study's default scenario declares protocol knobs (then it has ``plan``); a
-    study that keeps the default hook has none (no scenario loaded to say so)."""
-    if getattr(type(study), "protocol_knobs", None) is Study.protocol_knobs:
+    """Whether the study is :class:`~budget.runner.capabilities.Plannable` and its default scenario
+    declares protocol knobs (then it has ``plan``; no scenario is loaded for a study without
+    the capability)."""
+    if not isinstance(study, Plannable):
         return False
     try:
         return bool(study.protocol_knobs(study.load_scenario()))

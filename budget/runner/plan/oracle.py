@@ -19,6 +19,7 @@ from budget.runner.plan.text import knobs_text, lab_time_text
 from budget.runner.plan.trials import DECIDED, screening_trials
 from budget.runner.run import TRUTH_SE_FRACTION, run_study, sized_truths_scenario, with_targets
 from budget.runner.study import Study, truth_identity
+from budget.runner.capabilities import BatchedTrials, capability, SeparablePlans
 
 __all__ = ["Oracle"]
 
@@ -46,7 +47,7 @@ class _Shifted:
         return self._study.trial(scenario, seed, k + self._offset)
 
     def trial_batch(self, scenario, seed, ks):
-        return self._study.trial_batch(scenario, seed, [k + self._offset for k in ks])
+        return capability(self._study, BatchedTrials).trial_batch(scenario, seed, [k + self._offset for k in ks])
 
 
 class Oracle:
@@ -123,7 +124,7 @@ class Oracle:
         where the study can (:meth:`Study.restrict_classes`), else ``scn``."""
         if self.restrict is None:
             return scn
-        r = self.study.restrict_classes(scn, self.restrict)
+        r = capability(self.study, SeparablePlans).restrict_classes(scn, self.restrict)
         if r is None:
             return scn
         self.restricted = True

@@ -19,6 +19,7 @@ from budget.runner.plan.trials import MIN_TRIALS, validation_seed
 from budget.runner.run import _worker_init
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
+from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability
 
 __all__ = ["plan_joint", "plan_protocol"]
 
@@ -35,11 +36,13 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     the boundary protocol); ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE``
     (:func:`parse_fixes`)."""
     t0, c0 = time.perf_counter(), time.process_time()
+    if not isinstance(study, Plannable):
+        raise UserInputError(f"plan: the {study.name} study has no plannable protocol")
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
         raise UserInputError(f"plan: the {study.name} study declares no protocol knobs on this scenario")
     if not study.lab_time_s(scenario):
-        raise TypeError(f"{type(study).__name__} declares protocol knobs but no lab time (Study.lab_time_s): "
+        raise TypeError(f"{type(study).__name__} declares protocol knobs but no lab time (Plannable.lab_time_s): "
                         "a plan has no cost to minimise")
     fixed = parse_fixes(knobs, fix)
     if not (0.5 <= confidence < 1.0):
@@ -52,26 +55,26 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
         reqs, variant = list(requirements), variant or default_variant(study)
     else:
         reqs, variant = parse_requirements(study, scenario, requirements, variant)
-    n = int(trials) if trials is not None else int(study.default_trials(scenario))
+    n = int(trials) if trials is not None else int(scenario.validation.trials)
     if n < MIN_TRIALS:
         raise UserInputError(f"--trials {n}: a plan needs at least {MIN_TRIALS} trials per validation")
     budget_s = None if budget_hours is None else 3600.0 * budget_hours
     # one pool for every candidate (the study's kernels compiled first, so its workers load them
     # from the cache): starting workers per candidate would cost more than the toy's trials
-    study.prewarm(scenario)
+    capability(study, Warmup).prewarm(scenario)
     with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
         run = PlanRun(study, scenario, reqs, variant, confidence, budget_hours, budget_s, seed, n, workers, progress,
                       pool, knobs, sure, fixed, t0, c0)
         # the whole-test search where the study declares no field classes (every field may change
         # every class), else the separable plan
-        return plan_separable(run) if study.field_classes(scenario) else plan_joint(run)
+        return plan_separable(run) if capability(study, SeparablePlans).field_classes(scenario) else plan_joint(run)
 
 
 def plan_joint(run: PlanRun) -> PlanResult:
     """The whole-test plan: every shape searched over every free knob with every requirement;
     the cheapest shape's answer re-validated on fresh seeds, else the most accurate protocol."""
     oracle = run.oracle()
-    shapes = run.study.protocol_shapes(run.scenario) or {"scenario": {}}
+    shapes = capability(run.study, ProtocolShapes).protocol_shapes(run.scenario) or {"scenario": {}}
     free = tuple(k for k in run.knobs if k.field not in run.fixed)
     results = run.search_shapes(oracle, shapes, free, run.budget_s)
     bests = [s.best for s in results.values() if s.best is not None]

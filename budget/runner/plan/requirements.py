@@ -11,6 +11,7 @@ from typing import Any
 
 from budget.runner.study import Knob, Study
 from simcam.infra.errors import UserInputError
+from budget.runner.capabilities import capability, SeparablePlans
 
 __all__ = ["DEFAULT_CONFIDENCE", "Requirement", "default_variant", "parse_fixes", "parse_requirements"]
 
@@ -80,7 +81,7 @@ def _requirement(study: Study, scenario: Any, specs: dict, t, earlier: list[Requ
     cls, ax, raw = m.groups()
     spec = specs.get(cls)
     if spec is None:
-        why = study.uncomputed_class(scenario, cls)
+        why = capability(study, SeparablePlans).uncomputed_class(scenario, cls)
         if why:
             raise UserInputError(f"--require {t!r}: {why}")
         raise UserInputError(f"--require {t!r}: unknown class {cls!r}; the {study.name} classes are "

@@ -21,6 +21,7 @@ from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import Boundary, Evaluation, ModelCurve, PlanResult, Refusal, ShapeOutcome
 from budget.runner.plan.trials import BUDGET_VALIDATIONS, screening_trials, validation_seed
 from budget.runner.study import Knob, Study
+from budget.runner.capabilities import capability, CheckedScenario
 
 __all__ = ["FLAT_COARSE", "FLAT_REFINE", "PlanRun", "ShapeSearch", "resolution"]
 
@@ -252,7 +253,7 @@ class ShapeSearch:
         else:
             try:
                 scn, vals = self.scenario(x)
-                self.o.study.check(scn, where=self.where)
+                capability(self.o.study, CheckedScenario).check(scn, where=self.where)
                 ev = self.o.evaluate(self.shape, {**vals, **self.fixed}, scn, stage=stage, extend=stage != "design")
             except (ValueError, ArithmeticError) as exc:
                 self.refused.append(Refusal({**vals, **self.fixed}, _first_line(exc)))
@@ -282,7 +283,7 @@ class ShapeSearch:
         if key not in self._flat_memo:
             try:
                 scn, vals = self.scenario(x, fv)
-                self.o.study.check(scn, where=self.where)
+                capability(self.o.study, CheckedScenario).check(scn, where=self.where)
                 ev = self.o.evaluate(self.shape, {**vals, **self.fixed}, scn, stage="flat search", extend=False)
             except (ValueError, ArithmeticError) as exc:
                 knobs = {**dict(zip([k.field for k in self.knobs], key[0])), **fv, **self.fixed}

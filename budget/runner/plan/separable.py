@@ -12,6 +12,7 @@ from budget.runner.plan.protocols import dotted_value, knob_value, lab_time, sce
 from budget.runner.plan.result import REVALIDATED_BEST, Evaluation, GroupOutcome, PlanGroup, PlanResult
 from budget.runner.plan.search import PlanRun
 from budget.runner.study import Knob, Study
+from budget.runner.capabilities import capability, ProtocolShapes, SeparablePlans
 
 __all__ = ["collapsed_labels", "decompose", "plan_separable", "union_protocol"]
 
@@ -29,7 +30,7 @@ def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict],
     or its ``--fix`` value); a group's shapes are the declared shapes projected on the group's
     shape fields, those with equal projections collapsed into one (searched once)."""
     fixed = dict(fixed or {})
-    fc = {f: tuple(c) for f, c in (study.field_classes(scenario) or {}).items()}
+    fc = {f: tuple(c) for f, c in (capability(study, SeparablePlans).field_classes(scenario) or {}).items()}
     all_classes = [c.name for c in study.classes(scenario)]
     req_classes = list(dict.fromkeys(r.cls for r in reqs))
 
@@ -142,7 +143,7 @@ def plan_separable(run: PlanRun) -> PlanResult:
     """The separable plan: each group searched on its own (:func:`_search_group`), the union of
     the answers run as one protocol on fresh seeds: the recommendation's re-validation, or (a
     group infeasible, or the union over the budget) the best achievable's."""
-    declared = run.study.protocol_shapes(run.scenario) or {"scenario": {}}
+    declared = capability(run.study, ProtocolShapes).protocol_shapes(run.scenario) or {"scenario": {}}
     groups, unsearched = decompose(run.study, run.scenario, run.reqs, run.knobs, declared, run.fixed)
     several = len(groups) > 1
     results: dict = {}
@@ -225,7 +226,7 @@ def _union_shape(run: PlanRun, declared: dict[str, dict], vals: dict, members: s
             scn = scenario_with(study, scenario, {**declared[name], **vals}, where=where)
         except ValueError:
             continue  # the scenario model refuses this combination of fields no requirement depends on
-        changed = sum(study.shape_value(scn, f) != study.shape_value(scenario, f)
+        changed = sum(capability(study, ProtocolShapes).shape_value(scn, f) != capability(study, ProtocolShapes).shape_value(scenario, f)
                       for f in declared[name] if f not in fields)
         costed.append((changed, lab_time(study, scn), name, scn))
     if costed:
