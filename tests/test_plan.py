@@ -400,11 +400,12 @@ def test_run_study_uses_a_given_executor_and_leaves_it_running():
     """``run_study(..., executor=pool)``: the caller's pool runs the trials (the same numbers as
     the run's own executor) and is still running after the run, for the next."""
     from budget.runner.executors import ProcessExecutor
-    from budget.runner.run import _worker_init, run_study
+    from budget.runner.run import run_study
+    from budget.runner.scheduler import init_worker
 
     scn = TOY.load_scenario()
     own = run_study(TOY, scn, trials=40, seed=2, workers=1)
-    with ProcessExecutor(2, initializer=_worker_init, initargs=(TOY,)) as pool:
+    with ProcessExecutor(2, initializer=init_worker, initargs=(TOY,)) as pool:
         first = run_study(TOY, scn, trials=40, seed=2, executor=pool, prewarm=False)
         assert pool._pool is not None  # not shut down by the run
         second = run_study(TOY, scn, trials=40, seed=2, executor=pool, prewarm=False)

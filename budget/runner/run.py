@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from budget.runner.executors import make_executor
 from budget.runner.result import SCHEMA, StudyResult
-from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZES, Scheduler, Stopping,
+from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZES, Scheduler, Stopping, init_worker,
                                      sized_truths_scenario, truth_targets, with_targets)
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
@@ -39,11 +39,6 @@ from budget.runner.capabilities import capability, Warmup
 
 __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
            "sized_truths_scenario", "truth_targets", "with_targets"]
-
-
-def _worker_init(study: Study) -> None:
-    """A worker's set-up for ``study`` (after the runner's own, :func:`budget.runner.executors.worker_setup`)."""
-    capability(study, Warmup).worker_init()
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:
@@ -124,7 +119,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         # local processes: this one is a worker too (it runs trials between collecting the
         # others' results), so the first trials start at once and one process fewer imports
         executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
-                                 initializer=_worker_init, initargs=(study,), work_here=True)
+                                 initializer=init_worker, initargs=(study,), work_here=True)
     # the workers start first: they import while this process does its serial work here
     with executor if own else contextlib.nullcontext(executor):
         if prewarm and scheduler is None:

@@ -44,9 +44,9 @@ import numpy as np
 
 from budget.runner.stats import converged
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
-from budget.runner.capabilities import BatchedTrials, capability, SizedTruths, SplitTruths
+from budget.runner.capabilities import BatchedTrials, SizedTruths, SplitTruths, Warmup, capability
 
-__all__ = ["MAX_TRIALS", "PILOT_TRIALS", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "RunState", "ScheduledRun",
+__all__ = ["MAX_TRIALS", "init_worker", "PILOT_TRIALS", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "RunState", "ScheduledRun",
            "Scheduler", "Stopping", "TrialArrays", "TrialChunk", "TrialChunkDone", "TruthPart", "TruthPartDone",
            "run_task", "sized_truths_scenario", "split_trials", "trial_arrays", "truth_targets", "truths_within",
            "with_targets"]
@@ -60,6 +60,13 @@ PILOT_TRIALS = 20
 TRUTH_SIZES = ("adaptive", "fixed")
 #: cap of adaptive runs whatever the study says (each trial's values are kept)
 MAX_TRIALS = 10_000_000
+
+
+def init_worker(study: Study) -> None:
+    """What a worker runs for ``study`` once it starts, after the runner's own set-up
+    (:func:`budget.runner.executors.worker_setup`): the study's
+    :meth:`~budget.runner.capabilities.Warmup.worker_init`."""
+    capability(study, Warmup).worker_init()
 
 
 # ------------------------------------------------------------------ the workers' tasks

@@ -17,9 +17,11 @@ from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import FRESH_STAGES, Evaluation
 from budget.runner.plan.text import knobs_text, lab_time_text
 from budget.runner.plan.trials import DECIDED, screening_trials
-from budget.runner.run import TRUTH_SE_FRACTION, run_study, sized_truths_scenario, with_targets
+from budget.runner.run import run_study
+from budget.runner.scheduler import TRUTH_SE_FRACTION, sized_truths_scenario, with_targets
 from budget.runner.study import Study, truth_identity
 from budget.runner.capabilities import BatchedTrials, capability, SeparablePlans
+from budget.runner.numbers import fmt
 
 __all__ = ["Oracle"]
 
@@ -190,5 +192,5 @@ class Oracle:
     def _echo(self, ev, what=None):
         if self.progress:
             print(f"  {ev.shape} {what or ev.stage}: {knobs_text(ev.knobs)}: {lab_time_text(ev.cost_s)}, "
-                  f"{ev.trials} trials, worst quantile/bound {ev.ratio:.3g} ({'meets' if ev.met else 'fails'})",
+                  f"{ev.trials} trials, worst quantile/bound {fmt(ev.ratio, 3)} ({'meets' if ev.met else 'fails'})",
                   file=sys.stderr, flush=True)

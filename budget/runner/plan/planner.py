@@ -16,10 +16,11 @@ from budget.runner.plan.result import PlanResult
 from budget.runner.plan.search import PlanRun
 from budget.runner.plan.separable import plan_separable
 from budget.runner.plan.trials import MIN_TRIALS, validation_seed
-from budget.runner.run import _worker_init
+from budget.runner.scheduler import init_worker
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability
+from simcam.units import SECONDS_PER_HOUR
 
 __all__ = ["plan_joint", "plan_protocol"]
 
@@ -58,11 +59,11 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     n = int(trials) if trials is not None else int(scenario.validation.trials)
     if n < MIN_TRIALS:
         raise UserInputError(f"--trials {n}: a plan needs at least {MIN_TRIALS} trials per validation")
-    budget_s = None if budget_hours is None else 3600.0 * budget_hours
+    budget_s = None if budget_hours is None else SECONDS_PER_HOUR * budget_hours
     # one pool for every candidate (the study's kernels compiled first, so its workers load them
     # from the cache): starting workers per candidate would cost more than the toy's trials
     capability(study, Warmup).prewarm(scenario)
-    with make_executor(workers=workers, initializer=_worker_init, initargs=(study,)) as pool:
+    with make_executor(workers=workers, initializer=init_worker, initargs=(study,)) as pool:
         run = PlanRun(study, scenario, reqs, variant, confidence, budget_hours, budget_s, seed, n, workers, progress,
                       pool, knobs, sure, fixed, t0, c0)
         # the whole-test search where the study declares no field classes (every field may change

@@ -10,12 +10,14 @@ from pathlib import Path
 import numpy as np
 
 from budget.figures import figure_markdown, plt, save
-from budget.runner.findings import fmt, with_unit
+from budget.runner.findings import with_unit
+from budget.runner.numbers import fmt
 from budget.runner.html import write_html
 from budget.runner.plan.protocols import dotted_value
 from budget.runner.plan.text import knobs_text, lab_time_text, percent_text
 from budget.runner.report import staged_report
 from simcam.infra.cli import write_json_atomic
+from simcam.units import SECONDS_PER_HOUR
 
 __all__ = ["answer_text", "findings_sentences", "plot_trade_curve", "summary_markdown", "write_plan_report"]
 
@@ -131,7 +133,7 @@ def findings_sentences(res) -> list[str]:
                 a = s.best_achievable
                 best = "" if a is None else (f"; its most accurate, {knobs_text(a.knobs)} "
                                              f"({lab_time_text(a.cost_s)}), reaches "
-                                             f"{a.ratio:.3g} times the bound")
+                                             f"{fmt(a.ratio, 3)} times the bound")
                 out.append(f"Shape {name}: no protocol meets every requirement{best}.")
     for name, s in res.shapes.items():
         if s.refused:
@@ -140,7 +142,7 @@ def findings_sentences(res) -> list[str]:
                        f"(first: {knobs_text(r[0].knobs)}: {r[0].error}).")
     per_val = res.trials_per_validation
     out.append(f"The search ran {len(res.evaluations)} protocols with common random numbers, "
-               f"{res.search_trials} trials ({res.search_trials / per_val:.3g} validations of {per_val}); "
+               f"{res.search_trials} trials ({fmt(res.search_trials / per_val, 3)} validations of {per_val}); "
                f"{res.truth_runs} truth{'' if res.truth_runs == 1 else 's'} computed (shared by protocols "
                "with the same truth identity).")
     return out
@@ -243,11 +245,11 @@ def _draw_panel(ax, res, r, go, names: list[str], first: bool) -> None:
         j = shapes.index(name)
         m = res.shapes[name].model
         if m is not None and m.cost_s:
-            ax.plot(np.array(m.cost_s) / 3600, m.quantile[r.name], lw=1.2, color=f"C{j}")
+            ax.plot(np.array(m.cost_s) / SECONDS_PER_HOUR, m.quantile[r.name], lw=1.2, color=f"C{j}")
         evs = [e for e in res.evaluations if e.shape == name]
         if not evs:
             continue
-        c = np.array([e.cost_s / 3600 for e in evs])
+        c = np.array([e.cost_s / SECONDS_PER_HOUR for e in evs])
         q = np.array([e.figures[r.name]["quantile"] for e in evs])
         met = np.array([e.met for e in evs])
         mk = MARKERS[j % len(MARKERS)]
@@ -259,7 +261,7 @@ def _draw_panel(ax, res, r, go, names: list[str], first: bool) -> None:
         f = res.validation.figures[r.name]
         # a group's panel: at its part of the recommendation (the lab time its protocols are drawn at)
         x = res.validation.cost_s if one else go.best.cost_s
-        ax.errorbar([x / 3600], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*", ms=11, color="crimson", zorder=4)
+        ax.errorbar([x / SECONDS_PER_HOUR], [f["quantile"]], yerr=[f["se_quantile"]], fmt="*", ms=11, color="crimson", zorder=4)
     if res.budget_hours is not None:
         ax.axvline(res.budget_hours, color="grey", lw=1.0, ls="-.")
     ax.set_xscale("log")
@@ -403,7 +405,7 @@ def _groups_table(res) -> list[str]:
         cost = lab_time_text(b.cost_s) if b is not None else ""
         cells = [g.name, ", ".join(g.classes), ", ".join(r.text for r in g.requirements),
                  ", ".join(f"`{k.field}`" for k in g.knobs) or "none", shapes, ans, cost,
-                 f"{go.trials} ({go.trials / n:.3g}){' restricted' if go.restricted else ''}"]
+                 f"{go.trials} ({fmt(go.trials / n, 3)}){' restricted' if go.restricted else ''}"]
         rows.append("| " + " | ".join(cells) + " |")
     rows += ["", "*the whole protocol's lab time with the other groups' knobs at the scenario's values; lab time "
              "is additive over the groups, so the recommendation (every group's answer) costs the scenario's lab "

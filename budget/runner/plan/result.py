@@ -20,6 +20,7 @@ from budget.runner.plan.text import lab_time_text
 from budget.runner.plan.trials import validation_seed
 from budget.runner.study import Knob, Study
 from simcam import __version__
+from simcam.units import SECONDS_PER_HOUR
 
 __all__ = ["FRESH_STAGES", "REVALIDATED_BEST", "SCHEMA", "Boundary", "Evaluation", "GroupOutcome", "ModelCurve",
            "PlanGroup", "PlanResult", "Refusal", "ShapeOutcome", "plan_json"]
@@ -325,7 +326,7 @@ class PlanResult:
             for name, f in e.figures.items():
                 rows.append({"shape": e.shape, "stage": e.stage,
                              **{k.rsplit('.', 1)[-1]: v for k, v in e.knobs.items()},
-                             "cost_h": e.cost_s / 3600.0, "trials": e.trials, "seed": e.seed, "requirement": name,
+                             "cost_h": e.cost_s / SECONDS_PER_HOUR, "trials": e.trials, "seed": e.seed, "requirement": name,
                              **{k: f[k] for k in ("quantile", "se_quantile", "bound", "met", "bias", "se_bias", "sd",
                                                   "se_sd", "sure")}})
         return pd.DataFrame(rows)

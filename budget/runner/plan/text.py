@@ -3,17 +3,20 @@ findings and report, the recommended scenario's header."""
 
 from __future__ import annotations
 
+from budget.runner.numbers import fmt
+from simcam.units import SECONDS_PER_HOUR
+
 __all__ = ["knobs_text", "lab_time_text", "number_text", "percent_text"]
 
 
 def lab_time_text(s: float) -> str:
     """Lab time ``s`` (seconds) for prose: hours from 0.1 h, minutes below (``0.343 h``, ``5.2 min``)."""
-    return f"{s / 3600:.3g} h" if s >= 360 else f"{s / 60:.3g} min"
+    return f"{fmt(s / SECONDS_PER_HOUR, 3)} h" if s >= 360 else f"{fmt(s / 60, 3)} min"
 
 
 def number_text(v) -> str:
     """A knob's value for prose: a whole number as it is, a real one to 4 significant digits."""
-    return f"{v:d}" if isinstance(v, int) else f"{v:.4g}"
+    return f"{v:d}" if isinstance(v, int) else fmt(v)
 
 
 def knobs_text(knobs: dict) -> str:
