@@ -21,15 +21,8 @@ import numpy as np
 
 from budget.figures import figure_markdown, overlaid_hist, save
 from budget.figures import plt as pyplot  # matplotlib.pyplot, set up on first use
-from budget.inductosyn.harmonics import (
-    COEFFICIENTS,
-    PUBLISHED_COEFFICIENTS,
-    HarmonicSpec,
-    design_matrix,
-    fit_joint,
-    posterior_band,
-    sigma3_arcsec,
-)
+from budget.inductosyn.harmonics import (COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, design_matrix, fit_joint,
+                                         posterior_band, sigma3_arcsec)
 from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
 from simcam.units import ARCSEC_PER_DEG

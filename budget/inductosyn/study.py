@@ -33,15 +33,8 @@ import numpy as np
 
 from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, sigma3_arcsec
 from budget.inductosyn.report import details, report_sections
-from budget.runner.capabilities import (
-    BatchedTrials,
-    CheckedScenario,
-    Plannable,
-    Prepared,
-    Presented,
-    ProtocolShapes,
-    WorldEffects,
-)
+from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Plannable, Prepared, Presented, ProtocolShapes,
+                                        WorldEffects)
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes

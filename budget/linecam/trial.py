@@ -20,15 +20,8 @@ import numpy as np
 from simcam.linecam.camera import CameraTruth, camera_truth, draw_errors
 from simcam.linecam.effects import effects_generator
 from simcam.linecam.scenario import PARAMETERS, LineCamScenario
-from simcam.linecam.world import (
-    PassImages,
-    SkyStrip,
-    attitude_reports,
-    image_passes,
-    sky_strip,
-    world_jitter,
-    world_sky_strip,
-)
+from simcam.linecam.world import (PassImages, SkyStrip, attitude_reports, image_passes, sky_strip, world_jitter,
+                                  world_sky_strip)
 from simcam.sky.catalogue import hipparcos
 from simcam.units import ARCSEC_PER_RAD
 

@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 
+from budget.runner.capabilities import Presented, capability
 from budget.runner.numbers import fmt
 
 __all__ = ["RULES", "annotate", "findings", "findings_json", "findings_lines", "findings_markdown",
@@ -242,7 +243,7 @@ def findings(result) -> list[dict]:
         held = verdict in _OK or (verdict in ("residual", "stated") and not _past_claim(result, key, st))
         if not held and verdict in ("biased", "coverage", "unresolved", "residual", "stated"):
             try:
-                cause = result.study.likely_cause(result, key, st)
+                cause = capability(result.study, Presented).likely_cause(result, key, st)
             except Exception:  # a study's hook must never break a report
                 cause = None
         rms = st.get("rms_error", math.hypot(st["bias"], st["std"]))

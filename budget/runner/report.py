@@ -16,10 +16,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from budget.runner.capabilities import capability, Presented
 
+from budget.runner.capabilities import Presented, capability
 from budget.runner.numbers import fmt
-
 
 __all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "publish_report", "staged_report",
            "write_outputs", "write_report"]

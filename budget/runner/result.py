@@ -26,15 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from simcam import __version__
-from simcam.effects import scenario_effects
-
+from budget.runner.capabilities import Presented, capability
 from budget.runner.findings import annotate, findings_json, findings_markdown
 from budget.runner.html import markdown_to_html
 from budget.runner.report import format_table
 from budget.runner.stats import key_statistics
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
-from budget.runner.capabilities import capability, Presented
+from simcam import __version__
+from simcam.effects import scenario_effects
 
 __all__ = ["SCHEMA", "STATISTICS", "StudyResult"]
 

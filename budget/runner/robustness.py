@@ -62,12 +62,15 @@ import click
 import numpy as np
 
 import simcam
+from budget.runner.capabilities import (BatchedTrials, CheckedScenario, SharedTruths, SplitTruths, Warmup, WorldEffects,
+                                        capability)
 from budget.runner.executors import default_workers, make_executor
 from budget.runner.html import write_html
 from budget.runner.numbers import fmt
 from budget.runner.registry import get_study
 from budget.runner.report import staged_report, write_outputs
 from budget.runner.run import StudyResult
+from budget.runner.scheduler import init_worker
 from budget.runner.study import ClassSpec, Study, TrialResult, truth_identity
 from simcam.effects import scenario_effects
 from simcam.infra.cli import overwrite_option, write_json_atomic
@@ -188,7 +191,7 @@ def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
     if effects is None or not effects.names():
         raise UserInputError(f"{where}: the {study.name} study's scenario has no [world.effects]: "
                              "nothing for robustness to vary")
-    depends = study.truth_depends_on_effects(scenario)
+    depends = capability(study, WorldEffects).truth_depends_on_effects(scenario)
     ideal = effects.ideal().magnitudes()
     ideal_scn = scenario_with_effects(study, scenario, ideal, source=f"{where}, case {IDEAL}")
 
@@ -197,7 +200,7 @@ def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:
         # (Study.truth_fields: the hook sweeps share truths by)
         if depends is not None and not (set(active) & set(depends)):
             return True
-        return study.truth_fields(scn) is not None and truth_identity(study, scn) == truth_identity(study, ideal_scn)
+        return capability(study, SharedTruths).truth_fields(scn) is not None and truth_identity(study, scn) == truth_identity(study, ideal_scn)
 
     cases = [Case(IDEAL, ideal_scn, (), ideal, False)]
     active = effects.active()
@@ -222,16 +225,12 @@ def _task(args):
     """A worker's task: a chunk of one case's trials, or one piece of one case's truths."""
     study, scenario, seed, case, ks = args
     if isinstance(ks, tuple) and ks and ks[0] == "truth":
-        return _Truths(case, ks[1], study.truth_part(scenario, seed, ks[2]))
-    out = list(zip(ks, study.trial_batch(scenario, seed, list(ks))))
+        return _Truths(case, ks[1], capability(study, SplitTruths).truth_part(scenario, seed, ks[2]))
+    out = list(zip(ks, capability(study, BatchedTrials).trial_batch(scenario, seed, list(ks))))
     for k, r in out:
         if k != 0:
             r.extra = {}
     return case, out
-
-
-def _worker_init(study: Study) -> None:
-    study.worker_init()
 
 
 def _collect(results: dict[int, TrialResult]):
@@ -252,20 +251,20 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
     results do not depend on it)."""
     t0 = time.perf_counter()
     if trials is None:
-        trials = study.default_trials(scenario)
+        trials = scenario.validation.trials
     if trials < 2:
         raise UserInputError(f"--trials: must be at least 2 (got {trials})")
     cases = build_cases(study, scenario, source=source)
     for c in cases:
-        study.check(c.scenario, where=f"{source or study.name}, case {c.name}")
+        capability(study, CheckedScenario).check(c.scenario, where=f"{source or study.name}, case {c.name}")
     classes = tuple(study.classes(scenario))
     n_values = sum(len(c.axes) for c in classes) * len(study.variants)
     check_memory(float(trials) * len(cases) * (300 + 3 * 100 * n_values),
                  what=f"--trials {trials} for {len(cases)} robustness cases")
     if prewarm and scheduler is None:
-        study.prewarm(scenario)
+        capability(study, Warmup).prewarm(scenario)
     executor = make_executor(workers=workers, scheduler=scheduler, dask_local=dask_local,
-                             initializer=_worker_init, initargs=(study,))
+                             initializer=init_worker, initargs=(study,))
     results: list[dict[int, TrialResult]] = [{} for _ in cases]
     truths: list[dict | None] = [None] * len(cases)
     own = [i for i, c in enumerate(cases) if not c.shares_truths]
@@ -276,11 +275,11 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
             for i in own:
                 truths[i] = study.truths(cases[i].scenario, seed)
         else:
-            parts = {i: study.truth_parts(cases[i].scenario, seed) for i in own}
+            parts = {i: capability(study, SplitTruths).truth_parts(cases[i].scenario, seed) for i in own}
             got: dict[int, dict[int, Any]] = {i: {} for i in own}
             tasks += [(study, cases[i].scenario, seed, i, ("truth", j, p))
                       for i in own for j, p in enumerate(parts[i])]
-        size = max(1, min(study.chunk_trials(scenario), trials // (2 * max(executor.workers, 1))))
+        size = max(1, min(study.trials_per_task, trials // (2 * max(executor.workers, 1))))
         # chunk-major: the same trials of every case side by side
         for lo in range(0, trials, size):
             ks = list(range(lo, min(trials, lo + size)))
@@ -295,7 +294,7 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
                     got[out.case][out.index] = out.value
                     if len(got[out.case]) == len(parts[out.case]):
                         i = out.case
-                        truths[i] = study.truths_from_parts(cases[i].scenario, seed,
+                        truths[i] = capability(study, SplitTruths).truths_from_parts(cases[i].scenario, seed,
                                                             [got[i][j] for j in range(len(parts[i]))])
                     continue
                 i, part = out
@@ -361,7 +360,7 @@ class RobustnessResult:
                 # no claim: a residual, or an axis the data cannot determine (a gauge freedom,
                 # ClassSpec.undetermined: its estimate is a convention, no sigma is stated)
                 no_claim = spec.role == "residual" or st.get("determined") is False
-                claim = None if no_claim else self.study.claim(case.scenario, cls, var)
+                claim = None if no_claim else capability(self.study, WorldEffects).claim(case.scenario, cls, var)
                 cell = {"bias": st["bias"], "se_bias": st["se_bias"], "std": st["std"], "mean": st["mean"],
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
                         "se_coverage_1sigma": cov["se_1sigma"] if cov else None,
@@ -488,7 +487,7 @@ class RobustnessResult:
         """JSON payload (schema ``budget.robustness/1``, module docstring)."""
         cells = self.cells()
         effects = scenario_effects(self.scenario)
-        depends = self.study.truth_depends_on_effects(self.scenario)
+        depends = capability(self.study, WorldEffects).truth_depends_on_effects(self.scenario)
         cases = {}
         for case in self.cases:
             classes: dict = {}

@@ -28,6 +28,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from budget.runner.capabilities import Warmup, capability
 from budget.runner.executors import make_executor
 from budget.runner.result import SCHEMA, StudyResult
 from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZES, Scheduler, Stopping, init_worker,
@@ -35,7 +36,6 @@ from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZE
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import check_memory
-from budget.runner.capabilities import capability, Warmup
 
 __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
            "sized_truths_scenario", "truth_targets", "with_targets"]

@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 
+from budget.runner.capabilities import BatchedTrials, SizedTruths, SplitTruths, Warmup, capability
 from budget.runner.stats import converged
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
-from budget.runner.capabilities import BatchedTrials, SizedTruths, SplitTruths, Warmup, capability
 
 __all__ = ["MAX_TRIALS", "init_worker", "PILOT_TRIALS", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "RunState", "ScheduledRun",
            "Scheduler", "Stopping", "TrialArrays", "TrialChunk", "TrialChunkDone", "TruthPart", "TruthPartDone",

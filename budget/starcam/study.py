@@ -13,18 +13,8 @@ from itertools import combinations
 from pathlib import Path
 
 from budget.figures import figure_markdown
-from budget.runner.capabilities import (
-    CheckedScenario,
-    Plannable,
-    Presented,
-    ProtocolShapes,
-    SeparablePlans,
-    SharedTruths,
-    SizedTruths,
-    SplitTruths,
-    Warmup,
-    WorldEffects,
-)
+from budget.runner.capabilities import (CheckedScenario, Plannable, Presented, ProtocolShapes, SeparablePlans,
+                                        SharedTruths, SizedTruths, SplitTruths, Warmup, WorldEffects)
 from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 from budget.starcam.checks import check_geometry

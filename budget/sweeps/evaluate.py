@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 import simcam
+from budget.runner.capabilities import SharedTruths, SplitTruths, capability
 from budget.runner.run import run_study, sized_truths_scenario, truth_targets, with_targets
 from budget.sweeps.layout import STOPPED_BY, class_layout, labels, schema, study_for_kind, truth_has_variant
 from budget.sweeps.values import point_seed as seed_of  # truth_seed_of has a parameter point_seed
@@ -102,7 +103,7 @@ def truth_seed_of(study, scenario, sweep_seed: int, values: dict, point_seed: in
     (``point_seed`` itself when they are all of them)."""
     if common:
         return point_seed
-    fields = study.truth_fields(scenario)
+    fields = capability(study, SharedTruths).truth_fields(scenario)
     rel = {k: v for k, v in values.items() if truth_relevant(fields, k)}
     return point_seed if len(rel) == len(values) else seed_of(sweep_seed, rel)
 
@@ -125,7 +126,7 @@ def evaluate_truth_part(task: TruthPartTask) -> TruthPartTask:
     (each piece a pure function of the scenario, the truth seed and the piece, so how the
     pieces are batched changes no number)."""
     study = study_for_kind(task.kind)
-    return replace(task, parts=tuple(study.truth_part(task.scenario, task.truth_seed, p) for p in task.parts))
+    return replace(task, parts=tuple(capability(study, SplitTruths).truth_part(task.scenario, task.truth_seed, p) for p in task.parts))
 
 
 @dataclass

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
+from budget.runner.capabilities import Warmup, capability
 from budget.runner.executors import InlineExecutor, make_executor, worker_setup
 from budget.sweeps.evaluate import TruthPartTask, evaluate_point, evaluate_truth_part
 from budget.sweeps.layout import study_for_kind
@@ -24,7 +25,7 @@ __all__ = ["SweepRunner", "make_runner"]
 
 
 def _init_for_kind(kind: str) -> None:
-    study_for_kind(kind).worker_init()
+    capability(study_for_kind(kind), Warmup).worker_init()
 
 
 def _evaluate(task):

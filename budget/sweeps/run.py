@@ -29,6 +29,7 @@ from pathlib import Path
 import click
 
 import simcam
+from budget.runner.capabilities import SplitTruths, Warmup, capability
 from budget.runner.numbers import fmt
 from budget.runner.run import with_targets
 from budget.runner.study import truth_identity
@@ -120,7 +121,7 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
             key += (t.group, t.index)
         if key not in groups:
             scn, targets = truths_scenario(study, t)
-            groups[key] = (len(groups), scn, targets, study.truth_parts(scn, t.truth_seed), t.truth_seed)
+            groups[key] = (len(groups), scn, targets, capability(study, SplitTruths).truth_parts(scn, t.truth_seed), t.truth_seed)
         keys.append(key)
     # the pieces in runs of consecutive pieces of one truth, about TRUTH_TASKS_PER_WORKER runs
     # per worker in all: a task per piece would be thousands of tasks of milliseconds (16 camera
@@ -135,7 +136,7 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
             got.setdefault(res.group, {})[res.index + k] = part
     truths = {}
     for key, (g, scn, targets, parts, seed) in groups.items():
-        t = study.truths_from_parts(scn, seed, [got[g][j] for j in range(len(parts))])
+        t = capability(study, SplitTruths).truths_from_parts(scn, seed, [got[g][j] for j in range(len(parts))])
         truths[key] = with_targets(t, targets) if targets else t
     return [replace(t, truths=truths[k]) for t, k in zip(tasks, keys)], len(groups)
 
@@ -196,7 +197,7 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         if scheduler is None and (todo_grid or todo_sens):
             # a first run's kernels compiled once on this machine's cores, before the workers
             # need them (each point then loads them from numba's cache)
-            study_for_kind(sw.spec.kind).prewarm((todo_grid or todo_sens)[0].scenario)
+            capability(study_for_kind(sw.spec.kind), Warmup).prewarm((todo_grid or todo_sens)[0].scenario)
         todo = todo_grid + todo_sens
         todo, report.truths_computed = share_truths(runner, todo, share=truths_shared)
         todo_grid, todo_sens = todo[:len(todo_grid)], todo[len(todo_grid):]

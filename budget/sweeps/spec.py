@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from budget.runner.capabilities import CheckedScenario, capability
 from budget.runner.registry import get_study
 from budget.sweeps.dotted import set_dotted
 from budget.sweeps.models import DistSpec, SensitivitySpec, SweepSpec, parse_sweep
@@ -95,7 +96,7 @@ def scenario_text(kind: str, scenario) -> str:
 def check_simulable(kind: str, scenario, *, where: str) -> None:
     """What the simulator would refuse later, checked now (cheaply): :meth:`Study.check`."""
     try:
-        _study(kind).check(scenario, where=where)
+        capability(_study(kind), CheckedScenario).check(scenario, where=where)
     except ScenarioError:
         raise
     except ValueError as exc:  # the simulator's own input errors (DesignError, OpticsError, ...)

@@ -10,15 +10,8 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from simcam.config_base import (
-    BatchTrials,
-    ScenarioBase,
-    StrictModel,
-    Trials,
-    ValidationSettings,
-    load_scenario_file,
-    validate_model,
-)
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file,
+                                validate_model)
 from simcam.infra.errors import ScenarioError
 from simcam.limits import check_epoch_utc
 from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld

@@ -15,15 +15,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from simcam.config_base import (
-    BatchTrials,
-    ScenarioBase,
-    StrictModel,
-    Trials,
-    ValidationSettings,
-    load_scenario_file,
-    validate_model,
-)
+from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file,
+                                validate_model)
 from simcam.effects import EffectsBase, WorldBase
 from simcam.infra.errors import ScenarioError
 from simcam.infra.lifecycle import check_memory

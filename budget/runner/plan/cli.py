@@ -7,13 +7,13 @@ import sys
 
 import click
 
+from budget.runner.capabilities import Plannable
 from budget.runner.executors import default_workers
 from budget.runner.plan.planner import plan_protocol
 from budget.runner.plan.quantiles import DEFAULT_SURE
 from budget.runner.plan.requirements import DEFAULT_CONFIDENCE, parse_fixes, parse_requirements
 from budget.runner.plan.trials import BUDGET_VALIDATIONS, MIN_TRIALS
 from budget.runner.report import write_outputs
-from budget.runner.capabilities import Plannable
 from budget.runner.study import Study
 from simcam.infra.cli import overwrite_option
 from simcam.infra.outputs import check_run_outputs

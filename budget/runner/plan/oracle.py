@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from budget.runner.capabilities import BatchedTrials, SeparablePlans, capability
+from budget.runner.numbers import fmt
 from budget.runner.plan.quantiles import figures_of, sure_margin, sure_met
 from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import FRESH_STAGES, Evaluation
@@ -20,8 +22,6 @@ from budget.runner.plan.trials import DECIDED, screening_trials
 from budget.runner.run import run_study
 from budget.runner.scheduler import TRUTH_SE_FRACTION, sized_truths_scenario, with_targets
 from budget.runner.study import Study, truth_identity
-from budget.runner.capabilities import BatchedTrials, capability, SeparablePlans
-from budget.runner.numbers import fmt
 
 __all__ = ["Oracle"]
 

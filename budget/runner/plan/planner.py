@@ -8,6 +8,7 @@ import math
 import time
 from typing import Any
 
+from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability
 from budget.runner.executors import make_executor
 from budget.runner.plan.quantiles import DEFAULT_SURE
 from budget.runner.plan.requirements import (DEFAULT_CONFIDENCE, Requirement, default_variant, parse_fixes,
@@ -19,7 +20,6 @@ from budget.runner.plan.trials import MIN_TRIALS, validation_seed
 from budget.runner.scheduler import init_worker
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
-from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability
 from simcam.units import SECONDS_PER_HOUR
 
 __all__ = ["plan_joint", "plan_protocol"]

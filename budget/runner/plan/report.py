@@ -11,8 +11,8 @@ import numpy as np
 
 from budget.figures import figure_markdown, plt, save
 from budget.runner.findings import with_unit
-from budget.runner.numbers import fmt
 from budget.runner.html import write_html
+from budget.runner.numbers import fmt
 from budget.runner.plan.protocols import dotted_value
 from budget.runner.plan.text import knobs_text, lab_time_text, percent_text
 from budget.runner.report import staged_report

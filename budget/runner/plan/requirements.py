@@ -9,9 +9,9 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
+from budget.runner.capabilities import SeparablePlans, capability
 from budget.runner.study import Knob, Study
 from simcam.infra.errors import UserInputError
-from budget.runner.capabilities import capability, SeparablePlans
 
 __all__ = ["DEFAULT_CONFIDENCE", "Requirement", "default_variant", "parse_fixes", "parse_requirements"]
 

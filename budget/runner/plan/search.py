@@ -13,15 +13,14 @@ from typing import Any
 
 import numpy as np
 
+from budget.runner.capabilities import CheckedScenario, capability
 from budget.runner.plan.oracle import Oracle
-from budget.runner.plan.protocols import (cost_flat_knobs, dotted_value, knob_levels, knob_value, lab_time,
-                                          scenario_with)
+from budget.runner.plan.protocols import cost_flat_knobs, dotted_value, knob_levels, knob_value, lab_time, scenario_with
 from budget.runner.plan.quantiles import smooth_ratio
 from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import Boundary, Evaluation, ModelCurve, PlanResult, Refusal, ShapeOutcome
 from budget.runner.plan.trials import BUDGET_VALIDATIONS, screening_trials, validation_seed
 from budget.runner.study import Knob, Study
-from budget.runner.capabilities import capability, CheckedScenario
 
 __all__ = ["FLAT_COARSE", "FLAT_REFINE", "PlanRun", "ShapeSearch", "resolution"]
 

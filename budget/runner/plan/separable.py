@@ -8,11 +8,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from budget.runner.capabilities import ProtocolShapes, SeparablePlans, capability
 from budget.runner.plan.protocols import dotted_value, knob_value, lab_time, scenario_with
 from budget.runner.plan.result import REVALIDATED_BEST, Evaluation, GroupOutcome, PlanGroup, PlanResult
 from budget.runner.plan.search import PlanRun
 from budget.runner.study import Knob, Study
-from budget.runner.capabilities import capability, ProtocolShapes, SeparablePlans
 
 __all__ = ["collapsed_labels", "decompose", "plan_separable", "union_protocol"]
 
