@@ -30,6 +30,9 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, Self
 
+from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import cap_workers, default_stop_handlers, exit_with_parent, quick_teardown, stop_pool
+
 __all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor",
            "start_method", "worker_setup"]
 
@@ -92,7 +95,6 @@ def _init_worker(initializer, args):
     # the parent-death guard first (simcam.infra.lifecycle): a parent killed while its workers
     # still import leaves no worker behind; the worker's exit, which the pool's shutdown
     # waits for, skips the final garbage collections
-    from simcam.infra.lifecycle import default_stop_handlers, exit_with_parent, quick_teardown
 
     exit_with_parent()
     default_stop_handlers()  # a forked worker's are its parent's
@@ -182,7 +184,6 @@ class ProcessExecutor(Executor):
     def __exit__(self, exc_type, *exc) -> None:
         if exc_type is not None and self._pool is not None:
             # an interruption or an error: end the workers now, leave no child behind
-            from simcam.infra.lifecycle import stop_pool
 
             stop_pool(self._pool)
             self._pool = None
@@ -246,7 +247,6 @@ class DaskExecutor(Executor):
     def __enter__(self):
         from distributed import Client, LocalCluster
 
-        from simcam.infra.errors import UserInputError
 
         if self.local_workers is not None:
             self.cluster = LocalCluster(n_workers=self.local_workers, threads_per_worker=1, processes=True,
@@ -304,7 +304,6 @@ def make_executor(*, workers: int | None = None, scheduler: str | None = None, d
                   initializer: Callable | None = None, initargs: tuple = (), work_here: bool = False) -> Executor:
     """The executor asked for (at most one option; default all local cores; 1 worker: inline).
     ``work_here``: local processes count this one, which runs tasks too (:class:`ProcessExecutor`)."""
-    from simcam.infra.errors import UserInputError
 
     given = [n for n, v in (("--workers", workers), ("--scheduler", scheduler), ("--dask-local", dask_local))
              if v is not None]
@@ -321,7 +320,6 @@ def make_executor(*, workers: int | None = None, scheduler: str | None = None, d
     n = workers if workers is not None else default_workers()
     if n < 1:
         raise UserInputError(f"--workers: must be >= 1 (got {n})")
-    from simcam.infra.lifecycle import cap_workers  # never more processes than cores/memory hold
 
     n = cap_workers(n, quiet=workers is None)
     if n == 1:

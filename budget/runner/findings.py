@@ -58,8 +58,8 @@ import math
 from budget.runner.capabilities import Presented, capability
 from budget.runner.numbers import fmt
 
-__all__ = ["RULES", "annotate", "findings", "findings_json", "findings_lines", "findings_markdown",
-           "with_unit"]
+__all__ = ["RULES", "annotate", "finding_sentence", "findings", "findings_json", "findings_lines", "findings_markdown",
+           "unit_prose", "with_unit"]
 
 RULES = ("input", "residual", "stated", "reference", "undetermined", "exact", "recovers", "biased", "coverage",
          "unresolved")
@@ -78,10 +78,10 @@ def with_unit(value: float, unit: str) -> str:
         return fmt(value)
     if u.replace("e", "", 1).replace("-", "", 1).replace(".", "", 1).isdigit():  # "1e-4"
         return f"{fmt(value)} x {u}"
-    return f"{fmt(value)} {_unit(u)}"
+    return f"{fmt(value)} {unit_prose(u)}"
 
 
-def _unit(unit: str) -> str:
+def unit_prose(unit: str) -> str:
     """A unit for prose: ``"arcsec, 3 sigma"`` reads ``arcsec (3 sigma)``."""
     u = (unit or "").strip()
     if ", " in u:
@@ -174,6 +174,12 @@ def _truth_words(st: dict, unit: str) -> str:
     if st["truth_se"] > 0:
         return f"the truth {with_pm(st['truth'], st['truth_se'], unit)}"
     return f"the truth {with_unit(st['truth'], unit)}"
+
+
+def finding_sentence(result, key, st: dict) -> str:
+    """The finding's sentence of ``key`` (``(class, variant, axis)``) with its statistics ``st``,
+    by the rule its numbers select (the module docstring's rules)."""
+    return _sentence(result, key, st, _verdict(result, key, st))
 
 
 def _sentence(result, key, st: dict, verdict: str) -> str:

@@ -17,8 +17,16 @@ from pathlib import Path
 
 import numpy as np
 
+from budget.figures import save
 from budget.runner.capabilities import Presented, capability
+from budget.runner.findings import finding_sentence, findings_json, findings_markdown, unit_prose, with_unit
+from budget.runner.html import write_html
 from budget.runner.numbers import fmt
+from simcam.effects import scenario_effects
+from simcam.infra.cli import write_json_atomic
+from simcam.infra.errors import UserInputError
+from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
+from simcam.infra.outputs import StagedOutputs
 
 __all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "publish_report", "staged_report",
            "write_outputs", "write_report"]
@@ -55,11 +63,10 @@ def format_table(result) -> str:
 
 def finding(result, key) -> str:
     """One sentence about ``key``, chosen by the shared rules (:mod:`budget.runner.findings`)."""
-    from budget.runner.findings import _sentence, _verdict
 
     st = result.statistics(key)
     cls, var, ax = key
-    return f"{result.class_spec(cls).label}, {ax}, {var}: {_sentence(result, key, st, _verdict(result, key, st))}."
+    return f"{result.class_spec(cls).label}, {ax}, {var}: {finding_sentence(result, key, st)}."
 
 
 def _plt():
@@ -129,8 +136,6 @@ def plot_estimates(result, path: Path, fdata: dict | None = None):
     never clipped; a dimensionless class has no unit on its axis."""
     import textwrap
 
-    from budget.figures import save
-    from budget.runner.findings import _unit
 
     plt = _plt()
     panels = estimates_panels(result)
@@ -143,7 +148,7 @@ def plot_estimates(result, path: Path, fdata: dict | None = None):
     variants = list(result.study.variants)
     for ax_, p in zip(axes.flat, panels):
         spec = result.class_spec(p["cls"])
-        unit = _unit(spec.unit)
+        unit = unit_prose(spec.unit)
         unit_s = "" if unit in ("", "1") else f" ({unit})"
         ax_.axvline(p["truth"], color="k", lw=1, label="truth (error 0)" if p["errors"] else "truth")
         for var in [v for v in variants if v in p["samples"] or v in p["constants"]]:
@@ -177,7 +182,6 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
     """The estimates figure's caption: what it shows (from ``panels``, what
     :func:`plot_estimates` draws: the shared bins, the constant samples drawn as lines) and
     its finding (from the findings)."""
-    from budget.runner.findings import with_unit
 
     panels = estimates_panels(result) if panels is None else panels
     biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
@@ -213,7 +217,6 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
 def world_line(scenario) -> str:
     """One line naming the world a run simulated: which ``[world.effects]`` were on
     (printed under the validate header and at the top of the report)."""
-    from simcam.effects import scenario_effects
 
     effects = scenario_effects(scenario)
     if effects is None:
@@ -227,11 +230,9 @@ def world_line(scenario) -> str:
 def write_report(result, out_dir: str | os.PathLike) -> Path:
     """Write ``report.md``, ``estimates.png``, the study's sections and figures,
     ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
-    from simcam.infra.cli import write_json_atomic
 
     with staged_report(out_dir) as tmp:
         study = result.study
-        from budget.runner.findings import findings_json, findings_markdown
 
         fdata = findings_json(result)
         lines = [f"# {study.title}: Monte Carlo validation", "",
@@ -267,7 +268,6 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         (tmp / "scenario.toml").write_text(scenario_toml)
         write_json_atomic(tmp / "summary.json", result.to_json())
         (tmp / "report.md").write_text("\n".join(lines))
-        from budget.runner.html import write_html
 
         write_html(tmp / "report.md", tmp / "report.html", title=f"{study.title}: Monte Carlo validation")
     return Path(out_dir) / "report.md"
@@ -281,7 +281,6 @@ def staged_report(out_dir: str | os.PathLike):
     on any error the temporary folder is removed, so no half-written report is left."""
     import sys
 
-    from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
 
     out = Path(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -302,7 +301,6 @@ def publish_report(tmp: Path, out: Path) -> None:
         if out.is_dir() and (not any(out.iterdir()) or (out / "report.md").exists()):
             shutil.rmtree(out)
         else:
-            from simcam.infra.errors import UserInputError
 
             raise UserInputError(f"--report {out}: exists and is not an earlier report; give a new folder")
     os.replace(tmp, out)
@@ -315,8 +313,6 @@ def write_outputs(res, *, json_out, report_dir, write_report=None) -> None:
     ``res.write_report(folder)``."""
     import click
 
-    from simcam.infra.cli import write_json_atomic
-    from simcam.infra.outputs import StagedOutputs
 
     with StagedOutputs() as staged:
         if json_out:
