@@ -37,6 +37,10 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from budget.runner.executors import default_workers
+from budget.runner.registry import get_study, study_names
+from budget.runner.study import Study
+
 from budget.arguments import check_arguments
 
 __all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
@@ -44,8 +48,6 @@ __all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"
 
 def studies() -> list[str]:
     """The registered study names (``"starcam"``, ``"inductosyn"``, ...)."""
-    from budget.runner.registry import study_names
-
     return study_names()
 
 
@@ -57,9 +59,6 @@ def scenario_text(study) -> str:
 
 
 def _study(study):
-    from budget.runner.registry import get_study
-    from budget.runner.study import Study
-
     if isinstance(study, Study):
         return study
     if isinstance(study, str):
@@ -142,7 +141,6 @@ def validate(study, scenario=None, *, trials: int | None = None, seed: int = 0, 
         A progress bar on stderr.
     """
     check_arguments(locals())  # each argument's type and range, named, before any work
-    from budget.runner.executors import default_workers
     from budget.runner.run import run_study
 
     st = _study(study)
@@ -160,7 +158,6 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
     (:func:`budget.runner.robustness.run_robustness`); ``study`` and ``scenario`` as for
     :func:`validate`. Returns its ``RobustnessResult`` (``write_report(folder)``, ``to_json()``)."""
     check_arguments(locals())  # each argument's type and range, named, before any work
-    from budget.runner.executors import default_workers
     from budget.runner.robustness import run_robustness
 
     st = _study(study)
@@ -184,7 +181,6 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
     recommended protocol is to pass the re-validation (0.5: the boundary protocol). ``fix``:
     knobs pinned, ``{field: value}`` (or texts ``"FIELD=VALUE"``)."""
     check_arguments(locals())  # each argument's type and range, named, before any work
-    from budget.runner.executors import default_workers
     from budget.runner.plan import plan_protocol
 
     st = _study(study)

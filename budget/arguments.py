@@ -26,6 +26,8 @@ from collections.abc import Callable, Mapping
 from functools import wraps
 from typing import Any
 
+from budget.runner.registry import get_study, study_names
+from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import SAFETY_FRACTION, available_memory_bytes, format_bytes
 
@@ -166,11 +168,6 @@ def check_out(value: Any, name: str = "out", *, cli: bool = False) -> None:
 
 def check_study(value: Any, name: str = "study") -> Any:
     """A registered study's name or a :class:`~budget.runner.study.Study`; returns the study."""
-    # imported here, as in budget.api's facades: the study contract imports numpy, and
-    # ``import budget`` stays light (this module is imported by budget.api)
-    from budget.runner.registry import get_study, study_names
-    from budget.runner.study import Study
-
     if isinstance(value, Study):
         return value
     if isinstance(value, str):

@@ -29,7 +29,7 @@ from astropy.io import fits
 from simcam import __version__
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import announce_size, check_disk, check_memory, partial_prefix, remove_stale_partials
-from simcam.infra.outputs import apply_umask, check_output_dir, input_file_problem, is_earlier_output
+from simcam.infra.outputs import apply_umask, check_output_dir, failed_write, input_file_problem, is_earlier_output
 
 
 def frame_header(
@@ -77,8 +77,6 @@ def atomic_directory(out: str | os.PathLike, *, overwrite: bool = False, inputs=
     line on stderr (:func:`simcam.infra.lifecycle.remove_stale_partials`). ``out`` never is
     nor holds one of ``inputs`` (the files the command read).
     """
-    from simcam.infra.outputs import failed_write
-
 
     out = Path(out)
     # the one rule (simcam.infra.outputs.check_output_dir): empty, an earlier output, or --overwrite

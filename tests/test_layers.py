@@ -234,9 +234,15 @@ def _function_level_imports(name: str) -> list[tuple[int, list[str]]]:
     (line, the modules it names)."""
     tree = ast.parse(MODULES[name].read_text(encoding="utf-8"))
     top = {id(stmt) for stmt in _statements(tree.body, into_functions=False)}
+    # a package's module-level __getattr__ (PEP 562) imports on first use by design: it keeps
+    # ``import budget`` from importing the lab (the console script's start stays light)
+    lazy = [range(f.lineno, f.end_lineno + 1) for f in tree.body
+            if isinstance(f, ast.FunctionDef) and f.name == "__getattr__"]
     out = []
     for stmt in _statements(tree.body, into_functions=True):
         if id(stmt) in top or not isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            continue
+        if any(stmt.lineno in span for span in lazy):
             continue
         named = sorted(_import_lines_of(name, stmt))
         if named:

@@ -230,7 +230,7 @@ class ReportSection:
 RETIRED_HOOKS = {
     "default_trials": "the scenario's validation.trials", "default_tolerance": "the scenario's validation.tolerance",
     "max_trials": "the scenario's validation.max_trials", "batch_trials": "the scenario's validation.batch_trials",
-    "chunk_trials": "the class attribute trials_per_task",
+    "chunk_trials": "the class attribute trials_per_task", "commands": "commands() of the study's cli module",
 }
 
 

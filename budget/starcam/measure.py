@@ -193,8 +193,6 @@ def _read_reference(reference) -> pd.DataFrame:
     if reference is None:
         raise UserInputError("distortion: --reference FILE (star,x_ref,y_ref) is required")
     rp = Path(reference)
-    from simcam.infra.outputs import input_file_problem
-
     if (why := input_file_problem(rp)) is not None:
         raise UserInputError(f"--reference {rp}: {why}")
     if not rp.is_file():

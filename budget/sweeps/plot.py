@@ -33,7 +33,7 @@ from budget.sweeps.layout import study_for_kind
 from budget.sweeps.store import open_sobol, open_sweep
 from simcam.infra.cli import overwrite_option
 from simcam.infra.errors import UserInputError
-from simcam.infra.outputs import check_output_dir, is_earlier_plots
+from simcam.infra.outputs import check_output_dir, is_earlier_plots, naming_failed_writes
 
 __all__ = ["plot_command", "plot_store", "precision_table"]
 
@@ -481,9 +481,6 @@ def plot_store(store, out_dir, *, axis: str | None = None, variant: str = "impro
     import matplotlib
 
     matplotlib.use("Agg")
-    from budget.sweeps.store import open_sweep
-    from simcam.infra.outputs import naming_failed_writes
-
     if precision is not None and not (math.isfinite(precision) and precision > 0):
         raise UserInputError(f"--precision {precision}: must be a finite number > 0 (a relative spread, e.g. 0.1)")
     ds = open_sweep(store)

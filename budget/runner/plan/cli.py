@@ -13,6 +13,7 @@ from budget.runner.plan.planner import plan_protocol
 from budget.runner.plan.quantiles import DEFAULT_SURE
 from budget.runner.plan.requirements import DEFAULT_CONFIDENCE, parse_fixes, parse_requirements
 from budget.runner.plan.trials import BUDGET_VALIDATIONS, MIN_TRIALS
+from budget.runner.registry import get_study as registry_study
 from budget.runner.report import write_outputs
 from budget.runner.study import Study
 from simcam.infra.cli import overwrite_option
@@ -71,12 +72,7 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
                   help="Each protocol run on stderr (default: on a terminal).")
     def plan(scenario, require, variant, confidence, sure, fix, budget_hours, trials, seed, workers, json_out,
              report_dir, overwrite, progress):
-        if get_study is None:
-            # the registry (it imports the studies' modules by name) only where the command runs
-            from budget.runner.registry import get_study as lookup
-        else:
-            lookup = get_study
-        study = lookup(study_name)
+        study = (get_study or registry_study)(study_name)
         scn = study.load_scenario(scenario)
         parse_requirements(study, scn, require, variant)  # a bad requirement before any work
         parse_fixes(tuple(study.protocol_knobs(scn)), list(fix))  # a bad --fix too
