@@ -148,7 +148,7 @@ def test_the_cli_json_the_report_summary_and_the_api_payload_are_one(tmp_path, m
     import contextlib
     import io
 
-    from budget.runner.cli import run_and_write
+    from budget.runner.validate_cmd import run_and_write
     from budget.runner.result import StudyResult
 
     built = []

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from budget.runner.capabilities import CheckedScenario
+from budget.runner.capabilities import CheckedScenario, ProtocolShapes, capability
 from budget.runner.plan import (BUDGET_VALIDATIONS, SCHEMA, plan_protocol, resolution, validation_seed)
 from budget.runner.study import trial_seed_sequence
 from budget.runner.toy import TOY, ToyStudy, analytic_optimum
@@ -325,7 +325,7 @@ def test_every_study_knob_is_a_lab_field_the_sweeps_can_set(name):
         lo = scenario_with(study, scn, {k.field: int(k.low) if k.kind == "int" else k.low}, where="test")
         hi = scenario_with(study, scn, {k.field: int(k.high) if k.kind == "int" else k.high}, where="test")
         assert sum(study.lab_time_s(lo).values()) <= sum(study.lab_time_s(hi).values()), k.field
-    for shape, overrides in study.protocol_shapes(scn).items():
+    for shape, overrides in capability(study, ProtocolShapes).protocol_shapes(scn).items():
         shaped = scenario_with(study, scn, overrides, where=f"shape {shape}")
         assert study.protocol_knobs(shaped), shape
 
@@ -467,13 +467,12 @@ def test_fix_pins_a_knob_and_the_json_says_so(tmp_path, monkeypatch):
 
 
 def test_a_study_with_knobs_but_no_lab_time_is_refused_before_any_trial():
-    """The contract's default lab_time_s is empty (no lab time model); a study that declares
-    knobs but keeps it has no cost to minimise: plan refuses it, naming the hook, and runs
-    nothing."""
-    from budget.runner.study import Study
+    """A study that declares knobs but an empty lab time model has no cost to minimise: plan
+    refuses it, naming the method, and runs nothing."""
 
     class NoCost(ToyStudy):
-        lab_time_s = Study.lab_time_s
+        def lab_time_s(self, scenario):
+            return {}
 
         def trial(self, scenario, seed, k):  # pragma: no cover - must not run
             raise AssertionError("a trial ran")

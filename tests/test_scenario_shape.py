@@ -46,8 +46,8 @@ def test_validation_fields_and_limits_are_shared(name):
         with pytest.raises(ScenarioError, match=rf"f\.toml: validation\.{field}"):
             module.from_dict(broken, source="f.toml")
     ok = dict(data, validation=dict(data.get("validation", {}), tolerance=0.5))
-    assert study.default_tolerance(module.from_dict(ok, source="f.toml")) == 0.5
-    assert study.default_tolerance(module.default()) is None  # a fixed count by default, every study
+    assert module.from_dict(ok, source="f.toml").validation.tolerance == 0.5
+    assert module.default().validation.tolerance is None  # a fixed count by default, every study
 
 
 @pytest.mark.parametrize("name", STUDIES)

@@ -55,7 +55,7 @@ class ToyStudy(Study):
     name = "toy"
     title = "toy study"
     seed_document = "none"
-    scenario_module = "toy_study"
+    scenario_module = __name__  # this module: default_text and from_dict above
 
     def classes(self, scenario):
         return (ClassSpec("mean", "sample mean", "1", ("a",), "mean of m draws", per_trial_truth=True),

@@ -119,7 +119,7 @@ class ToyWorldStudy(Study, WorldEffects):
     name = "toyworld"
     title = "toy world study"
     seed_document = "none"
-    scenario_module = "toy_world_study"
+    scenario_module = __name__  # this module: default_text and from_dict above
 
     def __init__(self, *, depends: set[str] | None = frozenset({"extra_noise_units"}),
                  claims: dict | None = None):
