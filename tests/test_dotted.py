@@ -4,11 +4,16 @@ rule, and the fields a scenario derives dropped before setting so they are deriv
 from __future__ import annotations
 
 import copy
+import os
 from typing import Any
 
 import pytest
 from pydantic import model_validator
+from test_lens_products import SMALL_ANALYSIS, small_star_camera
 
+from budget.runner.plan import scenario_with as plan_scenario_with
+from budget.runner.registry import get_study
+from budget.runner.robustness import scenario_with_effects
 from simcam.config_base import ScenarioBase, StrictModel, validate_model
 from simcam.dotted import (
     covers,
@@ -20,6 +25,8 @@ from simcam.dotted import (
     set_values,
 )
 from simcam.infra.errors import ScenarioError
+from simcam.starcam.scenario import from_dict as starcam_from_dict
+from simcam.starcam.scenario import with_updates
 
 # a hand-built scenario dump: tables, a list of tables, a list of values, an unset field
 RESOLVED = {
@@ -199,3 +206,46 @@ def test_scenario_with_derives_the_derived_fields_again():
         scenario_with(base, {"shape.area_m2": 5.0}, from_dict=_derives_from_dict, where="t")
     assert "t: 'shape.side': unknown key 'side' at shape (known keys: area_m2, side_m)" in _err(
         scenario_with, base, {"shape.side": 3.0}, from_dict=_derives_from_dict, where="t")
+
+
+# ------------------------------------------------------------------ the star camera's traced lens
+@pytest.fixture(scope="module")
+def lens_scenario(tmp_path_factory):
+    """A star camera scenario through a traced lens (the embedded star camera on a small grid,
+    with a private products cache)."""
+    d = tmp_path_factory.mktemp("lens")
+    old = os.environ.get("SIMCAM_CACHE_DIR")
+    os.environ["SIMCAM_CACHE_DIR"] = str(d / "cache")
+    path = small_star_camera(d, SMALL_ANALYSIS.replace("field_points = 4", "field_points = 6")
+                             .replace("wavelength_points = 7", "wavelength_points = 13"))
+    yield starcam_from_dict({"optics": {"lens": str(path)}}, source="lens.toml")
+    if old is None:
+        os.environ.pop("SIMCAM_CACHE_DIR", None)
+    else:
+        os.environ["SIMCAM_CACHE_DIR"] = old
+
+
+def test_the_star_camera_derives_what_its_lens_sets(lens_scenario):
+    assert "optics.psf" in lens_scenario.derived_paths()
+    assert starcam_from_dict({}, source="t").derived_paths() == ()  # analytic optics: nothing derived
+
+
+def test_a_planned_scenario_through_a_lens_derives_the_lens_fields_again(lens_scenario):
+    # the planner used to resubmit the lens's old values, which the lens then refused
+    study = get_study("starcam")
+    change = {"optics.lateral_colour.ref_wavelength_nm": 700.0}
+    moved = plan_scenario_with(study, lens_scenario, change, where="plan")
+    assert moved == with_updates(lens_scenario, change)
+    assert moved.optics.lateral_colour.radial_px_per_nm != lens_scenario.optics.lateral_colour.radial_px_per_nm
+    # a change the lens does not see keeps what it sets
+    frames = plan_scenario_with(study, lens_scenario, {"protocols.te.frames": 7}, where="plan")
+    assert frames.optics == lens_scenario.optics and frames.camera == lens_scenario.camera
+
+
+def test_a_robustness_case_through_a_lens_keeps_the_lens_fields(lens_scenario):
+    study = get_study("starcam")
+    ideal = scenario_with_effects(study, lens_scenario, {"hexapod_repeatability_arcsec": 0.0}, source="case ideal")
+    assert ideal.world.effects.hexapod_repeatability_arcsec == 0.0
+    assert ideal.optics == lens_scenario.optics and ideal.camera == lens_scenario.camera
+    with pytest.raises(ScenarioError, match=r"^case x: 'world\.effects\.no_such': unknown key 'no_such'"):
+        scenario_with_effects(study, lens_scenario, {"no_such": 1.0}, source="case x")
