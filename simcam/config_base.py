@@ -154,7 +154,9 @@ class ScenarioBase(StrictModel):
       override the rule, as the star camera does for an unset lens);
     * :attr:`source`: where the scenario was loaded from (a file name, ``embedded ...
       default``), named in errors found later, e.g. in a worker process; not part of the
-      content or the hash. Set by the instrument module's ``from_dict``.
+      content or the hash. Set by the instrument module's ``from_dict``;
+    * :meth:`derived_paths`: the fields the scenario derives from its others (none by
+      default), which setting values by dotted key (:mod:`simcam.dotted`) lets it derive again.
 
     Each instrument's scenario module provides the same four functions: ``default_text()``,
     ``from_dict(data, *, source)``, ``load(path=None)`` and ``default()``.
@@ -199,6 +201,13 @@ class ScenarioBase(StrictModel):
         return type(self) is type(other) and all(self.__dict__.get(k) == other.__dict__.get(k) for k in fields)
 
     __hash__ = StrictModel.__hash__
+
+    def derived_paths(self) -> tuple[str, ...]:
+        """The dotted paths of the fields this scenario derives from its others (none here; the
+        star camera's traced lens sets its optics, :meth:`simcam.starcam.scenario.Scenario.derived_paths`).
+        Setting values (:mod:`simcam.dotted`) drops those it does not set, so that the
+        validation derives them again from the new values."""
+        return ()
 
     def with_source(self, source: str):
         """Record ``source`` on this (otherwise frozen) model and return it."""

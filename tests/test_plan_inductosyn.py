@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from budget.inductosyn.study import POLYGON_PAIRS, STUDY
-from budget.sweeps.dotted import set_dotted
+from simcam.dotted import set_dotted
 from simcam.infra.errors import ScenarioError
 from simcam.encoder.inductosyn import default, from_dict
 

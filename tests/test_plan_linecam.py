@@ -7,7 +7,7 @@ import math
 import pytest
 
 from budget.linecam.study import STUDY
-from budget.sweeps.dotted import set_dotted
+from simcam.dotted import set_dotted
 from simcam.infra.errors import ScenarioError
 from simcam.linecam.scenario import default, from_dict
 

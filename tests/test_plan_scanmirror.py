@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from budget.scanmirror.study import STUDY
-from budget.sweeps.dotted import set_dotted
+from simcam.dotted import set_dotted
 from simcam.scanmirror.scanplan import segment_durations
 from simcam.scanmirror.scenario import default, from_dict
 

@@ -49,7 +49,7 @@ def test_lab_time_of_the_grid_pattern_and_dark_frames_by_hand():
 
 # ------------------------------------------------------------------ knobs and shapes
 def test_knobs_and_shapes_are_scenario_fields_the_sweeps_can_set():
-    from budget.sweeps.dotted import set_dotted
+    from simcam.dotted import set_dotted
 
     base = default()
     resolved = base.model_dump(mode="python")

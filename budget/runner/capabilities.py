@@ -43,6 +43,8 @@ from collections import OrderedDict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
+from simcam.dotted import get_dotted
+
 if TYPE_CHECKING:
     from budget.runner.study import Key, Knob, ReportSection, Study, TrialResult, Truth
     from simcam.config_base import ScenarioBase
@@ -172,10 +174,7 @@ class ProtocolShapes(Protocol):
         """A shape field's value as the protocol uses it: two scenarios with equal values run
         the same shape (two spellings of one shape give one value). Optional: by default the
         field's value as the validated scenario holds it."""
-        obj = scenario
-        for part in field.split("."):
-            obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
-        return obj
+        return get_dotted(scenario, field, where=getattr(scenario, "source", "scenario"))
 
 
 @runtime_checkable

@@ -72,6 +72,7 @@ from budget.runner.report import staged_report, write_outputs
 from budget.runner.run import StudyResult
 from budget.runner.scheduler import init_worker
 from budget.runner.study import ClassSpec, Study, TrialResult, truth_identity
+from simcam.dotted import scenario_with
 from simcam.effects import scenario_effects
 from simcam.infra.cli import overwrite_option, write_json_atomic
 from simcam.infra.errors import UserInputError
@@ -177,10 +178,11 @@ class Case:
 
 
 def scenario_with_effects(study: Study, scenario: Any, values: dict[str, float], *, source: str) -> Any:
-    """``scenario`` with ``world.effects`` set to ``values`` (dump, set, :meth:`Study.from_dict`)."""
-    data = scenario.model_dump(mode="json", exclude_none=True)
-    data.setdefault("world", {}).setdefault("effects", {}).update({k: float(v) for k, v in values.items()})
-    return study.from_dict(data, source=source)
+    """``scenario`` with ``world.effects`` set to ``values`` (``{effect: magnitude}``), validated by
+    :meth:`Study.from_dict` (:func:`simcam.dotted.scenario_with`: an unknown effect is an error
+    naming ``source``, and the fields the scenario derives are derived again)."""
+    return scenario_with(scenario, {f"world.effects.{k}": float(v) for k, v in values.items()},
+                         from_dict=study.from_dict, where=source)
 
 
 def build_cases(study: Study, scenario: Any, *, source: str = "") -> list[Case]:

@@ -47,6 +47,7 @@ import numpy as np
 
 from budget.runner.capabilities import SharedTruths, capability, missing_members, prepared, undeclared_members
 from simcam.config_base import ScenarioBase, load_scenario_file
+from simcam.dotted import get_dotted
 
 __all__ = ["CLASS_ROLES", "ClassSpec", "Key", "Knob", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
            "Truth", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
@@ -80,13 +81,7 @@ def truth_identity(study: "Study", scenario: ScenarioBase) -> str:
     data.pop("name", None)
     fields = capability(study, SharedTruths).truth_fields(scenario)
     if fields is not None:
-        picked = {}
-        for f in sorted(set(fields)):
-            node: Any = data
-            for part in f.split("."):
-                node = node.get(part) if isinstance(node, dict) else None
-            picked[f] = node
-        data = picked
+        data = {f: get_dotted(data, f, default=None) for f in sorted(set(fields))}
     payload = json.dumps({"study": study.name, "fields": data}, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 

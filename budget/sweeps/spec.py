@@ -2,9 +2,9 @@
 work, and its hash.
 
 The rooms: :mod:`budget.sweeps.models` (the file's settings), :mod:`budget.sweeps.values`
-(ranges, the grid, point seeds, Sobol samples), :mod:`budget.sweeps.dotted` (dotted keys
-set in a scenario); this module puts them together. Their names stay importable from
-here.
+(ranges, the grid, point seeds, Sobol samples) and :mod:`simcam.dotted` (dotted keys set
+in a scenario, shared with the planner and robustness); this module puts them together.
+Their names stay importable from here.
 
 :func:`load_sweep` parses and checks the file, expands the grid, builds and validates the
 scenario of every point (and of every Sobol sample) and checks what the simulator would
@@ -29,7 +29,6 @@ import numpy as np
 
 from budget.runner.capabilities import CheckedScenario, capability
 from budget.runner.registry import get_study
-from budget.sweeps.dotted import set_dotted
 from budget.sweeps.models import DistSpec, SensitivitySpec, SweepSpec, parse_sweep
 from budget.sweeps.values import (
     _BYTES_PER_POINT,
@@ -44,6 +43,7 @@ from budget.sweeps.values import (
     sobol_samples,
 )
 from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
+from simcam.dotted import derived_paths, set_dotted, set_values
 from simcam.infra.errors import ScenarioError
 
 __all__ = [
@@ -194,8 +194,8 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
     base0 = validate_scenario(kind, raw, source=base_src)
     resolved0 = base0.model_dump(mode="python")
     fixed = dict(spec.fixed)
-    for key, value in fixed.items():
-        set_dotted(raw, resolved0, key, value, where=f"{source}: fixed")
+    if fixed:
+        raw = set_values(raw, resolved0, fixed, where=f"{source}: fixed", derived=derived_paths(base0))
     base = validate_scenario(kind, raw, source=f"{source}: fixed (applied to {base_src})") if fixed else base0
     resolved = base.model_dump(mode="python")
 
@@ -211,9 +211,7 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
             set_dotted(copy.deepcopy(raw), resolved, k, None, where=f"{source}: sensitivity.parameters")
 
     def build(values: dict, label: str) -> Any:
-        data = copy.deepcopy(raw)
-        for k, v in values.items():
-            set_dotted(data, resolved, k, v, where=source)
+        data = set_values(raw, resolved, values, where=source, derived=derived_paths(base))
         where = _where(source, label, values)
         sc = validate_scenario(kind, data, source=where)
         if check:

@@ -20,6 +20,7 @@ import numpy as np
 
 from budget.whiskbroom import estimators as est
 from budget.whiskbroom.study import STUDY
+from simcam.dotted import get_dotted
 from simcam.units import WGS84_F
 from simcam.whiskbroom import geometry as geo
 from simcam.whiskbroom import raytrace as rt
@@ -36,13 +37,7 @@ _QUANTITIES = ("dv_max_abs_mm_s", "n_max_published_at_max", "n_max_published", "
 
 def chosen_values(sc) -> dict[str, float]:
     """``{dotted field: value}`` of the scenario's values for what the paper lost."""
-    out = {}
-    for key in CHOSEN:
-        obj = sc
-        for part in key.split("."):
-            obj = getattr(obj, part)
-        out[key] = float(obj)
-    return out
+    return {key: float(get_dotted(sc, key)) for key in CHOSEN}
 
 
 def seed_distribution(sc, seeds=range(20), *, trials: int | None = None, backend: str = "numba") -> dict:

@@ -28,6 +28,7 @@ import tomli_w
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from simcam.config_base import ScenarioBase, ValidationSettings, model_hash, read_toml, validate_model
+from simcam.dotted import scenario_with
 from simcam.effects import EffectsBase, WorldBase
 from simcam.infra.errors import ScenarioError
 from simcam.spectra import SpectraError, star_teff_k
@@ -531,6 +532,15 @@ class Scenario(ScenarioBase):
                 "the optical axis, backlash and an error on every move)")
         return self
 
+    def derived_paths(self) -> tuple[str, ...]:
+        """What ``optics.lens`` sets (:data:`simcam.starcam.lens.simulator.LENS_DERIVED_PATHS`)
+        when a lens is given; nothing without one."""
+        if self.optics.lens is None:
+            return ()
+        from simcam.starcam.lens.simulator import LENS_DERIVED_PATHS
+
+        return LENS_DERIVED_PATHS
+
     def to_toml(self) -> str:
         """The resolved scenario as TOML that :func:`load` accepts back (:func:`scenario_to_toml`)."""
         return scenario_to_toml(self)
@@ -672,29 +682,7 @@ _ARRAY_RE = re.compile(r"\[\n((?: +[^\[\]{}\n]+,\n)+) *\]")
 
 
 def with_updates(scenario: Scenario, dotted: dict[str, Any]) -> Scenario:
-    """Return a copy with dotted keys replaced (``{"detector.read_noise_e": 5}``), re-validated."""
-    data = scenario.model_dump(mode="python")
-    if scenario.optics.lens is not None:
-        # what the lens sets is recomputed after the update (unless the update sets it)
-        from simcam.starcam.lens.simulator import LENS_DERIVED_PATHS
-
-        for path in LENS_DERIVED_PATHS:
-            if any(k == path or k.startswith(path + ".") or path.startswith(k + ".") for k in dotted):
-                continue
-            *parents, leaf = path.split(".")
-            node = data
-            for part in parents:
-                node = node.get(part, {}) if isinstance(node, dict) else {}
-            if isinstance(node, dict):
-                node.pop(leaf, None)
-    for key, value in dotted.items():
-        node = data
-        parts = key.split(".")
-        for p in parts[:-1]:
-            if not isinstance(node, dict) or p not in node:
-                raise ScenarioError(f"{key}: unknown key {p!r}")
-            node = node[p]
-        if not isinstance(node, dict) or parts[-1] not in node:
-            raise ScenarioError(f"{key}: unknown key {parts[-1]!r}")
-        node[parts[-1]] = value
-    return from_dict(data, source="override")
+    """Return a copy with dotted keys replaced (``{"detector.read_noise_e": 5}``), re-validated
+    (:func:`simcam.dotted.scenario_with`: what a traced lens sets is derived again unless a key
+    sets it; an unknown key is an error naming the scenario's source)."""
+    return scenario_with(scenario, dotted, from_dict=from_dict, where=f"{scenario.source}: updated")

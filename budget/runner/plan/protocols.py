@@ -1,4 +1,4 @@
-"""A protocol as a scenario: the scenario with knob values set (the sweeps' dotted keys,
+"""A protocol as a scenario: the scenario with knob values set (dotted keys, :mod:`simcam.dotted`,
 validated by the study's model), a knob's values and levels, a scenario's lab time, and which
 knobs are cost-flat (their lab time does not change with them; docs/planning.md, "Cost-flat
 knobs")."""
@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from budget.runner.study import Knob, Study
-from budget.sweeps.dotted import set_dotted
+from simcam.dotted import get_dotted
+from simcam.dotted import scenario_with as _scenario_with
 
 __all__ = ["COST_FLAT_TOLERANCE", "cost_flat_knobs", "dotted_value", "knob_levels", "knob_value", "lab_time",
            "scenario_with"]
@@ -21,20 +22,14 @@ COST_FLAT_TOLERANCE = 1e-9
 
 
 def scenario_with(study: Study, scenario: Any, values: dict[str, Any], *, where: str) -> Any:
-    """``scenario`` with dotted ``values`` set (the sweeps' rule), validated by the study."""
-    resolved = scenario.model_dump(mode="json", exclude_none=True)
-    raw = scenario.model_dump(mode="json", exclude_none=True)
-    for k, v in values.items():
-        set_dotted(raw, resolved, k, v, where=where)
-    return study.from_dict(raw, source=where)
+    """``scenario`` with dotted ``values`` set, validated by the study
+    (:func:`simcam.dotted.scenario_with`: the fields the scenario derives are derived again)."""
+    return _scenario_with(scenario, values, from_dict=study.from_dict, where=where)
 
 
 def dotted_value(scenario: Any, key: str):
-    """The value of dotted ``key`` in ``scenario``."""
-    obj = scenario
-    for part in key.split("."):
-        obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
-    return obj
+    """The value of dotted ``key`` in ``scenario`` (:func:`simcam.dotted.get_dotted`)."""
+    return get_dotted(scenario, key, where=getattr(scenario, "source", "scenario"))
 
 
 def knob_value(k: Knob, x: float):

@@ -56,8 +56,10 @@ from simcam.starcam.lens.products import LensProducts, lens_products
 
 __all__ = ["LENS_DERIVED_PATHS", "MATCH_TOL_PX", "SimulatorOptics", "apply_lens", "simulator_optics"]
 
-#: Scenario fields set by ``optics.lens`` (dotted paths): they are recomputed when the
-#: scenario changes, and a value given for them must be what the lens gives.
+#: Scenario fields set by ``optics.lens`` (dotted paths), the star camera scenario's
+#: derived fields (:meth:`simcam.starcam.scenario.Scenario.derived_paths`): setting values by
+#: dotted key drops those not set (:mod:`simcam.dotted`) so that the lens derives them again;
+#: a value given for them must be what the lens gives.
 LENS_DERIVED_PATHS = (
     "optics.psf",
     "optics.distortion",
