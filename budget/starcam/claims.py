@@ -30,8 +30,8 @@ DEFAULT_SCENARIO = "embedded:default"
 #: the simulated camera is the paper's by specification and noise, not its as-built lens,
 #: colour and pixel maps: 10 % of a figure, and 0.1" (0.006 px, 1 sigma) where 10 % is less
 PERFORMANCE_TOLERANCE = ToleranceRule(
-    reason="10 % of the paper's figure, at least 0.1 arcsec: the camera simulated from its specification "
-           "and noise, not the camera itself", source="default", relative=0.10, absolute=0.1)
+    reason="10 % of the paper's figure, at least 0.1 arcsec (a camera simulated to its specification and noise)",
+    source="default", relative=0.10, absolute=0.1)
 #: a method that measures its class to 10 % of the truth serves an error budget
 METHOD_TOLERANCE = ToleranceRule(reason="10 % of the truth", source="default", relative=0.10)
 
