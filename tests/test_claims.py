@@ -94,8 +94,8 @@ def test_untestable_claim_and_kinds():
     assert not c.testable and KINDS == ("method", "performance", "bound") and WORLDS == ("seed", "realistic")
     assert ledger_runs([c]) == ()
     res = evaluate_claims([c], {})
-    assert [(r.world, r.verdict, r.no_verdict) for r in res] == [
-        ("seed", None, "untestable: judged by another study"), ("realistic", None, "untestable: judged by another study")]
+    why = "untestable: judged by another study"
+    assert [(r.world, r.verdict, r.no_verdict) for r in res] == [("seed", None, why), ("realistic", None, why)]
 
 
 def test_claim_result_has_a_verdict_or_says_why_not():

@@ -53,7 +53,8 @@ _FIGURES = (
 def _performance(cls: str, label: str, figure: float, axis: str, section: str) -> Claim:
     swapped = " (as printed: its axes appear swapped, docs/estimators.md section 4)" if cls == "lsfe_s" else ""
     return Claim(
-        id=f"{cls}.{axis}.performance", words=f"the seed's camera has a {label} of {figure:g} arcsec in {axis}, 3 sigma",
+        id=f"{cls}.{axis}.performance",
+        words=f"the seed's camera has a {label} of {figure:g} arcsec in {axis}, 3 sigma",
         figures=(figure,), unit=UNIT, axis=axis,
         condition=f"the paper's camera and lab; simulated by {NOISY_SCENARIO}{swapped}", section=section,
         kind="performance", scenario=NOISY_SCENARIO, class_name=cls, tolerance=PERFORMANCE_TOLERANCE)
