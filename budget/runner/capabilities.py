@@ -31,6 +31,8 @@ capability                methods                                               
 :class:`SeparablePlans`   ``field_classes``, ``restrict_classes``,                one joint plan
                           ``uncomputed_class``
 :class:`Presented`        ``report_sections``, ``likely_cause``, ``details``      the common report only
+:class:`Claims`           ``claims(scenario)``: the source document's claims     no claims
+                          (:mod:`budget.runner.claims`)
 ========================  =====================================================  ===============================
 
 The contract of each method is in its protocol's docstring below; ``docs/architecture.md``
@@ -46,10 +48,11 @@ from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 from simcam.dotted import get_dotted
 
 if TYPE_CHECKING:
+    from budget.runner.claims import Claim
     from budget.runner.study import Key, Knob, ReportSection, Study, TrialResult, Truth
     from simcam.config_base import ScenarioBase
 
-__all__ = ["BatchedTrials", "CAPABILITIES", "CheckedScenario", "Plannable", "Prepared", "Presented",
+__all__ = ["BatchedTrials", "CAPABILITIES", "CheckedScenario", "Claims", "Plannable", "Prepared", "Presented",
            "ProtocolShapes", "SeparablePlans", "SharedTruths", "SizedTruths", "SplitTruths", "Warmup",
            "WorldEffects", "capability", "declared_capabilities", "missing_members", "prepared",
            "undeclared_members"]
@@ -216,9 +219,20 @@ class Presented(Protocol):
         return {}
 
 
+@runtime_checkable
+class Claims(Protocol):
+    """The claims of the study's source document, for the claims ledger."""
+
+    def claims(self, scenario: ScenarioBase) -> tuple[Claim, ...]:
+        """The source document's claims (:class:`budget.runner.claims.Claim`), each mapped to a
+        class, variant and axis of the study with its tolerance rule, or untestable with its
+        reason; ids unique."""
+
+
 #: every capability, in the order of the module docstring's table
 CAPABILITIES: tuple[type, ...] = (Prepared, CheckedScenario, BatchedTrials, Warmup, SplitTruths, SizedTruths,
-                                  SharedTruths, WorldEffects, Plannable, ProtocolShapes, SeparablePlans, Presented)
+                                  SharedTruths, WorldEffects, Plannable, ProtocolShapes, SeparablePlans, Presented,
+                                  Claims)
 
 
 # ------------------------------------------------------------------ what a study without one gets
@@ -288,10 +302,15 @@ class _CommonReport(_Default, Presented):
     """The common report only (:class:`Presented`'s defaults)."""
 
 
+class _NoClaims(_Default):
+    def claims(self, scenario):
+        return ()
+
+
 _DEFAULTS: dict[type, type[_Default]] = {
     Prepared: _NoSetup, CheckedScenario: _NoCheck, BatchedTrials: _OneByOne, Warmup: _NoWarmup,
     SplitTruths: _WholeTruths, SizedTruths: _OwnSizes, SharedTruths: _AllFields, WorldEffects: _NoEffects,
-    ProtocolShapes: _OwnShape, SeparablePlans: _Joint, Presented: _CommonReport,
+    ProtocolShapes: _OwnShape, SeparablePlans: _Joint, Presented: _CommonReport, Claims: _NoClaims,
 }
 
 C = TypeVar("C")

@@ -13,11 +13,12 @@ from itertools import combinations
 from pathlib import Path
 
 from budget.figures import figure_markdown
-from budget.runner.capabilities import (CheckedScenario, Plannable, Presented, ProtocolShapes, SeparablePlans,
-                                        SharedTruths, SizedTruths, SplitTruths, Warmup, WorldEffects)
+from budget.runner.capabilities import (CheckedScenario, Claims, Plannable, Presented, ProtocolShapes,
+                                        SeparablePlans, SharedTruths, SizedTruths, SplitTruths, Warmup, WorldEffects)
 from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 from budget.starcam.checks import check_geometry
+from budget.starcam.claims import CLAIMS
 from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
 from budget.starcam.warm import prewarm
 from simcam.infra.errors import ScenarioError
@@ -66,7 +67,7 @@ def _paths(prefix: str, node: dict) -> list[str]:
 
 
 class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, SharedTruths, WorldEffects,
-                      Plannable, ProtocolShapes, SeparablePlans, Presented):
+                      Plannable, ProtocolShapes, SeparablePlans, Presented, Claims):
     """Seed 000: a star camera's TE, HSFE and LSFE lab methods."""
 
     name = "starcam"
@@ -77,6 +78,11 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
 
     def check(self, scenario, *, where: str) -> None:
         check_geometry(scenario, where=where)
+
+    def claims(self, scenario) -> tuple:
+        """Seed 000's claims (:data:`budget.starcam.claims.CLAIMS`); each names the embedded
+        scenario that judges it, whatever ``scenario`` is."""
+        return CLAIMS
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         """Seed 000's classes that the scenario's ``validation.protocols`` compute (all seven by
