@@ -54,7 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BatchedTrials", "CAPABILITIES", "CheckedScenario", "Claims", "Plannable", "Prepared", "Presented",
            "ProtocolShapes", "SeparablePlans", "SharedTruths", "SizedTruths", "SplitTruths", "Warmup",
-           "WorldEffects", "capability", "declared_capabilities", "missing_members", "prepared",
+           "WorldEffects", "capability", "declared_capabilities", "has_capability", "missing_members", "prepared",
            "undeclared_members"]
 
 
@@ -316,11 +316,17 @@ _DEFAULTS: dict[type, type[_Default]] = {
 C = TypeVar("C")
 
 
+def has_capability(study: Study, protocol: type) -> bool:
+    """Whether ``study`` names ``protocol`` among its bases (a method of the same name alone does
+    not declare it)."""
+    return protocol in type(study).__mro__
+
+
 def capability(study: Study, protocol: type[C]) -> C:
     """``study`` itself where it declares ``protocol``, otherwise the default behaviour of that
     capability (the table in the module docstring). :class:`Plannable` has no default: a
-    study without it has no plan (ask ``isinstance(study, Plannable)``)."""
-    if isinstance(study, protocol):
+    study without it has no plan (ask :func:`has_capability`)."""
+    if has_capability(study, protocol):
         return study
     if protocol not in _DEFAULTS:
         raise TypeError(f"study {getattr(study, 'name', study)!r} does not have {protocol.__name__}")
@@ -329,7 +335,7 @@ def capability(study: Study, protocol: type[C]) -> C:
 
 def declared_capabilities(cls: type) -> tuple[type, ...]:
     """The capabilities a study class names among its bases (directly or through a parent)."""
-    return tuple(p for p in CAPABILITIES if issubclass(cls, p))
+    return tuple(p for p in CAPABILITIES if p in cls.__mro__)
 
 
 #: members a capability's protocol implements itself (the rest each study must write)
@@ -377,7 +383,7 @@ def prepared(study: Study, scenario: ScenarioBase) -> Any:
     """The set-up of ``scenario`` (:meth:`Prepared.setup`), built once per process: the runner
     owns this cache, keyed by the study's name and the scenario's hash, and keeps the
     :data:`SETUPS_KEPT` most recently used. None for a study without :class:`Prepared`."""
-    if not isinstance(study, Prepared):
+    if not has_capability(study, Prepared):
         return None
     key = (type(study).__module__, type(study).__qualname__, scenario.hash)
     if key in _SETUPS:

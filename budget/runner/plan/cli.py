@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from budget.runner.capabilities import Plannable
+from budget.runner.capabilities import Plannable, has_capability
 from budget.runner.executors import default_workers
 from budget.runner.plan.planner import plan_protocol
 from budget.runner.plan.quantiles import DEFAULT_SURE
@@ -26,7 +26,7 @@ def has_knobs(study: Study) -> bool:
     """Whether the study is :class:`~budget.runner.capabilities.Plannable` and its default scenario
     declares protocol knobs (then it has ``plan``; no scenario is loaded for a study without
     the capability)."""
-    if not isinstance(study, Plannable):
+    if not has_capability(study, Plannable):
         return False
     try:
         return bool(study.protocol_knobs(study.load_scenario()))

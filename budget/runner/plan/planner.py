@@ -8,7 +8,7 @@ import math
 import time
 from typing import Any
 
-from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability
+from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability, has_capability
 from budget.runner.executors import make_executor
 from budget.runner.plan.quantiles import DEFAULT_SURE
 from budget.runner.plan.requirements import (DEFAULT_CONFIDENCE, Requirement, default_variant, parse_fixes,
@@ -37,7 +37,7 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     the boundary protocol); ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE``
     (:func:`parse_fixes`)."""
     t0, c0 = time.perf_counter(), time.process_time()
-    if not isinstance(study, Plannable):
+    if not has_capability(study, Plannable):
         raise UserInputError(f"plan: the {study.name} study has no plannable protocol")
     knobs = tuple(study.protocol_knobs(scenario))
     if not knobs:
