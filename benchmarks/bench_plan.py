@@ -5,7 +5,7 @@ validations (common random numbers across candidates, screening trials with adap
 stopping, a fitted model proposing candidates, bisection along lab time), the
 re-validation on fresh trials included.
 
-Measured on the planner's toy study (``budget.runner.toy``: an offset averaged over frames
+Measured on the planner's toy study (``tests/toys/plan_toy.py``: an offset averaged over frames
 and stage positions, lab time linear in both, so that the cheapest protocol meeting a
 bound on the 95 % quantile of the error is known in closed form, by Lagrange) with two
 knobs, for ``--seeds`` seeds (default 8), each plan requiring ``offset.x <= --bound``
@@ -24,7 +24,7 @@ knobs, for ``--seeds`` seeds (default 8), each plan requiring ``offset.x <= --bo
 The last line is ``RESULT {json}`` (read by ``run_all.py``).
 
 ``--separable`` measures instead a separable plan against the whole-test plan on the separable
-toy (``budget.runner.toy.SplitToyStudy``: protocols a, b, c, each its own frames; ``a.x <= 0.01``
+toy (``SplitToyStudy`` of ``tests/toys/plan_toy.py``: protocols a, b, c, each its own frames; ``a.x <= 0.01``
 and ``b.x <= 0.01``, so two groups, c's frames not searched), per seed: the trials each plan ran
 and the protocols they computed (a restricted trial computes its group's protocol only, a whole
 one all three), the answer's lab time above setup, whether the re-validation confirms, and the
@@ -44,11 +44,13 @@ import time
 
 if not __package__:  # run as a file (python benchmarks/bench_x.py): the repository root on the path
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from benchmarks._common import bench_parser, emit_result, figure, format_table, print_machine  # noqa: E402
+from benchmarks._common import REPO_ROOT, bench_parser, emit_result, figure, format_table, print_machine  # noqa: E402
+
+sys.path.insert(0, str(REPO_ROOT / "tests" / "toys"))  # the planner's toy (tests/toys/plan_toy.py)
 
 from budget.runner.plan import BUDGET_VALIDATIONS, DEFAULT_SURE, plan_protocol, sure_margin  # noqa: E402
 from budget.runner.run import run_study  # noqa: E402
-from budget.runner.toy import ToyStudy, analytic_optimum  # noqa: E402
+from plan_toy import ToyStudy, analytic_optimum  # noqa: E402
 
 
 def main() -> None:
@@ -113,7 +115,7 @@ def main() -> None:
 
 def separable(args) -> None:
     """The separable toy's two-group plan against its whole-test plan (module docstring)."""
-    from budget.runner.toy import SplitToyStudy
+    from plan_toy import SplitToyStudy
 
     reqs = [f"a.x<={args.bound}", f"b.x<={args.bound}"]
     plan_protocol(SplitToyStudy(), SplitToyStudy().load_scenario(), reqs, seed=0, sure=args.sure)  # warm-up

@@ -22,7 +22,7 @@ is what the cases cannot share: every case runs its own trials, so with ``c`` ca
 trials that dominate, the ratio tends to ``c`` less what the shared truths and the one pool
 save.
 
-``--study toy`` measures the toy world study of the tests instead (``tests/toy_world_study.py``:
+``--study toy`` measures the toy world study of the tests instead (``tests/toys/toy_world_study.py``:
 six effects, truths that depend on one of them, ``--trial-ms`` of busy work per trial, ten
 times that for the truths), with the eight cases also run as eight separate validates for
 reference.
@@ -49,7 +49,7 @@ from benchmarks._common import (  # noqa: E402
     print_machine,
 )
 
-sys.path.insert(0, str(REPO_ROOT / "tests"))  # the toy world study (workers inherit the path)
+sys.path.insert(0, str(REPO_ROOT / "tests" / "toys"))  # the toy world study (workers inherit the path)
 
 from budget.runner.robustness import build_cases, run_robustness  # noqa: E402
 from budget.runner.run import run_study  # noqa: E402

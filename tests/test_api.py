@@ -12,10 +12,9 @@ import pytest
 
 import budget
 from budget.runner.run import run_study
+from toy_study import STUDY as TOY, Toy
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(Path(__file__).parent))
-from toy_study import STUDY as TOY, Toy  # noqa: E402
 
 
 def _env():
@@ -107,7 +106,7 @@ def test_a_study_defined_in_an_unguarded_script(tmp_path, start):
     and the call works."""
     if start == "fork" and not sys.platform.startswith("linux"):
         pytest.skip("workers fork on Linux only")
-    src = (Path(__file__).parent / "toy_study.py").read_text().replace("STUDY = ToyStudy()", "")
+    src = (Path(__file__).parent / "toys" / "toy_study.py").read_text().replace("STUDY = ToyStudy()", "")
     script = tmp_path / "own_study.py"
     thread = ("import threading\nthreading.Thread(target=threading.Event().wait, daemon=True).start()\n"
               if start == "spawn" else "")

@@ -1,5 +1,5 @@
 """The findings' shared rules (budget.runner.findings), each on a small study whose answer is
-known analytically (in the style of tests/toy_study.py), and the report's HTML twin."""
+known analytically (in the style of tests/toys/toy_study.py), and the report's HTML twin."""
 
 import json
 import math

@@ -1,7 +1,7 @@
 """One-sided ("at most") claims (ClassSpec.at_most): a stated bound holds when the actual is at or
 below it, not only when the two are equal; the findings (budget.runner.findings) and the
 robustness verdicts (budget.runner.robustness.claim_holds) both read it. On the toy world
-(tests/toy_world_study.py), whose offset effect moves the sample mean by exactly its value."""
+(tests/toys/toy_world_study.py), whose offset effect moves the sample mean by exactly its value."""
 
 import tomllib
 

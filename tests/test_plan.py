@@ -1,5 +1,5 @@
 """The protocol planner (budget.runner.plan) against the toy study whose optimum is analytic
-(budget.runner.toy): the answer, the trial budget, the seeds, infeasible and budget-bound
+(tests/toys/plan_toy.py): the answer, the trial budget, the seeds, infeasible and budget-bound
 requirements, the JSON and report, the recommended scenario, and bad requirements.
 
 Monte Carlo assertions use a fixed seed and tolerances derived from the sampling
@@ -17,7 +17,7 @@ from scipy import stats
 from budget.runner.capabilities import CheckedScenario, ProtocolShapes, capability
 from budget.runner.plan import (BUDGET_VALIDATIONS, SCHEMA, plan_protocol, resolution, validation_seed)
 from budget.runner.study import trial_seed_sequence
-from budget.runner.toy import TOY, ToyStudy, analytic_optimum
+from plan_toy import TOY, ToyStudy, analytic_optimum
 from plan_stats import quantile_rel_se as _quantile_rel_se
 
 N = 200  # the toy's validation.trials
@@ -112,7 +112,7 @@ def test_a_lab_time_budget_bounds_the_search():
     assert loose.feasible and loose.recommended.cost_s <= 0.5 * 3600
 
 
-def _register(monkeypatch, name="toy", target="budget.runner.toy:TOY"):
+def _register(monkeypatch, name="toy", target="plan_toy:TOY"):
     from budget.runner import registry
 
     monkeypatch.setitem(registry._BY_NAME, name, registry.StudyEntry(name, target, "planner toy"))

@@ -1,5 +1,5 @@
 """Separable plans (budget.runner.plan: Study.field_classes, Study.restrict_classes) against the
-separable toy (budget.runner.toy.SplitToyStudy): three independent protocols a, b, c, each
+separable toy (tests/toys/plan_toy.py, SplitToyStudy): three independent protocols a, b, c, each
 class's error sigma_p z_p / sqrt(F_p), lab time additive, so each group's optimum is the
 closed form F_p* = (z sigma_p / V_p)^2 (split_optimum).
 
@@ -19,7 +19,7 @@ from budget.runner.capabilities import SeparablePlans
 from budget.runner.plan import (BUDGET_VALIDATIONS, REVALIDATED_BEST, decompose, parse_requirements, plan_protocol,
                                 resolution, validation_seed)
 from budget.runner.study import trial_seed_sequence
-from budget.runner.toy import SplitToyStudy, ToyStudy, split_optimum
+from plan_toy import SplitToyStudy, ToyStudy, split_optimum
 from plan_stats import quantile_rel_se as _quantile_rel_se
 
 N = 200  # the toy's validation.trials

@@ -1,5 +1,5 @@
 """The robustness runner (budget.runner.robustness) on a toy world with analytic answers
-(tests/toy_world_study.py).
+(tests/toys/toy_world_study.py).
 
 Monte Carlo checks use fixed seeds; each tolerance is stated with the sampling distribution
 it follows from.

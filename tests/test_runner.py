@@ -1,4 +1,4 @@
-"""The study runner (budget.runner) on a study with analytic answers (tests/toy_study.py)."""
+"""The study runner (budget.runner) on a study with analytic answers (tests/toys/toy_study.py)."""
 
 import json
 import os
@@ -223,7 +223,7 @@ def test_forked_workers_give_the_spawned_and_inline_results():
     import sys
     from pathlib import Path
 
-    out = subprocess.run([sys.executable, "-c", _FORK_CHILD, str(Path(__file__).parent)], capture_output=True,
+    out = subprocess.run([sys.executable, "-c", _FORK_CHILD, str(Path(__file__).parent / "toys")], capture_output=True,
                          text=True, timeout=300, check=True)
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got["before"] == "fork"

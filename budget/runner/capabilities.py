@@ -335,7 +335,7 @@ def capability(study: Study, protocol: type[C]) -> C:
 
 def declared_capabilities(cls: type) -> tuple[type, ...]:
     """The capabilities a study class names among its bases (directly or through a parent)."""
-    return tuple(p for p in CAPABILITIES if p in cls.__mro__)
+    return tuple(p for p in CAPABILITIES if p in cls.__mro__)  # named, not matched by shape
 
 
 #: members a capability's protocol implements itself (the rest each study must write)

@@ -1,8 +1,10 @@
-"""The sized toy study (tests/sized_toy_study.py) with truths computed in pieces, as the
-star camera's are: each piece a seeded draw whose count follows the runner's target, the
-truth their mean. ``truths`` computes the same pieces in one go, so a run on one worker
-(``truths``) and on several (pieces as tasks, :meth:`Study.truth_parts`) must agree bit
-for bit. Imported by spawned workers too."""
+"""The sized toy (tests/toys/sized_toy_study.py) with truths in parts (SplitTruths), to test
+how the scheduler spreads a truth over the workers (tests/test_scheduler.py,
+test_runner_scheduling.py). Its truths are computed in pieces, as the star camera's are:
+each piece a seeded draw whose count follows the runner's target, the truth their mean.
+``truths`` computes the same pieces in one go, so a run on one worker (``truths``) and on
+several (pieces as tasks, ``truth_parts``) must agree bit for bit. Imported by spawned
+workers too."""
 
 import numpy as np
 

@@ -1,4 +1,6 @@
-"""A study whose answers are known analytically, to test the runner (not a physical model).
+"""The core toy: a study of the three core methods only (classes, trial, truths) whose answers
+are known analytically, to test the runner, the statistics, the findings and the reports
+(tests/test_runner.py, test_api.py, test_scheduler.py and others); not a physical model.
 
 Each trial draws ``m`` values from N(mu_k, sigma^2), with mu_k itself drawn per trial:
 

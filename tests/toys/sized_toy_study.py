@@ -1,6 +1,7 @@
-"""The toy study (tests/toy_study.py) with a truth whose size follows the runner's target:
-its ``truth_size_for`` returns a scenario whose truth standard error *is* the target, so a
-test reads back exactly what the runner asked for. Imported by spawned workers too."""
+"""The core toy (tests/toys/toy_study.py) with sized truths (SizedTruths), to test the
+runner's truth sizing (tests/test_truth_sizing.py): its ``truth_size_for`` returns a scenario
+whose truth standard error *is* the target, so a test reads back exactly what the runner
+asked for. Imported by spawned workers too."""
 
 from budget.runner.capabilities import SizedTruths
 from toy_study import ToyStudy

@@ -1,5 +1,7 @@
-"""A study with a world richer than its lab, whose answers are known analytically: to test
-the robustness runner (budget.runner.robustness). Not a physical model.
+"""The world toy: a study with a world richer than its lab (WorldEffects), whose answers are
+known analytically, to test the robustness runner (budget.runner.robustness:
+tests/test_robustness.py, test_one_sided_claim.py) and to give benchmarks/bench_robustness.py
+a study of chosen cost per trial. Not a physical model.
 
 Each trial draws a level ``mu_k ~ N(mu_center, mu_spread^2)`` and ``m`` samples of it with
 noise ``sigma``; the lab knows ``sigma`` and nothing of the world's effects. The world

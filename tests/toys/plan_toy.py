@@ -1,4 +1,6 @@
-"""A toy study whose cost-accuracy trade is analytic: the planner's reference (docs/planning.md).
+"""The planner's toy studies, whose cost-accuracy trade is analytic: the reference that
+tests/test_plan*.py, benchmarks/bench_plan.py and docs/planning.md check the planner against
+(not a physical model; not shipped with the package).
 
 The lab measures one offset (class ``offset``, axis ``x``, in px) by averaging ``frames``
 frames taken over ``positions`` stage positions. Each frame carries white noise
@@ -48,13 +50,15 @@ additive, ``setup + F_a t_a + F_b t_b + F_c t_c`` (``t_p`` the pattern's frame t
 cheapest protocol meeting ``p.x <= V_p`` for each required ``p`` is, with
 ``z = Phi^-1((1 + C) / 2)``, ``F_p* = (z sigma_p / V_p)^2`` for each (:func:`split_optimum`),
 and the pattern of least ``sigma_p^2 t_p`` (the line for ``b``, at the defaults: 2 x 0.25).
-It declares :meth:`Study.field_classes` (``separable=False``: none, the whole-test plan) and
-restricts (:meth:`Study.restrict_classes`: ``[compute] protocols``, the protocols whose trials
+It declares :meth:`~budget.runner.capabilities.SeparablePlans.field_classes` (``separable=False``:
+none, the whole-test plan) and restricts
+(:meth:`~budget.runner.capabilities.SeparablePlans.restrict_classes`: ``[compute] protocols``, the protocols whose trials
 and truths are computed; ``restrict=False``: it cannot), counting the protocols a trial
 computed in :attr:`SplitToyStudy.computed` (``record=True``).
 
 Neither is registered as a CLI study (they measure nothing real); tests, the docs and the
-benchmark use them through the Python API (``budget.plan(TOY, ...)``).
+benchmark import this module as ``plan_toy`` (``tests/toys`` on ``sys.path``: tests/conftest.py)
+and use them through the Python API (``budget.plan(TOY, ...)``).
 """
 
 from __future__ import annotations
@@ -73,7 +77,7 @@ __all__ = ["SPLIT_TOY", "TOY", "TOY_FLAT", "TOY_ONE_KNOB", "SplitToyScenario", "
            "ToyStudy", "analytic_optimum", "split_optimum"]
 
 DEFAULT_TEXT = """\
-# The planner's toy study (budget.runner.toy): one offset averaged over frames and positions.
+# The planner's toy study (tests/toys/plan_toy.py): one offset averaged over frames and positions.
 name = "toy offset"
 
 [world]
@@ -153,7 +157,7 @@ class ToyStudy(Study, Plannable, ProtocolShapes, SharedTruths):
     seed_document = "-"
     variants = ("naive", "debiased", "none")
     reference_variants = ("none",)
-    scenario_module = "budget.runner.toy"
+    scenario_module = __name__  # this module: default_text, from_dict and load above
 
     def __init__(self, knobs: tuple[str, ...] = ("frames", "positions"), *, shapes: bool = False,
                  record: bool = False):
@@ -260,7 +264,7 @@ def analytic_optimum(scenario: ToyScenario, value_px: float, confidence: float =
 
 # ---------------------------------------------------------------------- the separable toy
 SPLIT_TEXT = """\
-# The planner's separable toy (budget.runner.toy): three independent protocols a, b and c.
+# The planner's separable toy (tests/toys/plan_toy.py): three independent protocols a, b and c.
 name = "toy split"
 
 [world]
