@@ -297,3 +297,20 @@ def test_a_core_only_study_gets_the_documented_defaults():
     res = run_study(CORE, scn, trials=5, seed=seed, workers=1)
     assert shown.report_sections(res, None) == [] and shown.details(res) == {}
     assert shown.likely_cause(res, ("variance", "published", "a"), {}) is None
+
+
+def test_claims_are_judged_in_both_worlds():
+    """Claims: the toy's one claim (the offset measured to 10 % of its truth) judged from a run of
+    each world. The seed's world has no drift, so the estimate's bias is 0 within its standard
+    error (0.2 / sqrt(100) / sqrt(40) = 0.003 px against a tolerance of 0.05 px: holds); the
+    realistic world's drift of 0.05 px is exactly at the tolerance's edge (10 % of 0.5 px), so the
+    verdict there is whatever the interval says, never contradicting its numbers."""
+    from budget.runner.claims import evaluate_claims, ledger_runs, study_claims, world_scenario
+
+    study, scn = FullToyStudy(), _scenario(0.5)
+    claims = study_claims(study, scn)
+    runs = {(c, w): run_study(study, world_scenario(study, scn, w), trials=40, seed=3, workers=1)
+            for c, w in ledger_runs(claims)}
+    seed_world, realistic = evaluate_claims(claims, runs)
+    assert seed_world.world == "seed" and seed_world.verdict.outcome == "holds"
+    assert realistic.world == "realistic" and realistic.verdict is not None

@@ -17,9 +17,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Plannable, Prepared, Presented,
+from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Claims, Plannable, Prepared, Presented,
                                         ProtocolShapes, SeparablePlans, SharedTruths, SizedTruths, SplitTruths,
                                         Warmup, WorldEffects)
+from budget.runner.claims import Claim, ToleranceRule
 from budget.runner.numbers import fmt
 from budget.runner.study import (TRUTH_SPAWN_KEY, ClassSpec, Knob, ReportSection, Study, TrialResult, Truth,
                                  trial_seed_sequence)
@@ -64,7 +65,7 @@ def from_dict(data: dict, *, source: str) -> FullToy:
 
 
 class FullToyStudy(Study, Prepared, CheckedScenario, BatchedTrials, Warmup, SplitTruths, SizedTruths, SharedTruths,
-                   WorldEffects, Plannable, ProtocolShapes, SeparablePlans, Presented):
+                   WorldEffects, Plannable, ProtocolShapes, SeparablePlans, Presented, Claims):
     name, title, seed_document = "fulltoy", "full toy (every capability)", "none"
     scenario_module = __name__  # this module: default_text and from_dict above
 
@@ -166,6 +167,12 @@ class FullToyStudy(Study, Prepared, CheckedScenario, BatchedTrials, Warmup, Spli
         return None if key[:2] != ("noise", "published") else (
             f"it divides by the {d['dark_frames']} dark frames, not {d['dark_frames'] - 1}: expected bias "
             f"{fmt(d['noise_bias_published_px2'])}, measured {fmt(stats['bias'])} px^2")
+
+    def claims(self, scenario):  # the offset measured to 10 % of its truth, in the scenario's world
+        return (Claim(id="offset.x.method", words="the mean of the frames measures the offset", figures=(),
+                      unit="px", axis="x", condition="any frames", section="the toy", kind="method", scenario="toy",
+                      class_name="offset", variant="published",
+                      tolerance=ToleranceRule(reason="10 % of the truth", relative=0.10)),)
 
 
 STUDY = FullToyStudy()
