@@ -27,7 +27,8 @@ def simulate_command() -> click.Command:
     def cmd(scenario, seed, json_out, report_dir, overwrite):
         from budget.scanmirror.timeline import simulate, write_simulate_report
 
-        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)  # before the work
+        # before the work
+        check_run_outputs(json_out=json_out, report_dir=report_dir, inputs=(scenario,), overwrite=overwrite)
         scn = STUDY.load_scenario(scenario)
         timeline = simulate(scn, seed=seed, source=scenario or "embedded scanmirror default")
         summary = timeline.to_json()
