@@ -75,11 +75,13 @@ def test_a_title_too_long_for_its_figure_is_seen_and_made_to_fit(tmp_path, captu
 
 def test_every_scanmirror_and_whiskbroom_figure_title_fits(tmp_path, captured):
     """Figures drawn from small synthetic inputs: each title lies inside its figure."""
+    from budget.scanmirror.pipeline import GroundErrors
     from budget.scanmirror.plots import plot_deviation_timeline, plot_trial_ground_errors
     from budget.whiskbroom.plots import plot_dv_hist
 
     t = np.linspace(0, 600, 200)
-    errs = {n: (np.sin(t / 50) * k, np.cos(t / 70) * k) for n, k in (("uncompensated", 0.4), ("improved", 0.01))}
+    errs = {n: GroundErrors(np.sin(t / 50) * k, np.cos(t / 70) * k)
+            for n, k in (("uncompensated", 0.4), ("improved", 0.01))}
     plot_trial_ground_errors(None, None, {"t_s": t, "errors": errs}, tmp_path / "g.png")
     plot_deviation_timeline(t, 1e-4 + 1e-7 * t, -2e-4 + 0 * t, {"published": (1.1e-4, -2.1e-4),
                                                                    "improved": (1.0e-4, -2.0e-4)},
@@ -95,6 +97,7 @@ def test_every_scanmirror_and_whiskbroom_figure_title_fits(tmp_path, captured):
 
 # --------------------------------------------------------------------------- colour scale
 def test_scanmirror_ground_error_maps_share_one_colour_scale(tmp_path, captured):
+    from budget.scanmirror.pipeline import GroundErrors
     from budget.scanmirror.plots import plot_ground_error_maps
 
     n = 50
@@ -104,7 +107,8 @@ def test_scanmirror_ground_error_maps_share_one_colour_scale(tmp_path, captured)
     scale = {"uncompensated": 0.4, "without_estimate": 0.2, "published": 0.03, "improved": 0.005}
     out = {"errors": {s: {nm: (np.full(n, scale[nm]) * (1 + 0.1 * s), np.linspace(0, scale[nm], n))
                           for nm in names} for s in (1, 2)}}
-    fig_path = plot_ground_error_maps(world, setup, out, tmp_path / "maps.png")
+    errors = {s: {nm: GroundErrors(*e) for nm, e in row.items()} for s, row in out["errors"].items()}
+    fig_path = plot_ground_error_maps(world, setup, errors, tmp_path / "maps.png")
     (fig, _), = captured
     from matplotlib.collections import PathCollection
 
@@ -152,10 +156,12 @@ def test_linecam_residual_caption_gives_the_rms_of_the_points_drawn(tmp_path, ca
 
 
 def test_scanmirror_trial_caption_gives_the_largest_error_drawn(tmp_path, captured):
+    from budget.scanmirror.pipeline import GroundErrors
     from budget.scanmirror.plots import plot_trial_ground_errors
 
     t = np.linspace(0, 100, 300)
-    errs = {"uncompensated": (0.3 * np.sin(t), 0.5 * np.cos(t / 3)), "published": (0.02 * np.sin(t), -0.04 + 0 * t)}
+    errs = {"uncompensated": GroundErrors(0.3 * np.sin(t), 0.5 * np.cos(t / 3)),
+            "published": GroundErrors(0.02 * np.sin(t), -0.04 + 0 * t)}
     path = plot_trial_ground_errors(None, None, {"t_s": t, "errors": errs}, tmp_path / "g.png")
     (fig, _), = captured
     drawn = {}

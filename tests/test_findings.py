@@ -225,8 +225,8 @@ def test_linecam_gauge_combinations_are_orthogonal_to_the_plans_null_space():
     space gives the same combinations."""
     from budget.linecam.calibrate import separability
     from budget.linecam.model import NominalCamera, Observations, parameter_scale
-    from budget.linecam.study import (GAUGE_COMBINATIONS, STUDY, determined_combinations,
-                                      gauge_combination_vector)
+    from budget.linecam.parameters import GAUGE_COMBINATIONS, determined_combinations, gauge_combination_vector
+    from budget.linecam.study import STUDY
     from simcam.linecam.camera import camera_truth, sample_y_mm
     from simcam.linecam.scenario import default as load_default
 

@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 
 from budget.linecam.calibrate import (CalibrationError, calibrate_joint, calibrate_published, los_field,
                                       separability)
-from budget.linecam.model import NominalCamera, Observations, los_angles, residuals
-from budget.linecam.trial import los_grid, simulate
+from budget.linecam.model import NominalCamera, Observations, los_angles, los_grid, residuals
+from budget.linecam.trial import simulate
 from simcam.linecam.camera import camera_truth, draw_errors, sample_y_mm
 from simcam.linecam.scenario import PARAMETERS, from_dict, default
 from simcam.units import ARCSEC_PER_RAD
@@ -59,8 +59,8 @@ def test_zero_injected_errors_recover_zero_end_to_end():
     assert np.array_equal(world_hip, sim.identified.obs.hip)
     ta, tc = sim.los_true
     for v, L in sim.los.items():
-        assert np.all(np.abs(L["along"] - ta) < 4 * L["sigma_along"] + 1e-9)
-        assert np.all(np.abs(L["across"] - tc) < 4 * L["sigma_across"] + 1e-9)
+        assert np.all(np.abs(L.along_rad - ta) < 4 * L.sigma_along_rad + 1e-9)
+        assert np.all(np.abs(L.across_rad - tc) < 4 * L.sigma_across_rad + 1e-9)
     cal = sim.calibrations["improved"]
     sd = np.sqrt(np.diag(cal.cov))
     for j, p in enumerate(PARAMETERS):
@@ -205,8 +205,8 @@ def _covariance_ratios(R):
             stated[m].append(np.diag(cal.cov))
             if m == "joint":
                 L = los_field(CAM, cal, GRID)
-                los_err.append(np.r_[L["along"] - ta, L["across"] - tc])
-                los_sd.append(np.r_[L["sigma_along"], L["sigma_across"]])
+                los_err.append(np.r_[L.along_rad - ta, L.across_rad - tc])
+                los_sd.append(np.r_[L.sigma_along_rad, L.sigma_across_rad])
     ratios = {m: {p: float(np.array(est[m])[:, j].var(ddof=1) / np.mean(np.array(stated[m])[:, j]))
                   for j, p in enumerate(PARAMETERS)} for m in est}
     err, sd = np.array(los_err), np.array(los_sd)
@@ -258,13 +258,13 @@ def test_lookangle_polynomials_recover_the_field_and_state_its_spread():
     truth, s, b0, rng = _synthetic(theta, seed=6)
     ta, tc = truth.los_angles(GRID)
     L = calibrate_lookangle(CAM, _obs(s, b0, 0.0, rng)).field(GRID)
-    assert np.max(np.abs(L["along"] - ta)) * CAM.f_px < 1e-4
-    assert np.max(np.abs(L["across"] - tc)) * CAM.f_px < 1e-4
+    assert np.max(np.abs(L.along_rad - ta)) * CAM.f_px < 1e-4
+    assert np.max(np.abs(L.across_rad - tc)) * CAM.f_px < 1e-4
     R = 300
     err, sd = [], []
     for _ in range(R):
         L = calibrate_lookangle(CAM, _obs(s, b0, 0.25, rng)).field(GRID)
-        err.append(np.r_[L["along"] - ta, L["across"] - tc])
-        sd.append(np.r_[L["sigma_along"], L["sigma_across"]])
+        err.append(np.r_[L.along_rad - ta, L.across_rad - tc])
+        sd.append(np.r_[L.sigma_along_rad, L.sigma_across_rad])
     ratio = np.mean(np.array(err).var(axis=0, ddof=1)) / np.mean(np.array(sd) ** 2)
     assert abs(ratio - 1) < 4 * np.sqrt(2 / (R - 1)), ratio

@@ -9,8 +9,10 @@ import pandas as pd
 import pytest
 import tomli_w
 
+from budget.linecam.calibrate import calibrate_file
 from budget.linecam.cli import _local_group
-from simcam.infra.cli import run_cli
+from simcam.infra.cli import run_cli, write_json_atomic
+from simcam.infra.errors import UserInputError
 
 SMALL = {"stars": {"region": "manual", "ra_deg": 280.0, "dec_deg": -5.0},
          "observation": {"passes": 2, "shift_px": 2000.0}}
@@ -59,6 +61,26 @@ def test_simulated_table_calibrates_to_the_same_result(simulated, capsys):
                 sd = max(x["sigma"] for x in cal["methods"][m]["determined_combinations"].values())
             assert abs(cal["methods"][m]["theta"][p] - v) < 1e-3 * max(sd, 1e-9) + 1e-9, (m, p)
     assert (d / "rep" / "los_field.png").stat().st_size > 1000
+
+
+def test_calibrate_file_is_the_python_entry_of_the_command(simulated, capsys, tmp_path):
+    """The same table and scenario: the same printed lines and byte for byte the same JSON."""
+    d = simulated
+    code, out = _run(["calibrate", str(d / "obs.csv"), "--scenario", str(d / "small.toml"),
+                      "--json", str(tmp_path / "cli.json")], capsys)
+    assert code in (0, None), out.err
+    cal = calibrate_file(str(d / "obs.csv"), str(d / "small.toml"))
+    assert out.out.splitlines() == cal.summary_lines()
+    write_json_atomic(tmp_path / "api.json", cal.to_json())
+    assert (tmp_path / "api.json").read_bytes() == (tmp_path / "cli.json").read_bytes()
+    assert list(cal.calibrations) == ["published", "improved", "lookangle"] and set(cal.los) == set(cal.calibrations)
+    only = calibrate_file(str(d / "obs.csv"), str(d / "small.toml"), method="all", solve=["k1", "p1", "p2"])
+    assert list(only.calibrations) == ["improved"] and only.calibrations["improved"].solved == ("k1", "p1", "p2")
+    for kwargs, named in (({"method": "joint"}, "method: 'joint'"),
+                          ({"solve": "k1,k9"}, "solve: unknown parameter 'k9'"),
+                          ({"epoch": "yesterday"}, "epoch: not an ISO UTC time")):
+        with pytest.raises(UserInputError, match=named):
+            calibrate_file(str(d / "obs.csv"), str(d / "small.toml"), **kwargs)
 
 
 def test_unknown_catalogue_id_is_one_error_line(simulated, capsys, tmp_path):

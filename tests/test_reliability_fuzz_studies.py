@@ -165,7 +165,7 @@ def test_fuzz_bytes_to_study_scenarios(study, payload):
 
 # ----------------------------------------------------------------------------- observation table
 def _load_obs(path):
-    from budget.linecam.cli import read_observations
+    from budget.linecam.table import read_observations
     from budget.linecam.study import STUDY
 
     return read_observations(path, STUDY.load_scenario(None))
@@ -198,7 +198,7 @@ def test_fuzz_bytes_to_the_observation_table(payload):
 def test_a_good_observation_table_loads():
     """The fuzz above skips what the reader accepts; make sure it accepts a plausible table
     (else every example would be skipped and the test mean nothing)."""
-    from budget.linecam.cli import CSV_COLUMNS, check_observation_values
+    from budget.linecam.table import CSV_COLUMNS, check_observation_values
 
     n = 12
     a = {c: np.zeros(n) for c in CSV_COLUMNS}

@@ -215,7 +215,7 @@ def test_manifest_repeats_and_two_plate_scales_name_the_manifest_and_both_values
 
 
 def test_observation_table_literal_nan_and_a_table_repeated_twice(tmp_path):
-    from budget.linecam.cli import CSV_COLUMNS, check_observation_values
+    from budget.linecam.table import CSV_COLUMNS, check_observation_values
     from test_reliability_outputs import _obs_arrays
 
     a = _obs_arrays()

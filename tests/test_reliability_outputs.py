@@ -327,7 +327,7 @@ def test_scanmirror_ground_step_too_fine_is_refused_naming_the_field(monkeypatch
 
 # ----------------------------------------------------------------------------- tables
 def _obs_arrays(n=40, seed=1):
-    from budget.linecam.cli import CSV_COLUMNS
+    from budget.linecam.table import CSV_COLUMNS
 
     rng = np.random.default_rng(seed)
     a = {c: rng.normal(size=n) for c in CSV_COLUMNS}
@@ -349,7 +349,7 @@ def _obs_arrays(n=40, seed=1):
     (lambda a: {**a, "vel_x_km_s": np.full(40, 4e5)}, "vel_x_km_s: the speed in row 2"),
 ])
 def test_observation_tables_that_make_a_calibration_meaningless(mutate, named):
-    from budget.linecam.cli import check_observation_values
+    from budget.linecam.table import check_observation_values
 
     check_observation_values("obs.csv", _obs_arrays(), n_pixels=6144)  # the good table passes
     with pytest.raises(UserInputError) as ei:
@@ -360,7 +360,7 @@ def test_observation_tables_that_make_a_calibration_meaningless(mutate, named):
 def test_singular_fit_is_an_error_not_plus_minus_zero():
     from types import SimpleNamespace
 
-    from budget.linecam.cli import check_determined
+    from budget.linecam.calibrate import check_determined
 
     good = SimpleNamespace(condition=1e3, cov=np.eye(10))
     check_determined({"published": good, "improved": good}, source="obs.csv")
@@ -374,7 +374,7 @@ def test_singular_fit_is_an_error_not_plus_minus_zero():
 
 
 def test_linecam_calibrate_never_writes_over_its_table_and_names_empty_cells(tmp_path):
-    from budget.linecam.cli import CSV_COLUMNS
+    from budget.linecam.table import CSV_COLUMNS
 
     obs = tmp_path / "obs.csv"
     a = _obs_arrays()

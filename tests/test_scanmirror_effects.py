@@ -225,9 +225,9 @@ def test_a_tracker_bias_shifts_the_estimate_by_the_projected_bias():
     checked = 0
     for k in range(3):
         o = run(setup, np.random.default_rng(100 + k))
-        E = o["effects"].tracker_parts["bias"]
+        E = o.effects.tracker_parts["bias"]
         pred, *_ = np.linalg.lstsq(D, -np.cross(E, s), rcond=None)
-        shift = (o["dtau"]["improved"] - o["dtau_true"]) / RAD_PER_ARCSEC
+        shift = (o.dtau_rad["improved"] - o.dtau_true_rad) / RAD_PER_ARCSEC
         tol = np.linalg.norm(E / RAD_PER_ARCSEC) * np.deg2rad(sc.star_sensing.field_half_width_deg) + 0.03
         assert np.linalg.norm(pred / RAD_PER_ARCSEC) > 3 * tol  # the check has teeth
         assert np.allclose(shift, pred / RAD_PER_ARCSEC, atol=tol), (shift, pred / RAD_PER_ARCSEC)

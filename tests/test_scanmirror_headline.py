@@ -38,17 +38,17 @@ def paper_run():
 
 
 def _max_abs(o, scan, name):
-    lat, lon = o["errors"][scan][name]
-    return float(np.abs(lat).max()), float(np.abs(lon).max())
+    e = o.errors[scan][name]
+    return float(np.abs(e.lat_deg).max()), float(np.abs(e.lon_deg).max())
 
 
 def test_published_estimator_ignoring_aberration_is_off_by_the_documented_angles(paper_run):
     # docs/scanmirror.md: "the published estimator is off by (+6.6", -9.1") with catalogue
     # directions" (the script prints 6.64, -9.11: +-0.005")
-    d = (np.asarray(paper_run["dtau"]["published"]) - np.asarray(paper_run["dtau_true"])) / RAD_PER_ARCSEC
+    d = (np.asarray(paper_run.dtau_rad["published"]) - np.asarray(paper_run.dtau_true_rad)) / RAD_PER_ARCSEC
     assert d[0] == pytest.approx(6.64, abs=0.005) and d[1] == pytest.approx(-9.11, abs=0.005)
     # the injected deviation at the dwell, (36.27", 20.94")
-    t = np.asarray(paper_run["dtau_true"]) / RAD_PER_ARCSEC
+    t = np.asarray(paper_run.dtau_true_rad) / RAD_PER_ARCSEC
     assert t[0] == pytest.approx(36.27, abs=0.005) and t[1] == pytest.approx(20.94, abs=0.005)
 
 

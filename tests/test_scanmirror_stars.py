@@ -147,7 +147,7 @@ def test_batch_estimate_sigma_matches_its_own_noise_model_algebra_check():
     z = []
     for k in range(200):
         o = run(setup, np.random.default_rng(np.random.SeedSequence(0, spawn_key=(k,))))
-        z.append((o["dtau"]["improved"] - o["dtau_true"]) / o["dtau_sigma"])
+        z.append((o.dtau_rad["improved"] - o.dtau_true_rad) / o.dtau_sigma_rad)
     z = np.array(z)
     n = len(z)
     assert np.abs(z.mean(0)).max() < 4 / np.sqrt(n)
@@ -199,7 +199,7 @@ def test_profile_attitude_mode_runs_through_the_pipeline():
     sc = _default(**{"attitude.mode": "profile"})
     setup = Setup(sc, 2.0, scans=(2,))
     o = run(setup, np.random.default_rng(5))
-    lat, lon = o["errors"][2]["improved"]
+    lat, lon = o.errors[2]["improved"].lat_deg, o.errors[2]["improved"].lon_deg
     # Exact compensation leaves the attitude knowledge error k (1" per axis) and the
     # estimate's error of the mirror normal, which the reflection doubles: a line-of-sight
     # error of 1 sigma s = sqrt(k^2 + (2 sigma_dtau)^2) = 1.6" (sigma_dtau = 0.63", the
@@ -209,7 +209,7 @@ def test_profile_attitude_mode_runs_through_the_pipeline():
     # their maximum is about one draw's size: 4 sigma (0.010 deg, exceeded with probability
     # 6e-5 per axis) bounds it; the run gives 1.0e-3 / 4.5e-3 deg here.
     k = sc.attitude.knowledge_sigma_arcsec
-    s = np.hypot(k, 2 * np.max(o["dtau_sigma"]) / RAD_PER_ARCSEC)
+    s = np.hypot(k, 2 * np.max(o.dtau_sigma_rad) / RAD_PER_ARCSEC)
     g = (sc.orbit.semi_major_axis_km - 6378.137) / 6378.137
     bound = 4 * s * g / 3600.0
     assert 0.009 < bound < 0.011

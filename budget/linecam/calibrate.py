@@ -18,6 +18,11 @@
   (``tan psi(s)`` per axis, gauge-free, linear): the field without any camera parameters.
 * :func:`separability` -- condition number, singular values and the null space of a
   plan: which parameters a plan cannot separate.
+* :func:`calibrate_file` -- what ``budget linecam calibrate`` computes: an observation
+  table (:mod:`budget.linecam.table`) read and calibrated by the methods asked
+  (:func:`calibrate_table`), a :class:`TableCalibration` whose JSON
+  (:func:`calibration_payload`) and printed lines (:func:`calibration_lines`) the command
+  writes.
 
 All covariances are scaled by the a-posteriori residual variance ``s0^2 = r^T W r / (m - rank)``.
 """
@@ -29,11 +34,21 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .model import (PARAMETERS, NominalCamera, Observations, interior_design, jacobian, los_angles,
+from budget.runner.numbers import fmt
+from simcam.infra.errors import UserInputError
+from simcam.linecam.scenario import LineCamScenario
+from simcam.linecam.scenario import load as load_scenario
+from simcam.units import ARCSEC_PER_RAD
+
+from .model import (PARAMETERS, NominalCamera, Observations, interior_design, jacobian, los_angles, los_grid,
                     los_jacobian, parameter_scale, residuals)
+from .parameters import PARAM_UNITS, determined_combinations, gauge_combination_vector, to_report_units
+from .table import ObservationTable, read_observations
 
 __all__ = ["Calibration", "Separability", "calibrate_published", "calibrate_joint", "separability",
-           "coverage_weights", "los_field", "CalibrationError", "LookAngleCalibration", "calibrate_lookangle"]
+           "coverage_weights", "los_field", "LosField", "CalibrationError", "LookAngleCalibration",
+           "calibrate_lookangle", "TableCalibration", "calibrate_table", "calibrate_file", "calibration_payload",
+           "calibration_lines", "check_determined", "parse_solve", "METHODS", "MAX_CONDITION"]
 
 
 class CalibrationError(ValueError):
@@ -282,7 +297,18 @@ def separability(cam: NominalCamera, obs: Observations, *, rcond: float = 1e-6, 
                         null_space=null, inseparable=tuple(p for p in PARAMETERS if p in names))
 
 
-def los_field(cam: NominalCamera, cal: Calibration, sample) -> dict:
+@dataclass(frozen=True)
+class LosField:
+    """A calibrated look-angle field at detectors along the line: the angles along and
+    across track (rad) and their stated 1-sigma (rad)."""
+
+    along_rad: np.ndarray
+    across_rad: np.ndarray
+    sigma_along_rad: np.ndarray
+    sigma_across_rad: np.ndarray
+
+
+def los_field(cam: NominalCamera, cal: Calibration, sample) -> LosField:
     """The calibrated look-angle field at detectors ``sample``: angles (rad) and their stated
     1-sigma (rad) from the covariance, ``sigma^2 = diag(G C G^T)``."""
     along, across = los_angles(cam, cal.theta, sample)
@@ -290,7 +316,7 @@ def los_field(cam: NominalCamera, cal: Calibration, sample) -> dict:
     var = np.einsum("ij,jk,ik->i", G, cal.cov, G)
     sd = np.sqrt(np.maximum(var, 0.0))
     m = np.size(sample)
-    return {"along": along, "across": across, "sigma_along": sd[:m], "sigma_across": sd[m:]}
+    return LosField(along_rad=along, across_rad=across, sigma_along_rad=sd[:m], sigma_across_rad=sd[m:])
 
 
 @dataclass
@@ -321,7 +347,7 @@ class LookAngleCalibration:
     centre_px: float
     method: str = "lookangle"
 
-    def field(self, sample) -> dict:
+    def field(self, sample) -> LosField:
         """Look angles (rad) and stated 1-sigma (rad) at detectors ``sample``."""
         u = (np.asarray(sample, float) - self.centre_px) / self.r_norm_px
         Va = np.vander(u, self.a.size, increasing=True)
@@ -329,7 +355,7 @@ class LookAngleCalibration:
         ta, tb = Va @ self.a, Vb @ self.b
         sa = np.sqrt(np.einsum("ij,jk,ik->i", Va, self.cov_a, Va)) / (1 + ta * ta)
         sb = np.sqrt(np.einsum("ij,jk,ik->i", Vb, self.cov_b, Vb)) / (1 + tb * tb)
-        return {"along": np.arctan(ta), "across": np.arctan(tb), "sigma_along": sa, "sigma_across": sb}
+        return LosField(along_rad=np.arctan(ta), across_rad=np.arctan(tb), sigma_along_rad=sa, sigma_across_rad=sb)
 
 
 def calibrate_lookangle(cam: NominalCamera, obs: Observations, *, degree_along: int = 4,
@@ -361,3 +387,254 @@ def calibrate_lookangle(cam: NominalCamera, obs: Observations, *, degree_along: 
     return LookAngleCalibration(a=out[0], b=out[1], cov_a=covs[0], cov_b=covs[1],
                                 sigma0_px=float(np.sqrt(np.mean(r_px**2))), condition=cond,
                                 r_norm_px=cam.r_norm_px, centre_px=centre)
+
+
+# --------------------------------------------------------------------------- an observation table
+#: the estimators ``calibrate_file`` runs for ``method = "all"``, in their order
+METHODS = ("published", "improved", "lookangle")
+
+#: a fit whose normal matrix has a condition number above this is singular to double precision
+MAX_CONDITION = 1e12
+
+
+def check_determined(calibrations: dict, *, source: str) -> None:
+    """A singular or near-singular fit is an error, never a result stated "+- 0".
+
+    The published steps and the look-angle polynomials have no gauge: a normal matrix
+    with a condition number above :data:`MAX_CONDITION` (or infinite) means the table does
+    not determine them. The joint fit removes its gauge directions by design (their
+    zero variance is the gauge, stated as such); a non-finite stated uncertainty is refused.
+    """
+    for m, c in calibrations.items():
+        cond = float(getattr(c, "condition", np.nan))
+        if m != "improved" and (not np.isfinite(cond) or cond > MAX_CONDITION):
+            raise UserInputError(f"{source}: rows: the {m} fit is singular (condition {cond:.3g}); these "
+                                 "observations do not determine the parameters")
+        cov = getattr(c, "cov", None)
+        if cov is not None and not np.all(np.isfinite(np.diag(cov))):
+            raise UserInputError(f"{source}: rows: the {m} fit has no finite uncertainty; these observations "
+                                 "do not determine the parameters")
+
+
+@dataclass(frozen=True)
+class TableCalibration:
+    """The calibrations of one observation table (:func:`calibrate_table`).
+
+    Attributes
+    ----------
+    table : budget.linecam.table.ObservationTable
+        The table calibrated (its name, observations and time tags).
+    scenario : simcam.linecam.scenario.LineCamScenario
+        The camera's nominal model and the lab's settings.
+    camera : NominalCamera
+        The nominal camera of ``scenario``.
+    separability : Separability or None
+        What the table can separate of the ten parameters (None with too few stars for ten).
+    calibrations : dict of str to Calibration or LookAngleCalibration
+        Each method run (:data:`METHODS`), in the order asked.
+    grid_px : numpy.ndarray
+        Detectors at which the fields are given (:func:`budget.linecam.model.los_grid`).
+    los : dict of str to LosField
+        Each method's calibrated look-angle field on ``grid_px``.
+    """
+
+    table: ObservationTable
+    scenario: LineCamScenario
+    camera: NominalCamera
+    separability: Separability | None
+    calibrations: dict[str, Calibration | LookAngleCalibration]
+    grid_px: np.ndarray
+    los: dict[str, LosField]
+
+    def residuals_before_px(self) -> np.ndarray:
+        """The stars' image residuals (px, along then across track) with the nominal camera."""
+        return residuals(self.camera, np.zeros(len(PARAMETERS)), self.table.observations)
+
+    def to_json(self) -> dict:
+        """What ``budget linecam calibrate --json`` writes (:func:`calibration_payload`)."""
+        return calibration_payload(self)
+
+    def summary_lines(self) -> list[str]:
+        """What ``budget linecam calibrate`` prints (:func:`calibration_lines`)."""
+        return calibration_lines(self)
+
+
+def parse_solve(solve, *, field: str) -> tuple[str, ...] | None:
+    """The parameters an improved fit is asked to solve: None (all ten, gauge removed), a
+    comma-separated string or a sequence of names of :data:`PARAMETERS`; an unknown name
+    (or none at all) is a :class:`simcam.infra.errors.UserInputError` naming ``field``."""
+    if solve is None:
+        return None
+    names = tuple(x.strip() for x in solve.split(",") if x.strip()) if isinstance(solve, str) else tuple(solve)
+    bad = [x for x in names if x not in PARAMETERS]
+    if bad or not names:
+        raise UserInputError(f"{field}: unknown parameter {bad[0] if bad else solve!r} "
+                             f"(known: {', '.join(PARAMETERS)})")
+    return names
+
+
+def calibrate_table(table: ObservationTable, scenario: LineCamScenario, *, solve=None,
+                    methods=METHODS) -> TableCalibration:
+    """The estimators ``methods`` on the observations of ``table`` with the nominal camera and
+    the lab's settings of ``scenario``; ``solve``: the improved fit's parameters (None: all
+    ten, gauge removed; else only those, an inseparable set being an error). Errors name the
+    table and the field."""
+    source, obs = table.source, table.observations
+    cam = NominalCamera.from_model(scenario.camera)
+    lab = scenario.lab
+    out = {}
+    try:
+        sep = separability(cam, obs, rcond=lab.rcond) if 2 * len(obs) > len(PARAMETERS) else None
+        for m in methods:
+            if m == "lookangle":
+                out[m] = calibrate_lookangle(cam, obs, degree_along=lab.lookangle_degree_along,
+                                             degree_across=lab.lookangle_degree_across)
+            elif m == "published":
+                if solve is not None:
+                    raise UserInputError(f"{source}: solve: the published method solves all ten parameters "
+                                         "(exterior, then interior); use --method improved with --solve")
+                out[m] = calibrate_published(cam, obs, coverage_bins=lab.coverage_bins, max_iter=lab.max_iter)
+            else:
+                out[m] = calibrate_joint(cam, obs, solve=solve or PARAMETERS, rcond=lab.rcond,
+                                         gauge_sigma_px=lab.gauge_sigma_px,
+                                         strict=solve is not None)
+    except CalibrationError as exc:
+        field = "solve" if "separate" in str(exc) else "rows"
+        raise UserInputError(f"{source}: {field}: {exc}") from None
+    except np.linalg.LinAlgError as exc:
+        raise UserInputError(f"{source}: rows: the fit is singular ({exc}); these observations do not "
+                             "determine the parameters") from None
+    check_determined(out, source=source)
+    grid = los_grid(scenario)
+    los = {m: (c.field(grid) if m == "lookangle" else los_field(cam, c, grid)) for m, c in out.items()}
+    return TableCalibration(table=table, scenario=scenario, camera=cam, separability=sep, calibrations=out,
+                            grid_px=grid, los=los)
+
+
+def calibrate_file(observations, scenario=None, *, epoch=None, method: str = "all",
+                   solve=None) -> TableCalibration:
+    """Calibrate a line camera from an observation table: what ``budget linecam calibrate``
+    computes.
+
+    Parameters
+    ----------
+    observations : str or path-like
+        The observation table (CSV, :mod:`budget.linecam.table`).
+    scenario : str, path-like, LineCamScenario or None
+        The camera's nominal model and the lab's settings: a scenario file, a loaded
+        scenario, or None for the embedded default.
+    epoch : str, astropy.time.Time or None
+        UTC epoch of the table's ``time_s`` (ISO); None: the scenario's ``orbit.epoch_utc``.
+    method : {"all", "published", "improved", "lookangle"}
+        The estimator(s): the patent's steps, the joint fit, the look-angle polynomials.
+    solve : str, sequence of str or None
+        Parameters the improved fit solves (comma-separated or a sequence; the others held
+        at nominal; an inseparable set is an error); with ``method="all"`` only the improved
+        fit runs. None: all ten, gauge removed.
+
+    Returns
+    -------
+    TableCalibration
+        With :meth:`TableCalibration.to_json` the JSON the command writes.
+
+    Raises
+    ------
+    simcam.infra.errors.UserInputError
+        One line naming the file (or the argument) and the field.
+    """
+    scn = scenario if isinstance(scenario, LineCamScenario) else load_scenario(scenario)
+    names = parse_solve(solve, field="solve")
+    if method not in ("all", *METHODS):
+        raise UserInputError(f"method: {method!r} is none of all, {', '.join(METHODS)}")
+    table = read_observations(observations, scn, epoch=epoch)
+    methods = METHODS if method == "all" else (method,)
+    if names is not None and method == "all":
+        methods = ("improved",)
+    return calibrate_table(table, scn, solve=names, methods=methods)
+
+
+@dataclass(frozen=True)
+class _StatedParameters:
+    """One camera-parameter fit as the outputs state it: values and 1-sigma in report units
+    (:data:`budget.linecam.parameters.PARAM_UNITS`), the parameters the plan cannot separate
+    and what it determines of them (JSON-ready)."""
+
+    theta: np.ndarray
+    sigma: np.ndarray
+    not_determined: frozenset
+    combinations: dict
+
+
+def _stated_parameters(result: TableCalibration, c: Calibration) -> _StatedParameters:
+    sep, cam = result.separability, result.camera
+    th = to_report_units(c.theta)
+    sd = np.sqrt(np.maximum(np.diag(c.cov), 0)) * np.abs(to_report_units(np.ones(len(PARAMETERS))))
+    # parameters the plan cannot separate are "not determined" (no sigma); what it does
+    # determine of them is stated as the combinations
+    undet = frozenset(sep.inseparable) if sep is not None else frozenset()
+    combos = {}
+    for name, ang, px, sign in (determined_combinations(sep.null_space, cam.f_px) if sep is not None else []):
+        if ang in c.solved and px in c.solved:
+            g = gauge_combination_vector(cam.f_px, ang, px, sign)
+            combos[name] = {"value": float(g @ c.theta), "sigma": float(np.sqrt(max(g @ c.cov @ g, 0.0))),
+                            "unit": "arcsec"}
+    return _StatedParameters(theta=th, sigma=sd, not_determined=undet, combinations=combos)
+
+
+def calibration_payload(result: TableCalibration) -> dict:
+    """The JSON of a table's calibration (``budget linecam calibrate --json``): the table, the
+    plan's separability and, per method, its parameters (report units) with their 1-sigma or
+    "not determined", the determined combinations, the covariance (model units) and the
+    look-angle field minus nominal with its stated 1-sigma (arcsec)."""
+    sep, cam, grid = result.separability, result.camera, result.grid_px
+    payload = {"observations": result.table.source, "n": len(result.table.observations),
+               "scenario_hash": result.scenario.hash,
+               "separability": None if sep is None else {"condition": sep.condition, "null_space": sep.null_space,
+                                                          "inseparable": list(sep.inseparable)},
+               "methods": {}}
+    nominal = los_angles(cam, np.zeros(len(PARAMETERS)), grid)
+    for m, c in result.calibrations.items():
+        L = result.los[m]
+        field = {"sample_px": grid.tolist(),
+                 "along_minus_nominal_arcsec": ((L.along_rad - nominal[0]) * ARCSEC_PER_RAD).tolist(),
+                 "across_minus_nominal_arcsec": ((L.across_rad - nominal[1]) * ARCSEC_PER_RAD).tolist(),
+                 "sigma_along_arcsec": (L.sigma_along_rad * ARCSEC_PER_RAD).tolist(),
+                 "sigma_across_arcsec": (L.sigma_across_rad * ARCSEC_PER_RAD).tolist()}
+        if m == "lookangle":
+            payload["methods"][m] = {"tan_along_coefficients": c.a.tolist(), "tan_across_coefficients": c.b.tolist(),
+                                     "sigma0_px": c.sigma0_px, "condition": c.condition, "los_field": field}
+            continue
+        st = _stated_parameters(result, c)
+        payload["methods"][m] = {
+            "theta": dict(zip(PARAMETERS, st.theta.tolist())),
+            "sigma": {p: (None if p in st.not_determined else v) for p, v in zip(PARAMETERS, st.sigma.tolist())},
+            "not_determined": sorted(st.not_determined), "determined_combinations": st.combinations,
+            "units": {p: PARAM_UNITS[p][0] for p in PARAMETERS}, "solved": list(c.solved),
+            "covariance_model_units": c.cov.tolist(), "sigma0_px": c.sigma0_px, "condition": c.condition,
+            "los_field": field}
+    return payload
+
+
+def calibration_lines(result: TableCalibration) -> list[str]:
+    """What ``budget linecam calibrate`` prints: the table's size, the plan's separability and,
+    per method, its residual, condition and stated LOS rms, and its parameters."""
+    sep = result.separability
+    lines = [f"{result.table.source}: {len(result.table.observations)} star observations"]
+    if sep is not None:
+        null = "; ".join(" ".join(f"{c:+.2f} {p}" for p, c in d.items()) for d in sep.null_space) or "none"
+        lines.append(f"plan: condition {fmt(sep.condition, 3)}; unobservable combinations: {null}")
+    for m, c in result.calibrations.items():
+        L = result.los[m]
+        lines.append(f"{m}: rms residual {c.sigma0_px:.3f} px, condition {fmt(c.condition, 3)}, "
+                     f"stated LOS rms {np.sqrt(np.mean(L.sigma_along_rad ** 2)) * ARCSEC_PER_RAD:.3f}\" along, "
+                     f"{np.sqrt(np.mean(L.sigma_across_rad ** 2)) * ARCSEC_PER_RAD:.3f}\" across")
+        if m == "lookangle":
+            continue
+        st = _stated_parameters(result, c)
+        for j, p in enumerate(PARAMETERS):
+            if p in c.solved:
+                lines.append(f"  {p:6s} not determined (inseparable on this plan)" if p in st.not_determined else
+                             f"  {p:6s} {fmt(st.theta[j], 5):>12} +- {fmt(st.sigma[j], 3)} {PARAM_UNITS[p][0]}")
+        for name, cmb in st.combinations.items():
+            lines.append(f"  {name:6s} {fmt(cmb['value'], 5):>12} +- {fmt(cmb['sigma'], 3)} arcsec")
+    return lines

@@ -34,10 +34,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from simcam.linecam.scenario import PARAMETERS, LineCameraModel
+from simcam.linecam.scenario import PARAMETERS, LineCameraModel, LineCamScenario
 
 __all__ = ["PARAMETERS", "NominalCamera", "Observations", "interior_design", "residuals",
-           "jacobian", "los_angles", "los_jacobian", "parameter_scale"]
+           "jacobian", "los_angles", "los_jacobian", "parameter_scale", "los_grid"]
 
 
 @dataclass(frozen=True)
@@ -189,3 +189,10 @@ def los_jacobian(cam: NominalCamera, theta, sample) -> np.ndarray:
             out.append(np.concatenate([a, c]))
         cols.append((out[0] - out[1]) / (2 * steps[j]))
     return np.column_stack(cols)
+
+
+def los_grid(scenario: LineCamScenario) -> np.ndarray:
+    """Detectors at which LOS fields are compared: every ``lab.grid_step_px`` and the last one."""
+    n = scenario.camera.n_pixels
+    g = np.arange(0, n, scenario.lab.grid_step_px, dtype=float)
+    return g if g[-1] == n - 1 else np.append(g, n - 1)

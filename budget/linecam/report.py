@@ -1,5 +1,7 @@
 """Report plots of the line-camera calibration (seed 004): the stars' tracks on the array,
-the residual field before and after calibration, the LOS error field, coverage of the line."""
+the residual field before and after calibration, the LOS error field, coverage of the line;
+the study's report section and the report pages of ``budget linecam simulate`` and
+``calibrate`` (:func:`write_simulation_report`, :func:`write_calibration_report`)."""
 
 from __future__ import annotations
 
@@ -9,10 +11,12 @@ import numpy as np
 
 from budget import figures  # figures.save: looked up when called (a test spies on it)
 from budget.figures import figure_markdown
+from budget.runner.html import write_html
 from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
 
-__all__ = ["plot_tracks", "plot_residuals", "plot_los_error", "plot_coverage", "report_sections"]
+__all__ = ["plot_tracks", "plot_residuals", "plot_los_error", "plot_coverage", "report_sections", "plot_los_field",
+           "write_simulation_report", "write_calibration_report"]
 
 
 def _plt():
@@ -178,3 +182,44 @@ def plot_los_field(payload: dict, path: Path) -> Path:
                      f"up to {np.max(L['sigma_along_arcsec']):.3f} / {np.max(L['sigma_across_arcsec']):.3f}")
     return figures.save(fig, path, "Calibrated look angles minus nominal, along / across track (no truth to compare "
                 "with): " + "; ".join(parts) + ".")
+
+
+def write_simulation_report(example: dict, folder: Path) -> Path:
+    """``simulate.md`` (and its twin ``simulate.html``) in ``folder``: the figures of one
+    simulated calibration (``example``: :func:`budget.linecam.study.trial_extra`)."""
+    d = Path(folder)
+    d.mkdir(parents=True, exist_ok=True)
+    figs = [plot_tracks(example, d / "tracks.png"), plot_residuals(example, d / "residuals.png"),
+            plot_los_error(example, d / "los_error.png"), plot_coverage(example, d / "coverage.png")]
+    (d / "simulate.md").write_text("# Line camera: one simulated calibration\n\n" + figure_markdown(figs) + "\n")
+    write_html(d / "simulate.md")  # its self-contained twin, simulate.html
+    return d / "simulate.md"
+
+
+def write_calibration_report(result, payload: dict, folder: Path) -> Path:
+    """``calibrate.md`` (and its twin ``calibrate.html``) in ``folder``: the table of each
+    method's parameters (from ``payload``, :func:`budget.linecam.calibrate.calibration_payload`)
+    and the figures of the table's calibration ``result``
+    (:class:`budget.linecam.calibrate.TableCalibration`)."""
+    d = Path(folder)
+    d.mkdir(parents=True, exist_ok=True)
+    obs, scn = result.table.observations, result.scenario
+    ex = {"sample": obs.sample, "t_s": result.table.t_s, "pass": obs.pass_index, "n_pixels": scn.camera.n_pixels,
+          "coverage_bins": scn.lab.coverage_bins, "residual_before_px": result.residuals_before_px(),
+          "residual_after_px": {m: c.residuals_px for m, c in result.calibrations.items() if m != "lookangle"}}
+    figs = [plot_tracks(ex, d / "tracks.png"), plot_residuals(ex, d / "residuals.png"),
+            plot_los_field(payload, d / "los_field.png"), plot_coverage(ex, d / "coverage.png")]
+    rows = ["| method | parameter | value | 1-sigma | unit |", "|---|---|---|---|---|"]
+    for m, pm in payload["methods"].items():
+        for p in pm.get("solved", []):
+            rows.append(f"| {m} | {p} | not determined | - | {pm['units'][p]} |" if p in pm["not_determined"]
+                        else f"| {m} | {p} | {fmt(pm['theta'][p], 5)} | {fmt(pm['sigma'][p], 3)} | {pm['units'][p]} |")
+        for name, cmb in pm.get("determined_combinations", {}).items():
+            rows.append(f"| {m} | {name} | {fmt(cmb['value'], 5)} | {fmt(cmb['sigma'], 3)} | arcsec |")
+    note = ("Parameters this plan cannot separate are not determined (no sigma); the combinations the "
+            "stars do determine are listed in their place." if any(
+                pm.get("not_determined") for pm in payload["methods"].values()) else "")
+    (d / "calibrate.md").write_text(f"# Line camera calibration from {result.table.source}\n\n" + "\n".join(rows)
+                                    + "\n\n" + (note + "\n\n" if note else "") + figure_markdown(figs) + "\n")
+    write_html(d / "calibrate.md")  # its self-contained twin, calibrate.html
+    return d / "calibrate.md"

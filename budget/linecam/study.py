@@ -42,6 +42,7 @@ from simcam.infra.errors import ScenarioError
 from simcam.linecam.scenario import PARAMETERS
 from simcam.units import ARCSEC_PER_RAD
 
+from .parameters import GAUGE_COMBINATIONS, gauge_combination_vector, to_report_units
 from .report import report_sections
 
 __all__ = ["STUDY", "LineCamStudy", "LOS_POINTS"]
@@ -57,42 +58,11 @@ _PARAM_CLASSES = (
 )
 
 
-#: what the stars determine on a line at x' = 0 (docs/linecam.md section 3): the null
-#: directions are ``-pitch F + dx0`` and ``roll F + dy0`` (px at the line's end), so
-#: ``pitch + dx0 / F`` and ``roll - dy0 / F`` (arcsec) are invariant along them:
-#: (axis name, angle parameter, px parameter, sign of the px term)
-GAUGE_COMBINATIONS = (("pitch+dx0/F", "pitch", "dx0", 1.0), ("roll-dy0/F", "roll", "dy0", -1.0))
-
-
 def _gauge_axes(scenario) -> tuple[str, ...]:
     """Parameters the data cannot determine: the gauge pairs on a line at x' = 0."""
     if scenario.camera.x_line_mm != 0.0:
         return ()
     return tuple(p for c in GAUGE_COMBINATIONS for p in c[1:3])
-
-
-def gauge_combination_vector(f_px: float, angle: str, px: str, sign: float):
-    """Coefficients (arcsec per model unit: rad, px) of ``angle + sign px / F`` over the ten
-    parameters (:data:`simcam.linecam.scenario.PARAMETERS`)."""
-    g = np.zeros(len(PARAMETERS))
-    g[PARAMETERS.index(angle)] = ARCSEC_PER_RAD
-    g[PARAMETERS.index(px)] = sign * ARCSEC_PER_RAD / f_px
-    return g
-
-
-def determined_combinations(null_space: list[dict], f_px: float) -> list[tuple[str, str, str, float]]:
-    """From a plan's null space (:func:`budget.linecam.calibrate.separability`, px at the line's
-    end) the combinations that are determined: for each null direction of one angle and one
-    px parameter, ``c_a angle F + c_p px`` unobservable makes ``angle - (c_a / c_p) px / F``
-    invariant. Returns (name, angle, px, sign) like :data:`GAUGE_COMBINATIONS`."""
-    out = []
-    for comb in null_space:
-        ang = [p for p in comb if p in ("roll", "pitch", "yaw")]
-        pxs = [p for p in comb if p in ("dx0", "dy0")]
-        if len(comb) == 2 and len(ang) == 1 and len(pxs) == 1 and comb[pxs[0]] != 0:
-            sign = -comb[ang[0]] / comb[pxs[0]]
-            out.append((f"{ang[0]}{'+' if sign > 0 else '-'}{pxs[0]}/F", ang[0], pxs[0], float(sign)))
-    return out
 
 
 class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
@@ -217,8 +187,6 @@ class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
 
 def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     """The estimates, per-trial truths and stated sigmas of one simulation."""
-    from .trial import to_report_units
-
     estimates, truths, sigmas = {}, {}, {}
     true_along, true_across = sim.los_true
     nominal_along, nominal_across = sim.los_before
@@ -227,10 +195,10 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     picked = [int(np.argmin(np.abs(sim.grid - fraction * (n_pixels - 1)))) for fraction in LOS_POINTS]
     theta_true = to_report_units(sim.theta_true)
     for variant, los in sim.los.items():
-        error_along = (los["along"] - true_along) * ARCSEC_PER_RAD
-        error_across = (los["across"] - true_across) * ARCSEC_PER_RAD
-        sigma_along = los["sigma_along"] * ARCSEC_PER_RAD
-        sigma_across = los["sigma_across"] * ARCSEC_PER_RAD
+        error_along = (los.along_rad - true_along) * ARCSEC_PER_RAD
+        error_across = (los.across_rad - true_across) * ARCSEC_PER_RAD
+        sigma_along = los.sigma_along_rad * ARCSEC_PER_RAD
+        sigma_across = los.sigma_across_rad * ARCSEC_PER_RAD
         for axis, error, sigma in (("along", error_along, sigma_along), ("across", error_across, sigma_across)):
             estimates[("los_rms", variant, axis)] = float(np.sqrt(np.mean(sigma * sigma)))
             truths[("los_rms", variant, axis)] = float(np.sqrt(np.mean(error * error)))
@@ -239,8 +207,8 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
             estimates[("los_max", variant, axis)] = float(3.0 * np.max(sigma))
             truths[("los_max", variant, axis)] = float(np.max(np.abs(error)))
         for axis, calibrated, true, nominal, sigma in (
-                ("along", los["along"], true_along, nominal_along, sigma_along),
-                ("across", los["across"], true_across, nominal_across, sigma_across)):
+                ("along", los.along_rad, true_along, nominal_along, sigma_along),
+                ("across", los.across_rad, true_across, nominal_across, sigma_across)):
             for fraction, index in zip(LOS_POINTS, picked):
                 key = ("los", variant, f"{axis}_{int(round(100 * fraction))}")
                 estimates[key] = float((calibrated[index] - nominal[index]) * ARCSEC_PER_RAD)
@@ -287,9 +255,9 @@ def trial_extra(scenario, sim) -> dict:
         "line": sim.centroids.line[sim.identified.centroid_index],
         "residual_before_px": before, "residual_after_px": after,
         "grid": sim.grid,
-        "los_error_arcsec": {variant: ((los["along"] - true_along) * ARCSEC_PER_RAD,
-                                       (los["across"] - true_across) * ARCSEC_PER_RAD,
-                                       los["sigma_along"] * ARCSEC_PER_RAD, los["sigma_across"] * ARCSEC_PER_RAD)
+        "los_error_arcsec": {variant: ((los.along_rad - true_along) * ARCSEC_PER_RAD,
+                                       (los.across_rad - true_across) * ARCSEC_PER_RAD,
+                                       los.sigma_along_rad * ARCSEC_PER_RAD, los.sigma_across_rad * ARCSEC_PER_RAD)
                              for variant, los in sim.los.items()},
         "los_error_before_arcsec": ((sim.los_before[0] - true_along) * ARCSEC_PER_RAD,
                                     (sim.los_before[1] - true_across) * ARCSEC_PER_RAD),

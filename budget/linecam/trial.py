@@ -23,26 +23,15 @@ from simcam.linecam.scenario import PARAMETERS, LineCamScenario
 from simcam.linecam.world import (PassImages, SkyStrip, attitude_reports, image_passes, sky_strip, world_jitter,
                                   world_sky_strip)
 from simcam.sky.catalogue import hipparcos
-from simcam.units import ARCSEC_PER_RAD
 
-from .calibrate import Calibration, calibrate_joint, calibrate_lookangle, calibrate_published, los_field
-from .model import NominalCamera, Observations
+from .calibrate import (Calibration, LosField, calibrate_joint, calibrate_lookangle, calibrate_published,
+                        los_field)
+from .model import NominalCamera, Observations, los_angles, los_grid
 from .pipeline import Centroids, Identified, Region, choose_region, extract_centroids, identify
 
-__all__ = ["region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS", "los_grid",
-           "PARAM_UNITS", "to_report_units"]
+__all__ = ["region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS", "run_calibrations"]
 
 VARIANTS = ("published", "improved", "lookangle")
-
-#: report unit of each parameter and the factor from model units
-PARAM_UNITS = {"roll": ("arcsec", ARCSEC_PER_RAD), "pitch": ("arcsec", ARCSEC_PER_RAD),
-               "yaw": ("arcsec", ARCSEC_PER_RAD), "dx0": ("px", 1.0), "dy0": ("px", 1.0),
-               "df": ("mm", 1.0), "k1": ("1e-4", 1e4), "k2": ("1e-4", 1e4), "p1": ("1e-4", 1e4),
-               "p2": ("1e-4", 1e4)}
-
-
-def to_report_units(theta) -> np.ndarray:
-    return np.asarray(theta, float) * np.array([PARAM_UNITS[p][1] for p in PARAMETERS])
 
 
 @lru_cache(maxsize=16)
@@ -72,26 +61,39 @@ def lab_strip(scenario: LineCamScenario) -> SkyStrip:
                      aberration=lab.aberration, parallax=lab.parallax, proper_motion=lab.proper_motion)
 
 
-def los_grid(scenario: LineCamScenario) -> np.ndarray:
-    """Detectors at which LOS fields are compared: every ``grid_step_px`` and the last one."""
-    n = scenario.camera.n_pixels
-    g = np.arange(0, n, scenario.lab.grid_step_px, dtype=float)
-    return g if g[-1] == n - 1 else np.append(g, n - 1)
-
-
-@dataclass
+@dataclass(frozen=True)
 class Simulation:
-    """Everything of one trial (the report and the commands use the parts)."""
+    """Everything of one trial (the report and the commands use the parts).
+
+    Attributes
+    ----------
+    theta_true : numpy.ndarray (10,)
+        The injected parameters (model units, order of :data:`PARAMETERS`).
+    truth : simcam.linecam.camera.CameraTruth
+        The injected camera.
+    images, centroids, identified
+        The star windows imaged, their centroids, the identified stars and their observations.
+    calibrations : dict of str to Calibration
+        The published and improved calibrations.
+    grid : numpy.ndarray
+        Detectors at which the fields are compared (:func:`budget.linecam.model.los_grid`).
+    los_true : tuple of numpy.ndarray
+        The injected camera's look angles (along, across; rad) on the grid.
+    los : dict of str to LosField
+        Each variant's calibrated field on the grid (``lookangle`` included).
+    los_before : tuple of numpy.ndarray
+        The nominal camera's look angles (along, across; rad) on the grid.
+    """
 
     theta_true: np.ndarray
     truth: CameraTruth
     images: PassImages
     centroids: Centroids
     identified: Identified
-    calibrations: dict
+    calibrations: dict[str, Calibration]
     grid: np.ndarray
     los_true: tuple
-    los: dict
+    los: dict[str, LosField]
     los_before: tuple
 
 
@@ -119,8 +121,6 @@ def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *
     look = calibrate_lookangle(cam, ident.obs, degree_along=scenario.lab.lookangle_degree_along,
                                degree_across=scenario.lab.lookangle_degree_across)
     los["lookangle"] = look.field(grid)
-    from .model import los_angles
-
     before = los_angles(cam, np.zeros(len(PARAMETERS)), grid)
     return Simulation(theta_true=theta, truth=truth, images=images, centroids=cents, identified=ident,
                       calibrations=cals, grid=grid, los_true=los_true, los=los, los_before=before)

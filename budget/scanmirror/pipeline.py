@@ -4,12 +4,16 @@ the normal deviation from the star dwells and compensates the area scans (seed 0
 :class:`Setup` holds everything that does not change from one trial to the next (the plan on
 its grid, the true orbit, the attitude transition matrices, the stars of each dwell, the
 first-order compensation coefficients), computed once per scenario and process;
-:func:`run` draws one trial's errors from a numpy Generator and returns estimates, truths
-and ground errors.
+:func:`run` draws one trial's errors from a numpy Generator and returns a
+:class:`ScanOutcome`: the deviation estimates, the injected deviation, the stated sigma and
+the ground errors (:class:`GroundErrors`) of every area scan under each compensation. It runs
+in named steps: the draws, the star measurements of the dwells, the lab's orbit and attitude
+knowledge, and per area scan the estimates and the compensations.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,13 +22,13 @@ from budget.scanmirror.compensation import FirstOrderCompensator, exact_compensa
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
 from simcam.infra.errors import ScenarioError
 from simcam.infra.lifecycle import check_memory
-from simcam.scanmirror.effects import WorldEffects
+from simcam.scanmirror.effects import TrialEffects, WorldEffects
 from simcam.scanmirror.geometry import rotvec_matrix
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
 from simcam.scanmirror.world import World, deviation_components
 from simcam.units import RAD_PER_ARCSEC
 
-__all__ = ["Setup", "run", "VARIANTS"]
+__all__ = ["Setup", "run", "VARIANTS", "ScanOutcome", "GroundErrors", "TimelineSeries"]
 
 VARIANTS = ("published", "improved", "without_estimate")
 
@@ -95,17 +99,139 @@ class Setup:
         return att[:n], out
 
 
-def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) -> dict:
-    """One trial: draws, star measurements, estimates, compensation, ground errors.
+# --------------------------------------------------------------------------- what a run returns
+@dataclass(frozen=True)
+class GroundErrors:
+    """Ground errors of one area scan under one compensation: geocentric latitude and
+    longitude of each sample's ground point minus its nominal one (deg, arrays over the
+    scan's samples)."""
 
-    Returns a dict with ``dtau_true`` (rad, (2,), at the last dwell before the last scan),
-    ``dtau`` {variant: (2,)}, ``dtau_sigma`` (improved, (2,)), and per scan number
-    ``errors[scan][variant] = (lat_deg, lon_deg)`` arrays (plus ``uncompensated``).
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+
+
+@dataclass(frozen=True)
+class TimelineSeries:
+    """The timeline of one run (:func:`run` with ``keep_series``): the area-scan samples of
+    the setup (``t_s``, ``scan``, their nominal ground points ``g0``), the injected deviation
+    and the true attitude angles there, and the injected deviation over the whole plan
+    every ``step_s`` (``t_all_s``)."""
+
+    t_s: np.ndarray
+    scan: np.ndarray
+    g0: np.ndarray
+    dtau_x_rad: np.ndarray
+    dtau_y_rad: np.ndarray
+    attitude_rad: np.ndarray
+    t_all_s: np.ndarray
+    dtau_x_all_rad: np.ndarray
+    dtau_y_all_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class ScanOutcome:
+    """One trial of the scan-mirror method.
+
+    Attributes
+    ----------
+    dtau_rad : mapping of str to numpy.ndarray (2,)
+        The deviation estimate (dtau_x, dtau_y) of each variant (:data:`VARIANTS`) from the
+        last star dwell before the last area scan (zero where no dwell precedes it, and
+        always for ``without_estimate``).
+    dtau_true_rad : numpy.ndarray (2,)
+        The injected deviation at the middle of that dwell (NaN without a dwell).
+    dtau_sigma_rad : numpy.ndarray (2,)
+        The improved estimator's stated 1-sigma (NaN without a dwell).
+    errors : mapping of int to mapping of str to GroundErrors
+        Per area-scan number, the ground errors under each compensation (:data:`VARIANTS`)
+        and ``uncompensated``.
+    effects : simcam.scanmirror.effects.TrialEffects or None
+        The world's unmodelled effects drawn for this trial (None when they are off).
+    series : TimelineSeries or None
+        The timeline, when :func:`run` is asked to keep it.
     """
+
+    dtau_rad: Mapping[str, np.ndarray]
+    dtau_true_rad: np.ndarray
+    dtau_sigma_rad: np.ndarray
+    errors: Mapping[int, Mapping[str, GroundErrors]]
+    effects: TrialEffects | None = None
+    series: TimelineSeries | None = None
+
+    @property
+    def last_scan(self) -> int:
+        """The number of the last area scan."""
+        return max(self.errors)
+
+
+# --------------------------------------------------------------------------- the steps of a run
+@dataclass(frozen=True)
+class _Draws:
+    """One trial's draws, in the order the trial's stream gives them."""
+
+    axis_rad: float
+    phase_rad: float
+    constant_rad: float
+    initial_deg: np.ndarray
+    orbit_offset_km: np.ndarray
+    knowledge_rad: np.ndarray
+    tracker_rad: np.ndarray
+    centroid_noise_rad: list
+    effects: TrialEffects | None
+
+
+@dataclass(frozen=True)
+class _Deviation:
+    """The injected normal deviation (dtau_x, dtau_y) in rad at any time: the seed's sinusoid
+    and, where the world's effects are on, their extra terms."""
+
+    constant_rad: float
+    variable_rad: float
+    period_s: float
+    phase_rad: float
+    axis_rad: float
+    effects: TrialEffects | None
+
+    def __call__(self, t):
+        base = deviation_components(t, self.constant_rad, self.variable_rad, self.period_s, self.phase_rad,
+                                    self.axis_rad)
+        if self.effects is None:
+            return base
+        return self.effects.deviation(t, base, variable_rad=self.variable_rad, period_s=self.period_s,
+                                      phase_rad=self.phase_rad, axis_rad=self.axis_rad)
+
+
+@dataclass(frozen=True)
+class _LabKnowledge:
+    """What the lab knows during the area scans: its orbit (geometry and the compensation's
+    orbit parameters) and its attitude angles (rad)."""
+
+    A: np.ndarray
+    R_km: np.ndarray
+    orbit: np.ndarray
+    dR_km: np.ndarray
+    attitude_rad: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Estimate:
+    """The deviation estimates for one area scan (rad), the improved one's covariance and the
+    injected deviation at the dwell they come from."""
+
+    published: np.ndarray
+    improved: np.ndarray
+    cov: np.ndarray
+    truth: np.ndarray
+
+    def by_variant(self) -> dict[str, np.ndarray]:
+        return {"published": self.published, "improved": self.improved, "without_estimate": np.zeros(2)}
+
+
+def _draw(setup: Setup, rng: np.random.Generator) -> _Draws:
+    """The trial's draws in a fixed order (the stream is the trial's); the world's effects
+    draw from a child spawned after the lab's draws: off, nothing changes."""
     sc = setup.scenario
-    w = setup.world
     m, a, ss = sc.mirror, sc.attitude, sc.star_sensing
-    # --- draws (fixed order: the stream is the trial's)
     if m.random_axis:
         axis, phase = rng.uniform(0, 2 * np.pi), rng.uniform(0, 2 * np.pi)
     else:
@@ -116,21 +242,28 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
     att_know = a.knowledge_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(3)
     n_d = len(setup.dwells)
     tracker_err = ss.tracker_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal((n_d, 3))
-    noise = [ss.centroid_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(d.visible.shape + (2,)) for d in setup.dwells]
-    # the world's effects draw from a child spawned after the lab's draws: off, nothing changes
+    noise = [ss.centroid_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(d.visible.shape + (2,))
+             for d in setup.dwells]
     fx = setup.effects.draw(rng.spawn(1)[0], setup.t_s) if setup.effects.on else None
+    return _Draws(axis_rad=axis, phase_rad=phase, constant_rad=const, initial_deg=init, orbit_offset_km=orbit_offset,
+                  knowledge_rad=att_know, tracker_rad=tracker_err, centroid_noise_rad=noise, effects=fx)
 
-    def dev(t):
-        base = deviation_components(t, const, np.deg2rad(m.deviation_variable_deg), m.deviation_period_s, phase, axis)
-        if fx is None:
-            return base
-        return fx.deviation(t, base, variable_rad=np.deg2rad(m.deviation_variable_deg), period_s=m.deviation_period_s,
-                            phase_rad=phase, axis_rad=axis)
 
-    att_scan, att_frames = setup.attitude(init)
-    # --- star measurements and the estimates (per dwell, for every scan that follows)
+def _deviation(setup: Setup, draws: _Draws) -> _Deviation:
+    m = setup.scenario.mirror
+    return _Deviation(constant_rad=draws.constant_rad, variable_rad=np.deg2rad(m.deviation_variable_deg),
+                      period_s=m.deviation_period_s, phase_rad=draws.phase_rad, axis_rad=draws.axis_rad,
+                      effects=draws.effects)
+
+
+def _dwell_measurements(setup: Setup, draws: _Draws, dev: _Deviation,
+                        att_frames: list) -> tuple[list[DwellMeasurement], list[DwellMeasurement]]:
+    """The star measurements of every dwell: with the stars' apparent directions (improved)
+    and with the catalogue's unless the published method uses aberration."""
+    ss = setup.scenario.star_sensing
+    fx = draws.effects
     meas_app, meas_cat = [], []
-    for j, (d, af, te, nz) in enumerate(zip(setup.dwells, att_frames, tracker_err, noise)):
+    for j, (d, af, te, nz) in enumerate(zip(setup.dwells, att_frames, draws.tracker_rad, draws.centroid_noise_rad)):
         dtx_f, dty_f = dev(d.frame_t_s)
         cen = true_centroids(d if fx is None else setup.effects.world_dwell(j), dtx_f, dty_f, af) + nz
         cen = np.where(d.visible[..., None], cen, np.nan)
@@ -140,69 +273,99 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
         meas_app.append(DwellMeasurement(d.apparent_I, tracker, cen, d.alpha_rad, d.beta_rad))
         meas_cat.append(DwellMeasurement(d.apparent_I if ss.published_uses_aberration else d.catalogue_I,
                                          tracker, cen, d.alpha_rad, d.beta_rad))
-    # --- lab knowledge during the scans
-    A_lab, R_lab, r_lab, v_lab = w.orbit_geometry(setup.t_s, position_offset_rtn_km=orbit_offset)
+    return meas_app, meas_cat
+
+
+def _lab_knowledge(setup: Setup, draws: _Draws, att_scan: np.ndarray) -> _LabKnowledge:
+    """The lab's orbit (the drawn orbit-determination error) and attitude (the drawn
+    knowledge error, and the world's tracker process continued through the scan) during the
+    scans."""
+    w = setup.world
+    A_lab, R_lab, r_lab, v_lab = w.orbit_geometry(setup.t_s, position_offset_rtn_km=draws.orbit_offset_km)
     orb_lab, dR_lab = w.orbit_parameters(r_lab, v_lab, setup.t_s)
-    att_lab = att_scan + att_know
-    if fx is not None:  # the same tracker process continues through the scan (small angles: 3-1-2 = rotation vector)
-        att_lab = att_lab + fx.tracker_scan
-    dtx_t, dty_t = dev(setup.t_s)
-    out = {"errors": {}, "dtau": {}, "dtau_sigma": np.full(2, np.nan), "dtau_true": np.full(2, np.nan)}
-    sc_errors = {}
-    for s in sorted(setup.scan_start):
-        sel = setup.scan == s
-        before = [j for j, d in enumerate(setup.dwells) if d.frame_t_s[-1] < setup.scan_start[s]]
-        if before:
-            last = setup.dwells[before[-1]]
-            mid = int(last.frame_t_s.size // 2)
-            star = int(np.nanargmin(np.where(last.visible[mid], np.abs(meas_cat[before[-1]].centroids[mid]).max(-1),
-                                             np.inf)))
-            if not last.visible[mid, star]:
-                fr = np.flatnonzero(last.visible.any(1))[0]
-                mid, star = int(fr), int(np.flatnonzero(last.visible[fr])[0])
-            est_pub = published_estimate(meas_cat[before[-1]], star=star, frame=mid)
-            est_imp, cov = batch_estimate([meas_app[j] for j in before],
-                                          centroid_sigma_rad=ss.centroid_sigma_arcsec * RAD_PER_ARCSEC,
-                                          tracker_sigma_rad=ss.tracker_sigma_arcsec * RAD_PER_ARCSEC)
-            t_mid = float(last.frame_t_s.mean())
-            truth = np.array(dev(t_mid))
-        else:
-            est_pub = est_imp = np.zeros(2)
-            cov = np.full((2, 2), np.nan)
-            truth = np.full(2, np.nan)
-        est = {"published": est_pub, "improved": est_imp, "without_estimate": np.zeros(2)}
-        out["dtau"], out["dtau_sigma"], out["dtau_true"] = est, np.sqrt(np.diag(cov)), truth
-        errs = {"uncompensated": _errors_sel(setup, sel, setup.alpha0[sel], setup.beta0[sel], dtx_t[sel],
-                                             dty_t[sel], att_scan[sel])}
-        # published: first-order corrections from the nine parameters the lab knows
-        p = np.column_stack([np.full(sel.sum(), est_pub[0]), np.full(sel.sum(), est_pub[1]), att_lab[sel],
-                             orb_lab[sel], dR_lab[sel]])
-        K = setup.comp.K[sel]
-        d = np.einsum("nij,nj->ni", K, p)
-        errs["published"] = _errors_sel(setup, sel, setup.alpha0[sel] + d[:, 0], setup.beta0[sel] + d[:, 1],
-                                        dtx_t[sel], dty_t[sel], att_scan[sel])
-        for name, e in (("improved", est_imp), ("without_estimate", np.zeros(2))):
-            ac, bc = exact_compensation(w, setup.alpha0[sel], setup.beta0[sel], np.full(sel.sum(), e[0]),
-                                        np.full(sel.sum(), e[1]), att_lab[sel], A_lab[sel], R_lab[sel],
-                                        target=setup.g0[sel, :2])
-            errs[name] = _errors_sel(setup, sel, ac, bc, dtx_t[sel], dty_t[sel], att_scan[sel])
-            if keep_series:
-                errs[name + "_angles"] = (ac - setup.alpha0[sel], bc - setup.beta0[sel])
-        sc_errors[s] = errs
-    out["errors"] = sc_errors
-    if fx is not None:
-        out["effects"] = fx
-    if keep_series:
-        t_all = np.arange(0.0, w.duration_s, setup.step_s)
-        dx_all, dy_all = dev(t_all)
-        out["series"] = {"t_s": setup.t_s, "scan": setup.scan, "dtau_x": dtx_t, "dtau_y": dty_t,
-                         "attitude": att_scan, "g0": setup.g0, "t_all_s": t_all, "dtau_x_all": dx_all,
-                         "dtau_y_all": dy_all}
-    return out
+    att_lab = att_scan + draws.knowledge_rad
+    if draws.effects is not None:  # small angles: 3-1-2 = rotation vector
+        att_lab = att_lab + draws.effects.tracker_scan
+    return _LabKnowledge(A=A_lab, R_km=R_lab, orbit=orb_lab, dR_km=dR_lab, attitude_rad=att_lab)
 
 
-def _errors_sel(setup, sel, alpha, beta, dtx, dty, att):
+def _estimate(setup: Setup, scan: int, meas_app: list, meas_cat: list, dev: _Deviation) -> _Estimate:
+    """The deviation estimates for area scan ``scan``: published from the last dwell before
+    it (one star, its middle frame), improved from every dwell before it; zero (and no
+    covariance or truth) when no dwell precedes the scan."""
+    ss = setup.scenario.star_sensing
+    before = [j for j, d in enumerate(setup.dwells) if d.frame_t_s[-1] < setup.scan_start[scan]]
+    if not before:
+        zero = np.zeros(2)
+        return _Estimate(published=zero, improved=zero, cov=np.full((2, 2), np.nan), truth=np.full(2, np.nan))
+    last = setup.dwells[before[-1]]
+    mid = int(last.frame_t_s.size // 2)
+    star = int(np.nanargmin(np.where(last.visible[mid], np.abs(meas_cat[before[-1]].centroids[mid]).max(-1),
+                                     np.inf)))
+    if not last.visible[mid, star]:
+        fr = np.flatnonzero(last.visible.any(1))[0]
+        mid, star = int(fr), int(np.flatnonzero(last.visible[fr])[0])
+    est_pub = published_estimate(meas_cat[before[-1]], star=star, frame=mid)
+    est_imp, cov = batch_estimate([meas_app[j] for j in before],
+                                  centroid_sigma_rad=ss.centroid_sigma_arcsec * RAD_PER_ARCSEC,
+                                  tracker_sigma_rad=ss.tracker_sigma_arcsec * RAD_PER_ARCSEC)
+    t_mid = float(last.frame_t_s.mean())
+    return _Estimate(published=est_pub, improved=est_imp, cov=cov, truth=np.array(dev(t_mid)))
+
+
+def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledge, dtx: np.ndarray,
+                dty: np.ndarray, att: np.ndarray) -> dict[str, GroundErrors]:
+    """The ground errors of the samples ``sel`` of one area scan (true deviation ``dtx, dty``
+    and attitude ``att`` there): uncompensated; published (first-order corrections from the
+    nine parameters the lab knows); improved and without_estimate (exact compensation with
+    the improved estimate and with dtau = 0)."""
+    w = setup.world
+    alpha0, beta0 = setup.alpha0[sel], setup.beta0[sel]
+    n = sel.sum()
+    errs = {"uncompensated": _ground_errors(setup, sel, alpha0, beta0, dtx, dty, att)}
+    p = np.column_stack([np.full(n, est.published[0]), np.full(n, est.published[1]), lab.attitude_rad[sel],
+                         lab.orbit[sel], lab.dR_km[sel]])
+    d = np.einsum("nij,nj->ni", setup.comp.K[sel], p)
+    errs["published"] = _ground_errors(setup, sel, alpha0 + d[:, 0], beta0 + d[:, 1], dtx, dty, att)
+    for name, e in (("improved", est.improved), ("without_estimate", np.zeros(2))):
+        ac, bc = exact_compensation(w, alpha0, beta0, np.full(n, e[0]), np.full(n, e[1]), lab.attitude_rad[sel],
+                                    lab.A[sel], lab.R_km[sel], target=setup.g0[sel, :2])
+        errs[name] = _ground_errors(setup, sel, ac, bc, dtx, dty, att)
+    return errs
+
+
+def _ground_errors(setup: Setup, sel, alpha, beta, dtx, dty, att) -> GroundErrors:
     # commanded angles -> the mirror's true ones (the world's encoders; identity when off)
     alpha, beta = setup.effects.true_angles(alpha, beta)
     g = setup.world.ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
-    return ground_errors_deg(setup.world, g, None, latlon0=(setup.latlon0[0][sel], setup.latlon0[1][sel]))
+    lat, lon = ground_errors_deg(setup.world, g, None, latlon0=(setup.latlon0[0][sel], setup.latlon0[1][sel]))
+    return GroundErrors(lat_deg=lat, lon_deg=lon)
+
+
+def _series(setup: Setup, dev: _Deviation, dtx_t: np.ndarray, dty_t: np.ndarray,
+            att_scan: np.ndarray) -> TimelineSeries:
+    t_all = np.arange(0.0, setup.world.duration_s, setup.step_s)
+    dx_all, dy_all = dev(t_all)
+    return TimelineSeries(t_s=setup.t_s, scan=setup.scan, g0=setup.g0, dtau_x_rad=dtx_t, dtau_y_rad=dty_t,
+                          attitude_rad=att_scan, t_all_s=t_all, dtau_x_all_rad=dx_all, dtau_y_all_rad=dy_all)
+
+
+def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) -> ScanOutcome:
+    """One trial: draws, star measurements, estimates, compensation, ground errors (and the
+    timeline with ``keep_series``)."""
+    draws = _draw(setup, rng)
+    dev = _deviation(setup, draws)
+    att_scan, att_frames = setup.attitude(draws.initial_deg)
+    meas_app, meas_cat = _dwell_measurements(setup, draws, dev, att_frames)
+    lab = _lab_knowledge(setup, draws, att_scan)
+    dtx_t, dty_t = dev(setup.t_s)
+    dtau, sigma, truth = {}, np.full(2, np.nan), np.full(2, np.nan)
+    errors = {}
+    for s in sorted(setup.scan_start):  # the estimates kept are those of the last scan
+        sel = setup.scan == s
+        est = _estimate(setup, s, meas_app, meas_cat, dev)
+        dtau, sigma, truth = est.by_variant(), np.sqrt(np.diag(est.cov)), est.truth
+        errors[s] = _compensate(setup, sel, est, lab, dtx_t[sel], dty_t[sel], att_scan[sel])
+    series = _series(setup, dev, dtx_t, dty_t, att_scan) if keep_series else None
+    return ScanOutcome(dtau_rad=dtau, dtau_true_rad=truth, dtau_sigma_rad=sigma, errors=errors,
+                       effects=draws.effects, series=series)

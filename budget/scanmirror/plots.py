@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -62,19 +63,21 @@ def _nominal_latlon(world, g0):
 
 def _max_errors_caption(errors: dict) -> str:
     """Each compensation's largest |error| (deg), smallest first, from the arrays drawn."""
-    m = {n: float(max(np.abs(lat).max(), np.abs(lon).max())) for n, (lat, lon) in errors.items()}
+    m = {n: float(max(np.abs(e.lat_deg).max(), np.abs(e.lon_deg).max())) for n, e in errors.items()}
     order = sorted(m, key=m.get)
     return ", ".join(f"{n} {fmt(m[n], 3)} deg" for n in order), m
 
 
 def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
-    """Latitude and longitude errors (deg) against time over the last scan, for each variant."""
+    """Latitude and longitude errors (deg) against time over the last scan, for each variant:
+    ``extra`` holds the sample times ``t_s`` and ``errors``, each variant's
+    :class:`budget.scanmirror.pipeline.GroundErrors`."""
     plt = _plt()
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     t = extra["t_s"]
-    for name, (lat, lon) in extra["errors"].items():
-        axes[0].plot(t, lat, lw=0.8, label=name)
-        axes[1].plot(t, lon, lw=0.8, label=name)
+    for name, e in extra["errors"].items():
+        axes[0].plot(t, e.lat_deg, lw=0.8, label=name)
+        axes[1].plot(t, e.lon_deg, lw=0.8, label=name)
     axes[0].set_ylabel("latitude error (deg)")
     axes[1].set_ylabel("longitude error (deg)")
     axes[1].set_xlabel("time (s)")
@@ -88,19 +91,21 @@ def plot_trial_ground_errors(study, scenario, extra: dict, path: Path) -> Path:
     return figures.save(fig, path, caption)
 
 
-def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
+def plot_ground_error_maps(world, setup, errors: Mapping, path: Path) -> Path:
     """Ground error maps of every area scan: |error| (deg) at the nominal ground points, one row
     per scan, one column per compensation (uncompensated, without estimate, published, improved),
-    all panels on one colour scale (one colour bar) so that they compare."""
+    all panels on one colour scale (one colour bar) so that they compare. ``errors``: per
+    scan number, each compensation's :class:`budget.scanmirror.pipeline.GroundErrors`
+    (:attr:`budget.scanmirror.pipeline.ScanOutcome.errors`)."""
     from matplotlib.colors import LogNorm
 
     plt = _plt()
-    scans = sorted(out["errors"])
+    scans = sorted(errors)
     names = ("uncompensated", "without_estimate", "published", "improved")
     fig, axes = plt.subplots(len(scans), len(names), figsize=(4 * len(names), 3.4 * len(scans) + 0.6),
                              squeeze=False)
     lat0, lon0 = _nominal_latlon(world, setup.g0)
-    mags = {(s, n): np.hypot(*out["errors"][s][n]) for s in scans for n in names}
+    mags = {(s, n): np.hypot(errors[s][n].lat_deg, errors[s][n].lon_deg) for s in scans for n in names}
     # one colour scale for every panel (they are compared), logarithmic: the compensations
     # differ by orders of magnitude; at most 6 decades below the largest error
     vmax = max(float(np.max(m)) for m in mags.values()) or 1.0
@@ -112,7 +117,6 @@ def plot_ground_error_maps(world, setup, out: dict, path: Path) -> Path:
         sel = setup.scan == s
         for j, n in enumerate(names):
             ax = axes[i, j]
-            lat, lon = out["errors"][s][n]
             sc = ax.scatter(lon0[sel], lat0[sel], c=np.clip(mags[(s, n)], vmin, vmax), s=2, cmap="viridis",
                             norm=norm)
             ax.set_title(f"scan {s}: {n}\nmax |error| {np.max(mags[(s, n)]):.4f} deg", fontsize=8)

@@ -85,23 +85,23 @@ class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable,
         from budget.scanmirror.pipeline import run
 
         setup = self.prepared(scenario)
-        o = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)))
-        last = max(o["errors"])
+        outcome = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)))
+        last = outcome.last_scan
         est, truths, sig = {}, {}, {}
         for v in self.variants:
             for j, ax in enumerate(("x", "y")):
-                est[("dtau", v, ax)] = float(o["dtau"][v][j] / RAD_PER_ARCSEC)
-                truths[("dtau", v, ax)] = float(o["dtau_true"][j] / RAD_PER_ARCSEC)
-            lat, lon = o["errors"][last][v]
-            for ax, e in (("lat", lat), ("lon", lon)):
+                est[("dtau", v, ax)] = float(outcome.dtau_rad[v][j] / RAD_PER_ARCSEC)
+                truths[("dtau", v, ax)] = float(outcome.dtau_true_rad[j] / RAD_PER_ARCSEC)
+            errors = outcome.errors[last][v]
+            for ax, e in (("lat", errors.lat_deg), ("lon", errors.lon_deg)):
                 est[("ground_max", v, ax)] = float(np.abs(e).max())
                 est[("ground_rms", v, ax)] = float(np.sqrt(np.mean(e * e)))
         for j, ax in enumerate(("x", "y")):
-            sig[("dtau", "improved", ax)] = float(o["dtau_sigma"][j] / RAD_PER_ARCSEC)
+            sig[("dtau", "improved", ax)] = float(outcome.dtau_sigma_rad[j] / RAD_PER_ARCSEC)
         extra = {}
-        if k == 0:
+        if k == 0:  # the ground errors of the last scan (budget.scanmirror.pipeline.GroundErrors)
             extra = {"t_s": setup.t_s, "g0": setup.g0,
-                     "errors": {v: o["errors"][last][v] for v in (*self.variants, "uncompensated")}}
+                     "errors": {v: outcome.errors[last][v] for v in (*self.variants, "uncompensated")}}
         return TrialResult(estimates=est, truths=truths, sigmas=sig, extra=extra)
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:

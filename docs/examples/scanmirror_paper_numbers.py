@@ -53,11 +53,10 @@ def table(title, sc, trials, seed=0):
     dt = []
     for k in range(trials):
         o = run(setup, np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k,))))
-        dt.append([o["dtau_true"], o["dtau"]["published"], o["dtau"]["improved"]])
-        for s, errs in o["errors"].items():
+        dt.append([o.dtau_true_rad, o.dtau_rad["published"], o.dtau_rad["improved"]])
+        for s, errs in o.errors.items():
             for n in NAMES:
-                lat, lon = errs[n]
-                rows.setdefault((s, n), []).append((np.abs(lat).max(), np.abs(lon).max()))
+                rows.setdefault((s, n), []).append((np.abs(errs[n].lat_deg).max(), np.abs(errs[n].lon_deg).max()))
     print(f"\n### {title} ({trials} trial{'s' if trials > 1 else ''})\n")
     dt = np.array(dt) / RAD_PER_ARCSEC
     print(f"injected dtau at the dwell (mean) {dt[:, 0].mean(0).round(2).tolist()} arcsec; "
