@@ -171,7 +171,7 @@ def robustness(study, scenario=None, *, trials: int | None = None, seed: int = 0
 def plan(study, scenario=None, *, require=(), variant: str | None = None, confidence: float = 0.95,
          budget_hours: float | None = None, trials: int | None = None, seed: int = 0, workers: int | None = 1,
          progress: bool = False, sure: float = 0.9, fix=None):
-    """The cheapest protocol of ``study`` (its :meth:`~budget.runner.study.Study.protocol_knobs`
+    """The cheapest protocol of ``study`` (its :meth:`~budget.runner.capabilities.Plannable.protocol_knobs`
     and shapes) whose ``variant`` estimates meet every requirement of ``require``
     (``"CLASS.AXIS<=VALUE"``: the ``confidence`` quantile of ``|estimate - truth|``), re-validated
     on fresh trials (:func:`budget.runner.plan.plan_protocol`, docs/planning.md); ``study`` and

@@ -1,5 +1,5 @@
 """Seed 001's own figures in the runner's result: the ``details`` of its JSON and the
-sections and plots of its report (:meth:`budget.runner.study.Study.report_sections`).
+sections and plots of its report (:meth:`~budget.runner.capabilities.Presented.report_sections`).
 
 Everything here is computed from what the runner kept of the trials of
 :class:`budget.inductosyn.study.InductosynStudy`: the estimates and per-trial truths of

@@ -17,7 +17,7 @@ the order of completion.
 The runner owns the set-up of every worker it starts (:func:`worker_setup`): one numba
 thread (the workers are the parallelism; a study's ``parallel=True`` kernel would
 otherwise start a thread per core in each worker and oversubscribe the cores), then the
-caller's ``initializer`` (a study's own :meth:`Study.worker_init`). This process, where
+caller's ``initializer`` (a study's own :meth:`~budget.runner.capabilities.Warmup.worker_init`). This process, where
 it runs tasks (with one worker, or ``work_here``), is set up the same way.
 """
 

@@ -2,7 +2,7 @@
 
 A report (Markdown, HTML, the terminal and the JSON's ``findings``) opens with what the run
 found, per variant: which classes it recovers within its claim, which not and by how much,
-the most likely cause where the study knows it (:meth:`Study.likely_cause`), and which
+the most likely cause where the study knows it (:meth:`~budget.runner.capabilities.Presented.likely_cause`), and which
 variant to use. Nothing here is templated per row: each sentence is chosen by one of the
 rules below from the statistics it quotes, so it cannot contradict them. Each finding names
 the rule that produced it (``rule`` in the JSON).

@@ -1,5 +1,5 @@
 """The report every study gets: the findings in words (:mod:`budget.runner.findings`), the
-table, the estimates plot, then the study's own sections (:meth:`Study.report_sections`);
+table, the estimates plot, then the study's own sections (:meth:`~budget.runner.capabilities.Presented.report_sections`);
 ``report.md`` and its self-contained twin ``report.html`` (:mod:`budget.runner.html`).
 
 Written into a temporary folder beside the target and renamed into place when complete, so

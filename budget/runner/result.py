@@ -7,7 +7,7 @@ went (:func:`budget.runner.run.run_study` builds it). It gives
   :func:`budget.runner.stats.key_statistics` annotated by :func:`budget.runner.findings.annotate`);
 * the JSON payload, schema ``budget.study-result/1`` (:meth:`StudyResult.to_json`:
   ``classes[class][axis][variant]`` holds the statistics, ``class_info[class]`` the label,
-  unit and description, ``details`` the study's own figures, :meth:`Study.details`, empty
+  unit and description, ``details`` the study's own figures, :meth:`~budget.runner.capabilities.Presented.details`, empty
   for most studies), built once per result: what ``budget <study> validate --json`` writes,
   the report's ``summary.json`` and ``budget.validate(...).to_json()`` are the same payload;
 * a short ``repr``, a notebook view (``_repr_html_``: the findings and the table) and a
@@ -109,7 +109,7 @@ class StudyResult:
         return pd.DataFrame(rows, columns=["class", "axis", "variant", "statistic", "value", "unit"])
 
     def details(self) -> dict:
-        """:meth:`Study.details` of this result (computed once: the JSON and the report share it)."""
+        """:meth:`~budget.runner.capabilities.Presented.details` of this result (computed once: the JSON and the report share it)."""
         return self._study_details
 
     @cached_property

@@ -17,8 +17,8 @@ numbers): a difference between two cases is the effect's, not sampling noise, an
 standard error (``se_shift``) is that of the paired per-trial differences. All cases run in
 one executor (one pool of workers, started once); the truths (:meth:`Study.truths`, the
 scenario's own truth sizes) are computed for the ideal case and reused by every case whose
-active effects are outside :meth:`Study.truth_depends_on_effects` or that equals the ideal
-case on every field of :meth:`Study.truth_fields`, computed anew otherwise.
+active effects are outside :meth:`~budget.runner.capabilities.WorldEffects.truth_depends_on_effects` or that equals the ideal
+case on every field of :meth:`~budget.runner.capabilities.SharedTruths.truth_fields`, computed anew otherwise.
 
 Statistics per case and key are the runner's (:func:`budget.runner.stats.key_statistics`).
 Classes of role ``"input"`` are left out (taken as given, nothing to validate).
@@ -29,7 +29,7 @@ For a key with bias ``b``, its standard error ``se`` (the trials' combined with 
 truth's) and, where the variant states a 1-sigma uncertainty, the fraction ``c`` of ``m``
 trials whose error is within it:
 
-* the bias part: with a claimed accuracy ``A`` (:meth:`Study.claim`, in the class unit),
+* the bias part: with a claimed accuracy ``A`` (:meth:`~budget.runner.capabilities.WorldEffects.claim`, in the class unit),
   ``|b| + 3 se <= A``; without one, the method claims to be unbiased: ``|b| <= 3 se``
   (a bias below ``1e-9`` of the compared values' magnitude counts as rounding, for a
   deterministic estimator whose ``se`` is 0). A one-sided claim (:attr:`ClassSpec.at_most`:

@@ -2,7 +2,7 @@
 
 ``run_study(study, scenario, ...)`` checks the request, starts the executor (its worker
 processes import while this process works), lets the study compile its kernels
-(:meth:`Study.prewarm`), and runs a :class:`budget.runner.scheduler.Scheduler`: the trials
+(:meth:`~budget.runner.capabilities.Warmup.prewarm`), and runs a :class:`budget.runner.scheduler.Scheduler`: the trials
 ``0, 1, 2, ...`` in chunks, each seeded by ``SeedSequence(seed, spawn_key=(k,))``, a fixed
 number of them or batches until a tolerance (JCGM 101:2008, 7.9) or the study's cap, and
 the study's truths sized to the run's precision (a pilot of the first
@@ -95,7 +95,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
         A progress bar on stderr.
     prewarm : bool
         Let the study compile its kernels on this machine's cores first on a cold numba
-        cache (:meth:`Study.prewarm`; never with ``scheduler``). A caller that runs many
+        cache (:meth:`~budget.runner.capabilities.Warmup.prewarm`; never with ``scheduler``). A caller that runs many
         studies (a sweep) does it once itself and passes False.
     truth_size : {"adaptive", "fixed"}
         ``adaptive``: the truths sized to the run's precision (module docstring);

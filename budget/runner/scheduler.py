@@ -11,17 +11,17 @@ runs is a :class:`RunState`; each step is a method.
   is seeded by ``SeedSequence(seed, spawn_key=(k,))``, so no result depends on which worker
   ran it or when.
 * Trials ``0, 1, 2, ...`` run in chunks (:func:`split_trials`: as many per worker, of at
-  most :meth:`Study.chunk_trials` trials). A fixed number of trials is queued whole, in one
-  batch; with a tolerance, batches of :meth:`Study.batch_trials` run until every bias and
+  most the study's ``trials_per_task`` trials). A fixed number of trials is queued whole, in one
+  batch; with a tolerance, batches of the scenario's ``validation.batch_trials`` run until every bias and
   spread standard error is below it (JCGM 101:2008, 7.9; the bias's with its truth's own
   standard error, :func:`truths_within`) or the cap is reached (``stopped_by`` says which).
   The check comes after each whole batch, so the trials run are always ``0 .. n - 1``.
 * The truths (:meth:`Study.truths`, seeded by ``SeedSequence(seed, spawn_key=(2**31,))``)
   are computed in this process with one worker, otherwise piece by piece
-  (:meth:`Study.truth_parts`) as tasks queued after the trials queued so far, so that the
+  (:meth:`~budget.runner.capabilities.SplitTruths.truth_parts`) as tasks queued after the trials queued so far, so that the
   truths' work is spread over the workers too and their many small pieces even out the
   workers' ends. Their precision follows the question (``truth_size="adaptive"``): each
-  sampled truth is sized (:meth:`Study.truth_size_for`) to a standard error of
+  sampled truth is sized (:meth:`~budget.runner.capabilities.SizedTruths.truth_size_for`) to a standard error of
   :data:`TRUTH_SE_FRACTION` (a quarter) of the bias standard error the run will give
   (:func:`truth_targets`): with a tolerance, of the tolerance; with a number of trials
   ``n``, of ``s / sqrt(n)`` with ``s`` the spread of the *pilot*, the first
@@ -96,7 +96,7 @@ class TrialChunk:
     trials: tuple[int, ...]
 
     def run(self) -> TrialChunkDone:
-        """The trials (:meth:`Study.trial_batch`); only trial 0 keeps its ``extra`` (the
+        """The trials (:meth:`~budget.runner.capabilities.BatchedTrials.trial_batch`); only trial 0 keeps its ``extra`` (the
         report's), so that little travels back."""
         results = tuple(capability(self.study, BatchedTrials).trial_batch(self.scenario, self.seed, list(self.trials)))
         for k, r in zip(self.trials, results):
@@ -108,7 +108,7 @@ class TrialChunk:
 @dataclass(frozen=True)
 class TruthPart:
     """A worker's task: piece ``index`` of the truths of ``scenario`` (``part``, the
-    :meth:`Study.truth_parts` entry), with the run's ``seed``."""
+    :meth:`~budget.runner.capabilities.SplitTruths.truth_parts` entry), with the run's ``seed``."""
 
     study: Study
     scenario: Any
@@ -117,7 +117,7 @@ class TruthPart:
     part: Any
 
     def run(self) -> TruthPartDone:
-        """The piece (:meth:`Study.truth_part`)."""
+        """The piece (:meth:`~budget.runner.capabilities.SplitTruths.truth_part`)."""
         return TruthPartDone(self.index, capability(self.study, SplitTruths).truth_part(self.scenario, self.seed, self.part))
 
 
@@ -202,7 +202,7 @@ def truth_targets(classes, *, tolerance: float | None = None, samples: dict | No
 
 
 def sized_truths_scenario(study: Study, scenario: Any, seed: int, targets: dict) -> Any:
-    """The scenario the truths are computed on: :meth:`Study.truth_size_for` (no targets: as given)."""
+    """The scenario the truths are computed on: :meth:`~budget.runner.capabilities.SizedTruths.truth_size_for` (no targets: as given)."""
     return capability(study, SizedTruths).truth_size_for(scenario, seed, targets) if targets else scenario
 
 
@@ -289,7 +289,7 @@ class RunState:
     truth_scenario: Any = None
     #: whether the truths are started: computed, queued as pieces or given
     truths_started: bool = False
-    #: the pieces (:meth:`Study.truth_parts`) queued, and the values of those done by index
+    #: the pieces (:meth:`~budget.runner.capabilities.SplitTruths.truth_parts`) queued, and the values of those done by index
     truth_parts: list = field(default_factory=list)
     truth_part_values: dict[int, Any] = field(default_factory=dict)
     #: the truths, once computed (or given)

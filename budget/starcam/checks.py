@@ -1,6 +1,6 @@
 """Seed 000: what the star-camera simulator would refuse, checked before any work.
 
-The star-camera study's :meth:`~budget.runner.study.Study.check` (used by the sweep engine
+The star-camera study's :meth:`~budget.runner.capabilities.CheckedScenario.check` (used by the sweep engine
 on every point before a sweep starts): a star the render would put off the detector is one
 :class:`~simcam.infra.errors.ScenarioError` naming the protocol, the condition and the star,
 not a failure hours into a run.

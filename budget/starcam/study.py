@@ -267,7 +267,7 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
 
     def field_classes(self, scenario) -> dict[str, tuple[str, ...]]:
         """The classes each plannable field (every knob's and every shape's field) can change
-        (:meth:`budget.runner.study.Study.field_classes`): a protocol's counts and shape change
+        (:meth:`~budget.runner.capabilities.SeparablePlans.field_classes`): a protocol's counts and shape change
         its own class and what is built from it (LSFE from LSFE-S and LSFE-C1, the total from
         all), the dark frames every class. Exact in the ideal world (tested: every other
         class's trial values bit for bit the same). In the realistic world a count also moves
@@ -295,7 +295,7 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
         }
 
     def shape_value(self, scenario, field: str):
-        """A shape field as the protocol uses it (:meth:`budget.runner.study.Study.shape_value`):
+        """A shape field as the protocol uses it (:meth:`~budget.runner.capabilities.ProtocolShapes.shape_value`):
         the chromatic test's filter set is :meth:`~simcam.starcam.scenario.Scenario.chromatic_filters_nm`
         (an empty ``protocols.chromatic.filters_nm``, seed 000's default, is every lab filter,
         the shape ``filters 500/600/800``); any other field as the scenario holds it."""

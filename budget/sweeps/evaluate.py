@@ -17,7 +17,7 @@ another:
   of the scenario (not drawn per trial).
 
 Truths shared among points: a point's truths depend on the fields its study names
-(:meth:`Study.truth_fields`) and on its *truth seed* (:func:`truth_seed_of`: the point
+(:meth:`~budget.runner.capabilities.SharedTruths.truth_fields`) and on its *truth seed* (:func:`truth_seed_of`: the point
 seed of its truth-relevant swept values only, so points that differ only in fields the
 truths cannot see have one truth seed; the point seed itself when every swept field is
 truth-relevant). The sweep engine (:mod:`budget.sweeps.run`) computes each distinct truth
@@ -79,7 +79,7 @@ class PointTask:
 
 @dataclass(frozen=True)
 class TruthPartTask:
-    """A run of consecutive pieces (:meth:`Study.truth_parts`) of a truth shared by sweep
+    """A run of consecutive pieces (:meth:`~budget.runner.capabilities.SplitTruths.truth_parts`) of a truth shared by sweep
     points: pieces ``index .. index + len(parts) - 1`` of truth ``group``."""
 
     group: int

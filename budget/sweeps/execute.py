@@ -8,7 +8,7 @@ runner's (this process; local processes, forked or spawned
 (:func:`budget.runner.executors.start_method`), guarded against outliving their parent
 and stopped on an interruption; a Dask scheduler or LocalCluster), each worker set up by
 the runner (:func:`budget.runner.executors.worker_setup`: one numba thread per worker, the
-workers are the parallelism) and then by the sweep's study (:meth:`Study.worker_init`).
+workers are the parallelism) and then by the sweep's study (:meth:`~budget.runner.capabilities.Warmup.worker_init`).
 Remote Dask workers need this package installed (same version: checked on every result).
 """
 

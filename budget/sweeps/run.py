@@ -104,7 +104,7 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
     """The tasks with their truths (``PointTask.truths``), each distinct truth computed once.
 
     Points whose truth-relevant fields (:func:`budget.runner.study.truth_identity`), truth
-    seed and truth sizing are equal share one truth; its pieces (:meth:`Study.truth_parts`)
+    seed and truth sizing are equal share one truth; its pieces (:meth:`~budget.runner.capabilities.SplitTruths.truth_parts`)
     run as tasks on ``runner``'s workers, in runs of consecutive pieces (about
     :data:`TRUTH_TASKS_PER_WORKER` tasks per worker in all). ``share=False`` computes one per point (the same
     numbers: tests). Returns the tasks and the number of truths computed.

@@ -8,7 +8,7 @@ Their names stay importable from here.
 
 :func:`load_sweep` parses and checks the file, expands the grid, builds and validates the
 scenario of every point (and of every Sobol sample) and checks what the simulator would
-refuse (the study's :meth:`~budget.runner.study.Study.check`), so that a mistake is one
+refuse (the study's :meth:`~budget.runner.capabilities.CheckedScenario.check`), so that a mistake is one
 error naming the file, the key and the point, not a failure hours into a run. The sweep's
 ``kind`` names a registered study (:mod:`budget.runner.registry`); nothing here knows one
 study from another.
@@ -94,7 +94,7 @@ def scenario_text(kind: str, scenario) -> str:
 
 
 def check_simulable(kind: str, scenario, *, where: str) -> None:
-    """What the simulator would refuse later, checked now (cheaply): :meth:`Study.check`."""
+    """What the simulator would refuse later, checked now (cheaply): :meth:`~budget.runner.capabilities.CheckedScenario.check`."""
     try:
         capability(_study(kind), CheckedScenario).check(scenario, where=where)
     except ScenarioError:

@@ -62,7 +62,7 @@ class Oracle:
         self.study, self.reqs, self.variant = study, requirements, variant
         #: the classes the trials must compute (a sub-plan's; None: the whole scenario), and the sub-plan
         self.restrict, self.group = (None if restrict is None else frozenset(restrict)), group
-        #: whether the study restricted a candidate's scenario (:meth:`Study.restrict_classes`)
+        #: whether the study restricted a candidate's scenario (:meth:`~budget.runner.capabilities.SeparablePlans.restrict_classes`)
         self.restricted = False
         #: the one executor every candidate's run uses (started by :func:`plan_protocol`)
         self.executor = executor
@@ -123,7 +123,7 @@ class Oracle:
 
     def run_scenario(self, scn):
         """The scenario a candidate's trials run on: ``scn`` restricted to the sub-plan's classes
-        where the study can (:meth:`Study.restrict_classes`), else ``scn``."""
+        where the study can (:meth:`~budget.runner.capabilities.SeparablePlans.restrict_classes`), else ``scn``."""
         if self.restrict is None:
             return scn
         r = capability(self.study, SeparablePlans).restrict_classes(scn, self.restrict)

@@ -48,13 +48,13 @@ def knob_levels(k: Knob, count: int) -> np.ndarray:
 
 
 def lab_time(study: Study, scenario: Any) -> float:
-    """The lab time of ``scenario`` (s): :meth:`Study.lab_time_s` summed over its items."""
+    """The lab time of ``scenario`` (s): :meth:`~budget.runner.capabilities.Plannable.lab_time_s` summed over its items."""
     return float(sum(study.lab_time_s(scenario).values()))
 
 
 def cost_flat_knobs(study: Study, scenario: Any, knobs: tuple[Knob, ...]) -> tuple[Knob, ...]:
     """The knobs whose lab time does not change with them (a magnitude limit, a threshold): by
-    :meth:`Study.lab_time_s` itself, at the knob's low, middle and high value, with the other
+    :meth:`~budget.runner.capabilities.Plannable.lab_time_s` itself, at the knob's low, middle and high value, with the other
     knobs at the scenario's values, all low and all high; unchanged (:data:`COST_FLAT_TOLERANCE`)
     at every setting the scenario model accepts (at least one with two values) makes it cost-flat."""
     out = []

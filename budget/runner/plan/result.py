@@ -50,7 +50,7 @@ class Evaluation:
     scenario: Any = field(default=None, repr=False)
     errors: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     truth_se: dict[str, float] = field(default_factory=dict, repr=False)
-    #: the scenario its trials ran on where the study restricted it (:meth:`Study.restrict_classes`)
+    #: the scenario its trials ran on where the study restricted it (:meth:`~budget.runner.capabilities.SeparablePlans.restrict_classes`)
     run_scenario: Any = field(default=None, repr=False)
     #: the sub-plan it belongs to (None: a plan that does not decompose)
     group: str | None = None
@@ -73,7 +73,7 @@ class Evaluation:
 
 @dataclass(frozen=True)
 class Refusal:
-    """A protocol the study refused (its scenario model, :meth:`Study.check` or its trials)."""
+    """A protocol the study refused (its scenario model, :meth:`~budget.runner.capabilities.CheckedScenario.check` or its trials)."""
 
     knobs: dict[str, Any]
     #: the first line of the study's message (or the exception's type)

@@ -30,7 +30,7 @@ __all__ = ["FLAT_COARSE", "FLAT_REFINE", "PlanRun", "ShapeSearch", "resolution"]
 #: fewer levels to keep the design within a few validations' trials (the model needs two per knob)
 DESIGN_LEVELS = {1: 5, 2: 3}
 DESIGN_LEVELS_MANY = 2
-#: the coarse grid's values per knob on which :meth:`Study.lab_time_s` is computed, by the number of
+#: the coarse grid's values per knob on which :meth:`~budget.runner.capabilities.Plannable.lab_time_s` is computed, by the number of
 #: knobs (:data:`COARSE_VALUES_MANY` beyond three): the fine grid's lab times are interpolated
 #: multilinearly from it, exact for lab times that are sums of products of knobs, so few values do and
 #: the frontier's protocols are costed exactly anyway; chosen empirically: more values cost scenario
@@ -235,7 +235,7 @@ class ShapeSearch:
         return self.spent() + self.flat_trials() + ROOM_VALIDATIONS * self.o.n <= self.trial_cap
 
     def run(self, x, stage) -> Evaluation | None:
-        """Run protocol ``x`` (once); a protocol the scenario model, :meth:`Study.check` or the
+        """Run protocol ``x`` (once); a protocol the scenario model, :meth:`~budget.runner.capabilities.CheckedScenario.check` or the
         study's trials refuse (a ``ValueError`` or an arithmetic error: too few poses for a fit,
         ...) is recorded in :attr:`refused` and skipped (None)."""
         vals = {k.field: knob_value(k, xi) for k, xi in zip(self.knobs, x)}

@@ -1,5 +1,5 @@
 """Separable plans: the requirements split into independent sub-plans (:func:`decompose`, by
-the study's :meth:`Study.field_classes`), each searched on its own, and their answers put
+the study's :meth:`~budget.runner.capabilities.SeparablePlans.field_classes`), each searched on its own, and their answers put
 together into one protocol (:func:`union_protocol`) and run on fresh seeds
 (:func:`plan_separable`; docs/planning.md, "Separable plans")."""
 
@@ -24,7 +24,7 @@ def decompose(study: Study, scenario: Any, reqs, knobs, shapes: dict[str, dict],
     """The plan's independent sub-plans and the knobs no requirement depends on.
 
     A graph links each required class to every free knob field and shape field that can change
-    it (:meth:`Study.field_classes`; a field not listed can change every class); its connected
+    it (:meth:`~budget.runner.capabilities.SeparablePlans.field_classes`; a field not listed can change every class); its connected
     components over the required classes are the groups (in the order of the requirements).
     A knob that changes no required class is not searched (it stays at the scenario's value,
     or its ``--fix`` value); a group's shapes are the declared shapes projected on the group's
@@ -184,7 +184,7 @@ def union_protocol(run: PlanRun, declared: dict[str, dict], groups: list[PlanGro
     knobs, every other knob at the scenario's value (those no requirement depends on, and a group's
     that has no part) or its ``--fix`` value; among the declared shapes that agree with every
     part's shape fields, those keeping the scenario's own values of the other shape fields (no
-    requirement depends on them; :meth:`Study.shape_value`) first, then the cheapest (a declared
+    requirement depends on them; :meth:`~budget.runner.capabilities.ProtocolShapes.shape_value`) first, then the cheapest (a declared
     shape the scenario model refuses is skipped); where none agrees, the parts' shape fields
     together. Its figures are the parts' (search) figures; its cost the full lab time."""
     study, scenario = run.study, run.scenario
