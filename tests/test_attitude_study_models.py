@@ -15,8 +15,15 @@ from budget.attitude.predict import LabBudget, predict_attitude
 from simcam.sky.catalogue import Catalogue, v_minus_hp
 from simcam.starcam.render import StarCamera
 from simcam.starcam.scenario import default, with_updates
-from simcam.starcam.sky_view import (SMEAR_STEP_PX, detection_limit, focal_length_px, image_motion_px, sky_scene,
-                                     sky_stars, stars_in_view)
+from simcam.starcam.sky_view import (
+    SMEAR_STEP_PX,
+    detection_limit,
+    focal_length_px,
+    image_motion_px,
+    sky_scene,
+    sky_stars,
+    stars_in_view,
+)
 
 EPOCH = Time("2026-03-21T00:00:00", scale="utc")
 ATTITUDE = Rotation.from_euler("zyx", [40.0, 15.0, -25.0], degrees=True)

@@ -147,19 +147,17 @@ class AttitudeStudy(Study, Prepared, Presented):
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         return (
-            ClassSpec("spatial", "the pointing's bias: the frame-mean attitude error (spatial error)", "arcsec",
+            ClassSpec("spatial", "pointing bias (spatial error)", "arcsec",
                       AXES, "mean over the pointing's frames of the solved minus the true attitude (x, y across "
                       "the boresight along the detector axes, roll about it); truth 0; the improved "
                       "prediction's 1-sigma of it is its stated sigma", role="residual"),
-            ClassSpec("temporal", "the spread of the attitude error over the frames (temporal noise)", "arcsec",
+            ClassSpec("temporal", "spread over the frames (temporal noise)", "arcsec",
                       AXES, "sample standard deviation over the pointing's frames of the attitude error; truth 0 "
                       "(a spread is positive: its mean is the temporal noise reached)", role="residual"),
-            ClassSpec("stated_rms", "one frame's attitude error: predicted 1-sigma (estimate) vs actual rms "
-                      "(truth)", "arcsec", AXES, "estimate: published, seed 000 eq 32 (single-star error / "
+            ClassSpec("stated_rms", "one frame's error: stated 1-sigma vs actual rms", "arcsec", AXES, "estimate: published, seed 000 eq 32 (single-star error / "
                       "sqrt(10), x and y); improved, the lab's per-star budget for this pointing's stars; truth: "
                       "rms over the pointing's frames of the actual error", per_trial_truth=True, role="stated"),
-            ClassSpec("stated_ms", "one frame's attitude error: predicted variance (estimate) vs actual mean "
-                      "square (truth)", "arcsec^2", AXES, "as stated_rms, squared: equal in expectation over the "
+            ClassSpec("stated_ms", "one frame's error: stated variance vs actual mean square", "arcsec^2", AXES, "as stated_rms, squared: equal in expectation over the "
                       "sky when the prediction is right", per_trial_truth=True, role="stated"),
         )
 
