@@ -89,3 +89,38 @@ def test_bad_input_is_one_error_line(frame_file, args, message, capsys):
     assert ei.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err and err.count("\n") == 1, err
+
+
+@pytest.mark.slow
+# tetra3's generate_database leaves its catalogue file open (collected later as unraisable)
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_lost_in_space_with_tetra3_finds_the_prior_itself(frame_file, tmp_path, capsys):
+    """No --prior: cedar-solve's tetra3 with a database generated here for this camera's
+    6.4 deg field (a sparse lattice: minutes) gives the prior (skipped without cedar-solve)."""
+    tetra3 = pytest.importorskip("tetra3")
+    import logging
+
+    if not hasattr(np, "math"):
+        np.math = math  # cedar-solve 0.5.1 calls np.math.factorial, removed in numpy 2
+    logging.getLogger("tetra3.Tetra3").addHandler(logging.NullHandler())
+    path, att, view = frame_file
+    cam = StarCamera(default())
+    sky = sky_stars(cam, Time(EPOCH, scale="utc"), catalogue_v_max_mag=7.5)
+    d = sky.direction
+    ra = np.degrees(np.arctan2(d[:, 1], d[:, 0])) % 360.0
+    dec = np.degrees(np.arcsin(np.clip(d[:, 2], -1.0, 1.0)))
+    catalogue = tmp_path / "hip_main.dat"  # tetra3's hip_main format: HIP, V, RA, Dec (deg), proper motions
+    catalogue.write_text("".join(f"H|{h:6d}| | |x|{v:5.2f}| | |{r:12.8f}|{de:12.8f}| | |0.0|0.0|\n"
+                                 for h, v, r, de in zip(sky.hip.tolist(), sky.v_mag.tolist(), ra.tolist(),
+                                                        dec.tolist())), encoding="ascii")
+    db = tmp_path / "db.npz"
+    tetra3.Tetra3(load_database=None).generate_database(max_fov=6.4, star_catalog=str(catalogue),
+                                                        epoch_proper_motion=None, star_max_magnitude=7.5,
+                                                        lattice_field_oversampling=10, save_as=str(db))
+    out = tmp_path / "lis.json"
+    run_cli(cli, ["attitude", "solve", str(path), "--camera", "embedded:default", "--tetra3-database", str(db),
+                  "--epoch", EPOCH, "--json", str(out)])
+    sol = json.loads(out.read_text())
+    assert sol["prior"] == "tetra3" and sol["stars_identified"] == view.n_stars
+    e = attitude_error(Rotation.from_quat(sol["attitude"]["quaternion_xyzw"]), att)
+    assert abs(e.x_arcsec) < 1.5 and abs(e.y_arcsec) < 1.5 and abs(e.roll_arcsec) < 20.0
