@@ -158,7 +158,7 @@ def _x3(values) -> str:
     return "/".join(f'{fmt(3.0 * v, 3)}"' for v in values)
 
 
-def findings_markdown(run: SkyRun, result) -> str:
+def findings_markdown(run: SkyRun) -> str:
     """The findings in words, each sentence from the run's own numbers."""
     s = summary(run)
     ns = s["n_stars"]
@@ -360,7 +360,7 @@ def report_sections(result, out_dir: Path) -> list[ReportSection]:
              "as eq 32 assumes: `published`; each star weighted by the lab's per-star error for its brightness: "
              "`improved`). Errors are the solved against the true attitude, never the solver's covariance; "
              "figures at 3 sigma, as seed 000 states its budget.")
-    return [ReportSection("Attitude on the sky: findings", findings_markdown(run, result)),
+    return [ReportSection("Attitude on the sky: findings", findings_markdown(run)),
             ReportSection("Attitude on the sky: figures", intro + "\n\n" + figures.figure_markdown(figs))]
 
 
