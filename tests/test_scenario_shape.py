@@ -18,7 +18,7 @@ STUDIES = study_names()
 
 
 def test_every_study_is_here():
-    assert set(STUDIES) == {"starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam"}
+    assert set(STUDIES) == {"starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam", "attitude"}
 
 
 @pytest.mark.parametrize("name", STUDIES)

@@ -30,9 +30,17 @@ from budget.centroid import CentroidFlag
 from budget.starcam.kernels_trial import expose_centroid_chain
 from budget.starcam.protocols import centroid_options
 from simcam.starcam.render import StarCamera
-from simcam.starcam.sky_view import DetectionLimit, SkyStars, StarsInView, sky_scene, stars_in_view
+from simcam.starcam.sky_view import (
+    DetectionLimit,
+    SkyStars,
+    StarsInView,
+    image_motion_px,
+    sky_scene,
+    stars_in_view,
+)
 
-__all__ = ["PointingObservation", "camera_model", "observe", "random_attitudes", "solve_frame"]
+__all__ = ["FrameView", "PointingObservation", "camera_model", "frame_attitudes", "good_stars", "observe",
+           "observe_pointing", "random_attitudes", "solve_frame"]
 
 #: window batches above this many pixels expose on numba threads (as the lab's trial decides)
 _PARALLEL_MIN_PIXELS = 20_000
@@ -85,17 +93,33 @@ class PointingObservation:
         return int(self.x_px.shape[0])
 
 
+def frame_attitudes(attitude: Rotation, *, frames: int, rate_rad_s, interval_s: float) -> Rotation:
+    """The mid-exposure attitudes of ``frames`` frames about ``attitude`` while the camera
+    turns at ``rate_rad_s`` (rad/s about camera x, y, z): frame ``f`` at
+    ``attitude * exp([w] t_f)``, ``t_f = (f - (frames - 1) / 2) interval_s`` (the rotation
+    vector ``w t_f`` in the camera frame), so that ``attitude`` is the middle of the slew."""
+    w = np.asarray(rate_rad_s, dtype=np.float64).reshape(3)
+    t = (np.arange(int(frames)) - (frames - 1) / 2.0) * float(interval_s)
+    return attitude * Rotation.from_rotvec(t[:, None] * w[None, :])
+
+
 def observe(camera: StarCamera, sky: SkyStars, attitude: Rotation, *, detection: DetectionLimit, pointing: int,
-            seed: int, frames: int, threshold_sigma: float) -> PointingObservation:
+            seed: int, frames: int, threshold_sigma: float, angular_rate_rad_s=None) -> PointingObservation:
     """``frames`` frames of the camera at ``attitude``: windows exposed, centroided and reported
-    (module docstring). Frame ``f`` draws the temporal noise of (``seed``, ``pointing``, ``f``)."""
+    (module docstring). Frame ``f`` draws the temporal noise of (``seed``, ``pointing``, ``f``).
+    ``angular_rate_rad_s`` (about camera x, y, z): the camera turns during each exposure, which
+    smears every image about its mid-exposure position (:func:`simcam.starcam.sky_view.image_motion_px`);
+    ``attitude`` is then the mid-exposure attitude. None or zero: no smear."""
     view = stars_in_view(camera, sky, attitude, detection=detection)
     w = view.n_stars
     if w == 0:
         empty = np.empty((frames, 0))
         return PointingObservation(pointing, attitude, view, empty, empty.copy(), empty.copy(),
                                    np.zeros((frames, 0), dtype=np.int64))
-    scene = sky_scene(camera, view, pointing=pointing)
+    motion = None
+    if angular_rate_rad_s is not None and np.any(np.asarray(angular_rate_rad_s, dtype=np.float64) != 0.0):
+        motion = image_motion_px(camera, view, angular_rate_rad_s, camera.scenario.camera.exposure_s)
+    scene = sky_scene(camera, view, pointing=pointing, motion_px=motion)
     chain = camera.window_chain(scene)
     keys = camera.frame_keys(seed=seed, condition=int(pointing), frames=frames)
     noise_dn = centroid_options(camera, chain.col0, threshold_sigma)["noise_dn"]
@@ -107,12 +131,48 @@ def observe(camera: StarCamera, sky: SkyStars, attitude: Rotation, *, detection:
     return PointingObservation(pointing, attitude, view, xr.reshape(x.shape), yr.reshape(y.shape), flux, flag)
 
 
-def solve_frame(obs: PointingObservation, model: CameraModel, *, frame: int,
-                sigma_px: float) -> AttitudeSolution | None:
-    """The attitude of frame ``frame`` of ``obs`` from its good centroids (lost ones left out),
-    each weighted by the stated error ``sigma_px``; None with fewer than 2 good stars."""
+def good_stars(obs: PointingObservation, frame: int) -> np.ndarray:
+    """Which stars of frame ``frame`` of ``obs`` have a centroid (finite, not flagged lost)."""
     x, y = obs.x_px[frame], obs.y_px[frame]
-    good = np.isfinite(x) & np.isfinite(y) & ((obs.flag[frame] & int(CentroidFlag.LOST)) == 0)
+    return np.isfinite(x) & np.isfinite(y) & ((obs.flag[frame] & int(CentroidFlag.LOST)) == 0)
+
+
+def solve_frame(obs: PointingObservation, model: CameraModel, *, frame: int,
+                sigma_px) -> AttitudeSolution | None:
+    """The attitude of frame ``frame`` of ``obs`` from its good centroids (lost ones left out,
+    :func:`good_stars`), each weighted by the stated error ``sigma_px`` (one for every star,
+    or one per star of the view); None with fewer than 2 good stars."""
+    good = good_stars(obs, frame)
     if np.count_nonzero(good) < 2:
         return None
-    return solve_attitude(x[good], y[good], sigma_px, obs.view.direction[good], model)
+    sig = sigma_px if np.ndim(sigma_px) == 0 else np.asarray(sigma_px, dtype=np.float64)[good]
+    return solve_attitude(obs.x_px[frame][good], obs.y_px[frame][good], sig, obs.view.direction[good], model)
+
+
+@dataclass(frozen=True)
+class FrameView:
+    """One frame of a pointing (:func:`observe_pointing`): its true mid-exposure ``attitude``
+    and where it is, frame ``index`` of ``observation``."""
+
+    attitude: Rotation
+    observation: PointingObservation
+    index: int
+
+
+def observe_pointing(camera: StarCamera, sky: SkyStars, attitude: Rotation, *, detection: DetectionLimit, seed: int,
+                     frames: int, threshold_sigma: float, rate_rad_s, interval_s: float) -> tuple[FrameView, ...]:
+    """The ``frames`` frames of one pointing (:func:`observe`). A staring camera (``rate_rad_s``
+    zero) takes them all at ``attitude`` (one observation, noise condition 0); a turning
+    one takes frame ``f`` at its own attitude along the slew (:func:`frame_attitudes`), smeared,
+    with its own stars in view (noise condition ``f``)."""
+    w = np.asarray(rate_rad_s, dtype=np.float64).reshape(3)
+    if not w.any():
+        obs = observe(camera, sky, attitude, detection=detection, pointing=0, seed=seed, frames=frames,
+                      threshold_sigma=threshold_sigma)
+        return tuple(FrameView(attitude, obs, f) for f in range(frames))
+    out = []
+    for f, att in enumerate(frame_attitudes(attitude, frames=frames, rate_rad_s=w, interval_s=interval_s)):
+        obs = observe(camera, sky, att, detection=detection, pointing=f, seed=seed, frames=1,
+                      threshold_sigma=threshold_sigma, angular_rate_rad_s=w)
+        out.append(FrameView(att, obs, 0))
+    return tuple(out)

@@ -58,6 +58,8 @@ REGISTRY: tuple[StudyEntry, ...] = (
                cli_module="budget.scanmirror.cli"),
     StudyEntry("linecam", "budget.linecam.study:STUDY",
                "Seed 004: star-based on-orbit calibration of a TDI line camera.", cli_module="budget.linecam.cli"),
+    StudyEntry("attitude", "budget.attitude.study:STUDY",
+               "Seed 000's star camera on the real sky: attitude error against eq 32.", cli_module="budget.attitude.cli"),
 )
 _BY_NAME = {e.name: e for e in REGISTRY}
 _ALIASES = {a: e.name for e in REGISTRY for a in e.aliases}

@@ -64,8 +64,9 @@ from simcam.starcam.render import Placement, Scene, StarCamera, mosaic_corner_ra
 from simcam.starcam.targets import TargetLayout
 from simcam.units import ARCSEC_PER_RAD
 
-__all__ = ["BV_RANGE", "DetectionLimit", "SkyStars", "StarsInView", "b_v_to_teff_k", "detection_limit",
-           "focal_length_px", "sky_scene", "sky_stars", "star_spectra", "stars_in_view"]
+__all__ = ["BV_RANGE", "SMEAR_STEP_PX", "DetectionLimit", "SkyStars", "StarsInView", "b_v_to_teff_k",
+           "detection_limit", "focal_length_px", "image_motion_px", "sky_scene", "sky_stars", "star_spectra",
+           "stars_in_view"]
 
 #: B - V range of :func:`b_v_to_teff_k`: held at its ends outside (about 16,500 K and 3,170 K)
 BV_RANGE = (-0.4, 2.0)
@@ -73,6 +74,8 @@ BV_RANGE = (-0.4, 2.0)
 _RING_SAMPLES = 72
 #: extra search radius (px) beyond the corner, distortion and lateral colour
 _SEARCH_SLACK_PX = 2.0
+#: largest step (px) between the sub-exposure images that make up a smeared image (:func:`sky_scene`)
+SMEAR_STEP_PX = 0.25
 
 
 def b_v_to_teff_k(b_v) -> np.ndarray:
@@ -365,9 +368,40 @@ def stars_in_view(camera: StarCamera, sky: SkyStars, attitude, *, detection: Det
         y_true=yc[keep], psf_sigma_px=sig, weights=w[keep], wavelength_nm=sky.wavelength_nm)
 
 
-def sky_scene(camera: StarCamera, view: StarsInView, *, pointing: int) -> Scene:
+def image_motion_px(camera: StarCamera, view: StarsInView, rate_rad_s, exposure_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """How far each star's image moves in the focal plane (px, u and v) during one exposure
+    of ``exposure_s`` while the camera turns at ``rate_rad_s`` (rad/s about camera x, y, z).
+
+    The attitude at time ``t`` from mid-exposure is ``A exp([w] t)`` (the rotation vector
+    ``w t`` in the camera frame), so a star's camera-frame direction is ``exp(-[w] t) c``;
+    its image ``D(F c_x / c_z, F c_y / c_z)`` (gnomonic, then the camera's distortion) at
+    ``t = +T/2`` less that at ``-T/2``.
+    """
+    from scipy.spatial.transform import Rotation
+
+    w = np.asarray(rate_rad_s, dtype=np.float64).reshape(3)
+    c = view.attitude.inv().apply(view.direction).reshape(-1, 3)
+    f = focal_length_px(camera)
+    ends = []
+    for t in (0.5 * exposure_s, -0.5 * exposure_s):
+        ct = Rotation.from_rotvec(-w * t).apply(c).reshape(-1, 3)
+        ends.append(camera.distortion.forward(u_px=f * ct[:, 0] / ct[:, 2], v_px=f * ct[:, 1] / ct[:, 2]))
+    return ends[0][0] - ends[1][0], ends[0][1] - ends[1][1]
+
+
+def sky_scene(camera: StarCamera, view: StarsInView, *, pointing: int,
+              motion_px: tuple[np.ndarray, np.ndarray] | None = None) -> Scene:
     """The scene of one pointing for ``camera``'s renderer: each star's pixel-integrated image
     for its own spectrum and its electrons (no noise).
+
+    ``motion_px`` (focal px, u and v per star, :func:`image_motion_px`): the image moves by it
+    during the exposure, at a constant rate about the view's (mid-exposure) position. The
+    smeared stamp is the mean of ``K`` images at equally spaced times (offsets
+    ``((j + 1/2) / K - 1/2)`` of the motion, ``K`` the smallest count with steps of at most
+    :data:`SMEAR_STEP_PX`): a box of the motion's length sampled much finer than the PSF
+    (its Fourier transform differs from the box's beyond ``1 / SMEAR_STEP_PX`` cycles/px,
+    where a 0.8 px Gaussian leaves ``exp(-2 pi^2 0.8^2 16)``, nothing). Its centroid is the
+    mid-exposure position, the window's centre and the truth.
 
     ``pointing`` numbers the noise streams (the scene's ``condition``): frames of different
     pointings get independent temporal noise; the same (seed, pointing, frame) always the same.
@@ -389,11 +423,22 @@ def sky_scene(camera: StarCamera, view: StarsInView, *, pointing: int) -> Scene:
     xc = view.x_true - chip * camera.mosaic.chip_cols
     # the reference-wavelength position in the chip's pixels: the true image less its chromatic shift
     xr, yr = xc - mean_x, view.y_true - mean_y
-    stamps, c0, r0 = optics.render_stamps(
-        x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind, sigma_px=view.psf_sigma_px,
-        pinhole_radius_px=0.0, f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,
-        wavelength_nm=view.wavelength_nm, weights=view.weights, shift_x_px=sx, shift_y_px=sy,
-        parallel=camera.parallel)
+    shifts = [(sx, sy)]
+    if motion_px is not None:
+        du, dv = (np.asarray(m, dtype=np.float64).reshape(view.n_stars) for m in motion_px)
+        k = max(1, math.ceil(float(np.hypot(du, dv).max(initial=0.0)) / SMEAR_STEP_PX))
+        mx, my = (m[:, None] for m in camera.mosaic.vector_to_chip(du, dv, chip))
+        shifts = [(sx + t * mx, sy + t * my) for t in (np.arange(k) + 0.5) / k - 0.5]
+    stamps = None
+    for shift_x, shift_y in shifts:
+        one, c0, r0 = optics.render_stamps(
+            x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
+            sigma_px=view.psf_sigma_px, pinhole_radius_px=0.0, f_number=scn.camera.f_number,
+            pixel_pitch_um=scn.camera.pixel_pitch_um, wavelength_nm=view.wavelength_nm, weights=view.weights,
+            shift_x_px=shift_x, shift_y_px=shift_y, parallel=camera.parallel)
+        stamps = one if stamps is None else stamps + one
+    if len(shifts) > 1:
+        stamps /= len(shifts)
     layout = TargetLayout(view.u_px, view.v_px, 0.0, view.u_px, view.v_px)
     placement = Placement(layout=layout, condition=int(pointing), label=f"pointing {pointing}")
     truth = {
