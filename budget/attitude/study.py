@@ -52,7 +52,8 @@ from budget.attitude.chain import (
 from budget.attitude.predict import LabBudget, predict_attitude
 from budget.attitude.report import details, likely_cause, report_sections
 from budget.attitude.solve import CameraModel, attitude_error, focal_from_mosaic
-from budget.runner.capabilities import Prepared, Presented
+from budget.runner.capabilities import Claims, Prepared, Presented
+from budget.runner.claims import Claim, ToleranceRule
 from budget.runner.study import (
     ClassSpec,
     ReportSection,
@@ -62,6 +63,7 @@ from budget.runner.study import (
     trial_seed_sequence,
 )
 from simcam.starcam.render import StarCamera
+from simcam.starcam.sky_scenario import EMBEDDED_DEFAULT
 from simcam.starcam.sky_view import DetectionLimit, SkyStars, detection_limit, sky_stars
 
 __all__ = ["AXES", "STUDY", "AttitudeStudy", "Setup", "pointing_errors"]
@@ -135,7 +137,7 @@ def pointing_errors(frames, model: CameraModel, budget: LabBudget) -> PointingEr
     return PointingErrors(errors=errors, predictions=tuple(preds), n_stars=counts)
 
 
-class AttitudeStudy(Study, Prepared, Presented):
+class AttitudeStudy(Study, Prepared, Presented, Claims):
     """Seed 000's attitude claim (eq 32) judged on the real sky (module docstring)."""
 
     name = "attitude"
@@ -245,6 +247,22 @@ class AttitudeStudy(Study, Prepared, Presented):
     def details(self, result) -> dict:
         """The sky's headline figures (:func:`budget.attitude.report.details`)."""
         return details(result)
+
+
+    def claims(self, scenario) -> tuple[Claim, ...]:
+        """Seed 000's eq 32: with N = 10 stars the attitude error is the single-star error over
+        sqrt(10), 0.56"/0.62" (x/y, 3 sigma), judged as the variance it states per frame against
+        the actual mean square error of the pointings over the sky (class ``stated_ms``,
+        ``published``); the world here is the simulator's own (no world effects)."""
+        return tuple(Claim(
+            id=f"attitude.{axis}.eq32", words=f"with 10 stars the attitude error is the single-star error / sqrt(10): "
+            f"{fig:g} arcsec in {axis}, 3 sigma", figures=((fig / 3.0) ** 2,), unit="arcsec^2", axis=axis,
+            condition="the lab's camera (embedded:seed000_noisy) over the real sky, random attitudes, N as the sky "
+            "gives it", section="seed 000, section 2.4, eqs 31-32", kind="method", scenario=EMBEDDED_DEFAULT,
+            class_name="stated_ms", variant="published",
+            tolerance=ToleranceRule(reason="the stated 1-sigma within 10 % of the actual rms error (21 % of the "
+                                    "mean square)", relative=0.21))
+            for axis, fig in (("x", 0.56), ("y", 0.62)))
 
 
 STUDY = AttitudeStudy()

@@ -211,9 +211,15 @@ def from_dict(data: dict, *, source: str = "scenario") -> SkyScenario:
     return validate_model(SkyScenario, data, source=source).with_source(source)
 
 
+#: the name of the embedded default (``budget attitude validate embedded:default``, a claim's scenario)
+EMBEDDED_DEFAULT = "embedded:default"
+
+
 def load(path: str | Path | None = None) -> SkyScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
-    for None, the embedded default."""
+    for None or :data:`EMBEDDED_DEFAULT`, the embedded default."""
+    if isinstance(path, str) and path == EMBEDDED_DEFAULT:
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="attitude")
 
 
