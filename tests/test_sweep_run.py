@@ -213,7 +213,11 @@ def test_killed_run_resumes_with_no_point_lost_or_computed_twice(grid, tmp_path)
 
     path = _write(tmp_path, GRID)
     store = tmp_path / "k"
-    code = f"from budget.sweeps.run import run_sweep; run_sweep({path!r}, {str(store)!r}, inline=True)"
+    # the child pauses 0.5 s after writing each point, so that the kill lands between its
+    # second and last points even when this process is slow to see the second (a loaded
+    # machine: a tiny point takes about 0.1 s)
+    code = ("import time; from budget.sweeps.run import run_sweep; "
+            f"run_sweep({path!r}, {str(store)!r}, inline=True, on_point=lambda g, i: time.sleep(0.5))")
     log = open(tmp_path / "stderr.txt", "wb")  # noqa: SIM115 - closed below
     proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=log)
