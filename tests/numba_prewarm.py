@@ -11,7 +11,11 @@ Each call runs a public function (or, where the tests call one directly, the ker
 a tiny block with the argument types a test passes, which compiles the signature that
 test calls. The calls run in the reverse of the order in which the suite first meets
 them, so that the child and the tests, which compile what they meet where they meet it,
-work toward each other rather than compiling the same kernel at the same time. Nothing
+work toward each other rather than compiling the same kernel at the same time (in the
+suite's own order they do: the detector tests do little besides calling new signatures,
+so once they catch up with the child the two compile side by side, which made five
+detector test files slower than no child at all, 154 s against 137 s, where this order
+takes 73 s). Nothing
 depends on the child: a signature it has not written yet is compiled where it is called,
 with the same machine code.
 """
