@@ -98,15 +98,27 @@ def test_frames_through_maps_equal_the_fused_chain(beta, quantize):
             assert got.dtype == ref.dtype and np.array_equal(got, ref)
 
 
-@pytest.mark.parametrize("switches", [dict(shot_noise=False), dict(read_noise=False),
-                                      dict(shot_noise=False, read_noise=False, quantize=False)])
-def test_noise_switches_and_float32_input_through_maps(switches):
+_SWITCHES = [dict(shot_noise=False), dict(read_noise=False), dict(shot_noise=False, read_noise=False, quantize=False)]
+
+
+def _switch_case():
     p = _params(adc_bits=12, prnu_rms=0.0)
     dk, fk = key_from_seed(SEED, 4), key_from_seed(SEED, 5, 0)
-    sig = _signal((16, 64), seed=4)
-    m = _maps((16, 64), 10, 2020, p, dk)
+    return p, dk, fk, _signal((16, 64), seed=4), _maps((16, 64), 10, 2020, p, dk)
+
+
+@pytest.mark.parametrize("switches", _SWITCHES)
+def test_noise_switches_through_maps(switches):
+    p, dk, fk, sig, m = _switch_case()
     assert np.array_equal(_expose(sig, 10, 2020, p, fk, dk, maps=m, **switches),
                           _expose(sig, 10, 2020, p, fk, dk, **switches))
+
+
+# float32 to float DN through the maps is a signature numba compiles for this check alone
+# (about 8 s of a cold cache): it runs with -m slow, float32 to ADC codes by default
+@pytest.mark.parametrize("switches", _SWITCHES[:2] + [pytest.param(_SWITCHES[2], marks=pytest.mark.slow)])
+def test_float32_input_through_maps(switches):
+    p, dk, fk, sig, m = _switch_case()
     s32 = sig.astype(np.float32)
     assert np.array_equal(_expose(s32, 10, 2020, p, fk, dk, maps=m, **switches),
                           _expose(s32.astype(np.float64), 10, 2020, p, fk, dk, **switches))

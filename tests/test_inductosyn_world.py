@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from golden import assert_close_to_recorded
 
 from budget.cli import main as budget_main
 from budget.inductosyn.harmonics import fit_long_period, fit_short_period
@@ -31,7 +32,8 @@ IDEAL = ROOT / "docs" / "examples" / "inductosyn_ideal.toml"
 
 #: `budget inductosyn validate --trials 4 --workers 1 --json` (seed 0, the embedded default)
 #: recorded from the code BEFORE the world effects existed (commit ebe5c03): per
-#: class/axis/variant (truth, mean, std). The ideal world must give them bit for bit.
+#: class/axis/variant (truth, mean, std). The ideal world must give them to the rounding of
+#: its floating-point operations (tests/golden.py).
 PRE_CHANGE_ALL = {
     'before/angle/published': (142.9401526636062, 146.08194401125016, 0.10947671276833462),
     'before/angle/improved': (142.9401526636062, 146.08194401125016, 0.10947671276833462),
@@ -94,16 +96,18 @@ def test_lab_side_never_reads_world():
         assert not hits, f"{path.name} reads .world at lines {hits}"
 
 
-def test_ideal_world_equals_pre_change_results_bit_for_bit(tmp_path, capsys):
+def test_ideal_world_equals_pre_change_results(tmp_path, capsys):
     """With every effect 0 the statistics equal those recorded from the code before the
-    world effects (PRE_CHANGE_ALL, recorded at commit ebe5c03)."""
+    world effects (PRE_CHANGE_ALL, recorded at commit ebe5c03), to a relative 1e-9 and,
+    for figures near zero, four last bits of an angle of 360 deg (8.2e-10 arcsec): the
+    errors are differences of such angles."""
     js = tmp_path / "v.json"
     budget_main(["inductosyn", "validate", str(IDEAL), "--trials", "4", "--workers", "1", "--json", str(js)])
     capsys.readouterr()
     d = json.loads(js.read_text())
     got = {f"{c}/{a}/{v}": (s["truth"], s["mean"], s["std"])
            for c, ax in d["classes"].items() for a, vs in ax.items() for v, s in vs.items()}
-    assert got == PRE_CHANGE_ALL
+    assert_close_to_recorded(got, PRE_CHANGE_ALL, abs_floor=4 * math.ulp(360.0) * 3600.0)
 
 
 # ------------------------------------------------------- polygon certificate residuals

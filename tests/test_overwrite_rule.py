@@ -88,21 +88,33 @@ def _budget(argv) -> int:
     return 0
 
 
-def test_synthesize_report_folder_rule(tmp_path, capsys):
-    """The rule end to end on a fast command: an earlier report is replaced, a foreign folder is
-    refused before the work (exit 2, one error line naming --overwrite, untouched), and
-    replaced with --overwrite."""
+def _report_folder_rule(tmp_path, capsys, command):
     rep = tmp_path / "rep"
-    args = ["whiskbroom", "synthesize", "--trials", "20", "--report", str(rep)]
+    args = [*command, "--report", str(rep)]
     assert _budget(args) == 0
     assert _budget(args) == 0                                  # its own earlier report: replaced
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "keep.txt").write_text("mine")
     capsys.readouterr()
-    assert _budget(["whiskbroom", "synthesize", "--trials", "20", "--report", str(foreign)]) == 2
+    assert _budget([*command, "--report", str(foreign)]) == 2
     err = capsys.readouterr().err
     assert err.count("error:") == 1 and "--overwrite" in err
     assert (foreign / "keep.txt").read_text() == "mine"
-    assert _budget(["whiskbroom", "synthesize", "--trials", "20", "--report", str(foreign), "--overwrite"]) == 0
+    assert _budget([*command, "--report", str(foreign), "--overwrite"]) == 0
     assert not (foreign / "keep.txt").exists() and (foreign / "report.md").is_file()
+
+
+def test_validate_report_folder_rule(tmp_path, capsys):
+    """The rule end to end on the fastest command that writes a report (a whisk-broom
+    validation of two trials in this process, about 1 s a run): an earlier report is
+    replaced, a foreign folder is refused before the work (exit 2, one error line naming
+    --overwrite, untouched), and replaced with --overwrite."""
+    _report_folder_rule(tmp_path, capsys, ["whiskbroom", "validate", "--trials", "2", "--workers", "1"])
+
+
+@pytest.mark.slow
+def test_synthesize_report_folder_rule(tmp_path, capsys):
+    """The same on the synthesis (about 2.5 s a run; the fast twin is
+    test_validate_report_folder_rule)."""
+    _report_folder_rule(tmp_path, capsys, ["whiskbroom", "synthesize", "--trials", "20"])

@@ -80,41 +80,49 @@ def test_every_example_sweep_file_loads(name):
     assert sw.points
 
 
+@pytest.fixture(scope="module")
+def polygon_faces(tmp_path_factory):
+    """Seed 001's example cut to 2 face counts x 8 simulated calibrations on a coarse truth
+    grid, run in this process (a truth of about 0.5 s per point): its path and store."""
+    d = tmp_path_factory.mktemp("polygon_faces")
+    path = _tiny_example("polygon_faces.toml", d, keep={"calibration.short_polygon.faces": 2},
+                         set_={"trials": 8}, fixed={"validation.dense_step_deg": 0.05})
+    assert run_sweep(path, d / "inline", inline=True).computed == 2
+    return path, d / "inline"
+
+
 @pytest.mark.parametrize("case", ["polygon_faces", "te_magnitude_exposure"])
-def test_example_sweep_gives_the_same_store_inline_and_on_two_processes(case, tmp_path):
+def test_example_sweep_gives_the_same_store_inline_and_on_two_processes(case, tmp_path, request):
     if case == "polygon_faces":
         # seed 001: 2 face counts x 8 simulated calibrations, a coarse truth grid
-        path = _tiny_example("polygon_faces.toml", tmp_path,
-                             keep={"calibration.short_polygon.faces": 2},
-                             set_={"trials": 8}, fixed={"validation.dense_step_deg": 0.05})
+        path, inline = request.getfixturevalue("polygon_faces")
     else:
         # seed 000 on the tiny camera: 2 magnitudes x 1 exposure, 2 trials each
         path = _tiny_example("te_magnitude_exposure.toml", tmp_path,
                              keep={"lab.source.match_v_mag": 2, "camera.exposure_s": 1},
                              set_={"trials": 2}, base=TINY)
-    one = run_sweep(path, tmp_path / "inline", inline=True)
+        inline = tmp_path / "inline"
+        assert run_sweep(path, inline, inline=True).computed == 2
     two = run_sweep(path, tmp_path / "two", workers=2)
-    assert one.computed == two.computed == 2
+    assert two.computed == 2
     assert two.runner == "2 local processes"
-    _assert_identical_stores(tmp_path / "inline", tmp_path / "two")
+    _assert_identical_stores(inline, tmp_path / "two")
 
 
-def test_store_carries_each_class_unit_and_plots_only_classes_on_the_axis(tmp_path):
+def test_store_carries_each_class_unit_and_plots_only_classes_on_the_axis(polygon_faces, tmp_path):
     """Seed 001's classes have different units and axes (3 sigma on ``angle``; coefficients
     in arcsec on ``A_L1c``...): the store names each class's unit, and a plot of one axis
     draws only the classes that have it (no empty panel)."""
     from budget.sweeps.layout import study_for_kind
     from budget.sweeps.plot import _classes_on, plot_store
 
-    path = _tiny_example("polygon_faces.toml", tmp_path, keep={"calibration.short_polygon.faces": 2},
-                         set_={"trials": 4}, fixed={"validation.dense_step_deg": 0.05})
-    run_sweep(path, tmp_path / "store", inline=True)
-    ds = open_sweep(tmp_path / "store")
+    _, store = polygon_faces
+    ds = open_sweep(store)
     study = study_for_kind("inductosyn")
     specs = study.classes(study.load_scenario())
     assert ds.attrs["class_units"] == {c.name: c.unit for c in specs}
     for axis in ("angle", "A_S1s"):
         want = [c.name for c in specs if axis in c.axes]
         assert [str(c) for c in _classes_on(ds.sel(axis=axis))] == want
-    files = plot_store(tmp_path / "store", tmp_path / "plots", axis="A_S1s")
+    files = plot_store(store, tmp_path / "plots", axis="A_S1s")
     assert files and all(Path(f).stat().st_size > 0 for f in files)

@@ -213,7 +213,11 @@ def test_killed_run_resumes_with_no_point_lost_or_computed_twice(grid, tmp_path)
 
     path = _write(tmp_path, GRID)
     store = tmp_path / "k"
-    code = f"from budget.sweeps.run import run_sweep; run_sweep({path!r}, {str(store)!r}, inline=True)"
+    # the child pauses 0.5 s after writing each point, so that the kill lands between its
+    # second and last points even when this process is slow to see the second (a loaded
+    # machine: a tiny point takes about 0.1 s)
+    code = ("import time; from budget.sweeps.run import run_sweep; "
+            f"run_sweep({path!r}, {str(store)!r}, inline=True, on_point=lambda g, i: time.sleep(0.5))")
     log = open(tmp_path / "stderr.txt", "wb")  # noqa: SIM115 - closed below
     proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=log)
@@ -267,7 +271,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
         [parameters]
         "calibration.short_polygon.faces" = [19, 23]
         [sensitivity]
-        samples = 4
+        samples = 2
         evaluate = "validate"
         trials = 20
         [sensitivity.parameters]
@@ -297,7 +301,8 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
     r = d.truth.sel({"class": "residual"})
     assert float(r.sel(variant="improved")) < float(r.sel(variant="published"))
     # Sobol indices of a truth that has a variant dimension; the error before compensation
-    # does not depend on the autocollimator
+    # does not depend on the autocollimator (the store's shape and notes, not the indices'
+    # values: two base samples, 6 evaluations of a truth of about 0.5 s each, suffice)
     sob = open_sobol(tmp_path / "i")
     assert sob.S1.dims == ("class", "axis", "variant", "parameter")
     assert "does not vary" in str(sob.note.sel({"class": "before", "axis": "angle", "variant": "published"}).values)
@@ -352,10 +357,19 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
 
 
 # --------------------------------------------------------------------------- plots, CLI
-def test_plots_of_grids_and_zips(grid, zipped, tmp_path):
+@pytest.fixture(scope="module")
+def grid_plots(grid, tmp_path_factory):
+    """``budget plot``'s default figures of the GRID store (six figures, about 1 s each),
+    drawn once for the tests that read them."""
+    from budget.sweeps.plot import plot_store
+
+    return plot_store(grid["store"], tmp_path_factory.mktemp("grid_plots"))
+
+
+def test_plots_of_grids_and_zips(grid_plots, zipped, tmp_path):
     from budget.sweeps.plot import plot_store, precision_table
 
-    files = plot_store(grid["store"], tmp_path / "g")
+    files = grid_plots
     names = {f.name for f in files}
     # every axis by default
     assert names == {f"{n}__{a}.png" for a in ("x", "y") for n in (
@@ -392,18 +406,17 @@ def test_cli_bad_input_is_one_error_line_exit_2_and_no_store(tmp_path, capsys):
     assert ei.value.code == 2 and "not a sweep store" in capsys.readouterr().err
 
 
-def test_every_class_and_axis_of_a_store_is_plotted_with_its_label_and_unit(grid, tmp_path):
+def test_every_class_and_axis_of_a_store_is_plotted_with_its_label_and_unit(grid, grid_plots):
     """Default ``budget plot``: one line figure per swept parameter for every axis of the
     store; each class with values on an axis is named by its label in that figure's caption,
     either with its change along the sweep or among the flat ones."""
     from budget.runner.registry import get_study
-    from budget.sweeps.plot import _classes_on, plot_store
+    from budget.sweeps.plot import _classes_on
 
     ds = grid["ds"]
     study = get_study("starcam")
     labels = {c.name: c.label for c in study.classes(study.load_scenario())}
-    files = plot_store(grid["store"], tmp_path / "every")
-    by_name = {f.name: f for f in files}
+    by_name = {f.name: f for f in grid_plots}
     for axis in ds["axis"].values:
         for xname in ds.attrs["parameters"]:
             f = by_name[f"classes_vs_{xname}__{axis}.png"]

@@ -3,16 +3,26 @@
 ``_BEFORE`` holds the estimates of trial 1 (run seed 0) of the embedded realistic default
 and of the ideal world, as float.hex, recorded from the code before the trial-speed work
 (commit c33ea06, before the windows and drifting-condition kernels); the trial must give
-them bit for bit. The two kernels are also checked against the Python loops they replace
-(the per-window ``StarCamera._add_stamps`` and one ``expose_centroid_chain`` per frame).
+them to the rounding of its floating-point operations (``tests/golden.py``), and a full
+frame its recorded ADC codes to a flipped code or two. The two kernels are also checked
+against the Python loops they replace (the per-window ``StarCamera._add_stamps`` and one
+``expose_centroid_chain`` per frame), bit for bit: the same operations in the same order.
 """
 
 from __future__ import annotations
 
+import json
+import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
+from golden import assert_close_to_recorded
+
+#: the estimates are differences of centroids on a mosaic up to 4096 px wide: four last
+#: bits of such a position (3.6e-12 px) is the absolute floor of their comparison
+ATOL_PX = 4 * math.ulp(4096.0)
 
 _BEFORE = {
     "realistic": {
@@ -66,8 +76,8 @@ def test_trial_bit_identical_to_pre_change_values(world):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         got = run_trial(scn, 0, 1)["values"]
-    for key, hx in _BEFORE[world].items():
-        assert float(got[tuple(key.split("/"))]).hex() == hx, key
+    assert_close_to_recorded({key: float(got[tuple(key.split("/"))]) for key in _BEFORE[world]},
+                             {key: float.fromhex(hx) for key, hx in _BEFORE[world].items()}, abs_floor=ATOL_PX)
 
 
 def _realistic_scene():
@@ -99,7 +109,8 @@ def test_windows_kernel_equals_per_window_loop():
     for j in range(scene.n_stars):
         k = int(scene.chip[j])
         cam._add_stamps(ref[j], scene, chip=k, row0=int(row0[j]), col0=int(col0[j] - k * cc))
-    # shifted origins too: windows that hold parts of their neighbours' stamps
+    # shifted origins too: windows that hold parts of their neighbours' stamps (exact on
+    # purpose: the kernel sums the same stamps in the same order as the loop)
     for dc, dr in ((0, 0), (3, -2), (-40, 17)):
         got = _expected_windows_at(cam, scene, col0 + dc, row0 + dr)
         if dc == dr == 0:
@@ -129,20 +140,24 @@ def test_drift_kernel_equals_one_call_per_frame(dark):
         r = expose_centroid_chain(ch, keys[f:f + 1], dark_mean=dm, threshold_dn=thr, parallel=False)
         for o, v in zip(ref, r):
             o[f] = v[0]
-    for a, b in zip(got, ref):
+    for a, b in zip(got, ref):  # exact on purpose: one kernel pass or one call per frame, the same operations
         assert np.array_equal(a, b, equal_nan=True)
 
 
-#: sha256 of a full frame (frame 2, run seed 7, the star grid 0.3 px off centre) of each
-#: world, recorded from the code before the trial-speed work (commit c33ea06)
-_FRAME_SHA256 = {
-    "realistic": "6d21f0921b65dbcca3034812c594bb70a53ddbd611da0f859e7101894340758e",
-    "ideal": "a06b49bb2d73de9598ead4dbc9fe594a065ea63ece7c1156b7fec45520cb38be",
-}
+#: a full frame (frame 2, run seed 7, the star grid 0.3 px off centre) of each world, recorded
+#: from the code before the trial-speed work (commit c33ea06) as the sha256 of its ADC codes;
+#: here, from the same frames, each 128 x 128 tile's sum of codes and digest
+_FRAME_TILES = Path(__file__).parent / "data" / "starcam_frames_c33ea06_tiles.json"
+#: the codes are integers: a last-bit change of the floating-point computation moves a code
+#: only when its value lies within a last bit (about 1e-13 of a code) of a rounding or
+#: sampling boundary, about once in 1e6 frames of 8.4e6 pixels. Two tiles off by at most two
+#: codes each absorb such flips; any change of the computation (a random stream, a stamp,
+#: the detector chain) changes the digests of hundreds of tiles.
+_FLIPPED_TILES, _FLIPPED_CODES = 2, 2
 
 
 @pytest.mark.parametrize("world", ["realistic", "ideal"])
-def test_full_frame_bit_identical_to_pre_change(world):
+def test_full_frame_equals_the_pre_change_frame(world):
     import hashlib
 
     from simcam.starcam.render import Placement, StarCamera
@@ -153,7 +168,17 @@ def test_full_frame_bit_identical_to_pre_change(world):
                        {"render.stamp_route": "exact"})
     cam = StarCamera(scn)
     frame = cam.render_frame(cam.scene(Placement(layout=star_grid(scn), platform_dx_px=0.3)), frame=2, seed=7)
-    assert hashlib.sha256(frame.tobytes()).hexdigest() == _FRAME_SHA256[world]
+    rec = json.loads(_FRAME_TILES.read_text())
+    want, t = rec[world], rec["tile_px"]
+    assert list(frame.shape) == want["shape"]
+    tiles = [frame[r:r + t, c:c + t] for r in range(0, frame.shape[0], t) for c in range(0, frame.shape[1], t)]
+    digests = [hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest()[:16] for x in tiles]
+    moved = [k for k, d in enumerate(digests) if d != want["tile_sha256_16"][k]]
+    assert len(moved) <= _FLIPPED_TILES, f"{len(moved)} of {len(tiles)} tiles differ from the recorded frame"
+    for k in moved:
+        assert abs(int(tiles[k].sum(dtype=np.int64)) - want["tile_sums"][k]) <= _FLIPPED_CODES, k
+    if not moved:  # every tile as recorded: the frame is the recorded one, digest and all
+        assert hashlib.sha256(frame.tobytes()).hexdigest() == want["frame_sha256"]
 
 
 def test_nonlinearity_kernel_equals_its_formula():
@@ -167,5 +192,6 @@ def test_nonlinearity_kernel_equals_its_formula():
     c0 = np.array([0, 5, 11])  # windows astride the chip boundary at column 10
     fw = np.array([4e4, 5e4])[(c0[:, None] + np.arange(9)[None, :]) // 10][:, None, :]
     ref = m * (1.0 - 0.008 * np.minimum(m, fw) / fw)
+    # exact on purpose: the same correctly rounded operations in the same order
     assert np.array_equal(apply_nonlinearity(m, col0=c0, chip_cols=10, params=p), ref)
     assert np.array_equal(apply_nonlinearity(m[0], col0=0, chip_cols=10, params=p), ref[0])

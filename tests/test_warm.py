@@ -2,7 +2,9 @@
 
 The targets must compile exactly the signatures a trial and the truths then call, or the
 first run compiles them twice: checked in a fresh process with an empty numba cache by
-listening to numba's compile events. The mechanism (children started only on a cold
+listening to numba's compile events (slow: it compiles every star-camera kernel, twice),
+and in the default suite in a fresh process on numba's usual cache by comparing the
+signatures each kernel holds before and after the trial. The mechanism (children started only on a cold
 cache and with a spare core, waited for, stopped on an interruption) is checked with a
 stand-in target.
 """
@@ -59,13 +61,20 @@ print(json.dumps({"before": before, "after": after, "compiled": compiled}))
 """
 
 
+def _tiny_scenario(tmp_path, dark_frames):
+    scn = tmp_path / "tiny.toml"
+    scn.write_text(TINY.replace("[validation]\n", f"[validation]\ndark_frames = {dark_frames}\n"))
+    return scn
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("dark_frames", [2, 0])
 def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path, dark_frames):
     # with dark frames a trial calls every kernel it calls without them, and the window
     # exposure besides; without, the truths their control-variate kernels (each case one
-    # fresh process and empty cache: about 15 s)
-    scn = tmp_path / "tiny.toml"
-    scn.write_text(TINY.replace("[validation]\n", f"[validation]\ndark_frames = {dark_frames}\n"))
+    # fresh process and empty cache: about 15 s of compiling; the fast twin is
+    # test_warm_targets_load_every_signature_a_trial_and_the_truths_call)
+    scn = _tiny_scenario(tmp_path, dark_frames)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
     run = subprocess.run([sys.executable, "-c", _SCRIPT, str(scn)], env=env, capture_output=True, text=True,
                          timeout=600, check=False)
@@ -74,6 +83,56 @@ def test_warm_targets_compile_what_a_trial_and_the_truths_call(tmp_path, dark_fr
     assert out["before"] == [False, False]  # an empty cache reads as cold
     assert out["after"] == [True, True]
     assert out["compiled"] == [], "compiled again after the warm targets:\n" + "\n".join(out["compiled"])
+
+
+_LOADED_SCRIPT = r"""
+import json, sys, warnings
+from numba.core.registry import CPUDispatcher
+from budget.starcam import warm
+from budget.runner.registry import get_study
+
+
+def loaded():
+    # numba's public Dispatcher.signatures of every kernel of the two packages: what this
+    # process compiled or loaded from the cache
+    out = set()
+    for name, mod in list(sys.modules.items()):
+        if name.split(".")[0] in ("simcam", "budget"):
+            for d in list(vars(mod).values()):
+                if isinstance(d, CPUDispatcher):
+                    out |= {f"{d.py_func.__module__}.{d.py_func.__qualname__}{s}" for s in d.signatures}
+    return out
+
+
+st = get_study("starcam")
+scn = st.load_scenario(sys.argv[1])
+opts = json.dumps(warm.options(scn))
+warm.compile_support(opts)
+warm.compile_stamps_and_exposure(opts)
+before = loaded()
+from budget.runner.executors import worker_setup
+worker_setup(st.worker_init)  # as in a worker of the runner: one numba thread
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    st.trial(scn, 0, 1)
+    st.truths(scn, 0)
+print(json.dumps(sorted(loaded() - before)))
+"""
+
+
+@pytest.mark.parametrize("dark_frames", [2, 0])
+def test_warm_targets_load_every_signature_a_trial_and_the_truths_call(tmp_path, dark_frames):
+    """The fast twin of the check above, on numba's usual cache (warm after the first run):
+    after the warm targets, a trial and the truths add no signature to any kernel of the
+    two packages. Stricter than the cold-cache check in one respect: a kernel the targets
+    compile only inside another (its machine code then lives in its caller's cache entry)
+    and the trial calls directly reads as missed here."""
+    scn = _tiny_scenario(tmp_path, dark_frames)
+    run = subprocess.run([sys.executable, "-c", _LOADED_SCRIPT, str(scn)], capture_output=True, text=True,
+                         timeout=600, check=False)
+    assert run.returncode == 0, run.stderr[-3000:]
+    added = json.loads(run.stdout.strip().splitlines()[-1])
+    assert added == [], "loaded after the warm targets:\n" + "\n".join(added)
 
 
 # ------------------------------------------------------------------ the mechanism
