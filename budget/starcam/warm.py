@@ -85,7 +85,8 @@ def compile_support(arg: str) -> None:
     from numba import types
 
     from budget.centroid.kernels import border_one, cog_one
-    from simcam.rng import child_keys, poisson_prepared, std_normal
+    from simcam.rng import child_keys, std_normal
+    from simcam.rng_poisson import poisson_prepared
 
     opts = json.loads(arg)
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
