@@ -265,7 +265,7 @@ def simulate(
     inter-frame differencing). ``marker_seed`` draws new marker errors of the calibration
     grid (default: the scenario's fixed target).
     """
-    from budget.centroid.core import _centroid_arrays, _table_columns, _warn_flags
+    from budget.centroid.core import centroid_arrays, table_columns, warn_flags
     from budget.starcam.estimators.common import _Rows
     from simcam.starcam.render import Placement
 
@@ -350,11 +350,11 @@ def simulate(
                 "threshold_sigma": float(threshold_sigma)}
         if method == "iwcog":
             opts["weight_sigma_px"] = design_psf_sigma_px(scn)
-        x, y, flux, flag = _centroid_arrays(np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]),
-                                            y0=np.concatenate(cols["y0"]), method=method, **opts)
-    table = _table_columns(star=np.concatenate(cols["star"]), frame=np.concatenate(cols["frame"]), x=x, y=y,
-                           flux=flux, flag=flag, flux_column="flux_dn", extra_columns=extra)
-    _warn_flags(table["flag"], table["star"], table["frame"])
+        x, y, flux, flag = centroid_arrays(np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]),
+                                           y0=np.concatenate(cols["y0"]), method=method, **opts)
+    table = table_columns(star=np.concatenate(cols["star"]), frame=np.concatenate(cols["frame"]), x=x, y=y,
+                          flux=flux, flag=flag, flux_column="flux_dn", extra_columns=extra)
+    warn_flags(table["flag"], table["star"], table["frame"])
     if camera.onboard_correction is not None:
         # the camera reports its centroids through its own distortion correction
         # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
