@@ -157,8 +157,8 @@ def render_stamps(
     Each stamp is the star's pinhole disc convolved with the camera PSF at each wavelength,
     displaced by the star's position and lateral colour, summed with the wavelengths'
     weights and integrated over each pixel's unit square, computed exactly in the Fourier
-    domain and folded onto the ``L x L`` stamp (physics, method, periodisation and cost:
-    "Pixel-integrated stamps" in this module's docstring).
+    domain and folded onto the ``L x L`` stamp (physics, method, periodisation and cost: the
+    module docstring).
 
     Parameters
     ----------
