@@ -19,7 +19,7 @@ and, when SEP is installed, ``sep.winpos`` (windowed positions, Gaussian weight
 sigma 1 px) on the same mosaic.
 
 Then one 4096 x 2048 frame with a 5 x 5 star grid through the full-frame path
-(``budget.centroid.core.centroid_frames([frame], reference_xy=ref)``: level and noise from a
+(``budget.centroid.frames.centroid_frames([frame], reference_xy=ref)``: level and noise from a
 row subsample, threshold, labelling of boxes around the references, matching, windows,
 CoG), and without the reference list (labelling the whole frame). Beside it, in the
 same run, photutils' full-frame path on the same frame: level and noise by
@@ -59,10 +59,10 @@ from benchmarks._common import (  # noqa: E402
 
 from budget.centroid.core import (  # noqa: E402
     centroid_cog,
-    centroid_frames,
     centroid_gaussian_fit,
     centroid_iwcog,
 )
+from budget.centroid.frames import centroid_frames  # noqa: E402
 
 SIZE = 11
 

@@ -64,9 +64,8 @@ from simcam.detector import detector_maps, expose, window_chain  # noqa: E402
 from simcam.kernels.detector import (  # noqa: E402
     SLOT_DSNU, SLOT_HOT, SLOT_PRNU, SLOT_READ, SLOT_SHOT, slot_counter,
 )
-from simcam.rng import (  # noqa: E402
-    poisson, poisson_from_word, random_bits64, std_normal, std_normal_from_word, uniform01,
-)
+from simcam.rng import random_bits64, std_normal, std_normal_from_word, uniform01  # noqa: E402
+from simcam.rng_poisson import poisson, poisson_from_word  # noqa: E402
 from simcam.starcam.render import Placement, StarCamera  # noqa: E402
 from simcam.starcam.scenario import default  # noqa: E402
 from simcam.starcam.targets import star_grid  # noqa: E402

@@ -154,7 +154,8 @@ def trial_anatomy(scn, repeat: int) -> dict:
     from numba import njit
 
     import budget.starcam.kernels_trial as KT
-    from simcam.rng import poisson, std_normal
+    from simcam.rng import std_normal
+    from simcam.rng_poisson import poisson
 
     means: list = []
     spent = [0.0]

@@ -100,7 +100,7 @@ Gaussian least-squares fit; photutils `centroid_com` in a loop, `centroid_source
 windows tiled into one image, `centroid_2dg` on a subset; SEP `winpos`. The rms position
 difference to photutils `centroid_com` is zero up to rounding for the identical
 definitions. Then one 4096 x 2048 frame with 25 stars: our full-frame path with a
-reference list (`budget.centroid.core.centroid_frames([frame], reference_xy=ref)`) and without
+reference list (`budget.centroid.frames.centroid_frames([frame], reference_xy=ref)`) and without
 one, beside photutils (sigma-clipped level and noise, threshold, `centroid_sources` at the
 references) and SEP (background + extraction). Targets: at most 2 us per window for CoG;
 at most 10 ms for the full frame with a reference list."""),

@@ -22,7 +22,7 @@ import numpy as np
 
 from simcam.infra.errors import ScenarioError
 from simcam.kernels import detector as _k
-from simcam.rng import MAX_PIXEL_INDEX, _as_key
+from simcam.rng import MAX_PIXEL_INDEX, as_key
 
 __all__ = [
     "DetectorParameterError",
@@ -237,7 +237,7 @@ def _signal(signal_e, ndim: int, *, check_range: bool = True) -> np.ndarray:
 
 def _keys(frame_key, detector_key):
     try:
-        return _as_key(frame_key, "frame_key"), _as_key(detector_key, "detector_key")
+        return as_key(frame_key, "frame_key"), as_key(detector_key, "detector_key")
     except ValueError as err:
         raise DetectorParameterError(str(err)) from None
 

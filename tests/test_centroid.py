@@ -1,4 +1,5 @@
-"""Tests of budget.centroid.core (thresholded CoG, IWCoG, full-frame pipeline, flags)."""
+"""Tests of budget.centroid.core and budget.centroid.frames (thresholded CoG, IWCoG, full-frame
+pipeline, flags)."""
 
 from __future__ import annotations
 
@@ -15,16 +16,13 @@ from budget.centroid.core import (
     CentroidFlag,
     CentroidWarning,
     centroid_cog,
-    centroid_frames,
     centroid_gaussian_fit,
     centroid_iwcog,
     centroid_windows,
-    detect_stars,
-    extract_windows,
-    match_stars,
     subtract_dark,
     window_background,
 )
+from budget.centroid.frames import centroid_frames, detect_stars, extract_windows, match_stars
 from simcam.infra.errors import UserInputError
 
 
@@ -372,7 +370,7 @@ def test_reference_list_path_equals_whole_frame_detection(monkeypatch, big_star)
     """Detection in boxes around the references gives the table the whole-frame labelling
     gives (stars close together, at the frame's edges, a missing star, a noise blob, dark
     subtraction; a star larger than its box falls back to the whole frame)."""
-    import budget.centroid.core as c
+    import budget.centroid.frames as c
 
     frames = [_frame_with_stars(s, big_star=big_star)[0] for s in (1, 2)]
     ref = _frame_with_stars(1, big_star=big_star)[1]

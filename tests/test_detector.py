@@ -27,6 +27,7 @@ from simcam.detector import (
     prnu_map,
 )
 from simcam import rng as rng_mod
+from simcam import rng_poisson
 from simcam.rng import key_from_seed
 
 Z = 5.0
@@ -264,7 +265,7 @@ def _reference_chain(sig, row0, col0, params, frame_key, *, quantize):
                                       mosaic_cols=MOSAIC_COLS, params=params,
                                       detector_key=DET_KEY))
     lam = sig * g + d
-    n = rng_mod.poisson_array(lam=lam, key=frame_key, counter=ctr | np.uint64(1 << 12))
+    n = rng_poisson.poisson_array(lam=lam, key=frame_key, counter=ctr | np.uint64(1 << 12))
     chip = cols // CHIP_COLS
     e = np.minimum(n.astype(float), np.asarray(params.full_well_e)[chip])
     e = e + np.asarray(params.read_noise_e)[chip] * rng_mod.normal_array(

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from simcam import rng as rng_mod
+from simcam import rng_poisson
 from simcam.detector import (
     DetectorParams,
     detector_maps,
@@ -139,7 +140,7 @@ def test_full_frame_equals_the_chain_rebuilt_from_rng_primitives():
     fw = np.asarray(p.full_well_e)[chip]
     s = sig * g + d
     mu = s * (1.0 - p.nonlinearity_beta * np.minimum(s, fw) / fw)
-    n = rng_mod.poisson_array(lam=mu, key=FRAME_KEY, counter=ctr | np.uint64(1 << 12)).astype(float)
+    n = rng_poisson.poisson_array(lam=mu, key=FRAME_KEY, counter=ctr | np.uint64(1 << 12)).astype(float)
     e = np.minimum(n, fw) + np.asarray(p.read_noise_e)[chip] * rng_mod.normal_array(
         key=FRAME_KEY, counter=ctr | np.uint64(0 << 12))
     v = e / np.asarray(p.gain_e_per_dn)[chip] + np.asarray(p.offset_dn)[chip]

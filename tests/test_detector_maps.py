@@ -192,16 +192,18 @@ def test_star_camera_keeps_its_maps_and_rebuilds_them_when_the_detector_changes(
 
 def test_samplers_given_their_first_word_equal_the_generator():
     # the per-frame pass draws the Poisson count and the read-noise normal from a first word
-    # computed in a loop of its own: the same variates as simcam.rng.poisson / std_normal
+    # computed in a loop of its own: the same variates as simcam.rng_poisson.poisson /
+    # simcam.rng.std_normal
     # (exact equality), over means on the table grid and between its levels (j / 16),
     # at 0, near the switch to PTRS at 10, beyond it, NaN, and many counters (the normal's
     # rejections, probability 1.2 %, and the Poisson's second word, up to 6.3 %, occur)
     from numba import njit
 
-    from simcam.rng import poisson, random_bits64, std_normal, uniform01
-    from simcam.rng import poisson_from_word as _poisson_from_word
+    from simcam.rng import random_bits64, std_normal, uniform01
     from simcam.rng import std_normal_from_word as _std_normal_from_word
     from simcam.rng import uniform01_from_word as _uniform01_from_word
+    from simcam.rng_poisson import poisson
+    from simcam.rng_poisson import poisson_from_word as _poisson_from_word
 
     @njit
     def both(lam, key, counters, out_p, ref_p, out_z, ref_z):

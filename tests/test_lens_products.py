@@ -1,4 +1,4 @@
-"""Traced products: PSF against Airy (and against simcam.starcam.optics' analytic disc x Airy), the
+"""Traced products: PSF against Airy (and against simcam.starcam.psf_stamps' analytic disc x Airy), the
 closed-form best focus against a numerical minimisation, the tables, the disk cache."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 from scipy import integrate, optimize
 from scipy.special import j1
 
-from simcam.starcam import optics
+from simcam.starcam import psf_stamps
 from simcam.starcam.lens import products as lp
 from simcam.starcam.lens.errors import LensError
 from simcam.starcam.lens.paraxial import paraxial
@@ -90,13 +90,13 @@ def test_psf_of_a_point_spot_is_the_pixel_integrated_airy_pattern():
 
 
 def test_psf_of_a_uniform_disc_spot_matches_simcam_optics_disc_times_airy():
-    # a defocus-like spot: rays uniformly filling a disc of radius a; simcam.starcam.optics.render_stamps
+    # a defocus-like spot: rays uniformly filling a disc of radius a; simcam.starcam.psf_stamps.render_stamps
     # computes the same pixel-integrated (disc x Airy) image analytically (Goodman's OTFs)
     wl, n_f, pitch, a = 700.0, 3.4377, 5.5, 1.3
     x, y = symmetric_pupil(400_000)
     stamp, _ = psf_stamp(x_px=a * x, y_px=a * y, wavelength_nm=wl, f_number=n_f, pixel_pitch_um=pitch,
                          stamp_px=32, oversample=16)
-    ref, ox, oy = optics.render_stamps(
+    ref, ox, oy = psf_stamps.render_stamps(
         x_px=np.array([16.0]), y_px=np.array([16.0]), stamp_px=32, psf_kind="airy", sigma_px=np.array([0.0]),
         pinhole_radius_px=a, f_number=n_f, pixel_pitch_um=pitch, wavelength_nm=np.array([wl]),
         weights=np.ones((1, 1)), shift_x_px=np.zeros((1, 1)), shift_y_px=np.zeros((1, 1)),

@@ -1,4 +1,5 @@
-"""Tests of simcam.starcam.optics PSF stamps, PSF width and lateral colour.
+"""Tests of the PSF stamps (simcam.starcam.psf_stamps), PSF width and lateral colour
+(simcam.starcam.optics).
 
 Every numerical model is checked against an independent reference: scipy quadrature of
 the analytic PSF or transfer function, closed-form erf products, or hand-derived values.
@@ -15,13 +16,8 @@ from scipy import integrate
 from scipy.special import erf, j0, j1
 
 from simcam.starcam import psf_transfer as kpsf
-from simcam.starcam.optics import (
-    OpticsError,
-    airy_cutoff_cyc_per_px,
-    lateral_colour_shift_px,
-    psf_sigma_px,
-    render_stamps,
-)
+from simcam.starcam.optics import OpticsError, lateral_colour_shift_px, psf_sigma_px
+from simcam.starcam.psf_stamps import airy_cutoff_cyc_per_px, render_stamps
 
 LATTICE_SUM_R3 = 9.033621683  # sum over (m, n) != 0 of (m^2 + n^2)^(-3/2)
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from simcam import rng
+from simcam import rng, rng_poisson
 from simcam.infra.errors import ScenarioError
 
 N = 200_000
@@ -104,18 +104,18 @@ def test_reproducible_and_counter_addressable():
     assert np.array_equal(rng.normal_array(key=KEY, counter=c),
                           rng.normal_array(key=KEY, counter=c))
     lam = np.array([0.5, 5.0, 50.0, 5e3])
-    assert np.array_equal(rng.poisson_array(lam=lam, key=KEY, counter=c),
-                          rng.poisson_array(lam=lam, key=KEY, counter=c))
+    assert np.array_equal(rng_poisson.poisson_array(lam=lam, key=KEY, counter=c),
+                          rng_poisson.poisson_array(lam=lam, key=KEY, counter=c))
     # a different key gives different numbers
     assert not np.array_equal(a, rng.uniform_array(key=KEY + np.uint64(1), counter=c))
 
 
 def test_poisson_array_broadcasts_lam_against_counter():
     c = _slots(4, 1)
-    x = rng.poisson_array(lam=np.array([[0.5], [50.0]]), key=KEY, counter=c)
+    x = rng_poisson.poisson_array(lam=np.array([[0.5], [50.0]]), key=KEY, counter=c)
     assert x.shape == (2, 4)
-    assert np.array_equal(x[1], rng.poisson_array(lam=50.0, key=KEY, counter=c))
-    one = rng.poisson_array(lam=np.array([4.7, 3.0]), key=KEY, counter=c[:1])
+    assert np.array_equal(x[1], rng_poisson.poisson_array(lam=50.0, key=KEY, counter=c))
+    one = rng_poisson.poisson_array(lam=np.array([4.7, 3.0]), key=KEY, counter=c[:1])
     assert one.shape == (2,)
 
 
@@ -139,11 +139,11 @@ def test_array_wrappers_validate():
     with pytest.raises(rng.RngParameterError, match="counter"):
         rng.normal_array(key=1, counter=[-3])
     with pytest.raises(rng.RngParameterError, match="lam"):
-        rng.poisson_array(lam=[-1.0], key=1, counter=[0])
+        rng_poisson.poisson_array(lam=[-1.0], key=1, counter=[0])
     with pytest.raises(rng.RngParameterError, match="lam"):
-        rng.poisson_array(lam=[np.nan], key=1, counter=[0])
+        rng_poisson.poisson_array(lam=[np.nan], key=1, counter=[0])
     with pytest.raises(rng.RngParameterError, match="lam"):
-        rng.poisson_array(lam=[np.inf], key=1, counter=[0])
+        rng_poisson.poisson_array(lam=[np.inf], key=1, counter=[0])
     with pytest.raises(TypeError):
         rng.uniform_array(1, [0])  # keyword-only
 
@@ -238,8 +238,8 @@ def test_normal_tails_and_wedges():
 @pytest.mark.parametrize("lam", [0.3, 3.0, 9.9, 10.1, 25.0, 50.0, 63.9, 64.0, 200.0, 1e4])
 def test_poisson_chi_square_and_moments(lam):
     n = N
-    x = rng.poisson_array(lam=lam, key=rng.key_from_seed(11, int(lam * 10)),
-                          counter=_slots(n, 1))
+    x = rng_poisson.poisson_array(lam=lam, key=rng.key_from_seed(11, int(lam * 10)),
+                                  counter=_slots(n, 1))
     assert x.min() >= 0
     # chi-square against scipy.stats.poisson.pmf on bins with >= 20 expected counts;
     # the two tails are pooled into end bins
@@ -275,7 +275,7 @@ def test_poisson_table_levels_and_residuals():
     # Poisson(lam - lam0): the standardised sum over draws must be N(0, 1)-like.
     n = N
     lam = np.linspace(0.0, 9.999, n)
-    x = rng.poisson_array(lam=lam, key=rng.key_from_seed(3), counter=_slots(n, 1))
+    x = rng_poisson.poisson_array(lam=lam, key=rng.key_from_seed(3), counter=_slots(n, 1))
     z = (x.sum() - lam.sum()) / np.sqrt(lam.sum())
     assert abs(z) < Z
     # probability integral transform: for discrete X, V = F(X-1) + W * p(X) with an
@@ -292,20 +292,20 @@ def test_poisson_from_words_draws_what_poisson_draws():
     # test, some several trials) and far above, 0, NaN, above POISSON_MAX_LAM, +inf
     g = np.random.default_rng(5)
     lam = np.concatenate([g.uniform(0.0, 10.0, 600), g.uniform(10.0, 10.5, 600), 10.0 ** g.uniform(1, 15, 300),
-                          [0.0, -1.0, np.nan, 10.0, 9.999999999999998, rng.POISSON_MAX_LAM, 1e16, np.inf]])
+                          [0.0, -1.0, np.nan, 10.0, 9.999999999999998, rng_poisson.POISSON_MAX_LAM, 1e16, np.inf]])
     g.shuffle(lam)
     counters = _slots(lam.size, 1) + np.uint64(5 << 16)
     words = np.array([rng.random_bits64(KEY, c) for c in counters], dtype=np.uint64)
     out = np.full(lam.size, -1.0)
-    rng.poisson_from_words(lam, words, KEY, counters, out, np.empty(2 * lam.size, dtype=np.int64))
-    expected = [float(rng.poisson(m, KEY, c)) for m, c in zip(lam, counters)]
+    rng_poisson.poisson_from_words(lam, words, KEY, counters, out, np.empty(2 * lam.size, dtype=np.int64))
+    expected = [float(rng_poisson.poisson(m, KEY, c)) for m, c in zip(lam, counters)]
     assert np.array_equal(out, expected)
 
 
 def test_poisson_zero_mean_and_tiny_mean():
     c = _slots(1000, 1)
-    assert np.all(rng.poisson_array(lam=0.0, key=KEY, counter=c) == 0)
-    x = rng.poisson_array(lam=1e-9, key=KEY, counter=_slots(N, 1))
+    assert np.all(rng_poisson.poisson_array(lam=0.0, key=KEY, counter=c) == 0)
+    x = rng_poisson.poisson_array(lam=1e-9, key=KEY, counter=_slots(N, 1))
     # P(X > 0) = 1 - exp(-1e-9): expecting 2e-4 events in 2e5 draws
     assert x.sum() <= 3
 
@@ -313,25 +313,25 @@ def test_poisson_zero_mean_and_tiny_mean():
 def test_poisson_of_neighbouring_pixels_uncorrelated():
     # counts of adjacent pixels (counters 2**16 apart): sample correlation SE 1/sqrt(n)
     c = _slots(N, 1)
-    a = rng.poisson_array(lam=5.0, key=KEY, counter=c)
+    a = rng_poisson.poisson_array(lam=5.0, key=KEY, counter=c)
     next_pixel = np.uint64(rng.pixel_counter(pixel_index=1, draw=0))
-    b = rng.poisson_array(lam=5.0, key=KEY, counter=c + next_pixel)
+    b = rng_poisson.poisson_array(lam=5.0, key=KEY, counter=c + next_pixel)
     assert abs(np.corrcoef(a, b)[0, 1]) < Z / np.sqrt(N)
 
 
 def test_poisson_cdf_tables_match_scipy():
     # the tabulated CDFs of Poisson(j/16) used by the inversion, against scipy.stats
-    ks = np.arange(rng._PT_CDF.shape[1] - 1)
-    for j in range(rng._PT_CDF.shape[0]):
-        ref = stats.poisson.cdf(ks, j / rng.POISSON_TABLE_LEVELS_PER_E)
-        assert np.allclose(rng._PT_CDF[j, :-1], ref, rtol=0, atol=1e-14)
-    assert np.all(rng._PT_CDF[:, -1] == 1.0)
+    ks = np.arange(rng_poisson._PT_CDF.shape[1] - 1)
+    for j in range(rng_poisson._PT_CDF.shape[0]):
+        ref = stats.poisson.cdf(ks, j / rng_poisson.POISSON_TABLE_LEVELS_PER_E)
+        assert np.allclose(rng_poisson._PT_CDF[j, :-1], ref, rtol=0, atol=1e-14)
+    assert np.all(rng_poisson._PT_CDF[:, -1] == 1.0)
     # the mass moved onto the last column is negligible: P(X >= 63 | lam < 10) < 1e-28
-    assert stats.poisson.sf(rng._PT_CDF.shape[1] - 2, 10.0) < 1e-28
+    assert stats.poisson.sf(rng_poisson._PT_CDF.shape[1] - 2, 10.0) < 1e-28
 
 
 def test_log_factorial_matches_scipy_gammaln():
     # table below 1024, Stirling series above (PTRS acceptance test)
     ks = np.concatenate([np.arange(0.0, 3000.0), [1e4, 1e5, 1e6, 1e9, 1e12]])
-    got = np.array([rng.log_factorial(k) for k in ks])
+    got = np.array([rng_poisson.log_factorial(k) for k in ks])
     assert np.allclose(got, special.gammaln(ks + 1.0), rtol=1e-14, atol=1e-14)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simcam.starcam import optics as O
+from simcam.starcam import psf_stamps as O
 
 
 @pytest.mark.parametrize("kind", ["gaussian", "airy"])

@@ -1,7 +1,7 @@
 """The profile stamp route (``render.stamp_route = "profile"``) against the exact route.
 
-:func:`simcam.starcam.optics.render_shifted_stamps` computes the same spectrum as
-:func:`simcam.starcam.optics.render_stamps` with the wavelength sum taken once per target,
+:func:`simcam.starcam.psf_stamps.render_shifted_stamps` computes the same spectrum as
+:func:`simcam.starcam.psf_stamps.render_stamps` with the wavelength sum taken once per target,
 filter and rounded pose: the star's position and PSF width enter exactly, so at the
 profile's own lateral-colour shifts the two agree to rounding. What the route
 approximates is the lateral colour's spread about its mean, which keeps the rounded
@@ -17,7 +17,7 @@ import warnings
 import numpy as np
 import pytest
 
-from simcam.starcam import optics as O
+from simcam.starcam import psf_stamps as O
 
 # rounding: a pixel is an inverse DFT of ~L^2 terms of magnitude <= 1 (the spectrum of a
 # unit-flux image), each carrying a few relative roundings of 2.2e-16 from ~n_l-term sums;

@@ -241,12 +241,12 @@ import json
 from budget.starcam import kernels_trial as kt, warm
 from simcam.kernels import detector as kd
 from simcam.starcam.kernels import psf as kp
-from simcam import rng
+from simcam import rng_poisson
 from budget.centroid import kernels as ck
 
 watched = {"stamps": kp.folded_stamp_spectra, "fused": kt.expose_centroid_frames_serial,
            "windows": kd.expose_windows_frames_serial}
-support = {"poisson": rng.poisson_prepared, "cog_one": ck.cog_one}
+support = {"poisson": rng_poisson.poisson_prepared, "cog_one": ck.cog_one}
 def loaded():
     # numba's public Dispatcher.signatures: what this process compiled or loaded
     return sorted(k for k, d in watched.items() if d.signatures)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from simcam.infra.errors import ScenarioError
+from simcam.starcam import optics
 from simcam.starcam.targets import calibration_grid, star_grid
 
 __all__ = ["check_geometry"]
@@ -21,7 +22,6 @@ def check_geometry(scenario, *, where: str) -> None:
     phases) lands on a chip at least half a window from its edges and the gap, the test
     :meth:`simcam.starcam.render.StarCamera.scene` applies when it renders."""
     from budget.starcam.protocols import PROTOCOLS, make_plan
-    from simcam.starcam import optics
     from simcam.starcam.render import StarCamera
 
     cam = StarCamera(scenario, parallel=False)

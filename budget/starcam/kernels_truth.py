@@ -66,7 +66,8 @@ from numba import njit
 
 from budget.centroid.kernels import FLAG_LOST, border_one, cog_one
 from simcam.kernels.detector import SLOT_READ, SLOT_SHOT, _chip_segment, slot_counter
-from simcam.rng import POISSON_MAX_LAM, poisson_prepared, poisson_setup, std_normal
+from simcam.rng import std_normal
+from simcam.rng_poisson import POISSON_MAX_LAM, poisson_prepared, poisson_setup
 
 #: tabulated thresholds ``d`` either side of that of the noise-free background (DN): the
 #: border median's sd is a fraction of a DN; a frame whose median falls beyond drops the

@@ -291,12 +291,13 @@ def measure_frames(
 
     ``threshold_sigma`` is the centroid threshold in the windows (default the same as
     ``budget validate``'s, ``validation.threshold_sigma``). Stars are found on the mean of
-    a condition's frames (dark subtracted) with :func:`budget.centroid.core.detect_stars`'s own
+    a condition's frames (dark subtracted) with :func:`budget.centroid.frames.detect_stars`'s own
     detection threshold, so a noise excursion of one frame cannot become a "star" that
     then enters an estimate (at 3 sigma on single frames two spurious stars
     turned TE y into 0.77" instead of 0.20").
     """
-    from budget.centroid.core import centroid_frames, detect_stars, subtract_dark
+    from budget.centroid.core import subtract_dark
+    from budget.centroid.frames import centroid_frames, detect_stars
     from simcam.io import read_frame
 
     directory = Path(directory)

@@ -265,9 +265,8 @@ def simulate(
     inter-frame differencing). ``marker_seed`` draws new marker errors of the calibration
     grid (default: the scenario's fixed target).
     """
-    from budget.centroid.core import _centroid_arrays, _table_columns, _warn_flags
+    from budget.centroid.core import centroid_arrays, table_columns, warn_flags
     from budget.starcam.estimators.common import _Rows
-    from simcam.starcam.render import Placement
 
     scn = camera.scenario
     # the fused kernel (exposure and centroid in one pass, same values) serves the
@@ -281,28 +280,7 @@ def simulate(
     # commanded poses
     motion = camera.world_motion(seed)
     for c in plan.conditions:
-        layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
-                  else _star_grid(scn, c.field_center_px))
-        stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
-        if motion is None:
-            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
-                                  filter_nm=c.filter_nm, condition=stream, label=c.label)
-            drift = None
-        else:
-            pdx, pdy, roll = motion.pose(plan.protocol, c.index)
-            drift = motion.drift_of(plan.protocol, c.index, c.frames)
-            # the condition's mean drift is rendered exactly (in the scene's pose), the drift
-            # about it per frame to first order (StarCamera.drift_chain)
-            d0 = (0.0, 0.0) if drift is None else tuple(float(v) for v in drift.mean(axis=0))
-            placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px + pdx + d0[0],
-                                  platform_dy_px=c.platform_dy_px + pdy + d0[1], filter_nm=c.filter_nm,
-                                  condition=stream, label=c.label, platform_roll_rad=roll)
-            if drift is not None:
-                drift = (drift - np.array(d0)[None, :], Placement(
-                    layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
-                    filter_nm=c.filter_nm, condition=stream, label=c.label))
-        scene = camera.scene(placement)
-        W = scene.n_stars
+        scene, drift = _condition_scene(camera, plan, c, motion, marker_seed=marker_seed)
         n = c.frames
         dark_mean = None
         if plan.dark_frames:
@@ -310,29 +288,96 @@ def simulate(
             dark_mean = dark.pixels.astype(np.float64).mean(axis=0)
         chain = camera.window_chain(scene)
         cc = _condition_columns(camera, scene, chain, c, threshold_sigma, plan.dark_frames)
-        noise_dn = cc["noise_dn"]
         if fused:
-            if drift is None:
-                x, y, flux, flag = _expose_centroid(camera, chain, scene, frames=n, seed=seed, dark_mean=dark_mean,
-                                                    threshold_dn=cc["threshold_dn"])
-            else:
-                x, y, flux, flag = _expose_centroid_drift(camera, scene, drift, seed=seed, dark_mean=dark_mean,
-                                                          threshold_dn=cc["threshold_dn"])
+            x, y, flux, flag = _fused_centroids(camera, chain, scene, drift, frames=n, seed=seed,
+                                                dark_mean=dark_mean, threshold_dn=cc["threshold_dn"])
             for name, v in (("x", x), ("y", y), ("flux", flux), ("flag", flag)):
                 cols[name].append(v.reshape(-1))
         else:
-            win = (camera.render_windows(scene, frames=n, seed=seed) if drift is None
-                   else _render_windows_drift(camera, scene, drift, seed=seed))
-            pix = win.pixels.astype(np.float64)
-            if dark_mean is not None:
-                pix = pix - dark_mean[None]
-            cols["pix"].append(pix.reshape(W * n, *pix.shape[2:]))
-            cols["noise"].append(np.tile(noise_dn, n))
+            win, pix = _condition_windows(camera, scene, drift, frames=n, seed=seed, dark_mean=dark_mean)
+            cols["pix"].append(pix)
+            cols["noise"].append(np.tile(cc["noise_dn"], n))
             if keep_windows:
                 wins[c.index] = win
         for name in ("x0", "y0", "star", "frame", "cond", "filt"):
             cols[name].append(cc[name])
         truths.append((scene, c.index, c.field))  # the scene's truth table only when asked for
+    extra, field_labels = _extra_columns(plan, cols)
+    if fused:
+        x, y, flux, flag = (np.concatenate(cols[k]) for k in ("x", "y", "flux", "flag"))
+    else:
+        # one centroiding call for the whole protocol (same options as per condition)
+        opts = {"background": "border", "noise_dn": np.concatenate(cols["noise"]),
+                "threshold_sigma": float(threshold_sigma)}
+        if method == "iwcog":
+            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
+        x, y, flux, flag = centroid_arrays(np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]),
+                                           y0=np.concatenate(cols["y0"]), method=method, **opts)
+    table = table_columns(star=np.concatenate(cols["star"]), frame=np.concatenate(cols["frame"]), x=x, y=y,
+                          flux=flux, flag=flag, flux_column="flux_dn", extra_columns=extra)
+    warn_flags(table["flag"], table["star"], table["frame"])
+    if camera.onboard_correction is not None:
+        # the camera reports its centroids through its own distortion correction
+        # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
+        table["x"], table["y"] = camera.report_positions(table["x"], table["y"])
+    ref = _reference_points(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
+    return ProtocolData(plan.protocol, _Rows(table, field_labels), truths, ref, plan, wins, camera)
+
+
+def _condition_scene(camera, plan: AcquisitionPlan, c: Condition, motion, *, marker_seed: int | None):
+    """The scene of condition ``c`` (its target placed at the commanded pose, plus the world's
+    pose error and the condition's mean drift when the world moves) and the drift about that
+    mean per frame: ``None``, or (drift (frames, 2) px, the placement at the commanded pose)."""
+    from simcam.starcam.render import Placement
+
+    scn = camera.scenario
+    layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
+              else _star_grid(scn, c.field_center_px))
+    stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
+    if motion is None:
+        placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                              filter_nm=c.filter_nm, condition=stream, label=c.label)
+        drift = None
+    else:
+        pdx, pdy, roll = motion.pose(plan.protocol, c.index)
+        drift = motion.drift_of(plan.protocol, c.index, c.frames)
+        # the condition's mean drift is rendered exactly (in the scene's pose), the drift
+        # about it per frame to first order (StarCamera.drift_chain)
+        d0 = (0.0, 0.0) if drift is None else tuple(float(v) for v in drift.mean(axis=0))
+        placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px + pdx + d0[0],
+                              platform_dy_px=c.platform_dy_px + pdy + d0[1], filter_nm=c.filter_nm,
+                              condition=stream, label=c.label, platform_roll_rad=roll)
+        if drift is not None:
+            drift = (drift - np.array(d0)[None, :], Placement(
+                layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
+                filter_nm=c.filter_nm, condition=stream, label=c.label))
+    return camera.scene(placement), drift
+
+
+def _fused_centroids(camera, chain, scene, drift, *, frames: int, seed: int, dark_mean, threshold_dn):
+    """A condition's frames exposed and centroided in one pass (:func:`_expose_centroid`, or
+    :func:`_expose_centroid_drift` for a drifting image): x, y, flux, flag as (frames, W)."""
+    if drift is None:
+        return _expose_centroid(camera, chain, scene, frames=frames, seed=seed, dark_mean=dark_mean,
+                                threshold_dn=threshold_dn)
+    return _expose_centroid_drift(camera, scene, drift, seed=seed, dark_mean=dark_mean, threshold_dn=threshold_dn)
+
+
+def _condition_windows(camera, scene, drift, *, frames: int, seed: int, dark_mean):
+    """A condition's exposed windows (:class:`simcam.starcam.render.Windows`) and their pixels
+    less the dark mean, float64 (frames x W, h, w)."""
+    win = (camera.render_windows(scene, frames=frames, seed=seed) if drift is None
+           else _render_windows_drift(camera, scene, drift, seed=seed))
+    pix = win.pixels.astype(np.float64)
+    if dark_mean is not None:
+        pix = pix - dark_mean[None]
+    return win, pix.reshape(scene.n_stars * frames, *pix.shape[2:])
+
+
+def _extra_columns(plan: AcquisitionPlan, cols: dict[str, list]):
+    """The columns a protocol's centroid table carries beside the centroids (condition; the
+    filter and the field where the plan names them) and the sorted field labels the field
+    column codes (``None`` without fields)."""
     extra = {"condition": np.concatenate(cols["cond"])}
     if any(c.filter_nm is not None for c in plan.conditions):
         extra["filter_nm"] = np.concatenate(cols["filt"])
@@ -342,25 +387,7 @@ def simulate(
         field_labels = np.array(sorted({c.field for c in plan.conditions}), dtype=object)
         extra["field"] = np.repeat(np.searchsorted(field_labels, [c.field for c in plan.conditions]),
                                    [s.size for s in cols["star"]])
-    if fused:
-        x, y, flux, flag = (np.concatenate(cols[k]) for k in ("x", "y", "flux", "flag"))
-    else:
-        # one centroiding call for the whole protocol (same options as per condition)
-        opts = {"background": "border", "noise_dn": np.concatenate(cols["noise"]),
-                "threshold_sigma": float(threshold_sigma)}
-        if method == "iwcog":
-            opts["weight_sigma_px"] = design_psf_sigma_px(scn)
-        x, y, flux, flag = _centroid_arrays(np.concatenate(cols["pix"]), x0=np.concatenate(cols["x0"]),
-                                            y0=np.concatenate(cols["y0"]), method=method, **opts)
-    table = _table_columns(star=np.concatenate(cols["star"]), frame=np.concatenate(cols["frame"]), x=x, y=y,
-                           flux=flux, flag=flag, flux_column="flux_dn", extra_columns=extra)
-    _warn_flags(table["flag"], table["star"], table["frame"])
-    if camera.onboard_correction is not None:
-        # the camera reports its centroids through its own distortion correction
-        # (optics.distortion_correction, simcam.starcam.correction), as a flight camera does
-        table["x"], table["y"] = camera.report_positions(table["x"], table["y"])
-    ref = _reference_points(scn, camera, marker_seed=marker_seed) if plan.protocol == "distortion" else None
-    return ProtocolData(plan.protocol, _Rows(table, field_labels), truths, ref, plan, wins, camera)
+    return extra, field_labels
 
 
 _LAYOUTS: dict = {}

@@ -76,6 +76,7 @@ import numpy as np
 
 from budget.starcam.protocols import centroid_options, make_plan
 from simcam import spectra
+from simcam.starcam import optics
 from simcam.starcam.correction import lamp_image_focal_px, poly_design
 from simcam.starcam.render import Placement
 from simcam.starcam.targets import calibration_grid, star_grid
@@ -443,8 +444,6 @@ def _field_grid(camera, n: int, margin_px: float = 40.0):
 
 def chromatic_shift_px(camera, weights, u, v):
     """Spectrum-weighted lateral-colour displacement (px) at focal points (u, v)."""
-    from simcam.starcam import optics
-
     scn = camera.scenario
     lc = scn.optics.lateral_colour
     su, sv = optics.lateral_colour_shift_px(

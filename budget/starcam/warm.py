@@ -85,7 +85,8 @@ def compile_support(arg: str) -> None:
     from numba import types
 
     from budget.centroid.kernels import border_one, cog_one
-    from simcam.rng import child_keys, poisson_prepared, std_normal
+    from simcam.rng import child_keys, std_normal
+    from simcam.rng_poisson import poisson_prepared
 
     opts = json.loads(arg)
     poisson_prepared(1.0, 2, 16, 0.0, 0.0, 0.0, 0.0, np.uint64(1), np.uint64(2))
@@ -124,7 +125,7 @@ def compile_stamps_and_exposure(arg: str) -> None:
     """The truths' control-variate tables (option ``truth``) through
     :func:`budget.starcam.kernels_truth.cv_prepare`, first (:func:`compile_support` needs
     them late), the serial stamp kernel through
-    :func:`simcam.starcam.optics.render_stamps` (a trial's camera renders serially), the
+    :func:`simcam.starcam.psf_stamps.render_stamps` (a trial's camera renders serially), the
     fixed pattern through
     :func:`simcam.detector.window_chain`, then on one tiny window the static condition's
     fused expose-and-centroid kernel (option ``fused``), the window exposure (option
@@ -136,7 +137,11 @@ def compile_stamps_and_exposure(arg: str) -> None:
     from simcam.detector import DetectorParams, expose_windows_frames, window_chain
     from simcam.rng import child_keys
     from simcam.starcam.kernels.windows import add_stamps_windows
-    from simcam.starcam.optics import render_shifted_stamps, render_stamps, stamp_profiles
+    from simcam.starcam.psf_stamps import (
+        render_shifted_stamps,
+        render_stamps,
+        stamp_profiles,
+    )
 
     opts = json.loads(arg)
     h = w = 5

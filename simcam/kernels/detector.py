@@ -30,7 +30,7 @@ EMVA Standard 1288 release 4.0 (2021) (linear camera model):
   quantisation noise variance 1/12 DN^2).
 
 Note for developers: numba's on-disk cache (``cache=True``) keys a kernel on its own
-source file only; after editing :mod:`simcam.rng`, delete the ``detector.*.nbi/nbc``
+source file only; after editing :mod:`simcam.rng` or :mod:`simcam.rng_poisson`, delete the ``detector.*.nbi/nbc``
 files under ``simcam/kernels/__pycache__`` or the kernels keep the old generator
 (``tests/test_detector.py::test_kernel_equals_composition_of_rng_primitives`` fails
 if they do).
@@ -46,16 +46,18 @@ from numba import njit, prange
 from simcam.rng import (
     SLOT_BITS,
     DRAW_BITS,
-    poisson,
-    poisson_from_word,
-    poisson_from_words,
-    poisson_prepared,
-    poisson_setup,
     random_bits64,
     std_normal,
     std_normal_from_word,
     uniform01,
     uniform01_from_word,
+)
+from simcam.rng_poisson import (
+    poisson,
+    poisson_from_word,
+    poisson_from_words,
+    poisson_prepared,
+    poisson_setup,
 )
 
 SLOT_PRNU = 0
@@ -356,7 +358,7 @@ def _frame_chunk(sig, gm, dm, out, pixel0, m, z, n, wp, wr, g, off, rn, fw, beta
     (the same two operations, so the same value), then the non-linearity, Poisson draw,
     full well, read noise and ADC as there. Only the frame key's draws are made, their
     first words (``wp``, ``wr``: uint64 scratch) in a loop of their own
-    (:func:`simcam.rng.poisson_from_word`, :func:`simcam.rng.std_normal_from_word`: the same variates).
+    (:func:`simcam.rng_poisson.poisson_from_word`, :func:`simcam.rng.std_normal_from_word`: the same variates).
     Returns 1 if a ``sig`` value is outside ``[0, max_signal_e]`` or NaN, else 0."""
     k = sig.shape[0]
     bad = False
@@ -510,7 +512,7 @@ def _noise_adc_pixel(v, pixel, g, off, rn, fw, frame_key, shot_noise, read_noise
 @njit(cache=True, inline="always")
 def _noise_adc_prepared(v, mode, pj, pr, pb, pa, pvr, pixel, g, off, rn, fw, frame_key,
                         shot_noise, read_noise, quantize, max_dn):
-    """:func:`_noise_adc_pixel` given ``simcam.rng.poisson_setup(v)`` (same value)."""
+    """:func:`_noise_adc_pixel` given ``simcam.rng_poisson.poisson_setup(v)`` (same value)."""
     if shot_noise:
         v = np.float64(poisson_prepared(v, mode, pj, pr, pb, pa, pvr, frame_key,
                                         slot_counter(pixel, SLOT_SHOT)))
@@ -562,7 +564,7 @@ def noise_adc_frames(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     """:func:`_noise_adc_row` for a block ``mean[h, w]`` at mosaic ``(row0, col0)`` in ``F``
     frames, into ``out[F, h, w]``: the same value per pixel and frame, computed pixel by
     pixel with the frames innermost, so that the chip constants and the Poisson set-up
-    of each pixel's mean (:func:`simcam.rng.poisson_setup`) are computed once."""
+    of each pixel's mean (:func:`simcam.rng_poisson.poisson_setup`) are computed once."""
     h, w = mean.shape
     nf = frame_keys.shape[0]
     j = 0
@@ -588,7 +590,7 @@ def noise_adc_window(mean, out, row0, col0, mosaic_cols, chip_cols, gain_e_per_d
     into ``out[h, w]`` (float64, C-contiguous), the same value per pixel, in passes over the
     block: the words of the pixels' Poisson and read-noise draws in one loop the compiler
     vectorises (the SplitMix64 multiplies), the counts from them
-    (:func:`simcam.rng.poisson_from_words`: PTRS means together), then, chip by chip, the
+    (:func:`simcam.rng_poisson.poisson_from_words`: PTRS means together), then, chip by chip, the
     full well, read noise (:func:`simcam.rng.std_normal_from_word`) and ADC
     (:func:`_noise_adc_prepared`'s operations in its order). ``words``: uint64 scratch
     (3, h w); ``scratch``: int64 scratch of 2 h w."""

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simcam.starcam import optics
+
 #: SeedSequence spawn-key root of the earlier calibration's errors (scenario seed)
 STREAM_ONBOARD_CALIBRATION = 103
 
@@ -73,8 +75,6 @@ def lamp_image_focal_px(camera, u_px, v_px):
     """Where the lab lamp (no filter) images the ideal focal point ``(u, v)``: distortion
     then the lamp-weighted lateral colour (focal px), as :meth:`simcam.starcam.render.StarCamera.scene`
     places an image."""
-    from simcam.starcam import optics
-
     scn = camera.scenario
     lc = scn.optics.lateral_colour
     ud, vd = camera.distortion.forward(u_px=np.asarray(u_px, float), v_px=np.asarray(v_px, float))

@@ -1,5 +1,7 @@
-"""Camera optics: pixel-integrated PSF stamps, PSF width over the field, lateral colour
-and geometric distortion.
+"""Camera optics: PSF width over the field, lateral colour and geometric distortion.
+
+The pixel-integrated PSF stamps that the renderer draws with these are in
+:mod:`simcam.starcam.psf_stamps`.
 
 Coordinates follow ``docs/conventions.md``: detector (mosaic) pixel coordinates have
 pixel centres at integers; focal-plane coordinates ``(u, v)`` are in nominal px from the
@@ -7,10 +9,6 @@ optical axis. Every displacement returned here is in px of the focal plane.
 
 Public API
 ----------
-render_stamps
-    Pixel-integrated, polychromatic images of pinhole stars (the renderer's hot path).
-airy_cutoff_cyc_per_px
-    Incoherent diffraction cutoff ``pixel_pitch / (wavelength * f_number)``.
 psf_sigma_px
     Parametric PSF width over the field.
 lateral_colour_shift_px, lateral_colour
@@ -24,11 +22,9 @@ BrownConradyDistortion, CubicDistortion, CompositeDistortion, HigherOrderRadialD
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-import numba
 import numpy as np
 
 from simcam.distortion import (  # noqa: F401  (shared with the line camera; re-exported here)
@@ -41,20 +37,10 @@ from simcam.distortion import (  # noqa: F401  (shared with the line camera; re-
     _finite_float,
     _positive_float,
 )
-from simcam.starcam import psf_transfer as _pt
-from simcam.starcam.kernels import psf as _psf
 
 __all__ = [
-    "PSF_KINDS",
-    "SPECTRUM_EPS",
-    "PARALLEL_MIN_TERMS",
     "OpticsError",
     "NonInvertibleDistortionError",
-    "airy_cutoff_cyc_per_px",
-    "render_stamps",
-    "StampProfiles",
-    "stamp_profiles",
-    "render_shifted_stamps",
     "psf_sigma_px",
     "lateral_colour_shift_px",
     "LateralColour",
@@ -66,330 +52,8 @@ __all__ = [
     "HigherOrderRadialDistortion",
 ]
 
-#: Camera PSF kinds understood by :func:`render_stamps`.
-PSF_KINDS = ("gaussian", "airy")
-
-#: Batches with more spectral terms than this run over numba threads when
-#: ``render_stamps(parallel=None)``: about 5-10 ms of serial work (1.5-2.5 ns per term).
-PARALLEL_MIN_TERMS = 4e6
-
-#: Spectral components whose Gaussian envelope is below this are dropped (the omitted
-#: flux per pixel is below ``SPECTRUM_EPS / (2 pi sigma^2)``).
-SPECTRUM_EPS = 1e-12
-
-
-def _broadcast(name: str, arr: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    try:
-        return np.ascontiguousarray(np.broadcast_to(arr, shape), dtype=np.float64)
-    except ValueError:
-        raise OpticsError(f"{name}: shape {arr.shape} does not match {shape}") from None
-
-
 # ----------------------------------------------------------------------------------------
-# A. pixel-integrated polychromatic PSF stamps
-
-
-def airy_cutoff_cyc_per_px(*, wavelength_nm, f_number: float, pixel_pitch_um: float) -> np.ndarray:
-    """Incoherent diffraction cutoff frequency of a circular aperture, in cycles/px.
-
-    ``rho_c = 1 / (lambda N)`` (Goodman, Introduction to Fourier Optics, Sec. 6.3), here
-    expressed per pixel: ``rho_c = pixel_pitch_um / (wavelength_um * f_number)``.
-
-    Parameters
-    ----------
-    wavelength_nm : array_like
-        Wavelength(s) in nm (> 0).
-    f_number : float
-        Working f-number ``N`` (> 0).
-    pixel_pitch_um : float
-        Pixel pitch in micrometres (> 0).
-
-    Returns
-    -------
-    ndarray
-        Cutoff in cycles/px, same shape as ``wavelength_nm``.
-    """
-    wl = _finite_array("wavelength_nm", wavelength_nm)
-    if np.any(wl <= 0):
-        raise OpticsError("wavelength_nm: must be > 0")
-    n = _positive_float("f_number", f_number)
-    p = _positive_float("pixel_pitch_um", pixel_pitch_um)
-    return p / (wl * 1e-3 * n)
-
-
-def render_stamps(
-    *,
-    x_px,
-    y_px,
-    stamp_px: int = 32,
-    psf_kind: str,
-    sigma_px,
-    pinhole_radius_px,
-    f_number: float | None = None,
-    pixel_pitch_um: float | None = None,
-    wavelength_nm,
-    weights,
-    shift_x_px,
-    shift_y_px,
-    parallel: bool | None = None,
-):
-    """Pixel-integrated polychromatic images of pinhole stars, one stamp per star.
-
-    Physics. The irradiance of star ``i`` on the detector is, for each wavelength
-    ``l``, the pinhole (uniform disc of radius ``a`` px) convolved with the camera PSF,
-    displaced by ``(x_i + sx_il, y_i + sy_il)``; the stamps hold the sum over
-    wavelengths with weights ``w_il`` (rows sum to 1), integrated over each pixel's unit
-    square (not sampled at pixel centres). In the Fourier domain (Goodman, Introduction
-    to Fourier Optics, Secs. 2.1 and 6.3) the pixel-integrated image ``g`` has spectrum::
-
-        G(fx, fy) = sum_l w_l OTF_disc(rho) OTF_cam(rho, l) sinc(fx) sinc(fy)
-                    exp(-2 pi i (fx x_l + fy y_l)),
-
-    with ``rho = sqrt(fx^2 + fy^2)`` in cycles/px, ``sinc(t) = sin(pi t)/(pi t)`` the
-    transfer function of the unit pixel, ``OTF_disc = 2 J1(2 pi a rho)/(2 pi a rho)``
-    and
-
-    * ``"gaussian"``: ``OTF_cam = exp(-2 pi^2 sigma^2 rho^2)`` (same for all ``l``);
-    * ``"airy"``: ``OTF_cam = chat(rho / rho_c(l)) exp(-2 pi^2 sigma^2 rho^2)``,
-      Goodman's circular-pupil OTF ``chat(v) = (2/pi)[acos v - v sqrt(1 - v^2)]``
-      (0 for ``v >= 1``), cutoff ``rho_c = pixel_pitch_um / (wavelength_um f_number)``,
-      and ``sigma`` an extra Gaussian blur (defocus, jitter; may be 0).
-
-    Method. By the Poisson summation formula the ``L``-periodic sum
-    ``sum_{m,n} g(c + mL - x, r + nL - y)`` at integer pixel offsets ``(c, r)`` equals
-    ``(1/L^2) sum_q G(q/L) exp(2 pi i q.(c, r)/L)``: the continuous spectrum sampled at
-    multiples of ``1/L`` and folded (aliased) onto ``L x L`` frequencies, then one
-    inverse DFT. The sum over ``q`` is truncated where the integrand is negligible:
-    at the Airy cutoff, and where the Gaussian envelope falls below
-    :data:`SPECTRUM_EPS` = 1e-12 (omitted flux per pixel below
-    ``1e-12 / (2 pi sigma^2)``). Within that, the result is exact: no sampling of the
-    PSF at pixel centres, no sub-pixel grid, no interpolation. The kernel
-    (:func:`simcam.starcam.kernels.psf.folded_stamp_spectra`) uses Hermitian symmetry,
-    reads the radial factors tabulated on integer ``qx^2 + qy^2``
-    (:func:`simcam.starcam.psf_transfer.radial_tables`), and for large batches runs
-    in parallel over stars (each star independent, so results do not depend on the
-    thread count). The final ``L x L`` inverse DFT is ``numpy.fft.ifft2`` (pocketfft, as
-    ``scipy.fft``, without its 0.13 s import).
-
-    Periodisation. The stamp is one period of the periodic image: flux that falls
-    outside the ``L x L`` box wraps around into the opposite edge, so each stamp sums
-    to exactly 1 (flux is conserved) and a pixel value carries an error equal to the
-    PSF flux in the pixels one or more periods away. For a Gaussian this is
-    ``~ exp(-(L/2)^2 / (2 sigma^2))``, negligible for ``L >= 12 sigma``. The Airy
-    pattern's wings fall only as ``r^-3``: its mean intensity far out is
-    ``1 / (pi^3 rho_c r^3)`` per px^2 (from ``J1(x)^2 ~ 1/(pi x)`` on average), so a
-    pixel near the core receives about ``9.03 / (pi^3 rho_c L^3)`` of wrapped flux
-    (9.03 = sum over the non-zero integer lattice of ``|m|^-3``): 3.9e-6 of the
-    star's flux for ``rho_c = 2.29`` (600 nm, f/4, 5.5 um), ``L = 32``; 4.9e-7 at
-    ``L = 64``; pixels near the stamp edge receive more (up to the wing intensity
-    itself). ``tests/test_optics.py`` checks this estimate against quadrature. Choose
-    ``stamp_px`` accordingly; a pinhole radius or blur comparable to ``L/2`` needs a
-    larger stamp.
-
-    Cost grows as ``n * n_l * (L f_max)^2`` with ``f_max`` the frequency extent
-    (about ``1.18 / sigma`` cycles/px for a Gaussian, ``rho_c`` for a sharp Airy).
-
-    Parameters
-    ----------
-    x_px, y_px : array_like, shape (n,)
-        Star position at the reference wavelength, detector px (pixel centres at
-        integers).
-    stamp_px : int
-        Stamp side ``L`` in px (>= 4). Default 32.
-    psf_kind : {"gaussian", "airy"}
-        Camera PSF kind.
-    sigma_px : float or array_like, shape (n,)
-        Gaussian sigma in px: the PSF width for ``"gaussian"`` (> 0), the extra blur for
-        ``"airy"`` (>= 0). Evaluated per star by the caller (see :func:`psf_sigma_px`).
-    pinhole_radius_px : float or array_like, shape (n,)
-        Radius of the pinhole's geometric image in px (>= 0; 0 is a point source).
-    f_number : float, optional
-        Working f-number (``"airy"`` only, required there).
-    pixel_pitch_um : float, optional
-        Pixel pitch in micrometres (``"airy"`` only, required there).
-    wavelength_nm : array_like, shape (n_l,)
-        Wavelength samples in nm (> 0).
-    weights : array_like, shape (n, n_l) or (n_l,)
-        Flux fraction of each wavelength (>= 0, each row sums to 1 within 1e-9).
-    shift_x_px, shift_y_px : array_like, broadcastable to (n, n_l)
-        Lateral-colour displacement of each wavelength relative to ``(x_px, y_px)``,
-        px (see :func:`lateral_colour_shift_px`).
-    parallel : bool or None
-        Spread the stars over numba threads. ``None`` (default): only when the batch
-        holds more than :data:`PARALLEL_MIN_TERMS` spectral terms (see
-        :func:`simcam.starcam.psf_transfer.stamp_work`) and more than one thread is available;
-        small batches run serially, which is faster than waking threads and immune to
-        stalls on a busy machine. The result is bit-identical either way.
-
-    Returns
-    -------
-    stamps : ndarray, shape (n, L, L), float64
-        Fraction of the star's flux landing in each pixel; ``stamps[i, r, c]`` is
-        detector pixel ``(x = origin_x[i] + c, y = origin_y[i] + r)``.
-    origin_x, origin_y : ndarray, shape (n,), int64
-        Detector pixel of ``stamps[:, 0, 0]``: ``floor(x_px + 0.5) - L // 2`` (the
-        nearest pixel, halves rounded up, minus ``L // 2``), same for ``y``.
-
-    Raises
-    ------
-    OpticsError
-        A parameter is missing, of the wrong shape, non-finite or out of range.
-    """
-    if isinstance(stamp_px, bool) or not isinstance(stamp_px, (int, np.integer)):
-        raise OpticsError(f"stamp_px: expected an integer, got {stamp_px!r}")
-    L = int(stamp_px)
-    if L < 4:
-        raise OpticsError(f"stamp_px: must be >= 4, got {L}")
-    if psf_kind not in PSF_KINDS:
-        raise OpticsError(f"psf_kind: must be one of {PSF_KINDS}, got {psf_kind!r}")
-    x = _finite_array("x_px", x_px)
-    y = _finite_array("y_px", y_px)
-    if x.ndim != 1:
-        raise OpticsError(f"x_px: expected shape (n,), got {x.shape}")
-    if y.shape != x.shape:
-        raise OpticsError(f"y_px: shape {y.shape} differs from x_px {x.shape}")
-    n = x.shape[0]
-    wl = _finite_array("wavelength_nm", wavelength_nm)
-    if wl.ndim != 1 or wl.shape[0] == 0:
-        raise OpticsError(f"wavelength_nm: expected shape (n_l,) with n_l >= 1, got {wl.shape}")
-    if np.any(wl <= 0):
-        raise OpticsError("wavelength_nm: must be > 0")
-    n_l = wl.shape[0]
-    sig = _broadcast("sigma_px", _finite_array("sigma_px", sigma_px), (n,))
-    if psf_kind == "gaussian":
-        if np.any(sig <= 0):
-            raise OpticsError("sigma_px: the Gaussian PSF sigma must be > 0")
-        cutoff = np.zeros(n_l)
-        is_airy = False
-    else:
-        if np.any(sig < 0):
-            raise OpticsError("sigma_px: the Airy extra blur must be >= 0")
-        if f_number is None:
-            raise OpticsError("f_number: required for psf_kind='airy'")
-        if pixel_pitch_um is None:
-            raise OpticsError("pixel_pitch_um: required for psf_kind='airy'")
-        cutoff = airy_cutoff_cyc_per_px(
-            wavelength_nm=wl, f_number=f_number, pixel_pitch_um=pixel_pitch_um
-        )
-        is_airy = True
-    rad = _broadcast("pinhole_radius_px", _finite_array("pinhole_radius_px", pinhole_radius_px), (n,))
-    if np.any(rad < 0):
-        raise OpticsError("pinhole_radius_px: must be >= 0")
-    w = _broadcast("weights", _finite_array("weights", weights), (n, n_l))
-    if np.any(w < 0):
-        raise OpticsError("weights: must be >= 0")
-    if n and np.any(np.abs(w.sum(axis=1) - 1.0) > 1e-9):
-        raise OpticsError("weights: each row must sum to 1 (within 1e-9)")
-    sx = _broadcast("shift_x_px", _finite_array("shift_x_px", shift_x_px), (n, n_l))
-    sy = _broadcast("shift_y_px", _finite_array("shift_y_px", shift_y_px), (n, n_l))
-
-    origin_x = np.floor(x + 0.5).astype(np.int64) - L // 2
-    origin_y = np.floor(y + 0.5).astype(np.int64) - L // 2
-    pos_x = x - origin_x
-    pos_y = y - origin_y
-    if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
-        raise OpticsError(f"parallel: expected True, False or None, got {parallel!r}")
-    spectra = np.zeros((n, L, L), dtype=np.complex128)
-    cutoff = np.array(cutoff, dtype=np.float64)
-    if n:
-        qmax = _pt.freq_extent_cyc_per_px(sig, w, cutoff, is_airy, -math.log(SPECTRUM_EPS)) * L
-        chat, disc = _pt.radial_tables(qmax, rad, cutoff, is_airy, L)
-        if parallel is None:
-            parallel = numba.get_num_threads() > 1 and _pt.stamp_work(qmax, n_l) > PARALLEL_MIN_TERMS
-        kernel = _psf.folded_stamp_spectra_parallel if parallel else _psf.folded_stamp_spectra
-        # writable contiguous copies (a few numbers per star): the kernel sees one type
-        # whatever the caller passed (a broadcast view is read-only), so numba compiles it once
-        a = [np.array(v, dtype=np.float64) for v in (pos_x, pos_y, sx, sy, w, sig, qmax)]
-        kernel(*a, cutoff, bool(is_airy), chat, disc, spectra)
-    stamps = np.fft.ifft2(spectra, axes=(-2, -1)).real
-    return stamps, origin_x, origin_y
-
-
-@dataclass(frozen=True)
-class StampProfiles:
-    """Position-free spectra of a batch of star images (:func:`stamp_profiles`): what
-    :func:`render_shifted_stamps` moves to each star's actual position and width."""
-
-    stamp_px: int
-    spectra: np.ndarray  # (n, K + 1, 2 K + 1) complex128, half plane, no position, no Gaussian
-    qmax: np.ndarray  # (n,) frequency extent, lattice units
-    zero: np.ndarray  # (n,) zero-frequency term (the sum of the weights)
-    mean_shift_x_px: np.ndarray  # (n,) weighted mean lateral-colour shift built into the spectra
-    mean_shift_y_px: np.ndarray
-    sigma_px: np.ndarray  # (n,) the Gaussian sigma the extents were sized for
-
-
-def stamp_profiles(*, stamp_px: int = 32, psf_kind: str, sigma_px, pinhole_radius_px, f_number=None,
-                   pixel_pitch_um=None, wavelength_nm, weights, shift_x_px, shift_y_px) -> StampProfiles:
-    """The spectra of :func:`render_stamps` without the star's position and Gaussian factor.
-
-    :func:`render_stamps` writes, per star, ``G(q) = P(q) exp(-2 pi^2 s^2 |q|^2 / L^2)
-    exp(-2 pi i q.x / L)`` with ``P(q) = sinc sinc OTF_disc sum_l w_l [chat_l]
-    exp(-2 pi i q.s_l / L)``: only ``P`` costs a sum over the ``n_l`` wavelengths, and it
-    depends on the position only through the lateral-colour shifts ``s_l``, which vary
-    slowly over the field. This computes ``P`` once (same arguments as
-    :func:`render_stamps` without the positions); :func:`render_shifted_stamps` then
-    places each star at any position and width for one term per frequency.
-    """
-    L = int(stamp_px)
-    if psf_kind not in PSF_KINDS:
-        raise OpticsError(f"psf_kind: must be one of {PSF_KINDS}, got {psf_kind!r}")
-    sig = np.ascontiguousarray(sigma_px, dtype=np.float64)
-    n = sig.shape[0]
-    wl = np.asarray(wavelength_nm, dtype=np.float64)
-    n_l = wl.shape[0]
-    # writable contiguous copies: the kernel sees one type whatever the caller passed (a
-    # broadcast view is read-only), so numba compiles it once
-    w, sx, sy = (np.array(_broadcast(name, np.asarray(v, dtype=np.float64), (n, n_l)))
-                 for name, v in (("weights", weights), ("shift_x_px", shift_x_px), ("shift_y_px", shift_y_px)))
-    rad = _broadcast("pinhole_radius_px", np.asarray(pinhole_radius_px, dtype=np.float64), (n,))
-    is_airy = psf_kind == "airy"
-    cutoff = (airy_cutoff_cyc_per_px(wavelength_nm=wl, f_number=f_number, pixel_pitch_um=pixel_pitch_um)
-              if is_airy else np.zeros(n_l))
-    cutoff = np.array(cutoff, dtype=np.float64)
-    qmax = _pt.freq_extent_cyc_per_px(sig, w, cutoff, is_airy, -math.log(SPECTRUM_EPS)) * L
-    if n and not np.all(np.isfinite(qmax)):
-        raise OpticsError("sigma_px: the profile route needs a finite frequency extent (sigma > 0 or an Airy PSF)")
-    K = int(math.floor(qmax.max())) if n else 0
-    chat, disc = _pt.radial_tables(qmax, rad, cutoff, is_airy, L)
-    spectra = np.zeros((n, K + 1, 2 * K + 1), dtype=np.complex128)
-    if n:
-        _psf.stamp_profiles(sx, sy, w, np.array(qmax), cutoff, bool(is_airy), chat, disc, L, spectra)
-    return StampProfiles(stamp_px=L, spectra=spectra, qmax=np.array(qmax), zero=w.sum(axis=1),
-                         mean_shift_x_px=np.einsum("ij,ij->i", w, sx), mean_shift_y_px=np.einsum("ij,ij->i", w, sy),
-                         sigma_px=sig.copy())
-
-
-def render_shifted_stamps(profiles: StampProfiles, *, x_px, y_px, sigma_px, mean_shift_x_px, mean_shift_y_px):
-    """:func:`render_stamps` of the profiled stars (:func:`stamp_profiles`) at new positions.
-
-    Each star ``i`` is placed at ``(x_i, y_i) + (mean_shift_i - profile mean shift_i)``
-    with Gaussian sigma ``sigma_px[i]``; both exactly (a phase ramp and the Gaussian
-    factor, separable products). What is approximated is the lateral colour: the shifts
-    ``s_l`` of each wavelength keep the profile's values apart from their weighted mean,
-    which follows the star (``mean_shift_*_px``: ``sum_l w_l s_l`` at the new position).
-    The change of ``s_l - mean`` between the profile's position and the new one is a
-    first-order change of the image by ``sum_l w_l (ds_l - mean ds) . grad I_l``, which
-    ``tests/test_render.py`` bounds and checks against :func:`render_stamps`.
-    Returns ``(stamps, origin_x, origin_y)`` as :func:`render_stamps`.
-    """
-    L = profiles.stamp_px
-    x = np.asarray(x_px, dtype=np.float64)
-    y = np.asarray(y_px, dtype=np.float64)
-    origin_x = np.floor(x + 0.5).astype(np.int64) - L // 2
-    origin_y = np.floor(y + 0.5).astype(np.int64) - L // 2
-    px = x - origin_x + (np.asarray(mean_shift_x_px, dtype=np.float64) - profiles.mean_shift_x_px)
-    py = y - origin_y + (np.asarray(mean_shift_y_px, dtype=np.float64) - profiles.mean_shift_y_px)
-    half = np.zeros((x.shape[0], L, L // 2 + 1), dtype=np.complex128)
-    if x.shape[0]:
-        _psf.shifted_stamp_spectra(profiles.spectra, profiles.qmax, profiles.zero, px, py,
-                                   np.array(sigma_px, dtype=np.float64), L, half)
-    stamps = np.fft.irfft2(half, s=(L, L), axes=(-2, -1))
-    return stamps, origin_x, origin_y
-
-
-# ----------------------------------------------------------------------------------------
-# B. PSF width over the field
+# A. PSF width over the field
 
 
 def psf_sigma_px(*, u_px, v_px, sigma0_px: float, sigma_r2_px: float, r_norm_px: float) -> np.ndarray:
@@ -436,7 +100,7 @@ def psf_sigma_px(*, u_px, v_px, sigma0_px: float, sigma_r2_px: float, r_norm_px:
 
 
 # ----------------------------------------------------------------------------------------
-# C. lateral colour
+# B. lateral colour
 
 
 def _poly_no_constant(dl: np.ndarray, coeffs: tuple[float, ...]) -> np.ndarray:
@@ -584,7 +248,7 @@ def lateral_colour(*, wavelength_nm, ref_wavelength_nm: float, radial_coeffs=(),
 
 
 # ----------------------------------------------------------------------------------------
-# D. distortion
+# C. distortion
 
 
 #: Order of the 10 monomials of :class:`CubicDistortion` in normalised coordinates.

@@ -31,7 +31,7 @@ import pandas as pd
 from simcam.detector import DetectorParams, detector_maps, expose, expose_windows_frames, window_chain
 from simcam.infra.errors import ScenarioError
 from simcam.rng import child_keys, key_from_seed
-from simcam.starcam import optics
+from simcam.starcam import optics, psf_stamps
 from simcam.starcam.correction import fit_onboard_correction
 from simcam.starcam.geometry import Mosaic
 from simcam.starcam.kernels.windows import add_stamps_windows
@@ -348,7 +348,7 @@ class StarCamera:
                 math.floor(placement.platform_dy_px / h + 0.5) * h)
 
     def _stamp_profiles(self, placement: Placement, chip, wl, weights_1d, node=None):
-        """The stamp profiles (:func:`simcam.starcam.optics.stamp_profiles`) of the placement's
+        """The stamp profiles (:func:`simcam.starcam.psf_stamps.stamp_profiles`) of the placement's
         stars at the pose ``node`` (default :meth:`profile_node`): the same chain as
         :meth:`_scene` (distortion, lateral colour, PSF width) at that pose, in the chips the
         stars land on. Cached per target, filter, pose and chips (the last 64)."""
@@ -369,7 +369,7 @@ class StarCamera:
                 sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px,
             )
             W = lay.n_stars
-            hit = optics.stamp_profiles(
+            hit = psf_stamps.stamp_profiles(
                 stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind, sigma_px=sig,
                 pinhole_radius_px=lay.pinhole_radius_px, f_number=scn.camera.f_number,
                 pixel_pitch_um=scn.camera.pixel_pitch_um, wavelength_nm=wl,
@@ -414,11 +414,11 @@ class StarCamera:
         )
         if scn.render.stamp_route == "profile":
             prof = self._stamp_profiles(placement, chip, wl, weights_1d, profile_node)
-            stamps, c0, r0 = optics.render_shifted_stamps(
+            stamps, c0, r0 = psf_stamps.render_shifted_stamps(
                 prof, x_px=xr, y_px=yr, sigma_px=sig, mean_shift_x_px=sx @ weights_1d,
                 mean_shift_y_px=sy @ weights_1d)
         else:
-            stamps, c0, r0 = optics.render_stamps(
+            stamps, c0, r0 = psf_stamps.render_stamps(
                 x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
                 sigma_px=sig, pinhole_radius_px=lay.pinhole_radius_px,
                 f_number=scn.camera.f_number, pixel_pitch_um=scn.camera.pixel_pitch_um,

@@ -62,19 +62,29 @@ def write_plots(products, fit, out: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     p_mm = products.pixel_pitch_um * 1e-3
     wl = products.wavelength_nm
-    nf = products.field_deg.size
     u = -products.centroid_x_mm / p_mm
     from scipy.interpolate import CubicSpline
 
     u_ref = CubicSpline(wl, u, axis=1)(products.reference_wavelength_nm)
-    files = []
+    return [
+        _plot_spots(products, u, u_ref, out / "spot_diagrams.png"),
+        _plot_distortion(products, fit, u_ref, out / "distortion.png"),
+        _plot_lateral_colour(products, u, u_ref, out / "lateral_colour.png"),
+        _plot_psf(products, out / "psf.png"),
+    ]
+
+
+def _plot_spots(products, u, u_ref, path: Path) -> Path:
+    """Spot diagrams: one panel per field, every wavelength, offset by its lateral colour."""
+    import matplotlib.pyplot as plt
+
+    wl = products.wavelength_nm
+    nf = products.field_deg.size
     cmap = plt.get_cmap("turbo")
     colours = [cmap(i / max(1, wl.size - 1)) for i in range(wl.size)]
-    # 1. spot diagrams: one panel per field, every wavelength, offset by its lateral colour
     picks = np.unique(np.linspace(0, nf - 1, min(nf, 5)).round().astype(int))
     fig, axes = plt.subplots(1, picks.size, figsize=(3.2 * picks.size, 3.6), squeeze=False)
     for ax, f in zip(axes[0], picks):
@@ -98,10 +108,15 @@ def write_plots(products, fit, out: Path) -> list[Path]:
     sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(wl[0], wl[-1]))
     fig.colorbar(sm, ax=list(axes[0]), shrink=0.8, pad=0.01).set_label("wavelength (nm)", fontsize=8)
     fig.suptitle(f"{products.prescription_name}: spot diagrams ({wl[0]:g}-{wl[-1]:g} nm, box = 1 px)", fontsize=10)
-    files.append(out / "spot_diagrams.png")
-    fig.savefig(files[-1], dpi=130)
+    fig.savefig(path, dpi=130)
     plt.close(fig)
-    # 2. distortion: radial curve with the simulator's fit, and a map over the field
+    return path
+
+
+def _plot_distortion(products, fit, u_ref, path: Path) -> Path:
+    """Distortion: the radial curve with the simulator's fit, and a map over the field."""
+    import matplotlib.pyplot as plt
+
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
     ideal = fit.ideal_u_px
     a1.plot(products.field_deg, u_ref - ideal, "o", label="traced centroid")
@@ -128,10 +143,17 @@ def write_plots(products, fit, out: Path) -> list[Path]:
     a2.set_ylabel("v (px)")
     a2.set_title("distortion map (arrows not to scale)", fontsize=9)
     fig.tight_layout()
-    files.append(out / "distortion.png")
-    fig.savefig(files[-1], dpi=130)
+    fig.savefig(path, dpi=130)
     plt.close(fig)
-    # 3. lateral colour curves
+    return path
+
+
+def _plot_lateral_colour(products, u, u_ref, path: Path) -> Path:
+    """Lateral colour: the radial centroid shift from the reference wavelength, per field."""
+    import matplotlib.pyplot as plt
+
+    wl = products.wavelength_nm
+    nf = products.field_deg.size
     fig, ax = plt.subplots(figsize=(6.5, 4.4))
     fcm = plt.get_cmap("viridis")
     for f in range(1, nf):
@@ -144,10 +166,17 @@ def write_plots(products, fit, out: Path) -> list[Path]:
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    files.append(out / "lateral_colour.png")
-    fig.savefig(files[-1], dpi=130)
+    fig.savefig(path, dpi=130)
     plt.close(fig)
-    # 4. PSF stamps (log scale) at the edge and centre of the field, three wavelengths
+    return path
+
+
+def _plot_psf(products, path: Path) -> Path:
+    """PSF stamps (log scale) at the edge and centre of the field, three wavelengths."""
+    import matplotlib.pyplot as plt
+
+    wl = products.wavelength_nm
+    nf = products.field_deg.size
     lpick = np.unique(np.linspace(0, wl.size - 1, 3).round().astype(int))
     fpick = np.unique([0, nf // 2, nf - 1])
     fig, axes = plt.subplots(fpick.size, lpick.size, figsize=(3 * lpick.size, 3 * fpick.size), squeeze=False)
@@ -162,10 +191,9 @@ def write_plots(products, fit, out: Path) -> list[Path]:
             axes[i][j].set_title(f"{products.field_deg[f]:.2f} deg, {wl[li]:g} nm", fontsize=8)
     fig.suptitle("pixel-integrated PSF (log10 of the flux fraction per px)", fontsize=10)
     fig.tight_layout()
-    files.append(out / "psf.png")
-    fig.savefig(files[-1], dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
-    return files
+    return path
 
 
 @click.command("optics")

@@ -345,29 +345,57 @@ def compute_products(prescription, *, variant: str | None = None, tracer: LensTr
     if tr.prescription is not p and tr.prescription.hash != p.hash:
         raise LensError("compute_products: the tracer was built for another prescription")
     an = p.analysis
-    fields_deg = an.field_deg
-    wls = an.wavelength_nm
-    nf, nl = fields_deg.size, wls.size
     para = paraxial(p, wavelength_nm=an.reference_wavelength_nm)
-    para_l = [paraxial(p, wavelength_nm=float(w)) for w in wls]
+    para_l = [paraxial(p, wavelength_nm=float(w)) for w in an.wavelength_nm]
     z_last = float(p.vertex_z_mm[-1])
-    total = nf * nl * (2 if an.focus == "best" else 1)
-    done = 0
+    counter = _BundleCounter(progress, an.field_deg.size * an.wavelength_nm.size * (2 if an.focus == "best" else 1))
+    z_img = _image_plane_z(p, tr, para, z_last=z_last, counter=counter)
+    chief = _chief_ray_x(p, tr, para, z_img=z_img)
+    grid = _field_products(p, tr, para, z_img=z_img, counter=counter)
+    return LensProducts(
+        prescription_name=p.name, prescription_hash=p.hash, variant=tr.variant,
+        field_deg=an.field_deg, wavelength_nm=an.wavelength_nm, reference_wavelength_nm=an.reference_wavelength_nm,
+        efl_mm=para.efl_mm, bfd_mm=para.bfd_mm, f_number=para.f_number,
+        entrance_pupil_radius_mm=para.entrance_pupil_radius_mm, entrance_pupil_z_mm=para.entrance_pupil_z_mm,
+        paraxial_efl_mm=np.array([q.efl_mm for q in para_l]), paraxial_bfd_mm=np.array([q.bfd_mm for q in para_l]),
+        focus=an.focus, image_z_mm=float(z_img), last_vertex_z_mm=z_last, rays_per_bundle=an.rays_per_bundle,
+        chief_x_mm=chief, pixel_pitch_um=an.pixel_pitch_um, **grid,
+        elapsed_s=time.perf_counter() - t_start,
+    )
 
-    def tick():
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(done, total)
 
-    def check(res, f, w):
-        if not res.alive.any():
-            worst = np.unravel_index(int(np.argmax(res.losses())), res.losses().shape)
-            raise LensError(
-                f"{p.name}: every ray of the bundle at field {f:g} deg, {w:g} nm is lost (most at "
-                f"surfaces.{worst[0]}: {LOSS_REASONS[worst[1]]}; {res.describe_losses()})"
-            )
+class _BundleCounter:
+    """The bundles traced so far, reported as ``progress(done, total)`` after each."""
 
+    def __init__(self, progress, total: int) -> None:
+        self.progress = progress
+        self.total = total
+        self.done = 0
+
+    def tick(self) -> None:
+        self.done += 1
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+
+
+def _check_bundle(p, res, f, w) -> None:
+    """A :class:`LensError` naming the field, wavelength and the surface where most rays were
+    lost when every ray of the bundle ``res`` is lost."""
+    if not res.alive.any():
+        worst = np.unravel_index(int(np.argmax(res.losses())), res.losses().shape)
+        raise LensError(
+            f"{p.name}: every ray of the bundle at field {f:g} deg, {w:g} nm is lost (most at "
+            f"surfaces.{worst[0]}: {LOSS_REASONS[worst[1]]}; {res.describe_losses()})"
+        )
+
+
+def _image_plane_z(p, tr: LensTracer, para, *, z_last: float, counter: _BundleCounter) -> float:
+    """The image plane ``z`` (mm) of the analysis's focus: ``best`` (one pass over every field
+    and wavelength with the smaller bundles, :func:`best_focus_z`), ``paraxial`` or the
+    prescription's last thickness."""
+    an = p.analysis
+    fields_deg, wls = an.field_deg, an.wavelength_nm
+    nf, nl = fields_deg.size, wls.size
     z_par = z_last + para.bfd_mm
     if an.focus == "best":
         # one pass over every field and wavelength with the smaller bundles
@@ -380,28 +408,22 @@ def compute_products(prescription, *, variant: str | None = None, tracer: LensTr
         for fi, f in enumerate(fields_deg):
             for li, w in enumerate(wls):
                 b = res.subset(slice((fi * nl + li) * nfr, (fi * nl + li + 1) * nfr))
-                check(b, f, w)
+                _check_bundle(p, b, f, w)
                 first.append(b)
-                tick()
-        z_img = best_focus_z(first, z_ref=z_par)
-        del first, res, batch
-    elif an.focus == "paraxial":
-        z_img = z_par
-    else:
-        z_img = z_last + p.image_distance_mm
+                counter.tick()
+        return best_focus_z(first, z_ref=z_par)
+    if an.focus == "paraxial":
+        return z_par
+    return z_last + p.image_distance_mm
 
-    shape = (nf, nl)
-    cx, cy, chief = np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    sx, sy, trans, outside = np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    losses = np.zeros(shape + (len(p.surfaces), 3), dtype=np.int64)
-    L = an.psf_stamp_px
-    psf = np.zeros(shape + (L, L))
-    spot_dx = np.full(shape + (SPOT_SAMPLES,), np.nan)
-    spot_dy = np.full(shape + (SPOT_SAMPLES,), np.nan)
-    n = an.rays_per_bundle
-    stride = max(1, n // SPOT_SAMPLES)
-    pitch_mm = an.pixel_pitch_um * 1e-3
-    # chief rays: one ray per field and wavelength through the entrance-pupil centre
+
+def _chief_ray_x(p, tr: LensTracer, para, *, z_img: float) -> np.ndarray:
+    """Where the chief rays (one per field and wavelength, through the entrance-pupil centre)
+    land on the image plane: ``x`` (mm, (fields, wavelengths); NaN where lost)."""
+    an = p.analysis
+    fields_deg, wls = an.field_deg, an.wavelength_nm
+    nf, nl = fields_deg.size, wls.size
+    chief = np.zeros((nf, nl))
     th = np.radians(fields_deg)
     d0 = np.stack([-np.sin(th), np.zeros(nf), np.cos(th)])
     zs = min(para.entrance_pupil_z_mm, -abs(float(p.surfaces[0].shape.sag(p.surfaces[0].semi_diameter_mm**2))),
@@ -411,6 +433,27 @@ def compute_products(prescription, *, variant: str | None = None, tracer: LensTr
     res = tr._trace_indexed(c0, wls, np.repeat(np.arange(nl, dtype=np.uint32), nf), np.repeat(wls, nf))
     t = (z_img - res.z_mm) / res.dz
     chief[:] = np.where(res.alive, res.x_mm + t * res.dx, np.nan).reshape(nl, nf).T
+    return chief
+
+
+def _field_products(p, tr: LensTracer, para, *, z_img: float, counter: _BundleCounter) -> dict:
+    """The full bundles of every field and wavelength traced to the image plane: their
+    centroids, spot rms, transmitted fraction, losses, PSF stamps and spot samples, as the
+    :class:`LensProducts` fields of those names."""
+    an = p.analysis
+    fields_deg, wls = an.field_deg, an.wavelength_nm
+    nf, nl = fields_deg.size, wls.size
+    shape = (nf, nl)
+    cx, cy = np.zeros(shape), np.zeros(shape)
+    sx, sy, trans, outside = np.zeros(shape), np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    losses = np.zeros(shape + (len(p.surfaces), 3), dtype=np.int64)
+    L = an.psf_stamp_px
+    psf = np.zeros(shape + (L, L))
+    spot_dx = np.full(shape + (SPOT_SAMPLES,), np.nan)
+    spot_dy = np.full(shape + (SPOT_SAMPLES,), np.nan)
+    n = an.rays_per_bundle
+    stride = max(1, n // SPOT_SAMPLES)
+    pitch_mm = an.pixel_pitch_um * 1e-3
     wl_rays = np.repeat(wls, n)
     wl_index = np.repeat(np.arange(nl, dtype=np.uint32), n)
     for fi, f in enumerate(fields_deg):
@@ -418,7 +461,7 @@ def compute_products(prescription, *, variant: str | None = None, tracer: LensTr
         res = tr._trace_indexed([np.tile(a, nl) for a in rays], wls, wl_index, wl_rays)
         for li, w in enumerate(wls):
             b = res.subset(slice(li * n, (li + 1) * n))
-            check(b, f, w)
+            _check_bundle(p, b, f, w)
             x, y = b.at_plane(z_img)
             mx, my = x.mean(), y.mean()
             cx[fi, li], cy[fi, li] = mx, my
@@ -436,20 +479,10 @@ def compute_products(prescription, *, variant: str | None = None, tracer: LensTr
             xs, ys = full_x[::stride][:SPOT_SAMPLES], full_y[::stride][:SPOT_SAMPLES]
             spot_dx[fi, li, : xs.size] = xs
             spot_dy[fi, li, : ys.size] = ys
-            tick()
+            counter.tick()
         del res
-    return LensProducts(
-        prescription_name=p.name, prescription_hash=p.hash, variant=tr.variant,
-        field_deg=fields_deg, wavelength_nm=wls, reference_wavelength_nm=an.reference_wavelength_nm,
-        efl_mm=para.efl_mm, bfd_mm=para.bfd_mm, f_number=para.f_number,
-        entrance_pupil_radius_mm=para.entrance_pupil_radius_mm, entrance_pupil_z_mm=para.entrance_pupil_z_mm,
-        paraxial_efl_mm=np.array([q.efl_mm for q in para_l]), paraxial_bfd_mm=np.array([q.bfd_mm for q in para_l]),
-        focus=an.focus, image_z_mm=float(z_img), last_vertex_z_mm=z_last, rays_per_bundle=n,
-        centroid_x_mm=cx, centroid_y_mm=cy, chief_x_mm=chief, sigma_x_mm=sx, sigma_y_mm=sy,
-        transmitted_fraction=trans, losses=losses, pixel_pitch_um=an.pixel_pitch_um, psf=psf,
-        psf_outside_fraction=outside, spot_dx_mm=spot_dx, spot_dy_mm=spot_dy,
-        elapsed_s=time.perf_counter() - t_start,
-    )
+    return dict(centroid_x_mm=cx, centroid_y_mm=cy, sigma_x_mm=sx, sigma_y_mm=sy, transmitted_fraction=trans,
+                losses=losses, psf=psf, psf_outside_fraction=outside, spot_dx_mm=spot_dx, spot_dy_mm=spot_dy)
 
 
 _MEMO: dict[str, LensProducts] = {}

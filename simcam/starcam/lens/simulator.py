@@ -47,6 +47,7 @@ import numpy as np
 from pydantic import ValidationError
 from scipy.interpolate import CubicSpline
 
+from simcam.starcam import optics
 from simcam.starcam.instrument import (CameraModel, DetectorModel, DistortionModel, LateralColourModel, OpticsModel,
                                        PSFModel, RenderModel)
 from simcam.starcam.lens.errors import LensError
@@ -140,8 +141,6 @@ class SimulatorOptics:
 
     def distortion(self):
         """The fitted :class:`simcam.starcam.optics.CompositeDistortion`."""
-        from simcam.starcam import optics
-
         return optics.CompositeDistortion(
             brown_conrady=optics.BrownConradyDistortion(k1=self.k1, k2=self.k2, r_norm_px=self.r_norm_px),
             cubic=optics.CubicDistortion(coeffs_x=self.cubic_x_px, coeffs_y=self.cubic_y_px, r_norm_px=self.r_norm_px),
@@ -306,10 +305,55 @@ def apply_lens(data: dict) -> dict:
         aperture that contradicts the lens, a field or wavelength range the lens does not
         cover, a lens-set value given with another value.
     """
+    ctx = _lens_context(data)
+    if ctx is None:
+        return data
+    sections = ctx.fit.scenario_sections()
+    out = dict(data)
+    # camera aperture = entrance pupil diameter
+    camera_out = _lens_aperture(data, ctx, sections["camera.aperture_diameter_mm"])
+    if camera_out is not None:
+        out["camera"] = camera_out
+    optics_out = _as_dict(ctx.optics_raw)
+    if not _psf_matches(ctx, sections["optics.psf"]):
+        return data
+    optics_out["psf"] = sections["optics.psf"]
+    if not _distortion_matches(ctx, sections["optics.distortion"]):
+        return data
+    optics_out["distortion"] = sections["optics.distortion"]
+    lc_out = _lens_lateral_colour(ctx, sections)
+    if lc_out is None:
+        return data
+    optics_out["lateral_colour"] = lc_out
+    out["optics"] = optics_out
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _LensContext:
+    """What :func:`apply_lens` checks a scenario's lens-set fields against: the lens named by
+    ``optics.lens`` (``lens_ref``), the raw ``optics`` and ``optics.lateral_colour`` sections,
+    the validated camera and render sections, the field normalisation, reference wavelength
+    and the field the detector reaches (px), and the lens fitted to the simulator's models."""
+
+    lens_ref: str
+    optics_raw: object
+    lc_raw: object
+    camera: CameraModel
+    render: RenderModel
+    r_norm: float
+    ref_wl: float
+    field_px: float
+    fit: SimulatorOptics
+
+
+def _lens_context(data: dict) -> _LensContext | None:
+    """The :class:`_LensContext` of a raw scenario table; ``None`` when no lens is given or
+    when the camera, optics, detector or render sections are invalid."""
     optics_raw = _get(data, "optics")
     lens_ref = _get(optics_raw, "lens")
     if lens_ref is None:
-        return data
+        return None
     if not isinstance(lens_ref, str) or not lens_ref.strip():
         raise ValueError(f"optics.lens: expected a lens file path or 'embedded:NAME', got {lens_ref!r}")
     camera = _validated(CameraModel, _get(data, "camera"))
@@ -320,7 +364,18 @@ def apply_lens(data: dict) -> dict:
     ref_wl = _get(lc_raw, "ref_wavelength_nm", LateralColourModel.model_fields["ref_wavelength_nm"].default)
     if camera is None or render is None or detector is None or not isinstance(r_norm, (int, float)) \
             or not isinstance(ref_wl, (int, float)) or r_norm <= 0 or ref_wl <= 0:
-        return data
+        return None
+    field_px = _max_field_px(detector)
+    fit = _lens_fit(lens_ref, camera, render, field_px=field_px, r_norm=r_norm, ref_wl=ref_wl)
+    return _LensContext(lens_ref=lens_ref, optics_raw=optics_raw, lc_raw=lc_raw, camera=camera, render=render,
+                        r_norm=r_norm, ref_wl=ref_wl, field_px=field_px, fit=fit)
+
+
+def _lens_fit(lens_ref: str, camera: CameraModel, render: RenderModel, *, field_px: float, r_norm,
+              ref_wl) -> SimulatorOptics:
+    """The lens ``lens_ref`` traced (or read) and fitted to the simulator's models
+    (:func:`simulator_optics`), after checking that it has the camera's focal length and
+    covers the detector's field."""
     try:
         presc = load_prescription(lens_ref)
         para = paraxial(presc, wavelength_nm=float(ref_wl))
@@ -334,7 +389,6 @@ def apply_lens(data: dict) -> dict:
             f"optics.lens = {lens_ref!r}, {para.efl_mm:.6f} mm at {ref_wl:g} nm, by more than "
             f"{FOCAL_LENGTH_RTOL:.1%}; set camera.focal_length_mm = {para.efl_mm:.6f} (without plate_scale_arcsec)"
         )
-    field_px = _max_field_px(detector)
     need_deg = math.degrees(math.atan(field_px * camera.pixel_pitch_um * 1e-3 / f_nom))
     if need_deg > presc.analysis.field_max_deg * (1 + 1e-12):
         raise ValueError(
@@ -343,72 +397,85 @@ def apply_lens(data: dict) -> dict:
         )
     try:
         prod = lens_products(presc)
-        fit = simulator_optics(
+        return simulator_optics(
             prod, presc, pixel_pitch_um=camera.pixel_pitch_um, focal_length_mm=f_nom, r_norm_px=float(r_norm),
             ref_wavelength_nm=float(ref_wl), wavelength_min_nm=render.wavelength_min_nm,
             wavelength_max_nm=render.wavelength_max_nm,
         )
     except LensError as exc:
         raise ValueError(f"optics.lens: {exc}") from None
-    sections = fit.scenario_sections()
-    out = dict(data)
-    # camera aperture = entrance pupil diameter
+
+
+def _lens_aperture(data: dict, ctx: _LensContext, epd: float) -> dict | None:
+    """The ``camera`` section with the lens's entrance pupil diameter ``epd`` (mm) as its
+    aperture, or ``None`` when the scenario gives that aperture itself (checked against
+    ``epd``)."""
     cam_raw = _get(data, "camera")
-    epd = sections["camera.aperture_diameter_mm"]
     if _given(cam_raw, "aperture_diameter_mm"):
-        if abs(camera.aperture_diameter_mm / epd - 1.0) > 1e-9:
+        if abs(ctx.camera.aperture_diameter_mm / epd - 1.0) > 1e-9:
             raise ValueError(
-                f"camera.aperture_diameter_mm: {camera.aperture_diameter_mm:g} mm differs from the entrance pupil "
-                f"of optics.lens = {lens_ref!r} ({epd:.9g} mm); remove it to let the lens set it"
+                f"camera.aperture_diameter_mm: {ctx.camera.aperture_diameter_mm:g} mm differs from the entrance "
+                f"pupil of optics.lens = {ctx.lens_ref!r} ({epd:.9g} mm); remove it to let the lens set it"
             )
-    else:
-        cam = _as_dict(cam_raw)
-        cam["aperture_diameter_mm"] = epd
-        out["camera"] = cam
-    optics_out = _as_dict(optics_raw)
-    # PSF
-    psf_raw = _get(optics_raw, "psf")
-    want_psf = sections["optics.psf"]
-    if _given(optics_raw, "psf") and _as_dict(psf_raw):
+        return None
+    cam = _as_dict(cam_raw)
+    cam["aperture_diameter_mm"] = epd
+    return cam
+
+
+def _psf_matches(ctx: _LensContext, want_psf: dict) -> bool:
+    """Whether a given ``optics.psf`` is valid (``False``: its own validation reports it);
+    a valid one that differs from the lens's ``want_psf`` is a ``ValueError``."""
+    psf_raw = _get(ctx.optics_raw, "psf")
+    if _given(ctx.optics_raw, "psf") and _as_dict(psf_raw):
         psf = _validated(PSFModel, psf_raw)
         if psf is None:
-            return data
+            return False
         given = _as_dict(psf_raw)
         full = {**want_psf, **given}
         diff = max(abs(full["sigma0_px"] - want_psf["sigma0_px"]),
-                   abs(full["sigma_r2_px"] - want_psf["sigma_r2_px"]) * (field_px / r_norm) ** 2)
+                   abs(full["sigma_r2_px"] - want_psf["sigma_r2_px"]) * (ctx.field_px / ctx.r_norm) ** 2)
         if full["kind"] != "airy":
             diff = math.inf
-        _check_match("optics.psf", lens_ref, diff, f"kind = 'airy', sigma0_px = {want_psf['sigma0_px']!r}, "
+        _check_match("optics.psf", ctx.lens_ref, diff, f"kind = 'airy', sigma0_px = {want_psf['sigma0_px']!r}, "
                      f"sigma_r2_px = {want_psf['sigma_r2_px']!r}")
-    optics_out["psf"] = want_psf
-    # distortion
-    from simcam.starcam import optics
+    return True
 
-    dist_raw = _get(optics_raw, "distortion")
-    want_d = sections["optics.distortion"]
-    if _given(optics_raw, "distortion") and _as_dict(dist_raw):
+
+def _distortion_matches(ctx: _LensContext, want_d: dict) -> bool:
+    """Whether a given ``optics.distortion`` is valid (``False``: its own validation reports
+    it); a valid one whose displacements over the field differ from the lens's is a
+    ``ValueError``."""
+    dist_raw = _get(ctx.optics_raw, "distortion")
+    if _given(ctx.optics_raw, "distortion") and _as_dict(dist_raw):
         given = {**want_d, **_as_dict(dist_raw)}
         dm = _validated(DistortionModel, given)
         if dm is None:
-            return data
+            return False
+        r_norm, field_px, fit = ctx.r_norm, ctx.field_px, ctx.fit
         try:
             g = optics.CompositeDistortion(
                 brown_conrady=optics.BrownConradyDistortion(k1=dm.k1, k2=dm.k2, p1=dm.p1, p2=dm.p2, r_norm_px=r_norm),
                 cubic=optics.CubicDistortion(coeffs_x=dm.cubic_x_px, coeffs_y=dm.cubic_y_px, r_norm_px=r_norm))
         except optics.OpticsError:
-            return data
+            return False
         grid = np.linspace(-field_px, field_px, 21)
         uu, vv = np.meshgrid(grid, grid)
         gu, gv = g.forward(u_px=uu, v_px=vv)
         wu, wv = fit.distortion().forward(u_px=uu, v_px=vv)
-        _check_match("optics.distortion", lens_ref, float(np.max(np.hypot(gu - wu, gv - wv))),
+        _check_match("optics.distortion", ctx.lens_ref, float(np.max(np.hypot(gu - wu, gv - wv))),
                      f"k1 = {fit.k1!r}, k2 = {fit.k2!r}")
-    optics_out["distortion"] = want_d
-    # lateral colour coefficients: compare the displacements they give over field and band
+    return True
+
+
+def _lens_lateral_colour(ctx: _LensContext, sections: dict) -> dict | None:
+    """The ``optics.lateral_colour`` section with the lens's coefficients, each given one
+    compared with them by the displacements they give over field and band; ``None`` when a
+    given one is invalid (its own validation reports it)."""
+    lc_raw, ref_wl, r_norm, render = ctx.lc_raw, ctx.ref_wl, ctx.r_norm, ctx.render
     lc_out = _as_dict(lc_raw)
     wl_grid = np.linspace(render.wavelength_min_nm, render.wavelength_max_nm, 61)
-    r_grid = np.linspace(0.0, field_px, 25)
+    r_grid = np.linspace(0.0, ctx.field_px, 25)
     for key in ("radial_px_per_nm", "uniform_x_px_per_nm", "uniform_y_px_per_nm"):
         want = sections[f"optics.lateral_colour.{key}"]
         if _given(lc_raw, key):
@@ -423,12 +490,10 @@ def apply_lens(data: dict) -> dict:
                 gu, gv = optics.lateral_colour_shift_px(wavelength_nm=wl_grid, u_px=r_grid, v_px=0 * r_grid,
                                                         ref_wavelength_nm=float(ref_wl), r_norm_px=r_norm, **kw_given)
             except optics.OpticsError:
-                return data
+                return None
             wu, wv = optics.lateral_colour_shift_px(wavelength_nm=wl_grid, u_px=r_grid, v_px=0 * r_grid,
                                                     ref_wavelength_nm=float(ref_wl), r_norm_px=r_norm, **kw_want)
-            _check_match(f"optics.lateral_colour.{key}", lens_ref, float(np.max(np.hypot(gu - wu, gv - wv))),
+            _check_match(f"optics.lateral_colour.{key}", ctx.lens_ref, float(np.max(np.hypot(gu - wu, gv - wv))),
                          f"{want!r}")
         lc_out[key] = want
-    optics_out["lateral_colour"] = lc_out
-    out["optics"] = optics_out
-    return out
+    return lc_out
