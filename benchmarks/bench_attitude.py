@@ -155,26 +155,13 @@ def tetra3_solver(tetra3, sky, *, fov_deg: float, oversampling: int):
     return t, gen_s
 
 
-def tetra3_attitude(sol):
-    """Camera-to-inertial rotation of a tetra3 solution. tetra3's matrix ``M`` takes inertial
-    vectors to its camera axes (boresight, -x, -y of the image), row 0 the boresight at (RA,
-    Dec), rows 1-2 ``sin(roll) N + cos(roll) E`` and ``cos(roll) N - sin(roll) E`` (N, E the
-    local north and east), as its RA/Dec/Roll extraction reads them; ours is ``(P M)^T``."""
-    from scipy.spatial.transform import Rotation
-
-    ra, dec, roll = np.radians([sol["RA"], sol["Dec"], sol["Roll"]])
-    b = np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
-    n = np.array([-math.sin(dec) * math.cos(ra), -math.sin(dec) * math.sin(ra), math.cos(dec)])
-    e = np.array([-math.sin(ra), math.cos(ra), 0.0])
-    m = np.array([b, math.sin(roll) * n + math.cos(roll) * e, math.cos(roll) * n - math.sin(roll) * e])
-    p = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-    return Rotation.from_matrix((p @ m).T)
 
 
 def compare_tetra3(t3, observations, model):
     """Our solve and tetra3's on the same centroids: per pointing tetra3 solved, the errors
     (ours x, y, roll; tetra3's) and the times (s); and the count of pointings it did not solve."""
     from budget.attitude.chain import solve_frame
+    from budget.attitude.frame_solve import tetra3_attitude
     from budget.attitude.solve import attitude_error, focal_from_mosaic
 
     width = model.n_chips * model.chip_cols + (model.n_chips - 1) * model.gap_px

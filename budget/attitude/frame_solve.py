@@ -56,7 +56,7 @@ from simcam.starcam.sky_view import SkyStars
 from simcam.units import ARCSEC_PER_RAD
 
 __all__ = ["FrameCentroids", "FrameSolution", "attitude_angles", "attitude_from_angles", "centroid_frame",
-           "identify", "solve_sky_frame", "tetra3_prior"]
+           "identify", "solve_sky_frame", "tetra3_attitude", "tetra3_prior"]
 
 
 def attitude_from_angles(ra_deg: float, dec_deg: float, roll_deg: float) -> Rotation:
@@ -232,9 +232,16 @@ def tetra3_prior(frame, camera: StarCamera, *, database: str, threshold_sigma: f
                                   fov_max_error=0.05, distortion=0.0)
     if res.get("RA") is None:
         raise UserInputError(f"tetra3 found no solution for the {cents.n_stars} stars of the frame; give --prior")
-    # tetra3's matrix takes inertial vectors to (boresight, -x, -y of its image), rows 1-2
-    # sin(roll) N + cos(roll) E and cos(roll) N - sin(roll) E (benchmarks/bench_attitude.py)
-    ra, dec, roll = np.radians([res["RA"], res["Dec"], res["Roll"]])
+    return tetra3_attitude(res)
+
+
+def tetra3_attitude(solution: dict) -> Rotation:
+    """Camera-to-inertial rotation of a tetra3 solution (``RA``, ``Dec``, ``Roll`` in degrees).
+    tetra3's matrix ``M`` takes inertial vectors to its camera axes (boresight, -x, -y of the
+    image), row 0 the boresight at (RA, Dec), rows 1-2 ``sin(roll) N + cos(roll) E`` and
+    ``cos(roll) N - sin(roll) E`` (N, E the local north and east), as its RA/Dec/Roll extraction
+    reads them; ours is ``(P M)^T``."""
+    ra, dec, roll = np.radians([solution["RA"], solution["Dec"], solution["Roll"]])
     b = np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
     n = np.array([-math.sin(dec) * math.cos(ra), -math.sin(dec) * math.sin(ra), math.cos(dec)])
     e = np.array([-math.sin(ra), math.cos(ra), 0.0])

@@ -43,7 +43,7 @@ aperture, optics transmission and QE without a filter
 (:class:`simcam.starcam.sources.SourceSpectra`) for a star.
 
 The scene (:func:`sky_scene`) is a :class:`simcam.starcam.render.Scene` whose stars carry
-their own spectrum (stamps of :func:`simcam.starcam.optics.render_stamps` with per-star
+their own spectrum (stamps of :func:`simcam.starcam.psf_stamps.render_stamps` with per-star
 weights) and electrons, so that :meth:`StarCamera.render_windows`, :meth:`StarCamera.window_chain`
 and :meth:`StarCamera.render_frame` expose it with the camera's PSF, detector maps,
 non-linearity and noise unchanged. Docs: docs/attitude.md.
@@ -59,7 +59,7 @@ import numpy as np
 from simcam import spectra
 from simcam.sky.apparent import apparent_directions
 from simcam.sky.catalogue import DEFAULT_B_V, Catalogue, hipparcos
-from simcam.starcam import optics
+from simcam.starcam import optics, psf_stamps
 from simcam.starcam.render import Placement, Scene, StarCamera, mosaic_corner_radius_px
 from simcam.starcam.targets import TargetLayout
 from simcam.units import ARCSEC_PER_RAD
@@ -139,7 +139,7 @@ class DetectionLimit:
     ``peak_fraction`` is the smallest share of a point source's light in its brightest pixel:
     the image centred on a pixel corner, with the widest PSF of the field (at the mosaic's
     corner), at the lateral-colour reference wavelength, from the camera's own
-    pixel-integrated PSF (:func:`simcam.starcam.optics.render_stamps`). A star of ``N`` photo-electrons
+    pixel-integrated PSF (:func:`simcam.starcam.psf_stamps.render_stamps`). A star of ``N`` photo-electrons
     is detected when its brightest pixel reaches the centroid threshold in expectation
     wherever it falls::
 
@@ -174,7 +174,7 @@ def detection_limit(camera: StarCamera, *, threshold_sigma: float) -> DetectionL
     r = mosaic_corner_radius_px(scn)
     sigma = optics.psf_sigma_px(u_px=np.array([r]), v_px=np.array([0.0]), sigma0_px=scn.optics.psf.sigma0_px,
                                 sigma_r2_px=scn.optics.psf.sigma_r2_px, r_norm_px=scn.optics.r_norm_px)
-    stamp, _, _ = optics.render_stamps(
+    stamp, _, _ = psf_stamps.render_stamps(
         x_px=np.array([0.5]), y_px=np.array([0.5]), stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
         sigma_px=sigma, pinhole_radius_px=0.0, f_number=scn.camera.f_number,
         pixel_pitch_um=scn.camera.pixel_pitch_um,
@@ -406,7 +406,7 @@ def sky_scene(camera: StarCamera, view: StarsInView, *, pointing: int,
     ``pointing`` numbers the noise streams (the scene's ``condition``): frames of different
     pointings get independent temporal noise; the same (seed, pointing, frame) always the same.
     The stamps are those of the lab's ``"exact"`` stamp route
-    (:func:`simcam.starcam.optics.render_stamps`), per star and wavelength, since every star
+    (:func:`simcam.starcam.psf_stamps.render_stamps`), per star and wavelength, since every star
     has its own spectrum. The truth table holds, per star, ``star``, ``hip``, ``chip``,
     ``x_true``, ``y_true`` (mosaic px), the ideal and displaced focal positions, ``v_mag``,
     ``teff_k``, ``electrons``, ``psf_sigma_px`` and ``condition``.
@@ -431,7 +431,7 @@ def sky_scene(camera: StarCamera, view: StarsInView, *, pointing: int,
         shifts = [(sx + t * mx, sy + t * my) for t in (np.arange(k) + 0.5) / k - 0.5]
     stamps = None
     for shift_x, shift_y in shifts:
-        one, c0, r0 = optics.render_stamps(
+        one, c0, r0 = psf_stamps.render_stamps(
             x_px=xr, y_px=yr, stamp_px=scn.render.stamp_px, psf_kind=scn.optics.psf.kind,
             sigma_px=view.psf_sigma_px, pinhole_radius_px=0.0, f_number=scn.camera.f_number,
             pixel_pitch_um=scn.camera.pixel_pitch_um, wavelength_nm=view.wavelength_nm, weights=view.weights,
