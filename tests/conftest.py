@@ -35,6 +35,8 @@ _CHILD: list[subprocess.Popen] = []
 
 
 def pytest_sessionstart(session) -> None:
+    if hasattr(session.config, "workerinput"):
+        return  # a pytest-xdist worker: the controlling process starts the one child
     from simcam.kernels import detector as kd
     from simcam.numba_warm import is_cached, usable_cores
 
