@@ -96,7 +96,7 @@ def test_one_and_two_workers_give_the_same_numbers():
 
 def test_validate_writes_the_report_end_to_end(tmp_path):
     out = tmp_path / "rep"
-    r = subprocess.run([sys.executable, "-m", "budget", "attitude", "validate", "--trials", "20", "--report",
+    r = subprocess.run([sys.executable, "-m", "budget", "attitude", "validate", "--trials", "8", "--report",
                         str(out), "--workers", "1"], capture_output=True, text=True, timeout=600, check=False)
     assert r.returncode == 0, r.stderr
     md = (out / "report.md").read_text()
@@ -105,7 +105,7 @@ def test_validate_writes_the_report_end_to_end(tmp_path):
         assert (out / f"{name}.png").is_file() and f"**{name}**: " in md
     assert "Seed 000's eq 32" in md and "Roll" in md and "Requirement" in md
     sky = json.loads((out / "summary.json").read_text())["details"]["sky"]
-    assert sky["pointings"] == 20 and sky["published_sigma_arcsec"] == pytest.approx([1.76 / 3 / math.sqrt(10),
+    assert sky["pointings"] == 8 and sky["published_sigma_arcsec"] == pytest.approx([1.76 / 3 / math.sqrt(10),
                                                                                       1.95 / 3 / math.sqrt(10)])
 
 

@@ -1,5 +1,5 @@
 """Seed 000's claims ledger (budget.starcam.claims) evaluated on runs of both worlds of both
-embedded cameras: small runs here (20 trials each), the full-size run behind ``slow``."""
+embedded cameras: small runs here (10 trials each), the full-size run behind ``slow``."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def _runs(trials: int | None, seed: int) -> dict:
 @pytest.fixture(scope="module")
 def small():
     claims = study_claims(STUDY, STUDY.load_scenario(None))
-    runs = _runs(20, 11)
+    runs = _runs(10, 11)
     return claims, runs, evaluate_claims(claims, runs)
 
 
@@ -89,7 +89,7 @@ def _outcomes(results) -> dict:
 
 def test_ledger_on_small_runs(small):
     claims, runs, results = small
-    _check_ledger(claims, runs, results, 20)
+    _check_ledger(claims, runs, results, 10)
     got = _outcomes(results)
     # far from their tolerances' edges, whatever the draw: the truths of the paper's noisy
     # camera (TE 1.17 / 1.26 against 1.14 / 1.23; HSFE y 0.78 against 1.01; LSFE-S
