@@ -7,42 +7,19 @@ any work, so the tests take seconds. Frames are small FITS files written here.
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import io
 import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from cli_capture import one_error, run_budget
 from simcam.infra.errors import UserInputError
 from simcam.infra.outputs import (CommandInputs, check_distinct_inputs, check_output_dir, check_output_file,
                                   command_inputs)
 
 
-def _budget(argv: list[str]) -> tuple[int, str, str]:
-    """``budget ARGV`` in this process: (exit status, stdout, stderr)."""
-    from budget.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-        try:
-            main(argv)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-    return code, out.getvalue(), err.getvalue()
-
-
-def _one_error(code: int, err: str, *named: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    assert "Traceback" not in err
-    for n in named:
-        assert n in lines[0], err
-    return lines[0]
 
 
 def _fits(path: Path, *, plate_scale: float | None = 11.0, seed: int = 0) -> None:
@@ -110,8 +87,8 @@ def test_measure_never_writes_over_a_frame_its_manifest_lists(tmp_path, option, 
     _dataset(lab)
     (lab / "link.fits").symlink_to(lab / "c000_f0002.fits")
     before = {p.name: p.read_bytes() for p in lab.iterdir()}
-    code, _, err = _budget(["starcam", "measure", "te", str(lab), option, str(lab / name), "--no-progress"])
-    _one_error(code, err, f"{option} {lab / name}: is an input of this command")
+    code, _, err = run_budget(["starcam", "measure", "te", str(lab), option, str(lab / name), "--no-progress"])
+    one_error(code, err, f"{option} {lab / name}: is an input of this command")
     assert {p.name: p.read_bytes() for p in lab.iterdir()} == before
 
 
@@ -122,8 +99,8 @@ def test_combine_never_writes_over_its_file(tmp_path):
     (tmp_path / "l.toml").symlink_to(c)
     before = c.read_bytes()
     for given, out in ((c, c), (tmp_path / "l.toml", c), (c, tmp_path / "l.toml")):
-        code, _, err = _budget(["starcam", "combine", str(given), "--json", str(out)])
-        _one_error(code, err, f"--json {out}: is an input of this command")
+        code, _, err = run_budget(["starcam", "combine", str(given), "--json", str(out)])
+        one_error(code, err, f"--json {out}: is an input of this command")
     assert c.read_bytes() == before
 
 
@@ -134,15 +111,15 @@ def test_validate_refuses_its_scenario_through_a_link_and_a_report_folder_holdin
     s.write_text(get_study("scanmirror").default_text())
     (tmp_path / "l.toml").symlink_to(s)
     before = s.read_bytes()
-    code, _, err = _budget(["scanmirror", "validate", str(tmp_path / "l.toml"), "--json", str(s), "--trials", "2"])
-    _one_error(code, err, f"--json {s}: is an input of this command ({tmp_path / 'l.toml'})")
+    code, _, err = run_budget(["scanmirror", "validate", str(tmp_path / "l.toml"), "--json", str(s), "--trials", "2"])
+    one_error(code, err, f"--json {s}: is an input of this command ({tmp_path / 'l.toml'})")
     sc = tmp_path / "sc"
     sc.mkdir()
     (sc / "s.toml").write_bytes(before)
     for cmd in (["validate", "--trials", "2"], ["robustness", "--trials", "2"], ["simulate"]):
-        code, _, err = _budget(["scanmirror", cmd[0], str(sc / "s.toml"), "--report", str(sc), "--overwrite",
+        code, _, err = run_budget(["scanmirror", cmd[0], str(sc / "s.toml"), "--report", str(sc), "--overwrite",
                                 *cmd[1:]])
-        _one_error(code, err, f"--report {sc}: holds an input of this command ({sc / 's.toml'})")
+        one_error(code, err, f"--report {sc}: holds an input of this command ({sc / 's.toml'})")
     assert s.read_bytes() == before and (sc / "s.toml").read_bytes() == before
 
 
@@ -158,11 +135,11 @@ def test_folder_outputs_of_every_writer_refuse_a_folder_holding_their_input(tmp_
     with pytest.raises(UserInputError, match="holds an input"):
         with atomic_directory(d, inputs=(d / "scenario.toml",)):
             pass
-    code, _, err = _budget(["starcam", "simulate", "te", str(d / "scenario.toml"), "--out", str(d), "--overwrite"])
-    _one_error(code, err, f"--out {d}: holds an input")
-    code, _, err = _budget(["starcam", "simulate", "te", str(d / "scenario.toml"), "--out", str(tmp_path / "new"),
+    code, _, err = run_budget(["starcam", "simulate", "te", str(d / "scenario.toml"), "--out", str(d), "--overwrite"])
+    one_error(code, err, f"--out {d}: holds an input")
+    code, _, err = run_budget(["starcam", "simulate", "te", str(d / "scenario.toml"), "--out", str(tmp_path / "new"),
                             "--json", str(d / "scenario.toml")])
-    _one_error(code, err, "is an input of this command")
+    one_error(code, err, "is an input of this command")
     assert (d / "scenario.toml").read_text() == TINY and not (tmp_path / "new").exists()
 
 
@@ -188,8 +165,8 @@ def test_the_same_calibration_table_twice_and_a_plot_format_are_refused_before_t
              ([p, "--period", "long", "--plot", tmp_path / "out.txt"], "--plot"),
              ([p, "--period", "long", "--plot", tmp_path / "out"], "no suffix names the figure format")]
     for args, named in cases:
-        code, _, err = _budget(["inductosyn", "fit", *map(str, args)])
-        line = _one_error(code, err, named)
+        code, _, err = run_budget(["inductosyn", "fit", *map(str, args)])
+        line = one_error(code, err, named)
         if "out.txt" in line:
             assert "the suffix .txt is no figure format; give one of" in line and ".png" in line
     assert sorted(x.name for x in tmp_path.iterdir()) == ["copy.csv", "link.csv", "p.csv"]
@@ -201,16 +178,16 @@ def test_manifest_repeats_and_two_plate_scales_name_the_manifest_and_both_values
     m = lab / "manifest.csv"
     rows = m.read_text().splitlines()
     m.write_text("\n".join(rows + [rows[2]]) + "\n")  # row 5 repeats row 3
-    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
-    _one_error(code, err, f"{m}: row 5 repeats row 3 (c000_f0001.fits)")
+    code, _, err = run_budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    one_error(code, err, f"{m}: row 5 repeats row 3 (c000_f0001.fits)")
     m.write_text("\n".join(rows[:3] + ["c000_f0001.fits,0,0,0"]) + "\n")  # frame 0 listed twice
-    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
-    _one_error(code, err, f"{m}: condition 0: frame 0 listed twice (rows 2, 4")
+    code, _, err = run_budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    one_error(code, err, f"{m}: condition 0: frame 0 listed twice (rows 2, 4")
     m.write_text("\n".join(rows) + "\n")
     (lab / "c000_f0002.fits").unlink()
     _fits(lab / "c000_f0002.fits", plate_scale=5.5, seed=2)  # was measured with the first one's 11
-    code, _, err = _budget(["starcam", "measure", "te", str(lab), "--no-progress"])
-    _one_error(code, err, f"{lab / 'c000_f0002.fits'}: header PLTSCALE = 5.5 differs from "
+    code, _, err = run_budget(["starcam", "measure", "te", str(lab), "--no-progress"])
+    one_error(code, err, f"{lab / 'c000_f0002.fits'}: header PLTSCALE = 5.5 differs from "
                           f"{lab / 'c000_f0000.fits'}'s 11.0")
 
 
@@ -225,8 +202,8 @@ def test_observation_table_literal_nan_and_a_table_repeated_twice(tmp_path):
         rows = list(lines)
         rows[3] = cell + rows[3][rows[3].index(","):]  # time_s of row 4
         obs.write_text("\n".join(rows) + "\n")
-        code, _, err = _budget(["linecam", "calibrate", str(obs)])
-        _one_error(code, err, f"{obs}: time_s: not a finite number in row 4 (got {got})")
+        code, _, err = run_budget(["linecam", "calibrate", str(obs)])
+        one_error(code, err, f"{obs}: time_s: not a finite number in row 4 (got {got})")
     twice = {k: np.concatenate([v, v]) for k, v in a.items()}  # said "row 3 repeats row 3"
     with pytest.raises(UserInputError, match=r"obs.csv: rows: row 42 repeats row 2 \(40 duplicated row"):
         check_observation_values("obs.csv", twice, n_pixels=6144)
@@ -287,8 +264,8 @@ def test_a_json_name_too_long_for_its_temporary_name_is_refused_before_the_work(
 
     monkeypatch.setattr(budget.runner.run, "run_study", ran)
     name = tmp_path / ("v" * 245 + ".json")  # 250 bytes: a valid name, its temporary sibling is not
-    code, _, err = _budget(["scanmirror", "validate", "--trials", "2", "--json", str(name)])
-    _one_error(code, err, f"--json {name}: the name vvvv", "it is written first under a temporary name",
+    code, _, err = run_budget(["scanmirror", "validate", "--trials", "2", "--json", str(name)])
+    one_error(code, err, f"--json {name}: the name vvvv", "it is written first under a temporary name",
                "give a name of at most")
     check_output_file(tmp_path / ("v" * 200 + ".json"))  # short enough
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_capture import one_error, run_budget
 from simcam.infra.errors import UserInputError
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import ScenarioError
@@ -33,28 +34,6 @@ from simcam.infra.outputs import (StagedOutputs, check_input_file, check_output_
 IS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
 
 
-def _budget(argv: list[str]) -> tuple[int, str, str]:
-    """``budget ARGV`` in this process: (exit status, stdout, stderr)."""
-    from budget.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-        try:
-            main(argv)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-    return code, out.getvalue(), err.getvalue()
-
-
-def _one_error(code: int, err: str, *named: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert code == 2, err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    assert "Traceback" not in err
-    for n in named:
-        assert n in lines[0], err
-    return lines[0]
 
 
 @pytest.fixture
@@ -91,8 +70,8 @@ def test_json_to_a_real_device_path_is_refused_before_the_work(tmp_path):
     table.write_text("angle_deg,error_arcsec\n" + "".join(f"{a},{0.01 * a}\n" for a in range(0, 360, 15)))
     for dev in ("/dev/full", "/dev/null"):
         before = os.stat(dev)
-        code, _, err = _budget(["harmonics", "fit", str(table), "--period", "long", "--json", dev])
-        _one_error(code, err, f"--json {dev}", "character device")
+        code, _, err = run_budget(["harmonics", "fit", str(table), "--period", "long", "--json", dev])
+        one_error(code, err, f"--json {dev}", "character device")
         after = os.stat(dev)
         assert stat.S_ISCHR(after.st_mode) and after.st_rdev == before.st_rdev
 
@@ -193,8 +172,8 @@ def test_inputs_that_are_not_regular_files_are_named(tmp_path, device):
 
     with pytest.raises(ScenarioError, match=f"is {kind}"):
         read_toml(path=dev)
-    code, _, err = _budget(["harmonics", "fit", str(dev), "--period", "long"])
-    _one_error(code, err, str(dev), kind)
+    code, _, err = run_budget(["harmonics", "fit", str(dev), "--period", "long"])
+    one_error(code, err, str(dev), kind)
 
 
 # ----------------------------------------------------------------------------- all or nothing
@@ -264,7 +243,7 @@ def test_memory_limit_of_the_process_refuses_before_allocating(tmp_path):
                        capture_output=True, text=True, timeout=120, cwd=tmp_path,
                        env={**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1]),
                                                                         os.environ.get("PYTHONPATH", "")])})
-    _one_error(p.returncode, p.stderr, "--trials 150000", "of memory")
+    one_error(p.returncode, p.stderr, "--trials 150000", "of memory")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -381,13 +360,13 @@ def test_linecam_calibrate_never_writes_over_its_table_and_names_empty_cells(tmp
     lines = [",".join(CSV_COLUMNS)] + [",".join(repr(float(a[c][i])) for c in CSV_COLUMNS) for i in range(40)]
     obs.write_text("\n".join(lines) + "\n")
     before = obs.read_bytes()
-    code, _, err = _budget(["linecam", "calibrate", str(obs), "--json", str(obs)])
-    _one_error(code, err, f"--json {obs}", "is an input of this command")
+    code, _, err = run_budget(["linecam", "calibrate", str(obs), "--json", str(obs)])
+    one_error(code, err, f"--json {obs}", "is an input of this command")
     assert obs.read_bytes() == before
     lines[3] = lines[3].replace(lines[3].split(",")[0], "", 1)
     obs.write_text("\n".join(lines) + "\n")
-    code, _, err = _budget(["linecam", "calibrate", str(obs)])
-    _one_error(code, err, f"{obs}: time_s: not a finite number in row 4 (got an empty cell)")
+    code, _, err = run_budget(["linecam", "calibrate", str(obs)])
+    one_error(code, err, f"{obs}: time_s: not a finite number in row 4 (got an empty cell)")
 
 
 def test_polygon_table_bom_size_and_empty_cell(tmp_path):
@@ -522,9 +501,9 @@ def test_whiskbroom_synthesis_outside_the_models_domain_is_an_error(tmp_path):
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        code, _, err = _budget(["whiskbroom", "synthesize", str(f), "--trials", "20", "--json",
+        code, _, err = run_budget(["whiskbroom", "synthesize", str(f), "--trials", "20", "--json",
                                 str(tmp_path / "o.json")])
-    _one_error(code, err, f"{f}: the image motion is not finite in 20 of 20 trials")
+    one_error(code, err, f"{f}: the image motion is not finite in 20 of 20 trials")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["w.toml"]
 
 
@@ -557,7 +536,7 @@ def test_disk_full_while_writing_is_one_error_line(tmp_path, monkeypatch, capsys
         run_cli(g, ["report"])
     assert ei.value.code == 2
     err = capsys.readouterr().err
-    _one_error(2, err, "fig.png: no space left on the device")
+    one_error(2, err, "fig.png: no space left on the device")
 
 
 def test_fifo_as_a_frame_or_manifest_is_named_not_read(tmp_path):
