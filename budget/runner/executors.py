@@ -92,12 +92,13 @@ def worker_setup(initializer: Callable | None = None, args: tuple = ()) -> None:
 
 
 def _init_worker(initializer, args):
-    # the parent-death guard first (simcam.infra.lifecycle): a parent killed while its workers
-    # still import leaves no worker behind; the worker's exit, which the pool's shutdown
-    # waits for, skips the final garbage collections
-
+    # a forked worker's stop handlers are its parent's (they raise Interrupted): Python's own
+    # first, so that the pool's SIGTERM ends it quietly even while it sets up; then the
+    # parent-death guard (simcam.infra.lifecycle): a parent killed while its workers still
+    # import leaves no worker behind; the worker's exit, which the pool's shutdown waits for,
+    # skips the final garbage collections
+    default_stop_handlers()
     exit_with_parent()
-    default_stop_handlers()  # a forked worker's are its parent's
     quick_teardown()
     worker_setup(initializer, args)
 

@@ -71,6 +71,34 @@ def _raise_interrupted(signum, _frame):
     raise Interrupted(signum)
 
 
+#: seconds after which an interruption swallowed by a C callback is delivered again
+REDELIVER_S = 0.05
+
+
+def _redeliver_swallowed(unraisable) -> None:
+    """``sys.unraisablehook`` inside :func:`handle_termination`: an :class:`Interrupted` raised
+    by the stop handler while the main thread ran a C callback (numba's cache notifications go
+    through ctypes, which cannot propagate an exception and only reports it) is delivered
+    again once the main thread is back in Python code, instead of being lost with the
+    handler already disarmed (the command would then run to its end, deaf to the signal).
+    Anything else goes to the previous hook."""
+    exc = unraisable.exc_value
+    if not isinstance(exc, Interrupted):
+        _PREVIOUS_UNRAISABLE[-1](unraisable)
+        return
+    try:
+        signal.signal(exc.signum, _raise_interrupted)
+    except (ValueError, OSError):
+        return
+    timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), exc.signum))
+    timer.daemon = True
+    timer.start()
+
+
+#: the unraisable hooks that :func:`handle_termination` replaced, innermost last
+_PREVIOUS_UNRAISABLE: list = []
+
+
 def default_stop_handlers() -> None:
     """This process's stop signals back to Python's defaults (SIGINT raises
     KeyboardInterrupt, SIGTERM and SIGHUP end the process), as a freshly started worker
@@ -83,7 +111,9 @@ def default_stop_handlers() -> None:
 
 @contextmanager
 def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
-    """Within the block, the given signals raise :class:`Interrupted` (main thread only).
+    """Within the block, the given signals raise :class:`Interrupted` (main thread only); one
+    raised inside a C callback, which cannot propagate it, is delivered again after it
+    (:func:`_redeliver_swallowed`).
 
     The previous handlers are restored on exit. Outside the main thread (where Python
     cannot set handlers) the block runs unchanged.
@@ -97,9 +127,12 @@ def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
             previous[s] = signal.signal(s, _raise_interrupted)
         except (ValueError, OSError):
             pass
+    _PREVIOUS_UNRAISABLE.append(sys.unraisablehook)
+    sys.unraisablehook = _redeliver_swallowed
     try:
         yield
     finally:
+        sys.unraisablehook = _PREVIOUS_UNRAISABLE.pop()
         for s, h in previous.items():
             try:
                 signal.signal(s, h if h is not None else signal.SIG_DFL)
