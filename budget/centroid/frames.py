@@ -21,13 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from budget.centroid.core import (
-    CentroidFlag,
-    centroid_method,
-    subtract_dark,
-    table_columns,
-    warn_flags,
-)
+from budget.centroid.core import CentroidFlag, centroid_method, subtract_dark, table_columns, warn_flags
 from simcam.infra.errors import UserInputError
 
 __all__ = [
