@@ -131,7 +131,13 @@ class ValidationSettings(StrictModel):
       Carlo standard error of every bias and spread is below it (JCGM 101 section 7.9), in
       each class's own unit (arcsec, px, ...); None (the default): ``trials`` trials;
     * ``max_trials``: the cap on trials under adaptive stopping (>= 2);
-    * ``batch_trials``: trials between two convergence checks (>= 1).
+    * ``batch_trials``: trials between two convergence checks (>= 1);
+    * ``instrument_seed``: None (the default): each trial draws its own instrument (the
+      properties of one instrument: its maps, markers, encoder, lens, biases), so a verdict
+      speaks for the population of instruments like the one simulated; an integer pins one
+      instrument for every trial, and the results then speak for that instrument only. A
+      study draws its instrument from
+      :func:`budget.runner.study.instrument_seed_sequence`.
 
     The runner reads them through the study's run-settings hooks
     (:mod:`budget.runner.study`); subclasses may change the defaults, not the limits (use
@@ -142,6 +148,7 @@ class ValidationSettings(StrictModel):
     tolerance: Tolerance = None
     max_trials: Trials = 5000
     batch_trials: BatchTrials = 50
+    instrument_seed: Annotated[int, Field(ge=0)] | None = None
 
 
 class ScenarioBase(StrictModel):

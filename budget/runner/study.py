@@ -50,10 +50,12 @@ from simcam.config_base import ScenarioBase, load_scenario_file
 from simcam.dotted import get_dotted
 
 __all__ = ["CLASS_ROLES", "ClassSpec", "Key", "Knob", "ReportSection", "Study", "TRUTH_SPAWN_KEY", "TrialResult",
-           "Truth", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
+           "Truth", "INSTRUMENT_SPAWN_KEY", "instrument_seed_sequence", "trial_seed_sequence", "truth_identity", "truth_seed_sequence"]
 
 #: spawn key of the truths' seed sequence (trials use 0, 1, 2, ...)
 TRUTH_SPAWN_KEY = 2**31
+#: first spawn key of the instruments' seed sequences (distinct from the trials' and the truths')
+INSTRUMENT_SPAWN_KEY = 2**31 + 1
 
 #: (class, variant, axis)
 Key = tuple[str, str, str]
@@ -65,6 +67,21 @@ CLASS_ROLES = ("result", "input", "residual", "stated")
 def trial_seed_sequence(seed: int, k: int) -> np.random.SeedSequence:
     """The seed sequence of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``."""
     return np.random.SeedSequence(seed, spawn_key=(k,))
+
+
+def instrument_seed_sequence(instrument_seed: int | None, seed: int, k: int) -> np.random.SeedSequence:
+    """The seed sequence of trial ``k``'s instrument (``validation.instrument_seed``,
+    :class:`simcam.config_base.ValidationSettings`).
+
+    ``instrument_seed`` None: a new instrument per trial,
+    ``SeedSequence(seed, spawn_key=(INSTRUMENT_SPAWN_KEY, k))``; an integer: the same pinned
+    instrument for every trial and every run seed,
+    ``SeedSequence(instrument_seed, spawn_key=(INSTRUMENT_SPAWN_KEY,))``. Neither shares a
+    stream with :func:`trial_seed_sequence` or :func:`truth_seed_sequence`.
+    """
+    if instrument_seed is None:
+        return np.random.SeedSequence(seed, spawn_key=(INSTRUMENT_SPAWN_KEY, k))
+    return np.random.SeedSequence(instrument_seed, spawn_key=(INSTRUMENT_SPAWN_KEY,))
 
 
 def truth_seed_sequence(seed: int) -> np.random.SeedSequence:

@@ -16,6 +16,7 @@ from budget.runner.findings import findings_lines
 from budget.runner.registry import get_study, summary
 from budget.runner.report import format_table, world_line, write_outputs
 from budget.runner.robustness import scenario_with_effects
+from simcam.dotted import scenario_with
 from simcam.effects import scenario_effects
 from simcam.infra.cli import overwrite_option
 from simcam.infra.errors import UserInputError
@@ -65,6 +66,13 @@ def ideal_world_scenario(study, scenario, *, source: str):
                                  source=f"{source} (--ideal-world)")
 
 
+def pinned_instrument_scenario(study, scenario, instrument_seed: int, *, source: str):
+    """``scenario`` with ``validation.instrument_seed`` set: one instrument for every trial
+    (``--instrument-seed``)."""
+    return scenario_with(scenario, {"validation.instrument_seed": int(instrument_seed)},
+                         from_dict=study.from_dict, where=f"{source} (--instrument-seed)")
+
+
 def validate_command_for(study_name: str, *, name: str = "validate", help_text: str | None = None,
                          more_lines=None) -> click.Command:
     """``validate [SCENARIO] --trials --tolerance --seed --workers --scheduler --dask-local --json --report``.
@@ -94,11 +102,18 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.option("--ideal-world", is_flag=True, default=False,
                   help="Turn every [world.effects] magnitude to 0: the world the lab's model assumes "
                        "(default: the scenario's world, realistic in the embedded defaults).")
+    @click.option("--instrument-seed", "instrument_seed", type=click.IntRange(min=0), default=None,
+                  help="Pin one instrument (its maps, encoder, lens, biases) for every trial; the results then "
+                       "speak for that instrument only (default: the scenario's validation.instrument_seed, "
+                       "unset in the embedded defaults: each trial draws its own instrument).")
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
     def validate(scenario, trials, tolerance, seed, truth_size, workers, scheduler, dask_local, json_out, report_dir,
-                 overwrite, ideal_world, progress):
+                 overwrite, ideal_world, instrument_seed, progress):
         study = get_study(study_name)
         scn = study.load_scenario(scenario)
+        if instrument_seed is not None:
+            scn = pinned_instrument_scenario(study, scn, instrument_seed,
+                                             source=str(scenario or f"embedded {study_name} default"))
         if ideal_world:
             scn = ideal_world_scenario(study, scn, source=str(scenario or f"embedded {study_name} default"))
         run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
