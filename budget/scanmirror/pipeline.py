@@ -18,13 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from budget.scanmirror.compensation import FirstOrderCompensator, exact_compensation, ground_errors_deg
+from budget.scanmirror.compensation import FirstOrderCompensator, exact_compensation
 from budget.scanmirror.estimation import DwellMeasurement, batch_estimate, published_estimate
 from simcam.infra.errors import ScenarioError
 from simcam.infra.lifecycle import check_memory
 from simcam.scanmirror.effects import TrialEffects, WorldEffects
 from simcam.scanmirror.geometry import rotvec_matrix
 from simcam.scanmirror.stars import body_to_inertial, find_dwell_stars, true_centroids
+from simcam.scanmirror.truth import ground_errors_truth_deg, ground_latlon_truth, ground_point_s_truth
 from simcam.scanmirror.world import World, deviation_components
 from simcam.units import RAD_PER_ARCSEC
 
@@ -71,7 +72,6 @@ class Setup:
         self.scan = plan.scan[keep]
         self.alpha0, self.beta0 = plan.alpha_rad[keep], plan.beta_rad[keep]
         self.g0 = w.nominal_ground(self.alpha0, self.beta0)
-        self.latlon0 = w.latlon(self.g0)
         if np.isnan(self.g0).any():
             j = int(np.flatnonzero(np.isnan(self.g0[:, 0]))[0])
             raise ScenarioError(
@@ -79,6 +79,11 @@ class Setup:
                 f"t = {self.t_s[j]:.1f} s (alpha {np.rad2deg(self.alpha0[j]):.3f} deg, beta "
                 f"{np.rad2deg(self.beta0[j]):.3f} deg) where ground points are asked for")
         self.A_true, self.R_true, self.r, self.v = w.orbit_geometry(self.t_s)
+        # the truth's nominal ground points, by the truth's own route (simcam.scanmirror.truth)
+        n = self.t_s.size
+        self.truth_latlon0 = ground_latlon_truth(self.truth_ground(
+            self.alpha0, self.beta0, 0.0, 0.0, np.zeros((n, 3)), np.broadcast_to(np.eye(3), (n, 3, 3)),
+            np.full(n, w.R0_km)))
         self.dwells = find_dwell_stars(w, source=self.source)
         self.scan_start = {int(s): float(self.t_s[self.scan == s][0]) for s in np.unique(self.scan)}
         frame_t = np.concatenate([d.frame_t_s for d in self.dwells]) if self.dwells else np.zeros(0)
@@ -88,6 +93,14 @@ class Setup:
         self.dwell_A0 = [body_to_inertial(d.r_km, d.v_km_s, np.zeros((d.frame_t_s.size, 3))) for d in self.dwells]
         # the world's unmodelled effects (simulator side; the estimators never see them)
         self.effects = WorldEffects(self.scenario, w, self.dwells)
+
+    def truth_ground(self, alpha, beta, dtx, dty, att, A_r0r, R_km):
+        """The world's ground points in ``s`` (km) by the truth's route
+        (:func:`simcam.scanmirror.truth.ground_point_s_truth`), with this scenario's Earth."""
+        w = self.world
+        polar = w.polar_radius_km if self.scenario.orbit.earth_shape == "ellipsoid" else w.earth.radius_km
+        return ground_point_s_truth(alpha, beta, dtx, dty, att, A_r0r, R_km, omega0_rad=w.omega0_rad,
+                                    equatorial_radius_km=w.earth.radius_km, polar_radius_km=polar)
 
     def attitude(self, initial_deg):
         att = self.world.attitude(self._att_t, initial_deg, pd=self.pd)
@@ -336,9 +349,10 @@ def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledg
 
 def _ground_errors(setup: Setup, sel, alpha, beta, dtx, dty, att) -> GroundErrors:
     # commanded angles -> the mirror's true ones (the world's encoders; identity when off)
+    # and the ground point by the truth's own route (nothing shared with the lab's chain)
     alpha, beta = setup.effects.true_angles(alpha, beta)
-    g = setup.world.ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
-    lat, lon = ground_errors_deg(setup.world, g, None, latlon0=(setup.latlon0[0][sel], setup.latlon0[1][sel]))
+    g = setup.truth_ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
+    lat, lon = ground_errors_truth_deg(g, (setup.truth_latlon0[0][sel], setup.truth_latlon0[1][sel]))
     return GroundErrors(lat_deg=lat, lon_deg=lon)
 
 
