@@ -240,9 +240,10 @@ class _Estimate:
         return {"published": self.published, "improved": self.improved, "without_estimate": np.zeros(2)}
 
 
-def _draw(setup: Setup, rng: np.random.Generator) -> _Draws:
+def _draw(setup: Setup, rng: np.random.Generator, instrument: np.random.SeedSequence | None) -> _Draws:
     """The trial's draws in a fixed order (the stream is the trial's); the world's effects
-    draw from a child spawned after the lab's draws: off, nothing changes."""
+    draw from a child spawned after the lab's draws, and the instrument's properties from
+    ``instrument`` (None: from a second child): off, nothing changes."""
     sc = setup.scenario
     m, a, ss = sc.mirror, sc.attitude, sc.star_sensing
     if m.random_axis:
@@ -257,7 +258,12 @@ def _draw(setup: Setup, rng: np.random.Generator) -> _Draws:
     tracker_err = ss.tracker_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal((n_d, 3))
     noise = [ss.centroid_sigma_arcsec * RAD_PER_ARCSEC * rng.standard_normal(d.visible.shape + (2,))
              for d in setup.dwells]
-    fx = setup.effects.draw(rng.spawn(1)[0], setup.t_s) if setup.effects.on else None
+    fx = None
+    if setup.effects.on:
+        child = rng.spawn(1)[0]
+        if instrument is None:
+            instrument = np.random.SeedSequence(int(child.integers(2**63)))
+        fx = setup.effects.draw(child, setup.t_s, instrument)
     return _Draws(axis_rad=axis, phase_rad=phase, constant_rad=const, initial_deg=init, orbit_offset_km=orbit_offset,
                   knowledge_rad=att_know, tracker_rad=tracker_err, centroid_noise_rad=noise, effects=fx)
 
@@ -278,7 +284,7 @@ def _dwell_measurements(setup: Setup, draws: _Draws, dev: _Deviation,
     meas_app, meas_cat = [], []
     for j, (d, af, te, nz) in enumerate(zip(setup.dwells, att_frames, draws.tracker_rad, draws.centroid_noise_rad)):
         dtx_f, dty_f = dev(d.frame_t_s)
-        cen = true_centroids(d if fx is None else setup.effects.world_dwell(j), dtx_f, dty_f, af) + nz
+        cen = true_centroids(d if fx is None else fx.world_dwell(j), dtx_f, dty_f, af) + nz
         cen = np.where(d.visible[..., None], cen, np.nan)
         A_true = body_to_inertial(d.r_km, d.v_km_s, af)
         # the tracker's A_Ib = A_true R(error): the lab's white per-dwell error, plus the world's
@@ -327,7 +333,7 @@ def _estimate(setup: Setup, scan: int, meas_app: list, meas_cat: list, dev: _Dev
 
 
 def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledge, dtx: np.ndarray,
-                dty: np.ndarray, att: np.ndarray) -> dict[str, GroundErrors]:
+                dty: np.ndarray, att: np.ndarray, fx: TrialEffects | None) -> dict[str, GroundErrors]:
     """The ground errors of the samples ``sel`` of one area scan (true deviation ``dtx, dty``
     and attitude ``att`` there): uncompensated; published (first-order corrections from the
     nine parameters the lab knows); improved and without_estimate (exact compensation with
@@ -335,22 +341,23 @@ def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledg
     w = setup.world
     alpha0, beta0 = setup.alpha0[sel], setup.beta0[sel]
     n = sel.sum()
-    errs = {"uncompensated": _ground_errors(setup, sel, alpha0, beta0, dtx, dty, att)}
+    errs = {"uncompensated": _ground_errors(setup, sel, alpha0, beta0, dtx, dty, att, fx)}
     p = np.column_stack([np.full(n, est.published[0]), np.full(n, est.published[1]), lab.attitude_rad[sel],
                          lab.orbit[sel], lab.dR_km[sel]])
     d = np.einsum("nij,nj->ni", setup.comp.K[sel], p)
-    errs["published"] = _ground_errors(setup, sel, alpha0 + d[:, 0], beta0 + d[:, 1], dtx, dty, att)
+    errs["published"] = _ground_errors(setup, sel, alpha0 + d[:, 0], beta0 + d[:, 1], dtx, dty, att, fx)
     for name, e in (("improved", est.improved), ("without_estimate", np.zeros(2))):
         ac, bc = exact_compensation(w, alpha0, beta0, np.full(n, e[0]), np.full(n, e[1]), lab.attitude_rad[sel],
                                     lab.A[sel], lab.R_km[sel], target=setup.g0[sel, :2])
-        errs[name] = _ground_errors(setup, sel, ac, bc, dtx, dty, att)
+        errs[name] = _ground_errors(setup, sel, ac, bc, dtx, dty, att, fx)
     return errs
 
 
-def _ground_errors(setup: Setup, sel, alpha, beta, dtx, dty, att) -> GroundErrors:
-    # commanded angles -> the mirror's true ones (the world's encoders; identity when off)
+def _ground_errors(setup: Setup, sel, alpha, beta, dtx, dty, att, fx: TrialEffects | None) -> GroundErrors:
+    # commanded angles -> the mirror's true ones (the trial instrument's encoders; identity when off)
     # and the ground point by the truth's own route (nothing shared with the lab's chain)
-    alpha, beta = setup.effects.true_angles(alpha, beta)
+    if fx is not None:
+        alpha, beta = fx.true_angles(alpha, beta)
     g = setup.truth_ground(alpha, beta, dtx, dty, att, setup.A_true[sel], setup.R_true[sel])
     lat, lon = ground_errors_truth_deg(g, (setup.truth_latlon0[0][sel], setup.truth_latlon0[1][sel]))
     return GroundErrors(lat_deg=lat, lon_deg=lon)
@@ -364,10 +371,13 @@ def _series(setup: Setup, dev: _Deviation, dtx_t: np.ndarray, dty_t: np.ndarray,
                           attitude_rad=att_scan, t_all_s=t_all, dtau_x_all_rad=dx_all, dtau_y_all_rad=dy_all)
 
 
-def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) -> ScanOutcome:
+def run(setup: Setup, rng: np.random.Generator, *, instrument: np.random.SeedSequence | None = None,
+        keep_series: bool = False) -> ScanOutcome:
     """One trial: draws, star measurements, estimates, compensation, ground errors (and the
-    timeline with ``keep_series``)."""
-    draws = _draw(setup, rng)
+    timeline with ``keep_series``). ``instrument``: the seed sequence of the trial's
+    instrument (:func:`budget.runner.study.instrument_seed_sequence`; None: drawn from
+    ``rng``)."""
+    draws = _draw(setup, rng, instrument)
     dev = _deviation(setup, draws)
     att_scan, att_frames = setup.attitude(draws.initial_deg)
     meas_app, meas_cat = _dwell_measurements(setup, draws, dev, att_frames)
@@ -379,7 +389,7 @@ def run(setup: Setup, rng: np.random.Generator, *, keep_series: bool = False) ->
         sel = setup.scan == s
         est = _estimate(setup, s, meas_app, meas_cat, dev)
         dtau, sigma, truth = est.by_variant(), np.sqrt(np.diag(est.cov)), est.truth
-        errors[s] = _compensate(setup, sel, est, lab, dtx_t[sel], dty_t[sel], att_scan[sel])
+        errors[s] = _compensate(setup, sel, est, lab, dtx_t[sel], dty_t[sel], att_scan[sel], draws.effects)
     series = _series(setup, dev, dtx_t, dty_t, att_scan) if keep_series else None
     return ScanOutcome(dtau_rad=dtau, dtau_true_rad=truth, dtau_sigma_rad=sigma, errors=errors,
                        effects=draws.effects, series=series)

@@ -12,8 +12,11 @@ as the paper does for scan 1).
 
 The world's unmodelled effects (``[world.effects]``, tracker bias and correlated
 error, Gaia DR3 stars, deviation drift, inductosyn encoders) are drawn afterwards from a
-child of the trial's generator by :mod:`simcam.scanmirror.effects`; the estimators and
-their stated covariance never see them. The default scenario is that realistic world;
+child of the trial's generator by :mod:`simcam.scanmirror.effects`, the instrument's
+properties among them (encoders' drift, tracker bias, the stars' catalogue offsets) from
+``instrument_seed_sequence(validation.instrument_seed, seed, k)``: a new instrument per
+trial by default, one pinned instrument for an integer; the estimators and their stated
+covariance never see them. The default scenario is that realistic world;
 ``docs/examples/scenarios/scanmirror_ideal.toml`` is the ideal one (docs/scanmirror.md
 section 11).
 
@@ -30,7 +33,8 @@ import numpy as np
 
 from budget.figures import figure_markdown
 from budget.runner.capabilities import CheckedScenario, Plannable, Prepared, Presented, WorldEffects
-from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.study import (ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, instrument_seed_sequence,
+                                 trial_seed_sequence)
 from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
 from simcam.scanmirror.scanplan import evaluate_plan
 from simcam.units import RAD_PER_ARCSEC
@@ -85,7 +89,8 @@ class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable,
         from budget.scanmirror.pipeline import run
 
         setup = self.prepared(scenario)
-        outcome = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)))
+        instrument = instrument_seed_sequence(scenario.validation.instrument_seed, seed, k)
+        outcome = run(setup, np.random.default_rng(trial_seed_sequence(seed, k)), instrument=instrument)
         last = outcome.last_scan
         est, truths, sig = {}, {}, {}
         for v in self.variants:
