@@ -23,7 +23,10 @@ def test_trial_keys_truths_and_sigmas(scenario):
     names = {c.name for c in STUDY.classes(scenario)}
     assert {k[0] for k in r.estimates} == names
     assert {k[1] for k in r.estimates} == set(STUDY.variants)
-    assert set(r.truths) == {k for k in r.estimates if k[0] == "dtau"}
+    # per-trial truths: the injected deviation, and the world's error of the improved chain
+    assert set(r.truths) == {k for k in r.estimates if k[0] in ("dtau", "compensated_max")}
+    assert {k for k in r.estimates if k[0] == "compensated_max"} == {("compensated_max", "improved", ax)
+                                                                     for ax in ("lat", "lon")}
     assert set(r.sigmas) == {("dtau", "improved", "x"), ("dtau", "improved", "y")}
     # the same trial twice: bit-identical (trial k draws only from its own seed sequence;
     # exact equality is the point here, not a computed-float comparison)

@@ -72,6 +72,7 @@ class Setup:
         self.scan = plan.scan[keep]
         self.alpha0, self.beta0 = plan.alpha_rad[keep], plan.beta_rad[keep]
         self.g0 = w.nominal_ground(self.alpha0, self.beta0)
+        self.lat0, self.lon0 = w.latlon(self.g0)  # the lab's nominal grid (its targets)
         if np.isnan(self.g0).any():
             j = int(np.flatnonzero(np.isnan(self.g0[:, 0]))[0])
             raise ScenarioError(
@@ -157,7 +158,11 @@ class ScanOutcome:
         The improved estimator's stated 1-sigma (NaN without a dwell).
     errors : mapping of int to mapping of str to GroundErrors
         Per area-scan number, the ground errors under each compensation (:data:`VARIANTS`)
-        and ``uncompensated``.
+        and ``uncompensated`` (the world's, by the truth route).
+    lab_errors : mapping of int to GroundErrors
+        Per area-scan number, the ground errors of the ``improved`` compensation as the lab's
+        own model has them (its deviation estimate, orbit and attitude knowledge): what the
+        lab believes it left (0 to the Newton tolerance).
     effects : simcam.scanmirror.effects.TrialEffects or None
         The world's unmodelled effects drawn for this trial (None when they are off).
     series : TimelineSeries or None
@@ -168,6 +173,7 @@ class ScanOutcome:
     dtau_true_rad: np.ndarray
     dtau_sigma_rad: np.ndarray
     errors: Mapping[int, Mapping[str, GroundErrors]]
+    lab_errors: Mapping[int, GroundErrors] = field(default_factory=dict)
     effects: TrialEffects | None = None
     series: TimelineSeries | None = None
 
@@ -333,11 +339,13 @@ def _estimate(setup: Setup, scan: int, meas_app: list, meas_cat: list, dev: _Dev
 
 
 def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledge, dtx: np.ndarray,
-                dty: np.ndarray, att: np.ndarray, fx: TrialEffects | None) -> dict[str, GroundErrors]:
+                dty: np.ndarray, att: np.ndarray, fx: TrialEffects | None
+                ) -> tuple[dict[str, GroundErrors], GroundErrors]:
     """The ground errors of the samples ``sel`` of one area scan (true deviation ``dtx, dty``
     and attitude ``att`` there): uncompensated; published (first-order corrections from the
     nine parameters the lab knows); improved and without_estimate (exact compensation with
-    the improved estimate and with dtau = 0)."""
+    the improved estimate and with dtau = 0); and the improved compensation's errors as the
+    lab's model has them."""
     w = setup.world
     alpha0, beta0 = setup.alpha0[sel], setup.beta0[sel]
     n = sel.sum()
@@ -350,7 +358,12 @@ def _compensate(setup: Setup, sel: np.ndarray, est: _Estimate, lab: _LabKnowledg
         ac, bc = exact_compensation(w, alpha0, beta0, np.full(n, e[0]), np.full(n, e[1]), lab.attitude_rad[sel],
                                     lab.A[sel], lab.R_km[sel], target=setup.g0[sel, :2])
         errs[name] = _ground_errors(setup, sel, ac, bc, dtx, dty, att, fx)
-    return errs
+        if name == "improved":
+            g = w.ground(ac, bc, e[0], e[1], lab.attitude_rad[sel], lab.A[sel], lab.R_km[sel])
+            lat, lon = w.latlon(g)
+            lab_errs = GroundErrors(lat_deg=np.rad2deg(lat - setup.lat0[sel]),
+                                    lon_deg=np.rad2deg(np.mod(lon - setup.lon0[sel] + np.pi, 2 * np.pi) - np.pi))
+    return errs, lab_errs
 
 
 def _ground_errors(setup: Setup, sel, alpha, beta, dtx, dty, att, fx: TrialEffects | None) -> GroundErrors:
@@ -384,12 +397,13 @@ def run(setup: Setup, rng: np.random.Generator, *, instrument: np.random.SeedSeq
     lab = _lab_knowledge(setup, draws, att_scan)
     dtx_t, dty_t = dev(setup.t_s)
     dtau, sigma, truth = {}, np.full(2, np.nan), np.full(2, np.nan)
-    errors = {}
+    errors, lab_errors = {}, {}
     for s in sorted(setup.scan_start):  # the estimates kept are those of the last scan
         sel = setup.scan == s
         est = _estimate(setup, s, meas_app, meas_cat, dev)
         dtau, sigma, truth = est.by_variant(), np.sqrt(np.diag(est.cov)), est.truth
-        errors[s] = _compensate(setup, sel, est, lab, dtx_t[sel], dty_t[sel], att_scan[sel], draws.effects)
+        errors[s], lab_errors[s] = _compensate(setup, sel, est, lab, dtx_t[sel], dty_t[sel], att_scan[sel],
+                                               draws.effects)
     series = _series(setup, dev, dtx_t, dty_t, att_scan) if keep_series else None
     return ScanOutcome(dtau_rad=dtau, dtau_true_rad=truth, dtau_sigma_rad=sigma, errors=errors,
-                       effects=draws.effects, series=series)
+                       lab_errors=lab_errors, effects=draws.effects, series=series)

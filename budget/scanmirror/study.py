@@ -20,9 +20,13 @@ covariance never see them. The default scenario is that realistic world;
 ``docs/examples/scenarios/scanmirror_ideal.toml`` is the ideal one (docs/scanmirror.md
 section 11).
 
-Classes: ``dtau`` (arcsec, per-trial truth: the injected deviation at the dwell), and the
+Classes: ``dtau`` (arcsec, per-trial truth: the injected deviation at the dwell), the
 ground errors of the last scan after compensation, ``ground_max`` and ``ground_rms`` (deg,
-latitude and longitude; the truth is 0: compensation claims to put every point back).
+latitude and longitude; the truth is 0: compensation claims to put every point back), and
+``compensated_max`` (deg, improved chain only): the lab's own model's largest error against
+the world's (per-trial truth), on which the paper's bound of fig. 8 is judged
+(:mod:`budget.scanmirror.claims`). Every ground error of the world is computed by the truth's
+own route (:mod:`simcam.scanmirror.truth`).
 """
 
 from __future__ import annotations
@@ -32,9 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from budget.figures import figure_markdown
-from budget.runner.capabilities import CheckedScenario, Plannable, Prepared, Presented, WorldEffects
+from budget.runner.capabilities import CheckedScenario, Claims, Plannable, Prepared, Presented, WorldEffects
 from budget.runner.study import (ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, instrument_seed_sequence,
                                  trial_seed_sequence)
+from budget.scanmirror.claims import CLAIMS
 from budget.scanmirror.plots import plot_dtau_errors, plot_trial_ground_errors
 from simcam.scanmirror.scanplan import evaluate_plan
 from simcam.units import RAD_PER_ARCSEC
@@ -42,7 +47,7 @@ from simcam.units import RAD_PER_ARCSEC
 __all__ = ["ScanMirrorStudy", "STUDY"]
 
 
-class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable, Presented):
+class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable, Presented, Claims):
     name = "scanmirror"
     title = "GEO two-axis scan mirror: normal deviation from stars and compensated ground error (seed 003)"
     seed_document = "003"
@@ -69,7 +74,18 @@ class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable,
             ClassSpec("ground_rms", "rms ground error over the last area scan after compensation", "deg",
                       ("lat", "lon"), "as ground_max, root mean square over the scan's samples; truth 0",
                       role="residual"),
+            ClassSpec("compensated_max", "max |ground error| over the last area scan after the improved chain: "
+                      "the lab's model against the world", "deg", ("lat", "lon"),
+                      "estimate: the largest error the lab's own model leaves at its commanded angles (its "
+                      "deviation estimate, orbit and attitude knowledge; 0 to the Newton tolerance); truth: the "
+                      "world's largest error there, by the truth's own route (simcam.scanmirror.truth); the "
+                      "paper's bound (fig. 8) judges the truth", per_trial_truth=True, role="stated"),
         )
+
+    def claims(self, scenario) -> tuple:
+        """Seed 003's claims (:data:`budget.scanmirror.claims.CLAIMS`), judged on the embedded
+        default's two worlds whatever ``scenario``."""
+        return CLAIMS
 
     def setup(self, scenario):
         """The world's timeline, the ground grid of the last area scan and the dwells' stars
@@ -103,6 +119,11 @@ class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable,
                 est[("ground_rms", v, ax)] = float(np.sqrt(np.mean(e * e)))
         for j, ax in enumerate(("x", "y")):
             sig[("dtau", "improved", ax)] = float(outcome.dtau_sigma_rad[j] / RAD_PER_ARCSEC)
+        lab = outcome.lab_errors[last]
+        for ax, e_lab, e in (("lat", lab.lat_deg, outcome.errors[last]["improved"].lat_deg),
+                             ("lon", lab.lon_deg, outcome.errors[last]["improved"].lon_deg)):
+            est[("compensated_max", "improved", ax)] = float(np.abs(e_lab).max())
+            truths[("compensated_max", "improved", ax)] = float(np.abs(e).max())
         extra = {}
         if k == 0:  # the ground errors of the last scan (budget.scanmirror.pipeline.GroundErrors)
             extra = {"t_s": setup.t_s, "g0": setup.g0,
@@ -126,12 +147,17 @@ class ScanMirrorStudy(Study, Prepared, CheckedScenario, WorldEffects, Plannable,
             return ("a maximum or rms of an error is positive: the truth 0 is a bound, and what is left is "
                     "what the compensation does not model (orbit-determination and attitude-knowledge "
                     "errors of the trial, the deviation estimate's own error).")
+        if cls == "compensated_max":
+            return ("the lab's model believes its exact compensation put every point back; the world's error is "
+                    "what that model leaves out (the trial's knowledge errors, the deviation estimate's own error "
+                    "and, in the realistic world, the effects it does not model).")
         return None
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
         """No effect changes the study-level truths: the ground classes' truth is 0 whatever
-        the world, and ``dtau``'s truth is per trial (the world's deviation at the dwell,
-        effects included, returned by each trial)."""
+        the world, and the per-trial truths (``dtau``: the world's deviation at the dwell;
+        ``compensated_max``: the world's error of the improved chain; effects and the trial's
+        instrument included) are returned by each trial."""
         return set()
 
     # ------------------------------------------------------------ protocol planning

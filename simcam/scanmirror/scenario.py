@@ -18,7 +18,8 @@ from simcam.scanmirror.effects import ScanMirrorEffects, ScanMirrorWorld
 from simcam.scanmirror.scanplan import evaluate_plan, segment_durations
 from simcam.units import JGM3_RADIUS_KM
 
-__all__ = ["ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig", "AttitudeConfig",
+__all__ = ["EMBEDDED_DEFAULT", "ScanMirrorScenario", "default_text", "from_dict", "load", "default", "OrbitConfig",
+           "AttitudeConfig",
            "MirrorConfig", "StarSensingConfig", "ScanPlan", "ScanMirrorEffects", "ScanMirrorWorld"]
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -224,9 +225,15 @@ def from_dict(data: dict, *, source: str = "scenario") -> ScanMirrorScenario:
     return scenario
 
 
+#: the embedded default's name (as the star camera's ``embedded:NAME``)
+EMBEDDED_DEFAULT = "embedded:default"
+
+
 def load(path: str | Path | None = None) -> ScanMirrorScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
-    for None, the embedded default."""
+    for None or :data:`EMBEDDED_DEFAULT` (the name a claim gives it), the embedded default."""
+    if path == EMBEDDED_DEFAULT:
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="scanmirror")
 
 

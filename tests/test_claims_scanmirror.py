@@ -1,0 +1,132 @@
+"""Seed 003's claims ledger (budget.scanmirror.claims) evaluated on runs of both worlds of the
+embedded default: small runs here (8 trials each, fixed seed), the full-size run (200 trials)
+behind ``slow``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
+from budget.runner.numbers import fmt
+from budget.runner.run import run_study
+from budget.scanmirror.claims import CLAIMS, DEFAULT_SCENARIO, FIGURES_DEG
+from budget.scanmirror.study import STUDY
+from simcam.effects import scenario_effects
+
+Z95 = 1.959963984540054
+
+
+def _runs(trials: int, seed: int) -> dict:
+    claims = study_claims(STUDY, STUDY.load_scenario(None))
+    return {key: run_study(STUDY, world_scenario(STUDY, STUDY.load_scenario(key[0]), key[1]), trials=trials,
+                           seed=seed, workers=1)
+            for key in ledger_runs(claims)}
+
+
+@pytest.fixture(scope="module")
+def small():
+    claims = study_claims(STUDY, STUDY.load_scenario(None))
+    runs = _runs(8, 3)
+    return claims, runs, evaluate_claims(claims, runs)
+
+
+def _check_ledger(claims, runs, results, trials: int) -> None:
+    """The ledger's structure, and every verdict against its own numbers and the runs'."""
+    assert claims == CLAIMS and len(claims) == 10
+    assert ledger_runs(claims) == ((DEFAULT_SCENARIO, "seed"), (DEFAULT_SCENARIO, "realistic"))
+    for (_, world), res in runs.items():
+        assert (scenario_effects(res.scenario).active() == ()) == (world == "seed")
+    assert [(r.claim.id, r.world) for r in results] == [(c.id, w) for c in claims for w in WORLDS]
+    for r in results:
+        c = r.claim
+        if not c.testable:
+            assert r.verdict is None and r.no_verdict == f"untestable: {c.untestable}"
+            continue
+        run, v = runs[(c.scenario, r.world)], r.verdict
+        if c.kind == "bound":
+            t = np.asarray(run.trial_truths[("compensated_max", "improved", c.axis)])
+            assert (v.estimate, v.n) == (pytest.approx(t.mean(), rel=1e-12), trials)
+            assert v.se == pytest.approx(t.std(ddof=1) / np.sqrt(trials), rel=1e-9)
+            assert v.tolerance.high == FIGURES_DEG[c.axis]
+        else:
+            st = run.statistics((c.class_name, "published", c.axis))
+            assert (v.estimate, v.se, v.n) == (st["bias"], st["se_bias"], trials)
+            half = 1.0 if c.class_name == "dtau" else FIGURES_DEG[c.axis]
+            assert (v.tolerance.low, v.tolerance.high) == pytest.approx((-half, half))
+        lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
+        low = -np.inf if c.kind == "bound" else v.tolerance.low
+        want = ("holds" if low <= lo and hi <= v.tolerance.high
+                else "fails" if lo > v.tolerance.high or hi < low else "undetermined")
+        assert v.outcome == want, r.sentence
+        assert r.sentence.startswith(want + ": ") and fmt(v.estimate) in r.sentence
+    table = ledger_markdown(results).splitlines()
+    assert len(table) == 2 + len(claims)
+    for c, line in zip(claims, table[2:]):
+        assert line.startswith(f"| {c.words} ")
+
+
+def _outcomes(results) -> dict:
+    return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
+
+
+def test_ledger_on_small_runs(small):
+    claims, runs, results = small
+    _check_ledger(claims, runs, results, 8)
+    got = _outcomes(results)
+    # far from their tolerances' edges whatever the draw (measured at 20 and 200 trials,
+    # docs/claims.md): the one-star estimate misses the deviation by 6-9 arcsec (the
+    # catalogue's 20-arcsec aberration, first order; se 0.2 in the seed's world), the
+    # paper's chain leaves 0.021 / 0.033 deg (lat / lon; se < 0.002 at 8 trials), and the
+    # improved chain leaves 0.0015 deg of latitude in the seed's world and 0.011-0.013 deg
+    # in the realistic one (se < 0.0015 at 8 trials)
+    for ax in ("x", "y"):
+        assert got[(f"dtau.{ax}.method", "seed")] == "fails"
+    assert got[("dtau.y.method", "realistic")] == "fails"
+    for ax in ("lon", "lat"):
+        for w in WORLDS:
+            assert got[(f"scan2.{ax}.published", w)] == "fails"
+        assert got[(f"scan2.{ax}.bound", "realistic")] == "fails"
+    assert got[("scan2.lat.bound", "seed")] == "holds"
+
+
+def test_compensated_max_truth_is_the_worlds_error_and_the_lab_believes_it_zero(small):
+    """The bound class's truth is the world's largest error of the improved chain (the same
+    number as ground_max's improved estimate, the world's); its estimate, the lab's own
+    model's, is 0 to the Newton tolerance (1e-13 rad of scan angle, ~1e-10 deg on the ground)."""
+    _, runs, _ = small
+    for res in runs.values():
+        for ax in ("lat", "lon"):
+            t = np.asarray(res.trial_truths[("compensated_max", "improved", ax)])
+            np.testing.assert_array_equal(t, np.asarray(res.samples[("ground_max", "improved", ax)]))
+            assert np.abs(res.samples[("compensated_max", "improved", ax)]).max() < 1e-9
+
+
+def test_scanmirror_declares_its_claims():
+    assert study_claims(STUDY, STUDY.load_scenario(None)) == CLAIMS
+    assert STUDY.load_scenario(DEFAULT_SCENARIO) == STUDY.load_scenario(None)
+    untestable = {c.id for c in CLAIMS if not c.testable}
+    assert untestable == {"scan1.uncompensated", "scan1.without_estimate", "compensation.angles", "parameters.nine"}
+
+
+@pytest.mark.slow
+def test_ledger_full_size():
+    """200 trials a world (as issue #33 measured): the structure and agreement, and the
+    headline: the 0.003 deg longitude bound fails in the realistic world by about four times
+    (0.012 deg: the scan angles read through seed 001's compensated inductosyns) and the
+    0.006 deg latitude bound by about twice, while both hold in the seed's own world."""
+    claims = study_claims(STUDY, STUDY.load_scenario(None))
+    runs = _runs(200, 0)
+    results = evaluate_claims(claims, runs)
+    _check_ledger(claims, runs, results, 200)
+    got = _outcomes(results)
+    for ax in ("lon", "lat"):
+        assert got[(f"scan2.{ax}.bound", "realistic")] == "fails"
+        assert got[(f"scan2.{ax}.bound", "seed")] == "holds"
+        for w in WORLDS:
+            assert got[(f"scan2.{ax}.published", w)] == "fails"
+    for ax in ("x", "y"):
+        for w in WORLDS:
+            assert got[(f"dtau.{ax}.method", w)] == "fails"
+    lon = {r.world: r.verdict.estimate for r in results if r.claim.id == "scan2.lon.bound"}
+    assert 3.0 < lon["realistic"] / FIGURES_DEG["lon"] < 5.5
