@@ -76,6 +76,7 @@ from pydantic import Field, model_validator
 
 from simcam.effects import EffectsBase, WorldBase
 from simcam.noise_processes import gauss_markov
+from simcam.sky.gaia import gaia_match
 from simcam.units import MAS_PER_RAD, RAD_PER_ARCSEC
 
 __all__ = ["ScanMirrorEffects", "ScanMirrorWorld", "WorldEffects", "TrialEffects", "Instrument", "REMOVED_SETTINGS",
@@ -349,8 +350,6 @@ class WorldEffects:
         which keeps its Hipparcos place in the world (:func:`simcam.sky.gaia.gaia_world`)."""
         if not (self.on and self.effects.gaia_offset_fraction > 0):
             return np.zeros((1, 2))
-        from simcam.sky.gaia import gaia_match
-
         dx, dy = gaia_match(self._mag_limit).offsets_mas()
         return np.nan_to_num(np.column_stack([dx, dy]), nan=0.0) / MAS_PER_RAD
 
