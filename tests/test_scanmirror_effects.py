@@ -78,6 +78,9 @@ def test_ideal_world_equals_the_results_before_the_effects(tmp_path):
                     for a, d in axes.items()} for c, axes in classes.items()}
 
     floor = 4 * math.ulp(360.0)
+    # compensated_max came later (the claims ledger): its truth is ground_max's improved
+    # estimate, its estimate the lab's own view (tests/test_claims_scanmirror.py)
+    got["classes"].pop("compensated_max")
     assert_close_to_recorded(numbers(got["classes"]), numbers(want["classes"]), abs_floor=floor)
     assert_close_to_recorded(got["truths"], want["truths"], abs_floor=floor)
 
