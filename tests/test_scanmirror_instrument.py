@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from budget.runner.robustness import run_robustness
+from budget.runner.study import instrument_seed_sequence
 from budget.scanmirror.pipeline import Setup, run
 from budget.scanmirror.study import STUDY
-from budget.runner.study import instrument_seed_sequence
 from simcam.infra.errors import ScenarioError
 from simcam.scanmirror.effects import ScanMirrorEffects
 

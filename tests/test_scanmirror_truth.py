@@ -60,7 +60,10 @@ def test_line_of_sight_closed_forms():
     np.testing.assert_allclose(T.line_of_sight_body_truth(0.0, -np.pi / 4), [0, 0, 1], atol=4.5e-16)  # 2 ulp of 1
     d = 1e-4
     nadir = np.array([0.0, 0.0, 1.0])
-    ang = lambda v: np.arccos(np.clip(v @ nadir, -1, 1))  # noqa: E731
+
+    def ang(v):
+        return np.arccos(np.clip(v @ nadir, -1, 1))
+
     assert ang(T.line_of_sight_body_truth(0.0, -np.pi / 4, 0.0, d)) == pytest.approx(2 * d, abs=d * d)
     assert ang(T.line_of_sight_body_truth(0.0, -np.pi / 4, d, 0.0)) == pytest.approx(2 * d * np.cos(np.pi / 4),
                                                                                      abs=d * d)
@@ -83,8 +86,9 @@ def test_ground_point_agrees_with_the_world_route(shape):
     the world (ellipsoid), under random attitude, orbit-error matrix, radius and deviation.
     The law of cosines subtracts two numbers of ~4e4 km to get ~3.6e4 km: its rounding is a
     few 1e-16 of 4e4 km, about 1e-11 km; both within 1e-9 km (1 micrometre)."""
-    from budget.scanmirror.study import STUDY
     import tomllib
+
+    from budget.scanmirror.study import STUDY
 
     data = tomllib.loads(STUDY.default_text())
     data["orbit"]["earth_shape"] = shape

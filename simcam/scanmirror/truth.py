@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["line_of_sight_body_truth", "ground_point_s_truth", "ground_latlon_truth", "ground_errors_truth_deg"]
+__all__ = ["ground_errors_truth_deg", "ground_latlon_truth", "ground_point_s_truth", "line_of_sight_body_truth"]
 
 _X = np.array([1.0, 0.0, 0.0])
 _Z = np.array([0.0, 0.0, 1.0])
