@@ -372,6 +372,12 @@ def likely_cause(result, key, stats) -> str | None:
         return (f"a static error common to the sky (mean {fmt(stats['mean'], 3)}\" over the pointings): what the "
                 "camera's onboard correction leaves for the sky's stars (their colours against the lamp it was "
                 "fitted with, its own calibration), which no number of stars or frames averages.")
+    if cls == "spatial_fov":
+        return (f"the smooth fields' bias (mean {fmt(stats['mean'], 3)}\" over the pointings): the onboard "
+                "correction's residual and the lateral colour of the sky's stars against the lamp it was fitted with.")
+    if cls == "spatial_pixel":
+        return (f"the pixel-scale bias (mean {fmt(stats['mean'], 3)}\" over the pointings): pixel phase, PRNU and "
+                "non-linearity of this pointing's stars, and the frames' mean temporal noise.")
     if cls == "temporal":
         return "a spread over the frames is positive by definition: its truth 0 is a bound; this is the temporal noise."
     share = _share(run, variant)[AXES.index(ax)]
