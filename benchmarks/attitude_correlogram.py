@@ -18,6 +18,11 @@ from budget.runner.claims import world_scenario
 from simcam.starcam.render import StarCamera
 
 
+def _misfit(length: float, d_px: np.ndarray, rho: np.ndarray) -> float:
+    """Sum of squares of the correlogram ``rho`` at ``d_px`` less ``exp(-d^2 / (2 L^2))``."""
+    return float(np.sum((rho - np.exp(-0.5 * (d_px / length) ** 2)) ** 2))
+
+
 def main() -> None:
     for world in ("seed", "realistic"):
         scn = world_scenario(STUDY, STUDY.load_scenario(None), world)
@@ -41,8 +46,7 @@ def main() -> None:
         idx = np.digitize(d.ravel(), bins)
         rho = np.array([prod.ravel()[idx == k].mean() / var for k in range(1, len(bins))])
         mid = bins[:-1] + 25
-        fit = minimize_scalar(lambda length: np.sum((rho - np.exp(-0.5 * (mid / length) ** 2)) ** 2),
-                              bounds=(10, 5000), method="bounded")
+        fit = minimize_scalar(_misfit, args=(mid, rho), bounds=(10, 5000), method="bounded")
         print(f"{world}: {ok.sum()} points, rms {np.sqrt(var):.4f} px, L {fit.x:.0f} px; correlogram at "
               + ", ".join(f"{m:.0f}: {r:.2f}" for m, r in zip(mid[:10], rho[:10])))
 

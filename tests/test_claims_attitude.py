@@ -9,7 +9,14 @@ from __future__ import annotations
 import pytest
 
 from budget.attitude.study import STUDY
-from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import (
+    WORLDS,
+    evaluate_claims,
+    ledger_markdown,
+    ledger_runs,
+    study_claims,
+    world_scenario,
+)
 from budget.runner.run import run_study
 from simcam.effects import scenario_effects
 from simcam.starcam.render import StarCamera

@@ -30,7 +30,14 @@ from budget.centroid import CentroidFlag
 from budget.starcam.kernels_trial import expose_centroid_chain
 from budget.starcam.protocols import centroid_options
 from simcam.starcam.render import StarCamera
-from simcam.starcam.sky_view import DetectionLimit, SkyStars, StarsInView, image_motion_px, sky_scene, stars_in_view
+from simcam.starcam.sky_view import (
+    DetectionLimit,
+    SkyStars,
+    StarsInView,
+    image_motion_px,
+    sky_scene,
+    stars_in_view,
+)
 
 __all__ = ["FrameView", "PointingObservation", "camera_model", "frame_attitudes", "good_stars", "observe",
            "observe_pointing", "random_attitudes", "smooth_field_positions", "solve_frame"]

@@ -51,13 +51,31 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from budget.attitude.chain import camera_model, good_stars, observe_pointing, smooth_field_positions, solve_frame
+from budget.attitude.chain import (
+    camera_model,
+    good_stars,
+    observe_pointing,
+    smooth_field_positions,
+    solve_frame,
+)
 from budget.attitude.predict import LabBudget, predict_attitude
 from budget.attitude.report import details, likely_cause, report_sections
-from budget.attitude.solve import CameraModel, attitude_error, focal_from_mosaic, solve_attitude
+from budget.attitude.solve import (
+    CameraModel,
+    attitude_error,
+    focal_from_mosaic,
+    solve_attitude,
+)
 from budget.runner.capabilities import Claims, Prepared, Presented
 from budget.runner.claims import Claim, ToleranceRule
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.study import (
+    ClassSpec,
+    ReportSection,
+    Study,
+    TrialResult,
+    Truth,
+    trial_seed_sequence,
+)
 from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import EMBEDDED_DEFAULT
 from simcam.starcam.sky_view import DetectionLimit, SkyStars, detection_limit, sky_stars
