@@ -16,11 +16,12 @@ from scipy.spatial.transform import Rotation
 from budget.attitude.study import STUDY
 from budget.runner.registry import get_study
 from budget.runner.run import run_study
-from budget.runner.study import trial_seed_sequence
+from budget.runner.study import instrument_seed_sequence, trial_seed_sequence
 from simcam.config_base import read_toml
 from simcam.infra.errors import ScenarioError
 from simcam.sky.catalogue import hipparcos
 from simcam.starcam import scenario as starcam_scenario
+from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import default, default_text, from_dict
 
 
@@ -92,6 +93,37 @@ def test_one_and_two_workers_give_the_same_numbers():
         assert np.array_equal(one.sigmas[key], two.sigmas[key]), key
     for name in one.aux:
         assert np.array_equal(one.aux[name], two.aux[name]), name
+
+
+def test_the_instrument_comes_from_the_instrument_stream_and_can_be_pinned(tmp_path, monkeypatch):
+    # a camera that draws its maps per instrument: each trial's detector seed is the first word of
+    # instrument_seed_sequence(validation.instrument_seed, seed, k); pinned, every trial shares it
+    import budget.attitude.study as study_mod
+
+    cam = tmp_path / "cam.toml"
+    cam.write_text(starcam_scenario.load("embedded:seed000_noisy").to_toml().replace(
+        "new_maps_per_trial = false", "new_maps_per_trial = true"))
+    seen = []
+
+    class Recording(StarCamera):
+        def __init__(self, scenario, *, detector_seed=None, parallel=None):
+            seen.append(detector_seed)
+            super().__init__(scenario, detector_seed=detector_seed, parallel=parallel)
+
+    monkeypatch.setattr(study_mod, "StarCamera", Recording)
+    for pinned in (None, 42):
+        data = read_toml(text=default_text(), source="t")
+        data["camera"], data["onboard"]["frames"] = str(cam), 2
+        data["validation"]["instrument_seed"] = pinned
+        if pinned is None:
+            del data["validation"]["instrument_seed"]
+        scn = from_dict(data, source="i.toml")
+        seen.clear()
+        for k in (0, 1):
+            STUDY.trial(scn, 7, k)
+        words = [int(instrument_seed_sequence(pinned, 7, k).generate_state(1, np.uint64)[0]) for k in (0, 1)]
+        assert [d for d in seen if d is not None] == words
+        assert (words[0] == words[1]) == (pinned is not None)
 
 
 def _split_check(run) -> None:

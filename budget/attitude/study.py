@@ -1,11 +1,14 @@
 """The attitude study (issue #34): seed 000's star camera on the real sky, its attitude solved
 per frame, against the lab's attitude claim (eq 32) and an improved prediction.
 
-Trial ``k`` (everything drawn from ``trial_seed_sequence(seed, k)``, spawned into the
-attitude's, the temporal noise's and the instrument's streams):
+Trial ``k`` (drawn from ``trial_seed_sequence(seed, k)``, spawned into the attitude's, the
+temporal noise's and a third, unused stream; the instrument from
+``instrument_seed_sequence(validation.instrument_seed, seed, k)``):
 
 1. the instrument: the flown camera (``SkyScenario.camera_scenario``), with new detector maps
-   (PRNU, DSNU) when its ``validation.new_maps_per_trial`` draws them per instrument;
+   (PRNU, DSNU) when its ``validation.new_maps_per_trial`` draws them per instrument: from
+   the trial's instrument stream (``validation.instrument_seed`` None, the default: each
+   trial its own; an integer: one pinned instrument for every trial);
 2. a random attitude, boresight uniform on the sphere and roll uniform
    (``Rotation.random`` with the attitude stream); drawn again while some frame would have
    fewer than 2 stars (no attitude; ``aux["blind_draws"]`` counts them);
@@ -74,6 +77,7 @@ from budget.runner.study import (
     Study,
     TrialResult,
     Truth,
+    instrument_seed_sequence,
     trial_seed_sequence,
 )
 from simcam.starcam.render import StarCamera
@@ -222,9 +226,10 @@ class AttitudeStudy(Study, Prepared, Presented, Claims):
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         s = self.prepared(scenario)
-        attitude_ss, noise_ss, instrument_ss = trial_seed_sequence(seed, k).spawn(3)
+        attitude_ss, noise_ss, _ = trial_seed_sequence(seed, k).spawn(3)
         camera = s.camera
         if scenario.camera_scenario.validation.new_maps_per_trial:
+            instrument_ss = instrument_seed_sequence(scenario.validation.instrument_seed, seed, k)
             camera = StarCamera(scenario.camera_scenario,
                                 detector_seed=int(instrument_ss.generate_state(1, np.uint64)[0]))
         noise_seed = int(noise_ss.generate_state(1, np.uint64)[0])
