@@ -65,6 +65,55 @@ def test_te_scales_with_the_stars_electrons_and_lsfe_s_does_not_average():
         predict_attitude(b, u_px=u, v_px=v, focal_length_px=37_500.0, electrons=np.zeros(n))
 
 
+@pytest.mark.parametrize("n", [3, 10, 40])
+def test_the_prediction_with_only_a_rigid_field_offset_is_the_offset_whatever_n(n):
+    # the issue's check on the prediction: a shift common to every star (LSFE-S, or a smooth
+    # field of infinite correlation length) is the attitude error, whatever N, and no roll
+    # (the stars' equal TE only sets their equal weights)
+    u, v = _ring(n, 900.0)
+    for b in (_budget(te=(0.3, 0.3), lsfe_s=(0.3, 0.6)),
+              LabBudget.from_3sigma(single_star=(1.76, 1.95), n_stars=10, te=(0.3, 0.3), hsfe=(0.0, 0.0),
+                                    lsfe_s=(0.0, 0.0), lsfe_c1=(0.3, 0.6), lsfe_c2=(0.0, 0.0),
+                                    reference_electrons=1000.0, field_correlation_px=1e12)):
+        p = predict_attitude(b, u_px=u, v_px=v, focal_length_px=37_500.0, electrons=np.full(n, 1000.0))
+        np.testing.assert_allclose(np.diag(p.fov_arcsec2), [0.01, 0.04, 0.0], atol=1e-12)
+        np.testing.assert_allclose(p.pixel_arcsec2, 0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("n", [3, 10, 40])
+def test_the_prediction_with_only_temporal_noise_is_sigma_over_sqrt_n(n):
+    # TE 0.3" 3 sigma: 0.1" per star and axis; equal stars centred on the boresight
+    b = _budget(te=(0.3, 0.3))
+    u, v = _ring(n, 700.0)
+    p = predict_attitude(b, u_px=u, v_px=v, focal_length_px=37_500.0, electrons=np.full(n, 1000.0))
+    np.testing.assert_allclose(np.sqrt(np.diag(p.temporal_arcsec2)[:2]), 0.1 / math.sqrt(n), rtol=1e-12)
+    np.testing.assert_allclose(p.spatial_arcsec2, 0.0, atol=1e-15)
+
+
+def test_a_correlated_smooth_field_averages_as_its_correlation_allows():
+    # two equal stars d apart on the u axis: e_x is the mean of their du, whose variance is
+    # f^2 (1 + rho) / 2 with rho = exp(-d^2 / (2 L^2)); L = 0 gives f^2 / 2, the independent case
+    f, d, big_l = 0.2, 800.0, 600.0
+    u, v = np.array([-d / 2, d / 2]), np.zeros(2)
+    for length, rho in ((0.0, 0.0), (big_l, math.exp(-0.5 * (d / big_l) ** 2))):
+        b = LabBudget.from_3sigma(single_star=(1.76, 1.95), n_stars=10, te=(0.0, 0.0), hsfe=(0.0, 0.0),
+                                  lsfe_s=(0.0, 0.0), lsfe_c1=(3 * f, 3 * f), lsfe_c2=(0.0, 0.0),
+                                  reference_electrons=1000.0, field_correlation_px=length)
+        p = predict_attitude(b, u_px=u, v_px=v, focal_length_px=37_500.0, electrons=np.full(2, 1000.0))
+        assert p.fov_arcsec2[0, 0] == pytest.approx(f**2 * (1 + rho) / 2, rel=1e-12)
+    # the pixel part (HSFE) is independent from star to star whatever L: ring, f^2 / N
+    b = LabBudget.from_3sigma(single_star=(1.76, 1.95), n_stars=10, te=(0.0, 0.0), hsfe=(0.6, 0.6),
+                              lsfe_s=(0.0, 0.0), lsfe_c1=(0.0, 0.0), lsfe_c2=(0.0, 0.0), reference_electrons=1000.0,
+                              field_correlation_px=1e6)
+    u, v = _ring(8, 700.0)
+    p = predict_attitude(b, u_px=u, v_px=v, focal_length_px=37_500.0, electrons=np.full(8, 1000.0))
+    np.testing.assert_allclose(np.diag(p.pixel_arcsec2)[:2], 0.04 / 8, rtol=1e-12)
+    with pytest.raises(ValueError, match="field_correlation_px"):
+        LabBudget.from_3sigma(single_star=(1.76, 1.95), n_stars=10, te=(0.0, 0.0), hsfe=(0.0, 0.0),
+                              lsfe_s=(0.0, 0.0), lsfe_c1=(0.0, 0.0), lsfe_c2=(0.0, 0.0), reference_electrons=1.0,
+                              field_correlation_px=-1.0)
+
+
 def _ring_catalogue(attitude, f_px, *, n, radius_px, v_mag=7.0):
     u, v = _ring(n, radius_px)
     c = np.column_stack([u / f_px, v / f_px, np.ones(n)])

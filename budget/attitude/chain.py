@@ -30,10 +30,17 @@ from budget.centroid import CentroidFlag
 from budget.starcam.kernels_trial import expose_centroid_chain
 from budget.starcam.protocols import centroid_options
 from simcam.starcam.render import StarCamera
-from simcam.starcam.sky_view import DetectionLimit, SkyStars, StarsInView, image_motion_px, sky_scene, stars_in_view
+from simcam.starcam.sky_view import (
+    DetectionLimit,
+    SkyStars,
+    StarsInView,
+    image_motion_px,
+    sky_scene,
+    stars_in_view,
+)
 
 __all__ = ["FrameView", "PointingObservation", "camera_model", "frame_attitudes", "good_stars", "observe",
-           "observe_pointing", "random_attitudes", "solve_frame"]
+           "observe_pointing", "random_attitudes", "smooth_field_positions", "solve_frame"]
 
 #: window batches above this many pixels expose on numba threads (as the lab's trial decides)
 _PARALLEL_MIN_PIXELS = 20_000
@@ -122,6 +129,16 @@ def observe(camera: StarCamera, sky: SkyStars, attitude: Rotation, *, detection:
                                              parallel=parallel)
     xr, yr = camera.report_positions(x.ravel(), y.ravel())
     return PointingObservation(pointing, attitude, view, xr.reshape(x.shape), yr.reshape(y.shape), flux, flag)
+
+
+def smooth_field_positions(camera: StarCamera, view: StarsInView) -> tuple[np.ndarray, np.ndarray]:
+    """Where the camera would report each star of ``view`` with its smooth fields only (mosaic
+    px): the true image position (gnomonic, distorted and shifted by its own lateral colour,
+    ``x_true, y_true``: the centroid of the noise-free image) through the onboard correction,
+    with no pixel sampling, detector map or noise. Its error against the ideal gnomonic
+    position is the star's FOV spatial error (ECSS-E-ST-60-20C): the correction's residual and
+    the lateral colour."""
+    return camera.report_positions(view.x_true, view.y_true)
 
 
 def good_stars(obs: PointingObservation, frame: int) -> np.ndarray:

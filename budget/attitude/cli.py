@@ -6,7 +6,12 @@ from __future__ import annotations
 
 import click
 
-from budget.attitude.frame_solve import attitude_angles, attitude_from_angles, solve_sky_frame, tetra3_prior
+from budget.attitude.frame_solve import (
+    attitude_angles,
+    attitude_from_angles,
+    solve_sky_frame,
+    tetra3_prior,
+)
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
 from simcam.infra.outputs import check_run_outputs

@@ -37,8 +37,19 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from budget.attitude.chain import camera_model
-from budget.attitude.solve import AttitudeSolution, camera_directions, focal_from_mosaic, solve_attitude
-from budget.centroid import CentroidFlag, CentroidWarning, centroid_cog, detect_stars, extract_windows
+from budget.attitude.solve import (
+    AttitudeSolution,
+    camera_directions,
+    focal_from_mosaic,
+    solve_attitude,
+)
+from budget.centroid import (
+    CentroidFlag,
+    CentroidWarning,
+    centroid_cog,
+    detect_stars,
+    extract_windows,
+)
 from simcam.infra.errors import UserInputError
 from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_view import SkyStars

@@ -8,18 +8,26 @@
   - temporal ``t_ia = TE_a sqrt(N_ref / N_i)``: the lab's TE, measured with its own source of
     ``N_ref`` photo-electrons, scaled to the star's ``N_i`` as a centre of gravity's shot
     noise (photon-limited: the read and background terms fall faster, as ``1 / N_i``);
-  - static and independent from star to star, ``s_a = RSS(HSFE_a, LSFE-C1_a, LSFE-C2_a)``:
-    the pixel-phase error, and the distortion residual and the calibration grid's markers,
-    whose smooth fields the pointing's stars sample at scattered places;
+  - static, the pixel-scale error ``p_a = HSFE_a`` (ECSS pixel spatial error), independent
+    from star to star;
+  - static, the smooth fields ``f_a = RSS(LSFE-C1_a, LSFE-C2_a)`` (the distortion residual and
+    the calibration grid's markers; ECSS FOV spatial error, with ``c_a``): a field over the
+    focal plane, which the pointing's stars sample at their own places, so that two stars
+    ``d`` px apart share ``rho(d) = exp(-d^2 / (2 L^2))`` of it (a Gaussian correlogram of
+    correlation length ``L``, the lab's from its residual map, ``field_correlation_px``; 0:
+    independent from star to star, infinite: a bias common to the field);
   - common to the pointing's stars, ``c_a = LSFE-S_a``: the colour shift, nearly uniform
     over the field, which no number of stars averages.
 
   The attitude is the weighted least squares of the stars' image displacements
   ``(du, dv)_i = (e_x - rho_v,i e_roll, e_y + rho_u,i e_roll)`` (``rho = (u, v) / F`` the
   field angle, rad): ``G = (H^T W H)^-1 H^T W`` with ``W_i = 1 / w_i^2``,
-  ``w_i^2 = mean_a (t_ia^2 + s_a^2)`` (the weights the improved solve uses), and the
-  prediction ``P = G diag(t^2) G^T`` (temporal) ``+ G diag(s^2) G^T + diag(c_x^2, c_y^2, 0)``
-  (spatial): the stars' own count, brightness and geometry, the roll's lever arm included.
+  ``w_i^2 = mean_a (t_ia^2 + p_a^2 + f_a^2)`` (the weights the improved solve uses), and the
+  prediction ``P = G diag(t^2) G^T`` (temporal) ``+ G diag(p^2) G^T`` (pixel spatial)
+  ``+ G (R (x) diag(f^2)) G^T + diag(c_x^2, c_y^2, 0)`` (FOV spatial, ``R_ij = rho(d_ij)``):
+  the stars' own count, brightness, geometry and spacing, the roll's lever arm included (the
+  propagation of a covariance through a linear least squares, e.g. Bjorck, *Numerical Methods
+  for Least Squares Problems*, 1996, eq. 1.1.21).
 
 Nothing here reads a truth: the inputs are the budget's figures, the stars' catalogue
 electrons and their measured focal positions.
@@ -56,32 +64,57 @@ class LabBudget:
         Temporal error at ``reference_electrons``.
     reference_electrons : float
         Photo-electrons per exposure of the source TE was measured with.
-    static_arcsec : ndarray (2,)
-        Independent static part per star, ``RSS(HSFE, LSFE-C1, LSFE-C2)``.
+    pixel_arcsec : ndarray (2,)
+        Pixel-scale static part per star, independent from star to star (HSFE).
+    field_arcsec : ndarray (2,)
+        Smooth-field static part per star, independent from star to star
+        (``RSS(LSFE-C1, LSFE-C2)``).
     common_arcsec : ndarray (2,)
         Part common to a pointing's stars (LSFE-S).
+    field_correlation_px : float
+        Correlation length ``L`` of the smooth-field part (px; 0: independent from star to star).
     """
 
     single_star_arcsec: np.ndarray
     n_stars: int
     te_arcsec: np.ndarray
     reference_electrons: float
-    static_arcsec: np.ndarray
+    pixel_arcsec: np.ndarray
+    field_arcsec: np.ndarray
     common_arcsec: np.ndarray
+    field_correlation_px: float = 0.0
 
     @classmethod
     def from_3sigma(cls, *, single_star, n_stars: int, te, hsfe, lsfe_s, lsfe_c1, lsfe_c2,
-                    reference_electrons: float) -> LabBudget:
-        """The budget from its published 3-sigma figures (x, y) and the TE source's electrons."""
+                    reference_electrons: float, field_correlation_px: float = 0.0) -> LabBudget:
+        """The budget from its published 3-sigma figures (x, y), the TE source's electrons and
+        the smooth field's correlation length (px)."""
+        if not (math.isfinite(field_correlation_px) and field_correlation_px >= 0.0):
+            raise ValueError(f"field_correlation_px: must be finite and >= 0, got {field_correlation_px!r}")
         ref = float(reference_electrons)
         if not (math.isfinite(ref) and ref > 0.0):
             raise ValueError(f"reference_electrons: must be finite and > 0, got {reference_electrons!r}")
         if int(n_stars) < 1:
             raise ValueError(f"n_stars: must be >= 1, got {n_stars!r}")
-        static = np.sqrt(_xy("hsfe", hsfe) ** 2 + _xy("lsfe_c1", lsfe_c1) ** 2 + _xy("lsfe_c2", lsfe_c2) ** 2)
+        field = np.sqrt(_xy("lsfe_c1", lsfe_c1) ** 2 + _xy("lsfe_c2", lsfe_c2) ** 2)
         return cls(single_star_arcsec=_xy("single_star", single_star) / 3.0, n_stars=int(n_stars),
-                   te_arcsec=_xy("te", te) / 3.0, reference_electrons=ref, static_arcsec=static / 3.0,
-                   common_arcsec=_xy("lsfe_s", lsfe_s) / 3.0)
+                   te_arcsec=_xy("te", te) / 3.0, reference_electrons=ref, pixel_arcsec=_xy("hsfe", hsfe) / 3.0,
+                   field_arcsec=field / 3.0, common_arcsec=_xy("lsfe_s", lsfe_s) / 3.0,
+                   field_correlation_px=float(field_correlation_px))
+
+    def field_correlation(self, u_px, v_px) -> np.ndarray:
+        """``R_ij = exp(-d_ij^2 / (2 L^2))`` of stars at focal ``(u, v)`` px (the identity for
+        ``L = 0``)."""
+        u = np.asarray(u_px, dtype=np.float64)
+        if self.field_correlation_px == 0.0:
+            return np.eye(u.size)
+        d2 = (u[:, None] - u[None, :]) ** 2 + (np.asarray(v_px)[:, None] - np.asarray(v_px)[None, :]) ** 2
+        return np.exp(-0.5 * d2 / self.field_correlation_px**2)
+
+    @property
+    def static_arcsec(self) -> np.ndarray:
+        """The static part per star independent from star to star, ``RSS(pixel, field)`` (2,)."""
+        return np.sqrt(self.pixel_arcsec**2 + self.field_arcsec**2)
 
     @property
     def published_sigma_arcsec(self) -> np.ndarray:
@@ -105,10 +138,17 @@ class LabBudget:
 @dataclass(frozen=True)
 class AttitudePrediction:
     """The predicted covariance of the attitude error components (x, y, roll), arcsec^2:
-    its temporal part (the spread over frames) and its spatial part (the pointing's bias)."""
+    its temporal part (the spread over frames) and the two parts of the pointing's bias,
+    ECSS-E-ST-60-20C's FOV spatial error (the smooth fields) and pixel spatial error."""
 
     temporal_arcsec2: np.ndarray
-    spatial_arcsec2: np.ndarray
+    fov_arcsec2: np.ndarray
+    pixel_arcsec2: np.ndarray
+
+    @property
+    def spatial_arcsec2(self) -> np.ndarray:
+        """The pointing's bias: FOV plus pixel spatial error (independent)."""
+        return self.fov_arcsec2 + self.pixel_arcsec2
 
     @property
     def total_arcsec2(self) -> np.ndarray:
@@ -141,6 +181,10 @@ def predict_attitude(budget: LabBudget, *, u_px, v_px, focal_length_px: float, e
     wr = np.repeat(w, 2)
     g = np.linalg.solve(h.T @ (wr[:, None] * h), h.T * wr[None, :])
     temporal = (g * (t**2).ravel()[None, :]) @ g.T
-    static = np.tile(budget.static_arcsec**2, n)
-    spatial = (g * static[None, :]) @ g.T + np.diag([*(budget.common_arcsec**2), 0.0])
-    return AttitudePrediction(temporal_arcsec2=temporal, spatial_arcsec2=spatial)
+    pixel = (g * np.tile(budget.pixel_arcsec**2, n)[None, :]) @ g.T
+    c = np.zeros((2 * n, 2 * n))
+    r = budget.field_correlation(u, v)
+    c[0::2, 0::2] = budget.field_arcsec[0] ** 2 * r
+    c[1::2, 1::2] = budget.field_arcsec[1] ** 2 * r
+    fov = g @ c @ g.T + np.diag([*(budget.common_arcsec**2), 0.0])
+    return AttitudePrediction(temporal_arcsec2=temporal, fov_arcsec2=fov, pixel_arcsec2=pixel)

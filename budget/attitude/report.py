@@ -50,9 +50,12 @@ class SkyRun:
     actual_ms: dict
     stated_rms: dict
     spatial: dict
+    fov: dict
+    pixel: dict
     temporal: dict
     pred_temporal: np.ndarray
     pred_spatial: np.ndarray
+    pred_fov: np.ndarray
     requirement: object
     budget_3sigma: np.ndarray
     budget_n: int
@@ -88,11 +91,14 @@ def sky_run(result) -> SkyRun:
                    + (f - 1) / f * _column(result, "temporal", v) ** 2 for v in variants},
         stated_rms={v: _column(result, "stated_rms", v) for v in variants},
         spatial={v: _column(result, "spatial", v) for v in variants},
+        fov={v: _column(result, "spatial_fov", v) for v in variants},
+        pixel={v: _column(result, "spatial_pixel", v) for v in variants},
         temporal={v: _column(result, "temporal", v) for v in variants},
         pred_temporal=np.column_stack([np.asarray(aux[f"pred_temporal_{ax}"], float) for ax in AXES]),
         pred_spatial=np.column_stack([np.sqrt(np.maximum(np.asarray(result.sigmas[("spatial", "improved", ax)]) ** 2
                                                          - np.asarray(aux[f"pred_temporal_{ax}"]) ** 2 / f, 0.0))
                                       for ax in AXES]),
+        pred_fov=np.column_stack([np.asarray(result.sigmas[("spatial_fov", "improved", ax)], float) for ax in AXES]),
         requirement=scn.requirement, budget_3sigma=np.array(scn.budget.single_star_3sigma_arcsec, float),
         budget_n=int(scn.budget.n_stars))
 
@@ -140,6 +146,7 @@ def summary(run: SkyRun) -> dict:
             "actual_rms_arcsec": _per_axis(run.actual_rms(v)), "stated_rms_arcsec": _per_axis(run.stated_rms[v]),
             "spatial_share": dict(zip(AXES, _share(run, v).tolist())),
             "spatial_rms_arcsec": _per_axis(run.spatial[v]), "temporal_rms_arcsec": _per_axis(run.temporal[v]),
+            "fov_rms_arcsec": _per_axis(run.fov[v]), "pixel_rms_arcsec": _per_axis(run.pixel[v]),
             "actual_rms_n_le_6": _per_axis(run.actual_rms(v)[low]) if low.any() else None,
             "actual_rms_n_ge_15": _per_axis(run.actual_rms(v)[high]) if high.any() else None,
         }
@@ -180,7 +187,11 @@ def findings_markdown(run: SkyRun) -> str:
         ("* **Temporal and spatial.** The pointing's bias (the frames' mean error) holds "
          + ", ".join(f"{fmt(100 * imp['spatial_share'][a], 3)} %" for a in AXES)
          + " of one frame's mean square on x, y and roll; the spread over the frames the rest: frames at one "
-         "pointing do not average it away."),
+         "pointing do not average it away. Of the bias, the smooth fields (FOV spatial error: the correction's "
+         "residual, the lateral colour) give "
+         + "/".join(f"{fmt(3 * imp['fov_rms_arcsec'][a], 3)}\"" for a in AXES)
+         + " and the pixel-scale errors "
+         + "/".join(f"{fmt(3 * imp['pixel_rms_arcsec'][a], 3)}\"" for a in AXES) + " (3 x rms, x/y/roll)."),
         (f"* **Improved prediction** (each star's TE for its electrons, this pointing's stars and geometry with "
          f"the roll lever arm, LSFE-S common to the stars) states "
          f"{_x3([imp['stated_rms_arcsec'][a] for a in AXES])} (x/y/roll) against an actual "
@@ -262,20 +273,27 @@ def plot_split(run: SkyRun, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     x = np.arange(len(AXES))
     sp = 3.0 * _rms(run.spatial["improved"])
+    fp = 3.0 * _rms(run.fov["improved"])
+    pp = 3.0 * _rms(run.pixel["improved"])
     tp = 3.0 * _rms(run.temporal["improved"])
     psp = 3.0 * _rms(run.pred_spatial)
+    pfp = 3.0 * _rms(run.pred_fov)
     ptp = 3.0 * _rms(run.pred_temporal)
-    ax.bar(x - 0.2, sp, 0.38, color="C0", label="spatial (the pointing's bias), actual")
-    ax.bar(x + 0.2, tp, 0.38, color="C2", label="temporal (spread over frames), actual")
-    ax.plot(x - 0.2, psp, "v", color="k", ms=8, label="improved prediction")
-    ax.plot(x + 0.2, ptp, "v", color="k", ms=8)
+    ax.bar(x - 0.3, sp, 0.19, color="C0", label="spatial (the pointing's bias), actual")
+    ax.bar(x - 0.1, fp, 0.19, color="C1", label="of which FOV (smooth fields)")
+    ax.bar(x + 0.1, pp, 0.19, color="C4", label="of which pixel")
+    ax.bar(x + 0.3, tp, 0.19, color="C2", label="temporal (spread over frames), actual")
+    ax.plot(x - 0.3, psp, "v", color="k", ms=8, label="improved prediction")
+    ax.plot(x - 0.1, pfp, "v", color="k", ms=8)
+    ax.plot(x + 0.3, ptp, "v", color="k", ms=8)
     ax.set_xticks(x, AXES)
     ax.set_yscale("log")
     ax.set_ylabel("rms over the pointings, 3 sigma (arcsec)")
     ax.set_title("temporal and spatial error per axis (weighted solve)", fontsize=9)
     ax.legend(fontsize=8)
     caption = ("The attitude error split as ECSS-E-ST-60-20C does, rms over the pointings (3 sigma, weighted solve): "
-               + "; ".join(f"{a}: spatial {fmt(sp[j], 3)}\" (predicted {fmt(psp[j], 3)}\"), temporal "
+               + "; ".join(f"{a}: spatial {fmt(sp[j], 3)}\" (predicted {fmt(psp[j], 3)}\"; FOV {fmt(fp[j], 3)}\", "
+                           f"predicted {fmt(pfp[j], 3)}\"; pixel {fmt(pp[j], 3)}\"), temporal "
                            f"{fmt(tp[j], 3)}\" (predicted {fmt(ptp[j], 3)}\")" for j, a in enumerate(AXES))
                + f". Roll's spatial part is {fmt(sp[2] / np.sqrt(np.mean(sp[:2] ** 2)), 3)} times the "
                "cross-boresight one.")
@@ -372,6 +390,12 @@ def likely_cause(result, key, stats) -> str | None:
         return (f"a static error common to the sky (mean {fmt(stats['mean'], 3)}\" over the pointings): what the "
                 "camera's onboard correction leaves for the sky's stars (their colours against the lamp it was "
                 "fitted with, its own calibration), which no number of stars or frames averages.")
+    if cls == "spatial_fov":
+        return (f"the smooth fields' bias (mean {fmt(stats['mean'], 3)}\" over the pointings): the onboard "
+                "correction's residual and the lateral colour of the sky's stars against the lamp it was fitted with.")
+    if cls == "spatial_pixel":
+        return (f"the pixel-scale bias (mean {fmt(stats['mean'], 3)}\" over the pointings): pixel phase, PRNU and "
+                "non-linearity of this pointing's stars, and the frames' mean temporal noise.")
     if cls == "temporal":
         return "a spread over the frames is positive by definition: its truth 0 is a bound; this is the temporal noise."
     share = _share(run, variant)[AXES.index(ax)]

@@ -12,6 +12,14 @@ the attitude requirement of the report and the Monte Carlo settings. The embedde
 The star camera's scenario is loaded once when the sky scenario is validated and kept with it
 (:attr:`SkyScenario.camera_scenario`, pickled with it to worker processes); its hash is part
 of the sky scenario's hash, so a changed camera file is a different scenario.
+
+The world (``[world.effects]``, :class:`AttitudeEffects`): the star camera's world effects
+that act in orbit (the distortion beyond the cubic, which the onboard correction fitted in the
+camera's lab calibration leaves in part; the detector's non-linearity), at the camera's
+sourced realistic magnitudes. They replace the flown camera scenario's own values of the same
+effects (:attr:`SkyScenario.camera_scenario`), so that the claims ledger judges eq 32 in the
+seed's own world (all 0) and the realistic world. The camera's lab-only effects (hexapod,
+target drift) move nothing on the sky: this chain never reads them.
 """
 
 from __future__ import annotations
@@ -36,11 +44,12 @@ from simcam.config_base import (
     model_hash,
     validate_model,
 )
+from simcam.effects import EffectsBase, WorldBase
 from simcam.infra.errors import ScenarioError
 from simcam.limits import check_epoch_utc
 from simcam.starcam import scenario as starcam_scenario
 
-__all__ = ["DEFAULT_RESOURCE", "BudgetConfig", "OnboardConfig", "RequirementConfig", "SkyConfig", "SkyScenario",
+__all__ = ["DEFAULT_RESOURCE", "IN_ORBIT_EFFECTS", "AttitudeEffects", "AttitudeWorld", "BudgetConfig", "OnboardConfig", "RequirementConfig", "SkyConfig", "SkyScenario",
            "SkyValidation", "default", "default_text", "from_dict", "load"]
 
 DEFAULT_RESOURCE = "attitude_default.toml"
@@ -126,7 +135,10 @@ class BudgetConfig(StrictModel):
     the single-star error and the star count of eq 32 (the published prediction,
     ``single_star / sqrt(n_stars)``), and its components (TE, HSFE, LSFE-S, LSFE-C1, LSFE-C2,
     eqs 31-32), from which the study's improved prediction is built. TE was measured with the
-    lab's own source (the flown camera's ``lab.source``), whose electrons set its scale."""
+    lab's own source (the flown camera's ``lab.source``), whose electrons set its scale.
+    ``lsfe_c_correlation_px`` is the length ``L`` of a Gaussian correlogram
+    ``exp(-d^2 / (2 L^2))`` of the lab's distortion residual map (px; 0: independent from star
+    to star), with which the prediction treats LSFE-C as a field the stars share."""
 
     single_star_3sigma_arcsec: XY = (1.76, 1.95)
     n_stars: Annotated[int, Field(ge=1, le=10000)] = 10
@@ -135,6 +147,8 @@ class BudgetConfig(StrictModel):
     lsfe_s_3sigma_arcsec: XY = (0.03, 0.66)
     lsfe_c1_3sigma_arcsec: XY = (0.29, 0.41)
     lsfe_c2_3sigma_arcsec: XY = (0.5, 0.5)
+    lsfe_c_correlation_px: float = Field(200.0, ge=0.0, le=1e6, description="correlation length of the smooth "
+                                         "field (LSFE-C) over the focal plane, the lab's from its residual map")
 
 
 class RequirementConfig(StrictModel):
@@ -146,6 +160,54 @@ class RequirementConfig(StrictModel):
     y_3sigma_arcsec: float = Field(1.5, gt=0.0, le=3600.0)
     roll_3sigma_arcsec: float = Field(15.0, gt=0.0, le=36000.0)
     min_stars: Annotated[int, Field(ge=2, le=10000)] = 5
+
+
+#: the star camera's world effects that act in orbit (fields of
+#: :class:`simcam.starcam.scenario.StarCameraEffects`, the same names here)
+IN_ORBIT_EFFECTS = ("distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta")
+
+
+class AttitudeEffects(EffectsBase):
+    """The flown camera's world beyond the lab's model that acts on the sky (module
+    docstring): the star camera's own effects of the same names
+    (:class:`simcam.starcam.scenario.StarCameraEffects`, their model forms in
+    :class:`simcam.starcam.optics.HigherOrderRadialDistortion` and :mod:`simcam.detector`),
+    at its sourced realistic magnitudes; 0 is off. They replace the flown camera scenario's
+    values."""
+
+    distortion_r5_px_at_corner: float = Field(
+        1.47, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): fifth-order radial "
+        "distortion 1.47 px at the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights; "
+        "the onboard correction fitted in the lab calibration removes it in part")
+    distortion_r7_px_at_corner: float = Field(
+        0.081, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): seventh-order radial "
+        "distortion 0.081 px at the mosaic corner in the same fit")
+    nonlinearity_beta: float = Field(
+        0.008, gt=-1.0, lt=1.0, description="CMOS integral non-linearity 0.2 % of full scale typical (Gpixel "
+        "GSENSE4040 data sheet; Janesick, Photon Transfer, ch. 7): s_out = s (1 - beta s / FW), beta = 0.008")
+
+
+class AttitudeWorld(WorldBase):
+    """The attitude study's world: the in-orbit effects' magnitudes (:class:`AttitudeEffects`)."""
+
+    effects: AttitudeEffects = AttitudeEffects()
+
+
+def flown_camera(camera: starcam_scenario.Scenario, effects: AttitudeEffects) -> starcam_scenario.Scenario:
+    """``camera`` with its in-orbit world effects (:data:`IN_ORBIT_EFFECTS`) set to ``effects``'
+    (itself when they already are), re-validated; kept per camera and effects."""
+    own = camera.world.effects
+    values = {n: float(getattr(effects, n)) for n in IN_ORBIT_EFFECTS}
+    if all(float(getattr(own, n)) == v for n, v in values.items()):
+        return camera
+    key = ("flown", camera.hash, tuple(values.values()))
+    hit = _CAMERAS.get(key)
+    if hit is None:
+        hit = starcam_scenario.with_updates(camera, {f"world.effects.{n}": v for n, v in values.items()})
+        if len(_CAMERAS) > 8:
+            _CAMERAS.clear()
+        _CAMERAS[key] = hit
+    return hit
 
 
 class SkyValidation(ValidationSettings):
@@ -167,6 +229,7 @@ class SkyScenario(ScenarioBase):
     budget: BudgetConfig = BudgetConfig()
     requirement: RequirementConfig = RequirementConfig()
     validation: SkyValidation = SkyValidation()
+    world: AttitudeWorld = AttitudeWorld()
 
     _camera_scenario: starcam_scenario.Scenario | None = PrivateAttr(default=None)
 
@@ -183,12 +246,13 @@ class SkyScenario(ScenarioBase):
 
     @model_validator(mode="after")
     def _keep_camera(self) -> SkyScenario:
-        self._camera_scenario = load_camera(self.camera)
+        self._camera_scenario = flown_camera(load_camera(self.camera), self.world.effects)
         return self
 
     @property
     def camera_scenario(self) -> starcam_scenario.Scenario:
-        """The flown star camera's scenario (loaded when this scenario was validated)."""
+        """The flown star camera's scenario (loaded when this scenario was validated), with this
+        scenario's in-orbit world effects (:func:`flown_camera`)."""
         return self._camera_scenario
 
     @property
