@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.capabilities import Prepared, Presented, WorldEffects
+from budget.runner.capabilities import CheckedScenario, Prepared, Presented, WorldEffects
 from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
 from budget.whiskbroom import estimators as est
 from budget.whiskbroom import plots
@@ -50,7 +50,7 @@ def _mtf_floor(scenario) -> float:
     return float(2.0 * phi**2 / (24.0 * scenario.tdi.time_samples_per_phase**2))
 
 
-class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
+class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented):
     """Seed 002: whiskbroom TDICCD image-motion residual and the MTF it leaves."""
 
     name = "whiskbroom"
@@ -59,6 +59,16 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
     variants = ("published", "improved", "edge")
     scenario_module = "simcam.whiskbroom.scenario"
     trials_per_task = 20
+
+    def check(self, scenario, *, where: str) -> None:
+        """An instrument cannot be pinned: every one of the 17 variables is the trial's operating
+        point or a knowledge error of that pass (seed 002), so the study draws no instrument
+        property that ``validation.instrument_seed`` could fix."""
+        from simcam.infra.errors import ScenarioError
+
+        if scenario.validation.instrument_seed is not None:
+            raise ScenarioError(f"{where}: validation.instrument_seed: the whiskbroom study draws no instrument "
+                                "property (its 17 variables are drawn per trial); leave it unset")
 
     # ------------------------------------------------------------ the method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -76,9 +86,10 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
 
     def setup(self, scenario):
         """The field points the worst column is searched over (the centre first,
-        :func:`simcam.whiskbroom.synthesis.field_points`)."""
+        :func:`simcam.whiskbroom.synthesis.field_points`), after :meth:`check`."""
         from simcam.whiskbroom import synthesis as sy
 
+        self.check(scenario, where=getattr(scenario, "source", None) or "scenario")
         x1, x3 = sy.field_points(scenario)
         return np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
 

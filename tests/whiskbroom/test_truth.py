@@ -83,3 +83,15 @@ def test_stage_limit_truth():
     assert wt.stage_limit_truth([0.99, 0.95], thr) == 2                     # at the threshold passes
     assert wt.stage_limit_truth([0.90, 0.99], thr) == 0
     assert wt.stage_limit_truth(np.ones(7), thr) == 7
+
+
+def test_a_pinned_instrument_is_refused_in_one_line():
+    from budget.runner.run import run_study
+    from budget.whiskbroom.study import STUDY
+    from simcam.infra.errors import ScenarioError
+
+    sc = STUDY.load_scenario(None)
+    sc = sc.model_copy(update={"validation": sc.validation.model_copy(update={"instrument_seed": 3})})
+    with pytest.raises(ScenarioError) as e:
+        run_study(STUDY, sc, trials=2, seed=0, workers=1)
+    assert "\n" not in str(e.value) and "validation.instrument_seed: the whiskbroom study draws no" in str(e.value)
