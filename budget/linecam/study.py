@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.capabilities import CheckedScenario, Plannable, Presented, WorldEffects
+from budget.runner.capabilities import CheckedScenario, Claims, Plannable, Presented, WorldEffects
 from budget.runner.study import (ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, instrument_seed_sequence,
                                  trial_seed_sequence)
 from simcam.distortion import OpticsError
@@ -43,6 +43,7 @@ from simcam.infra.errors import ScenarioError
 from simcam.linecam.scenario import PARAMETERS
 from simcam.units import ARCSEC_PER_RAD
 
+from .claims import ledger_claims
 from .parameters import GAUGE_COMBINATIONS, gauge_combination_vector, to_report_units
 from .report import report_sections
 
@@ -66,7 +67,7 @@ def _gauge_axes(scenario) -> tuple[str, ...]:
     return tuple(p for c in GAUGE_COMBINATIONS for p in c[1:3])
 
 
-class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
+class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented, Claims):
     """Seed 004: star-observation calibration of a TDI line camera."""
 
     name = "linecam"
@@ -135,6 +136,11 @@ class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
+
+    def claims(self, scenario) -> tuple:
+        """Seed 004's claims (:func:`budget.linecam.claims.ledger_claims`): the testable ones
+        name ``embedded:default``, judged in its two worlds."""
+        return ledger_claims(scenario)
 
     def truth_depends_on_effects(self, scenario) -> set[str] | None:
         """World effects whose magnitude changes the truths: the distortion outside

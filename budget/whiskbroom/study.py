@@ -26,13 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.capabilities import CheckedScenario, Prepared, Presented, WorldEffects
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.capabilities import CheckedScenario, Claims, Prepared, Presented, WorldEffects
+from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
+from budget.whiskbroom import claims as ledger
+from budget.whiskbroom import draws
 from budget.whiskbroom import estimators as est
 from budget.whiskbroom import plots
 from budget.whiskbroom import truth as wtruth
+from simcam.infra.errors import ScenarioError
 from simcam.whiskbroom import geometry as geo
-from simcam.whiskbroom.scenario import VARIABLES
 
 __all__ = ["STUDY", "WhiskbroomStudy", "STAGE_CAP_FACTOR"]
 
@@ -50,7 +52,7 @@ def _mtf_floor(scenario) -> float:
     return float(2.0 * phi**2 / (24.0 * scenario.tdi.time_samples_per_phase**2))
 
 
-class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented):
+class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented, Claims):
     """Seed 002: whiskbroom TDICCD image-motion residual and the MTF it leaves."""
 
     name = "whiskbroom"
@@ -64,8 +66,6 @@ class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented)
         """An instrument cannot be pinned: every one of the 17 variables is the trial's operating
         point or a knowledge error of that pass (seed 002), so the study draws no instrument
         property that ``validation.instrument_seed`` could fix."""
-        from simcam.infra.errors import ScenarioError
-
         if scenario.validation.instrument_seed is not None:
             raise ScenarioError(f"{where}: validation.instrument_seed: the whiskbroom study draws no instrument "
                                 "property (its 17 variables are drawn per trial); leave it unset")
@@ -87,30 +87,21 @@ class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented)
     def setup(self, scenario):
         """The field points the worst column is searched over (the centre first,
         :func:`simcam.whiskbroom.synthesis.field_points`), after :meth:`check`."""
-        from simcam.whiskbroom import synthesis as sy
-
         self.check(scenario, where=getattr(scenario, "source", None) or "scenario")
-        x1, x3 = sy.field_points(scenario)
-        return np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
+        return draws.field_points(scenario)
 
     def _draw(self, scenario, seed: int, k: int):
-        from simcam.whiskbroom import synthesis as sy
-
-        rng = np.random.default_rng(trial_seed_sequence(seed, k))
-        u = np.clip(rng.random(len(VARIABLES)), 1e-300, None)[None, :]
-        draws = sy.standard_draws(scenario, u)
-        know, true = sy.trial_params(scenario, draws, [k])
-        x1, x3 = self.prepared(scenario)
-        r = sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
-        # a scenario outside the model's domain is one error line, not NaN estimates
-        sy.check_finite_residuals(scenario, r, scenario.errors.mirror_rate_deg_s.scale,
-                                  f"{getattr(scenario, 'source', 'scenario')}: trial {k} of seed {seed}")
-        return rng, know, true, r
+        return draws.trial_draw(scenario, seed, k, *self.prepared(scenario))
 
     def motion(self, scenario, seed: int, k: int):
         """The trial's generator (after the 17 draws) and its worst-column residual."""
         rng, _, _, r = self._draw(scenario, seed, k)
         return rng, r
+
+    def claims(self, scenario) -> tuple:
+        """Seed 002's claims (:func:`budget.whiskbroom.claims.ledger_claims`): the testable ones
+        name ``embedded:default``, judged in its two worlds."""
+        return ledger.ledger_claims(scenario)
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
         """The effects that change the truth (the motion MTF): the world's image motion
