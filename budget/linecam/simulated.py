@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from budget.runner.numbers import fmt
-from budget.runner.study import trial_seed_sequence
+from budget.runner.study import instrument_seed_sequence, trial_seed_sequence
 from simcam.infra.errors import UserInputError
 from simcam.linecam.scenario import PARAMETERS, LineCamScenario
 
@@ -57,7 +57,8 @@ def simulate_trial(scenario: LineCamScenario, *, seed: int = 0, trial: int = 0) 
     spawn_key=(trial,))``); a strip with too few stars is a
     :class:`simcam.infra.errors.UserInputError` naming the scenario and its fields."""
     try:
-        sim = simulate(scenario, trial_seed_sequence(seed, trial))
+        sim = simulate(scenario, trial_seed_sequence(seed, trial),
+                       instrument_seed_sequence(scenario.validation.instrument_seed, seed, trial))
     except CalibrationError as exc:
         raise UserInputError(f"{scenario.source}: stars.mag_limit / observation.passes: {exc}") from None
     return SimulatedCalibration(scenario=scenario, seed=seed, trial=trial, simulation=sim,

@@ -35,13 +35,15 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.capabilities import CheckedScenario, Plannable, Presented, WorldEffects
-from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.capabilities import CheckedScenario, Claims, Plannable, Presented, WorldEffects
+from budget.runner.study import (ClassSpec, Knob, ReportSection, Study, TrialResult, Truth, instrument_seed_sequence,
+                                 trial_seed_sequence)
 from simcam.distortion import OpticsError
 from simcam.infra.errors import ScenarioError
 from simcam.linecam.scenario import PARAMETERS
 from simcam.units import ARCSEC_PER_RAD
 
+from .claims import ledger_claims
 from .parameters import GAUGE_COMBINATIONS, gauge_combination_vector, to_report_units
 from .report import report_sections
 
@@ -65,7 +67,7 @@ def _gauge_axes(scenario) -> tuple[str, ...]:
     return tuple(p for c in GAUGE_COMBINATIONS for p in c[1:3])
 
 
-class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
+class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented, Claims):
     """Seed 004: star-observation calibration of a TDI line camera."""
 
     name = "linecam"
@@ -121,7 +123,8 @@ class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
         from .trial import simulate
 
         try:
-            simulation = simulate(scenario, trial_seed_sequence(seed, k))
+            simulation = simulate(scenario, trial_seed_sequence(seed, k),
+                                  instrument_seed_sequence(scenario.validation.instrument_seed, seed, k))
         except CalibrationError as exc:
             raise ScenarioError(f"{scenario.source}: stars.mag_limit / observation.passes: {exc}") from None
         except OpticsError as exc:
@@ -133,6 +136,11 @@ class LineCamStudy(Study, CheckedScenario, WorldEffects, Plannable, Presented):
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         return {}
+
+    def claims(self, scenario) -> tuple:
+        """Seed 004's claims (:func:`budget.linecam.claims.ledger_claims`): the testable ones
+        name ``embedded:default``, judged in its two worlds."""
+        return ledger_claims(scenario)
 
     def truth_depends_on_effects(self, scenario) -> set[str] | None:
         """World effects whose magnitude changes the truths: the distortion outside
@@ -189,7 +197,8 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
     """The estimates, per-trial truths and stated sigmas of one simulation."""
     estimates, truths, sigmas = {}, {}, {}
     true_along, true_across = sim.los_true
-    nominal_along, nominal_across = sim.los_before
+    nominal_along, nominal_across = sim.los_before       # the lab's design camera (estimates)
+    design_along, design_across = sim.los_design         # the same by the world's camera (truths)
     n_pixels = scenario.camera.n_pixels
     # the grid detectors nearest to LOS_POINTS of the line
     picked = [int(np.argmin(np.abs(sim.grid - fraction * (n_pixels - 1)))) for fraction in LOS_POINTS]
@@ -206,13 +215,13 @@ def trial_result(scenario, sim, *, keep_extra: bool = False) -> TrialResult:
             truths[("los_ms", variant, axis)] = float(np.mean(error * error))
             estimates[("los_max", variant, axis)] = float(3.0 * np.max(sigma))
             truths[("los_max", variant, axis)] = float(np.max(np.abs(error)))
-        for axis, calibrated, true, nominal, sigma in (
-                ("along", los.along_rad, true_along, nominal_along, sigma_along),
-                ("across", los.across_rad, true_across, nominal_across, sigma_across)):
+        for axis, calibrated, true, nominal, design, sigma in (
+                ("along", los.along_rad, true_along, nominal_along, design_along, sigma_along),
+                ("across", los.across_rad, true_across, nominal_across, design_across, sigma_across)):
             for fraction, index in zip(LOS_POINTS, picked):
                 key = ("los", variant, f"{axis}_{int(round(100 * fraction))}")
                 estimates[key] = float((calibrated[index] - nominal[index]) * ARCSEC_PER_RAD)
-                truths[key] = float((true[index] - nominal[index]) * ARCSEC_PER_RAD)
+                truths[key] = float((true[index] - design[index]) * ARCSEC_PER_RAD)
                 sigmas[key] = float(sigma[index])
         if variant not in sim.calibrations:  # the look-angle model has no camera parameters
             continue

@@ -12,7 +12,7 @@ principal distance and misalignment; nothing of the lab's model).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -29,9 +29,12 @@ from .calibrate import (Calibration, LosField, calibrate_joint, calibrate_lookan
 from .model import NominalCamera, Observations, los_angles, los_grid
 from .pipeline import Centroids, Identified, Region, choose_region, extract_centroids, identify
 
-__all__ = ["region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS", "run_calibrations"]
+__all__ = ["INSTRUMENT_CHILD", "region", "world_strip", "lab_strip", "simulate", "Simulation", "VARIANTS",
+           "run_calibrations"]
 
 VARIANTS = ("published", "improved", "lookangle")
+#: spawn-key suffix of the instrument stream of a trial simulated without one (:func:`simulate`)
+INSTRUMENT_CHILD = 0x1A57
 
 
 @lru_cache(maxsize=16)
@@ -46,11 +49,12 @@ def region(scenario: LineCamScenario) -> Region:
                          along_rad=math.radians(st.strip_length_deg), pa_deg=st.scan_pa_deg)
 
 
-def world_strip(scenario: LineCamScenario) -> SkyStrip:
+def world_strip(scenario: LineCamScenario, rng: np.random.Generator | None = None) -> SkyStrip:
     """The stars the world images (all apparent-place terms, down to ``world_mag_limit``, from the
-    world's catalogue: :func:`simcam.linecam.world.world_sky_strip`)."""
+    world's catalogue: :func:`simcam.linecam.world.world_sky_strip`; ``rng`` draws the Gaia world's
+    proper-motion errors, needed when that effect is on)."""
     r = region(scenario)
-    return world_sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg)
+    return world_sky_strip(scenario, ra_deg=r.ra_deg, dec_deg=r.dec_deg, rng=rng)
 
 
 def lab_strip(scenario: LineCamScenario) -> SkyStrip:
@@ -82,7 +86,11 @@ class Simulation:
     los : dict of str to LosField
         Each variant's calibrated field on the grid (``lookangle`` included).
     los_before : tuple of numpy.ndarray
-        The nominal camera's look angles (along, across; rad) on the grid.
+        The nominal camera's look angles (along, across; rad) on the grid, by the lab's model
+        (what the estimates are reported against).
+    los_design : tuple of numpy.ndarray
+        The same design camera's look angles by the world's camera (no errors, no effects):
+        what the truths are reported against, so no truth passes through the lab's model.
     """
 
     theta_true: np.ndarray
@@ -95,14 +103,30 @@ class Simulation:
     los_true: tuple
     los: dict[str, LosField]
     los_before: tuple
+    los_design: tuple
 
 
-def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *, noise: bool = True) -> Simulation:
-    """One trial: draw the errors, image, centroid, identify, calibrate (both variants)."""
+def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence,
+             instrument: np.random.SeedSequence | None = None, *, noise: bool = True) -> Simulation:
+    """One trial: draw the errors, image, centroid, identify, calibrate (both variants).
+
+    ``instrument``: the seed sequence of the trial's instrument
+    (:func:`budget.runner.study.instrument_seed_sequence` of ``validation.instrument_seed``); it
+    draws the world's Gaia proper-motion errors (child 1) and, when the scenario pins an
+    instrument (an integer ``instrument_seed``), the camera's errors (child 0). None: a child of
+    ``seed_sequence`` (a per-trial instrument). The camera's errors are otherwise drawn first
+    from the trial's own stream, which draws them in both cases so its later draws do not move.
+    """
     rng = np.random.default_rng(seed_sequence)
+    if instrument is None:
+        instrument = np.random.SeedSequence(seed_sequence.entropy,
+                                            spawn_key=tuple(seed_sequence.spawn_key) + (INSTRUMENT_CHILD,))
+    camera_ss, sky_ss = instrument.spawn(2)
     theta = draw_errors(scenario, rng)
+    if scenario.validation.instrument_seed is not None:
+        theta = draw_errors(scenario, np.random.default_rng(camera_ss))
     truth = camera_truth(scenario, theta)
-    wstrip = world_strip(scenario)
+    wstrip = world_strip(scenario, np.random.default_rng(sky_ss))
     keys = rng.integers(1, 2**63, size=wstrip.plan.passes + 1, dtype=np.uint64)
     # the world's unmodelled effects draw from their own stream (common random numbers)
     jitter = world_jitter(scenario, wstrip.plan, effects_generator(seed_sequence))
@@ -122,8 +146,10 @@ def simulate(scenario: LineCamScenario, seed_sequence: np.random.SeedSequence, *
                                degree_across=scenario.lab.lookangle_degree_across)
     los["lookangle"] = look.field(grid)
     before = los_angles(cam, np.zeros(len(PARAMETERS)), grid)
+    design = replace(truth, params=np.zeros(len(PARAMETERS)), k3_edge_px=0.0, prism_edge_px=0.0).los_angles(grid)
     return Simulation(theta_true=theta, truth=truth, images=images, centroids=cents, identified=ident,
-                      calibrations=cals, grid=grid, los_true=los_true, los=los, los_before=before)
+                      calibrations=cals, grid=grid, los_true=los_true, los=los, los_before=before,
+                      los_design=design)
 
 
 def run_calibrations(scenario: LineCamScenario, cam: NominalCamera, obs: Observations) -> dict[str, Calibration]:

@@ -6,8 +6,10 @@ edge image's noise from the same generator) draws one operating point and its er
 (:mod:`simcam.whiskbroom.synthesis`), finds the worst column of the three arrays (largest
 along-TDI smear per stage ``eps``) and its cross-TDI smear ``eta``, and then
 
-* **truth** (per trial): the pixel-level TDI simulation of a Nyquist sinusoid moving with
-  that residual over 4-phase clocked charge (:func:`simcam.whiskbroom.tdi.pixel_mtf`);
+* **truth** (per trial, :mod:`budget.whiskbroom.truth`): the pixel-level TDI simulation of a
+  Nyquist sinusoid moving with that column's residual over 4-phase clocked charge
+  (:func:`simcam.whiskbroom.tdi.pixel_mtf`), the residual ray-traced from the true and the
+  knowledge states (no code of the paper's chain that gives the predictions' ``eps, eta``);
 * ``published``: ``sinc(pi N eps/2)`` with ``eps = Delta V_P / V_P`` (the paper's fig. 6),
   nothing across the TDI direction;
 * ``improved``: the smear along the TDI direction (``Delta beta`` projected), the
@@ -24,13 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.runner.capabilities import Prepared, Presented, WorldEffects
-from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth, trial_seed_sequence
+from budget.runner.capabilities import CheckedScenario, Claims, Prepared, Presented, WorldEffects
+from budget.runner.study import ClassSpec, ReportSection, Study, TrialResult, Truth
+from budget.whiskbroom import claims as ledger
+from budget.whiskbroom import draws
 from budget.whiskbroom import estimators as est
 from budget.whiskbroom import plots
-from simcam.units import WGS84_F
+from budget.whiskbroom import truth as wtruth
+from simcam.infra.errors import ScenarioError
 from simcam.whiskbroom import geometry as geo
-from simcam.whiskbroom.scenario import VARIABLES
 
 __all__ = ["STUDY", "WhiskbroomStudy", "STAGE_CAP_FACTOR"]
 
@@ -48,7 +52,7 @@ def _mtf_floor(scenario) -> float:
     return float(2.0 * phi**2 / (24.0 * scenario.tdi.time_samples_per_phase**2))
 
 
-class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
+class WhiskbroomStudy(Study, CheckedScenario, Prepared, WorldEffects, Presented, Claims):
     """Seed 002: whiskbroom TDICCD image-motion residual and the MTF it leaves."""
 
     name = "whiskbroom"
@@ -57,6 +61,14 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
     variants = ("published", "improved", "edge")
     scenario_module = "simcam.whiskbroom.scenario"
     trials_per_task = 20
+
+    def check(self, scenario, *, where: str) -> None:
+        """An instrument cannot be pinned: every one of the 17 variables is the trial's operating
+        point or a knowledge error of that pass (seed 002), so the study draws no instrument
+        property that ``validation.instrument_seed`` could fix."""
+        if scenario.validation.instrument_seed is not None:
+            raise ScenarioError(f"{where}: validation.instrument_seed: the whiskbroom study draws no instrument "
+                                "property (its 17 variables are drawn per trial); leave it unset")
 
     # ------------------------------------------------------------ the method
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
@@ -74,30 +86,22 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
 
     def setup(self, scenario):
         """The field points the worst column is searched over (the centre first,
-        :func:`simcam.whiskbroom.synthesis.field_points`)."""
-        from simcam.whiskbroom import synthesis as sy
-
-        x1, x3 = sy.field_points(scenario)
-        return np.concatenate([[0.0], x1]), np.concatenate([[0.0], x3])
+        :func:`simcam.whiskbroom.synthesis.field_points`), after :meth:`check`."""
+        self.check(scenario, where=getattr(scenario, "source", None) or "scenario")
+        return draws.field_points(scenario)
 
     def _draw(self, scenario, seed: int, k: int):
-        from simcam.whiskbroom import synthesis as sy
-
-        rng = np.random.default_rng(trial_seed_sequence(seed, k))
-        u = np.clip(rng.random(len(VARIABLES)), 1e-300, None)[None, :]
-        draws = sy.standard_draws(scenario, u)
-        know, true = sy.trial_params(scenario, draws, [k])
-        x1, x3 = self.prepared(scenario)
-        r = sy.evaluate(know, true, x1, x3, backend="numpy")   # one state: numpy is faster
-        # a scenario outside the model's domain is one error line, not NaN estimates
-        sy.check_finite_residuals(scenario, r, scenario.errors.mirror_rate_deg_s.scale,
-                                  f"{getattr(scenario, 'source', 'scenario')}: trial {k} of seed {seed}")
-        return rng, know, true, r
+        return draws.trial_draw(scenario, seed, k, *self.prepared(scenario))
 
     def motion(self, scenario, seed: int, k: int):
         """The trial's generator (after the 17 draws) and its worst-column residual."""
         rng, _, _, r = self._draw(scenario, seed, k)
         return rng, r
+
+    def claims(self, scenario) -> tuple:
+        """Seed 002's claims (:func:`budget.whiskbroom.claims.ledger_claims`): the testable ones
+        name ``embedded:default``, judged in its two worlds."""
+        return ledger.ledger_claims(scenario)
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
         """The effects that change the truth (the motion MTF): the world's image motion
@@ -115,60 +119,6 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
         if class_name == "stage_limit":
             return 0.05 * scenario.camera.tdi_stages
         return 0.005
-
-    def _world_truth(self, scenario, seed, k, know, true, r, cap):
-        """The truth under the world's effects (:mod:`simcam.whiskbroom.world`): the motion
-        MTF of the worst column along and across for N = 1..cap, and the edge image's
-        image path (a function of the time in line periods -> along, across pixels)."""
-        from simcam.whiskbroom import tdi
-        from simcam.whiskbroom import world as wd
-
-        cam, t, w = scenario.camera, scenario.tdi, scenario.world
-        eff = w.effects
-        i = int(r.worst[0])
-        x1, x3 = self.prepared(scenario)
-        px1, px3 = x1[i:i + 1], x3[i:i + 1]
-        flat = eff.earth_flattening_scale * WGS84_F
-        vk = r.v_know[0, i]
-        vt = (wd.world_motion(true[0], geo.PARAMS, px1, px3, flat)[0]
-              if eff.earth_flattening_scale > 0 else r.v_true[0, i])
-        eps, eta = (float(v) for v in tdi.smear_per_stage(vt, vk))
-        p_mm = cam.pixel_pitch_um * 1e-3
-        sk = float(np.hypot(*vk))
-        tau = vk / sk
-        roll = eff.attitude_jitter_arcsec > 0 or eff.wheel_jitter_arcsec > 0
-        g_roll = wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "roll_rate_rad_s")[0] if roll else None
-        g_mir = (wd.rate_sensitivity(true[0], geo.PARAMS, px1, px3, flat, "mirror_rate_rad_s")[0]
-                 if eff.mirror_rate_ripple_fraction > 0 else None)
-
-        def path(tl):
-            """Image path (along, across; pixels, from the position at t = 0) at times ``tl``
-            (line periods): the uniform residual plus the jitter and ripple displacements (each from its own stream,
-            recreated per call, so the truth and the edge image see the same phases)."""
-            ts = np.concatenate([[0.0], tl * p_mm / sk])                          # t = 0 first
-            disp = np.zeros((ts.size, 2))                                      # mm
-            if eff.attitude_jitter_arcsec > 0:
-                ang = wd.jitter_angle(wd.effects_rng(seed, k, 0), ts, eff.attitude_jitter_arcsec,
-                                      w.jitter_tones_hz, w.jitter_tone_weights)
-                disp += ang[:, None] * g_roll[None, :]
-            if eff.mirror_rate_ripple_fraction > 0:
-                ang = wd.ripple_angle(wd.effects_rng(seed, k, 1), ts, eff.mirror_rate_ripple_fraction,
-                                      true[0, geo.P["mirror_rate_rad_s"]], w.ripple_period_deg)
-                disp += ang[:, None] * g_mir[None, :]
-            if eff.wheel_jitter_arcsec > 0:
-                ang = wd.jitter_angle(wd.effects_rng(seed, k, 2), ts, eff.wheel_jitter_arcsec, [w.wheel_tone_hz], [1.0])
-                disp += ang[:, None] * g_roll[None, :]
-            disp = disp[1:] - disp[0]              # relative to the scene at t = 0 (the edge stays centred)
-            return ((1.0 + eps) * tl + (disp @ tau) / p_mm,
-                    eta * tl + (tau[0] * disp[:, 1] - tau[1] * disp[:, 0]) / p_mm)
-
-        if not roll and eff.mirror_rate_ripple_fraction == 0:
-            a, c = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase,
-                                 columns=t.columns, aperture_samples=t.aperture_samples)
-            return a, c, (eps, eta)
-        da, dc = path(wd.sample_times(cap, cam.n_phase, t.time_samples_per_phase))
-        a, c = wd.tdi_mtf_path(da, dc, n_stages=cap, n_phase=cam.n_phase, n_time=t.time_samples_per_phase)
-        return a, c, path
 
     def _edge(self, scenario, motion, rng):
         """The lab's slanted-edge image made by the world: ``motion`` = uniform ``(eps, eta)``
@@ -205,18 +155,19 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
         stages = np.arange(1, cap + 1)
         pub_curve = est.published_mtf(eps_pub, 1.0, stages)
         imp_along, imp_cross = est.improved_mtf(eps, eta, stages, cam.n_phase)
+        # truth: the pixel-level simulation of the world's image motion, every stage count up to the
+        # cap in one pass, by the ray-traced route of budget.whiskbroom.truth (nothing of eps, eta above)
+        i = int(r.worst[0])
+        x1, x3 = self.prepared(scenario)
+        along_px, cross_px, motion = wtruth.trial_truth(scenario, seed, k, geo.PARAMS, know[0], true[0],
+                                                        x1[i], x3[i], cap)
         if scenario.world.effects.active():
-            # the world beyond the paper's model (simcam.whiskbroom.world): truth and edge image
-            along_px, cross_px, motion = self._world_truth(scenario, seed, k, know, true, r, cap)
             img = self._edge(scenario, motion, rng)
         else:
-            # truth: the pixel-level simulation, every stage count up to the cap in one pass
-            along_px, cross_px = tdi.pixel_mtf(eps, eta, n_stages=cap, n_phase=cam.n_phase,
-                                               n_time=t.time_samples_per_phase, columns=t.columns,
-                                               aperture_samples=t.aperture_samples)
-            # the lab's slanted-edge measurement at the array's stage count
-            img = tdi.edge_image(eps, eta, n_stages=n, n_phase=cam.n_phase, n_time=t.edge_time_samples_per_phase,
-                                 angle_deg=t.edge_angle_deg, lines=t.edge_lines, columns=t.edge_columns,
+            # the lab's slanted-edge image of the world's motion at the array's stage count
+            img = tdi.edge_image(motion[0], motion[1], n_stages=n, n_phase=cam.n_phase,
+                                 n_time=t.edge_time_samples_per_phase, angle_deg=t.edge_angle_deg,
+                                 lines=t.edge_lines, columns=t.edge_columns,
                                  signal_e_per_stage=t.signal_e_per_stage,
                                  read_noise_e=t.read_noise_e if t.noise else 0.0,
                                  rng=rng if t.noise else None)
@@ -231,7 +182,7 @@ class WhiskbroomStudy(Study, Prepared, WorldEffects, Presented):
             ("stage_limit", "improved", "along"): float(est.stage_limit_from_curve(imp_along, thr)),
         }
         truth_mtf = {"along": float(along_px[n - 1]), "cross": float(cross_px[n - 1])}
-        truth_n = float(est.stage_limit_from_curve(along_px, thr))
+        truth_n = float(wtruth.stage_limit_truth(along_px, thr))
         truths = {key: (truth_mtf[key[2]] if key[0] == "mtf_nyquist" else truth_n) for key in est_}
         extra = {"eps": eps, "eta": eta, "eps_published": eps_pub, "dv_mm_s": float(r.dv_mm_s[0]),
                  "dbeta_deg": float(r.dbeta_deg[0]), "beta_deg": float(r.beta_deg[0]),

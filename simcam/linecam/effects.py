@@ -44,10 +44,11 @@ forms. Only the world (:mod:`simcam.linecam.world`, :mod:`simcam.linecam.camera`
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
+from pydantic_core import PydanticCustomError
 
 from simcam import spectra
 from simcam.effects import EffectsBase, WorldBase
@@ -115,8 +116,18 @@ class LineCamWorld(WorldBase):
     effects: LineCamEffects = LineCamEffects()
     jitter_band_tau_s: Annotated[float, Field(gt=0.0, allow_inf_nan=False)] = Field(
         0.05, description="correlation time of the Gauss-Markov jitter band, s (corner 1/(2 pi tau) = 3.2 Hz)")
-    gaia_sky_seed: Annotated[int, Field(ge=0)] = Field(
-        2016, description="seed of the one draw of the Gaia world's proper-motion errors (the sky is one sky)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gaia_sky_seed_retired(cls, data: Any) -> Any:
+        # the one fixed draw of the Gaia world's proper-motion errors is now each trial's
+        # instrument draw (validation.instrument_seed): refuse the old field, saying so
+        if isinstance(data, dict) and "gaia_sky_seed" in data:
+            raise PydanticCustomError(
+                "retired_field", "gaia_sky_seed is replaced by validation.instrument_seed (the Gaia world's "
+                "proper-motion errors are drawn per trial, or pinned by an integer there); remove it",
+                {"field": "gaia_sky_seed"})
+        return data
 
 
 # --------------------------------------------------------------------------- distortion

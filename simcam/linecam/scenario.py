@@ -16,6 +16,7 @@ from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from simcam.config_base import (BatchTrials, ScenarioBase, StrictModel, Trials, ValidationSettings, load_scenario_file,
                                 model_hash, validate_model)
+from simcam.infra.errors import ScenarioError
 from simcam.limits import check_epoch_utc
 
 from simcam.units import ARCSEC_PER_DEG
@@ -218,7 +219,11 @@ def from_dict(data: dict, *, source: str = "scenario") -> LineCamScenario:
 
 def load(path: str | Path | None = None) -> LineCamScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
-    for None, the embedded default."""
+    for None or ``"embedded:default"`` (the name a claims ledger gives), the embedded default."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        if path != "embedded:default":
+            raise ScenarioError(f"{path}: no embedded linecam scenario {path[9:]!r} (have default)")
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="linecam")
 
 

@@ -21,7 +21,7 @@ star's direction is taken at its nominal crossing time.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -29,9 +29,9 @@ from scipy.spatial.transform import Rotation
 
 from simcam import detector as _det
 from simcam.sky.apparent import aberration_first_order, apparent_directions
-from simcam.sky.catalogue import Catalogue, hipparcos
-from simcam.sky.gaia import gaia_world
-from simcam.units import ARCSEC_PER_RAD
+from simcam.sky.catalogue import EPOCH_JYEAR, Catalogue, hipparcos
+from simcam.sky.gaia import GAIA_EPOCH_JYEAR, gaia_match, gaia_world
+from simcam.units import ARCSEC_PER_RAD, MAS_PER_RAD
 
 from . import kernels as _k
 from .attitude import ScanPlan, orbit_state, rodrigues, scan_plan
@@ -40,7 +40,8 @@ from .effects import Jitter, lateral_colour_px
 from .scenario import LineCamScenario
 from .signal import star_electron_rate, teff_from_b_v
 
-__all__ = ["SkyStrip", "sky_strip", "world_sky_strip", "strip_radius_rad", "PassImages", "image_passes",
+__all__ = ["SkyStrip", "sky_strip", "world_sky_strip", "gaia_pm_offsets", "strip_radius_rad", "PassImages",
+           "image_passes",
            "AttitudeReports", "attitude_reports", "world_jitter", "crossing_times", "SUBSTEPS"]
 
 #: midpoint steps per line period in the TDI rendering
@@ -90,42 +91,91 @@ class SkyStrip:
 
 def sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float, mag_limit: float,
               aberration: bool = True, parallax: bool = True, proper_motion: bool = True,
-              gaia_pm_error_sigmas: float = 0.0, gaia_sky_seed: int = 0) -> SkyStrip:
+              gaia: bool = False) -> SkyStrip:
     """The stars (V <= ``mag_limit``) around the strip centred at (ra, dec) and their
-    apparent directions for each pass (through :func:`simcam.sky.apparent.apparent_directions`).
+    apparent directions for each pass (through :func:`simcam.sky.apparent.apparent_directions`;
+    cached per scenario and arguments).
 
-    The stars are Hipparcos's (the lab's table) unless ``gaia_pm_error_sigmas > 0``: then
-    the world's Gaia DR3 catalogue (:func:`simcam.sky.gaia.gaia_world`, proper motions
-    perturbed by that many hip2 formal errors, one draw of seed ``gaia_sky_seed``)."""
+    The stars are Hipparcos's (the lab's table) unless ``gaia``: then the world's Gaia DR3
+    catalogue with hip2's proper motions (:func:`simcam.sky.gaia.gaia_world`, unperturbed; each
+    trial's perturbation is :func:`gaia_pm_offsets`)."""
     return _sky_strip(scenario, float(ra_deg), float(dec_deg), float(mag_limit), bool(aberration),
-                      bool(parallax), bool(proper_motion), float(gaia_pm_error_sigmas), int(gaia_sky_seed))
+                      bool(parallax), bool(proper_motion), bool(gaia))
 
 
-def world_sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float) -> SkyStrip:
+def world_sky_strip(scenario: LineCamScenario, *, ra_deg: float, dec_deg: float,
+                    rng: np.random.Generator | None = None) -> SkyStrip:
     """The stars the world images (V <= ``stars.world_mag_limit``, every apparent-place term),
-    from the catalogue of the world's ``gaia_pm_error_sigmas`` effect."""
-    w = scenario.world
-    return sky_strip(scenario, ra_deg=ra_deg, dec_deg=dec_deg, mag_limit=scenario.stars.world_mag_limit,
-                     gaia_pm_error_sigmas=w.effects.gaia_pm_error_sigmas, gaia_sky_seed=w.gaia_sky_seed)
+    from the catalogue of the world's ``gaia_pm_error_sigmas`` effect: Hipparcos when it is 0;
+    else Gaia DR3 with hip2's proper motions perturbed by a draw from ``rng`` (the instrument's
+    stream of the trial, ``validation.instrument_seed``), applied to the cached strip by
+    :func:`gaia_pm_offsets`."""
+    k_sig = scenario.world.effects.gaia_pm_error_sigmas
+    mag = scenario.stars.world_mag_limit
+    strip = sky_strip(scenario, ra_deg=ra_deg, dec_deg=dec_deg, mag_limit=mag, gaia=k_sig > 0)
+    if k_sig == 0:
+        return strip
+    if rng is None:
+        raise ValueError("rng: the world's Gaia proper-motion errors need the trial's instrument generator")
+    return gaia_pm_offsets(strip, mag, k_sig, rng)
+
+
+def gaia_pm_offsets(strip: SkyStrip, mag_limit: float, pm_error_sigmas: float, rng: np.random.Generator) -> SkyStrip:
+    """``strip`` (built on the unperturbed Gaia world) with each star's proper motion perturbed
+    by ``N(0, (k sigma_pm)^2)`` per component (``k`` = ``pm_error_sigmas``, sigma_pm hip2's
+    formal errors; the draws of :func:`simcam.sky.gaia.gaia_world` for the whole catalogue of
+    ``mag_limit``, in its order, so the same generator gives the same sky).
+
+    The world's position of a star moves by ``dmu (t - t_anchor)``: its catalogue row is
+    anchored at the Gaia DR3 position at J2016.0 (hip2's at J1991.25 for a star without a Gaia
+    match) and propagated with the perturbed motion. Applied to each pass's apparent direction
+    ``u`` to first order on the tangent plane, ``u' = (u + dt (dmu_a e_a + dmu_d e_d)) / |.|``
+    (``e_a``, ``e_d`` the east and north unit vectors at ``u``); the second-order terms are
+    ``|offset|^2`` and ``|offset| |mu dt|`` (< 1e-12 rad for offsets of tens of mas), and
+    parallax and aberration act on the offset to ``|offset| 1e-4``."""
+    m = gaia_match(float(mag_limit))
+    n = m.hip.size
+    dpm_ra = pm_error_sigmas * m.pm_ra_err_mas_yr * rng.standard_normal(n)
+    dpm_dec = pm_error_sigmas * m.pm_dec_err_mas_yr * rng.standard_normal(n)
+    cat = strip.cat
+    row = np.searchsorted(m.hip, cat.hip)
+    if len(cat) and not np.array_equal(m.hip[np.minimum(row, n - 1)], cat.hip):
+        raise ValueError("strip: its stars are not the Gaia world's of this magnitude limit")
+    anchor = np.where(m.matched[row], GAIA_EPOCH_JYEAR, EPOCH_JYEAR)
+    # the pass's epoch in Julian years (seconds over 365.25 days; UTC against TT moves dt by 2e-6 yr)
+    t_yr = _jyear(strip.scenario.orbit.epoch_utc) + strip.plan.t_mid_s / (365.25 * 86400.0)
+    dirs = strip.directions.copy()
+    for k in range(dirs.shape[0]):
+        u = dirs[k]
+        dt_yr = t_yr[k] - anchor
+        e_a = np.column_stack([-u[:, 1], u[:, 0], np.zeros(len(u))])
+        e_a /= np.linalg.norm(e_a, axis=1, keepdims=True)
+        e_d = np.cross(u, e_a)
+        moved = u + ((dt_yr * dpm_ra[row])[:, None] * e_a + (dt_yr * dpm_dec[row])[:, None] * e_d) / MAS_PER_RAD
+        dirs[k] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
+    return replace(strip, directions=dirs)
+
+
+@lru_cache(maxsize=8)
+def _jyear(epoch_utc: str) -> float:
+    from astropy.time import Time
+
+    return float(Time(epoch_utc, scale="utc").jyear)
 
 
 @lru_cache(maxsize=4)
-def _catalogue(mag_limit: float, gaia_pm_error_sigmas: float, gaia_sky_seed: int) -> Catalogue:
-    if gaia_pm_error_sigmas == 0.0:
-        return hipparcos()
-    return gaia_world(mag_limit, pm_error_scale=gaia_pm_error_sigmas, rng=np.random.default_rng(gaia_sky_seed))
+def _catalogue(mag_limit: float, gaia: bool) -> Catalogue:
+    return gaia_world(mag_limit) if gaia else hipparcos()
 
 
 @lru_cache(maxsize=16)
-def _sky_strip(scenario, ra_deg, dec_deg, mag_limit, aberration, parallax, proper_motion,
-               gaia_pm_error_sigmas=0.0, gaia_sky_seed=0):
+def _sky_strip(scenario, ra_deg, dec_deg, mag_limit, aberration, parallax, proper_motion, gaia=False):
     from astropy.time import Time
 
     plan = scan_plan(scenario, ra_deg=ra_deg, dec_deg=dec_deg)
     ra, dec = np.radians(ra_deg), np.radians(dec_deg)
     centre = np.array([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)])
-    cat = _catalogue(mag_limit, gaia_pm_error_sigmas, gaia_sky_seed).cone(centre, strip_radius_rad(scenario),
-                                                                         mag_limit=mag_limit)
+    cat = _catalogue(mag_limit, gaia).cone(centre, strip_radius_rad(scenario), mag_limit=mag_limit)
     epoch = Time(scenario.orbit.epoch_utc, scale="utc")
     dirs = np.empty((plan.passes, len(cat), 3))
     vel = np.empty((plan.passes, 3))

@@ -315,7 +315,12 @@ def check_sizes(sc: WhiskbroomScenario, *, source: str = "scenario", trials: int
 
 def load(path: str | Path | None = None) -> WhiskbroomScenario:
     """The scenario file at ``path`` (strict: :func:`simcam.config_base.read_toml`) or, for
-    None, the embedded default; errors name file and field."""
+    None or ``"embedded:default"`` (the name a claims ledger gives), the embedded default;
+    errors name file and field."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        if path != "embedded:default":
+            raise ScenarioError(f"{path}: no embedded whiskbroom scenario {path[9:]!r} (have default)")
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="whiskbroom")
 
 
