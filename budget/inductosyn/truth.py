@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from simcam.encoder.inductosyn import Inductosyn, InductosynParams, PitchHarmonic
@@ -89,6 +90,7 @@ class FourierTruth:
     mean0, hmean : ``X_0`` of the scenario's encoder and of each basis term.
     mech_order, mech_amp_arcsec : per term (pair of basis columns), its mechanical order and
         amplitude (order 0: an electrical term), for :meth:`maxabs_after_arcsec`.
+    n_drift : the drift's columns at the end of the basis (0 or 7).
     """
 
     n: int
@@ -107,17 +109,25 @@ class FourierTruth:
     hmean: np.ndarray
     mech_order: np.ndarray
     mech_amp_arcsec: np.ndarray
+    n_drift: int = 0
+
+    def _a(self, a) -> np.ndarray:
+        """``a`` as rows of the full basis: the drift's columns 0 where not given."""
+        a = np.atleast_2d(np.asarray(a, dtype=float))
+        if a.shape[1] == self.h_arcsec.shape[1] - self.n_drift and self.n_drift:
+            a = np.concatenate([a, np.zeros((a.shape[0], self.n_drift))], axis=1)
+        return a
 
     def spectrum(self, a) -> np.ndarray:
         """``X_m`` at :attr:`orders` of instruments ``a`` (rows), complex ``(K, orders)``."""
-        a = np.atleast_2d(np.asarray(a, dtype=float))
+        a = self._a(a)
         if a.shape[1] == 0:
             return np.repeat(self.x0[None, :], a.shape[0], axis=0)
         return self.x0[None, :] + np.einsum("kj,mj->km", a, self.hx)
 
     def mean(self, a) -> np.ndarray:
         """The error's mean over the turn (``X_0``, the constant e0 would estimate), ``(K,)``."""
-        a = np.atleast_2d(np.asarray(a, dtype=float))
+        a = self._a(a)
         return self.mean0 + (a @ self.hmean if a.shape[1] else np.zeros(a.shape[0]))
 
     def coefficients(self, a) -> np.ndarray:
@@ -130,7 +140,7 @@ class FourierTruth:
 
     def variance(self, a) -> np.ndarray:
         """Variance over the turn of instruments ``a`` (no quantisation), ``(K,)``."""
-        a = np.atleast_2d(np.asarray(a, dtype=float))
+        a = self._a(a)
         if a.shape[1] == 0:
             return np.full(a.shape[0], self.var0)
         return self.var0 + 2 * np.einsum("kj,j->k", a, self.v) + np.einsum("ki,ij,kj->k", a, self.gram, a)
@@ -151,42 +161,89 @@ class FourierTruth:
     def series_arcsec(self, a, fit=None) -> np.ndarray:
         """The error over the turn (``reading_deg``) of instrument ``a`` (one row), less the
         compensation ``fit`` (one row, :meth:`coefficients`' layout) if given."""
-        e = self.e0_arcsec + (self.h_arcsec @ np.asarray(a, dtype=float) if self.h_arcsec.shape[1] else 0.0)
+        e = self.e0_arcsec + (self.h_arcsec @ self._a(a)[0] if self.h_arcsec.shape[1] else 0.0)
         if fit is not None:
             r = np.radians(self.reading_deg)
             for i, m in enumerate(self.orders):
                 e = e - fit[2 * i] * np.cos(m * r) - fit[2 * i + 1] * np.sin(m * r)
         return e
 
-    def maxabs_after_arcsec(self, a, fit) -> np.ndarray:
-        """max |e - mean| over the grid of each instrument's (rows of ``a``) error less its
-        compensation (rows of ``fit``), ``(K,)``. The mechanical pitch terms are summed by one
+    def maxabs_after_arcsec(self, a, *fits) -> tuple[np.ndarray, ...]:
+        """max |e - mean| over the grid of each instrument's (rows of ``a``) error less each
+        compensation (rows of each of ``fits``), one ``(K,)`` array per compensation. The mechanical pitch terms are summed by one
         inverse FFT at the reading (``g_j(theta_0(r)) = g_j(r) + O(|g_j'| |e_0|)``, below 2e-3
-        arcsec for the default irregular pitch error); the electrical ones by their basis."""
-        a = np.atleast_2d(np.asarray(a, dtype=float))
-        fit = np.atleast_2d(np.asarray(fit, dtype=float))
+        arcsec for the default irregular pitch error); the other columns and the compensation's
+        harmonics by one product with their values on the grid."""
+        import scipy.fft
+
+        a = self._a(a)
+        fits = [np.atleast_2d(np.asarray(f, dtype=float)) for f in fits]
         mech = self.mech_order > 0
-        cols = np.flatnonzero(np.repeat(~mech, 2))
-        out = np.empty(a.shape[0])
+        cols = np.r_[np.flatnonzero(np.repeat(~mech, 2)), np.arange(self.n_drift) + 2 * mech.size].astype(int)
+        if not hasattr(self, "_max_table"):
+            r = np.radians(self.reading_deg)
+            harm = np.stack([f(m * r) for m in self.orders for f in (np.cos, np.sin)], axis=1)
+            self._max_table = np.ascontiguousarray(np.concatenate([self.h_arcsec[:, cols], -harm], axis=1))
+        out = [np.empty(a.shape[0]) for _ in fits]
+        spec = np.zeros(self.n // 2 + 1, complex)
+        w = np.zeros(self.n)
         for k in range(a.shape[0]):
-            spec = np.zeros(self.n // 2 + 1, complex)
             if np.any(mech):
-                c, s = a[k, 0::2][mech], a[k, 1::2][mech]
-                spec[self.mech_order[mech]] = self.mech_amp_arcsec[mech] * (s - 1j * c) / 2
-            fspec = np.zeros(self.n // 2 + 1, complex)
-            fspec[self.orders] = (fit[k, 0::2] - 1j * fit[k, 1::2]) / 2
-            e = self.e0_arcsec + self.slope * np.fft.irfft(spec * self.n, n=self.n) - np.fft.irfft(
-                fspec * self.n, n=self.n)
-            if cols.size:
-                e = e + self.h_arcsec[:, cols] @ a[k, cols]
-            out[k] = np.max(np.abs(e - e.mean()))
-        return out
+                pa = a[k, :2 * mech.size]
+                spec[self.mech_order[mech]] = self.mech_amp_arcsec[mech] * (pa[1::2][mech] - 1j * pa[0::2][mech]) / 2
+                w = scipy.fft.irfft(spec * self.n, n=self.n)
+            for o, fit in zip(out, fits):
+                o[k] = _maxabs_about_mean(self.e0_arcsec, self._max_table, np.r_[a[k, cols], fit[k]], self.slope, w)
+        return tuple(out)
 
 
-def fourier_truth(*, encoder: InductosynParams, terms=(), step_deg: float = 0.01) -> FourierTruth:
+@numba.njit(cache=True)
+def _maxabs_about_mean(e0, table, v, slope, w):  # pragma: no cover - compiled
+    """max_j |e_j - mean e| of ``e = e0 + table @ v + slope * w``, in a fixed order."""
+    n, p = table.shape
+    e = np.empty(n)
+    total = 0.0
+    for j in range(n):
+        x = e0[j] + slope[j] * w[j]
+        for i in range(p):
+            x += table[j, i] * v[i]
+        e[j] = x
+        total += x
+    mean = total / n
+    best = 0.0
+    for j in range(n):
+        d = abs(e[j] - mean)
+        if d > best:
+            best = d
+    return best
+
+
+def drift_columns_arcsec(*, encoder: InductosynParams, drift, reading_deg) -> np.ndarray:
+    """The error (as a function of the reading) that one standard deviation of each of the 7
+    drifting parameters (:func:`simcam.encoder.inductosyn.drifted_params`, seed 001 section
+    4.3) adds: central differences ``(e(p + s) - e(p - s)) / 2``, columns in the drift's
+    order; their error is of third order in the drift (the second-order terms cancel)."""
+    from simcam.encoder.inductosyn import drifted_params
+
+    cols = []
+    for i in range(7):
+        z = np.zeros(7)
+        z[i] = 1.0
+        up = Inductosyn(params=drifted_params(params=encoder, drift=drift, z=z))
+        dn = Inductosyn(params=drifted_params(params=encoder, drift=drift, z=-z))
+        cols.append((up.error_at_reading_arcsec(reading_deg=reading_deg)
+                     - dn.error_at_reading_arcsec(reading_deg=reading_deg)) / 2)
+    return np.stack(cols, axis=-1)
+
+
+def fourier_truth(*, encoder: InductosynParams, terms=(), step_deg: float = 0.01, drift=None) -> FourierTruth:
     """The Fourier truth of ``encoder`` (the scenario's, without the world's pitch terms) and
     the instrument basis of the world's ``terms`` (phase 0, :func:`basis_terms`), on readings
-    ``step_deg`` apart over the turn (module docstring)."""
+    ``step_deg`` apart over the turn (module docstring). With ``drift``
+    (:class:`simcam.encoder.inductosyn.DriftParams`) the basis goes on with the 7 drift
+    columns (:func:`drift_columns_arcsec`): ``a`` then holds the instrument's coefficients and
+    the drift's standard normal draws, and an ``a`` without the drift's columns is padded
+    with zeros (the encoder before the environment)."""
     enc = Inductosyn(params=encoder)
     n = int(round(360.0 / step_deg))
     n += n % 2
@@ -202,6 +259,8 @@ def fourier_truth(*, encoder: InductosynParams, terms=(), step_deg: float = 0.01
     basis = basis_terms(terms)
     theta0 = r - e0 / ARCSEC_PER_DEG
     h = enc.pitch_arcsec(angle_deg=theta0, harmonics=basis, separate=True) * slope[:, None]
+    if drift is not None:
+        h = np.concatenate([h, drift_columns_arcsec(encoder=encoder, drift=drift, reading_deg=r)], axis=1)
     hx_all = np.fft.rfft(h, axis=0) / n
     orders = truth_orders(encoder.pole_pairs)
     var0 = float(np.sum(w * np.abs(x_all) ** 2))
@@ -211,7 +270,8 @@ def fourier_truth(*, encoder: InductosynParams, terms=(), step_deg: float = 0.01
     terms = tuple(terms)
     mech_order = np.array([t.order if t.domain == "mechanical" else 0 for t in terms], dtype=int)
     mech_amp = np.array([t.amplitude_arcsec for t in terms], dtype=float)
+    n_drift = h.shape[1] - 2 * len(terms)
     return FourierTruth(n=n, orders=orders, x0=x_all[orders], var0=var0, hx=hx_all[orders], v=v, gram=gram,
                         q_var=q * q / 12.0, reading_deg=r, e0_arcsec=e0, h_arcsec=h, slope=slope,
                         mean0=float(x_all[0].real), hmean=hx_all[0].real.copy(),
-                        mech_order=mech_order, mech_amp_arcsec=mech_amp)
+                        mech_order=mech_order, mech_amp_arcsec=mech_amp, n_drift=n_drift)

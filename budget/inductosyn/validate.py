@@ -34,7 +34,8 @@ from budget.inductosyn.harmonics import (
     fit_joint,
     sigma3_arcsec,
 )
-from budget.inductosyn.truth import FourierTruth, basis_terms, fourier_truth, instrument_coefficients
+from budget.inductosyn.truth import (FourierTruth, basis_terms, drift_columns_arcsec, fourier_truth,
+                                     instrument_coefficients)
 from budget.runner.study import instrument_seed_sequence
 from simcam.encoder.inductosyn import (Inductosyn, InductosynScenario, world_encoder_params, world_pitch_phases_deg,
                                        world_pitch_terms)
@@ -47,7 +48,7 @@ from simcam.encoder.polygon import (
 )
 from simcam.units import ARCSEC_PER_DEG
 
-__all__ = ["JOINT_ELEC", "LONG", "Prepared", "instrument_draws", "prepare", "run_trials",
+__all__ = ["ENVIRONMENT_STREAM", "JOINT_ELEC", "LONG", "Prepared", "environment_draws", "instrument_draws", "prepare", "run_trials",
            "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]
 
 LONG = HarmonicSpec(mech_orders=(1, 2), elec_orders=(), n_constants=1)
@@ -146,7 +147,9 @@ class Prepared:
     ``encoder`` is the scenario's encoder without the world's pitch terms; each trial's
     instrument adds those terms with its own phases (:func:`instrument_draws`): to the face
     tables through ``face_basis_long`` / ``face_basis_short`` (their error at each face, first
-    order, :mod:`budget.inductosyn.truth`) and to the truths through ``truth``.
+    order, :mod:`budget.inductosyn.truth`) and to the truths through ``truth``; its drift
+    after the environment (seed 001 section 4.3) to the short polygon's re-measurement through
+    ``face_drift_short`` (:func:`environment_draws`).
     """
 
     scenario: InductosynScenario
@@ -165,6 +168,7 @@ class Prepared:
     truth: FourierTruth
     face_basis_long: np.ndarray
     face_basis_short: np.ndarray
+    face_drift_short: np.ndarray
 
     @property
     def pinned(self) -> bool:
@@ -190,6 +194,21 @@ def instrument_draws(*, scenario: InductosynScenario, seed: int, trials) -> tupl
         return inst, np.zeros((len(inst), 0))
     return inst, instrument_coefficients(np.array([world_pitch_phases_deg(scenario=scenario, instrument=i)
                                                    for i in inst]))
+
+
+#: spawn-key tail of a trial's environment draws: ``SeedSequence(seed, spawn_key=(k, 2))``
+#: (the world's draws are ``(k, 1)``, the lab's ``(k,)``)
+ENVIRONMENT_STREAM = 2
+
+
+def environment_draws(*, seed: int, trial: int, n_short: int) -> tuple[np.ndarray, ...]:
+    """Trial ``trial``'s environment test (seed 001 section 4.3): the drift's 7 standard
+    normal draws (:func:`simcam.encoder.inductosyn.drifted_params`), then the short
+    polygon's re-measurement after it, one round: quantisation phases, reading and
+    autocollimator noise (``n_short`` each)."""
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(trial, ENVIRONMENT_STREAM))))
+    z = rng.standard_normal(7)
+    return z, rng.random(n_short), rng.standard_normal(n_short), rng.standard_normal(n_short)
 
 
 def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
@@ -226,14 +245,17 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
     terms = world_pitch_terms(scenario=scenario)
     basis = basis_terms(terms)
     # the grid resolves 8 electrical periods' harmonics at least (eq 8's orders 1-4 and beyond)
-    truth = fourier_truth(encoder=scenario.encoder, terms=terms, step_deg=min(dense_step_deg, 360.0 / (16 * pp)))
+    truth = fourier_truth(encoder=scenario.encoder, terms=terms, step_deg=min(dense_step_deg, 360.0 / (16 * pp)),
+                          drift=scenario.drift)
     return Prepared(scenario=scenario, encoder=enc, taylor_long=tl, taylor_short=ts,
                     angles_long_deg=al, angles_short_deg=as_, x_long=x_long,
                     x_long_at_short=x_long_s, x_short=x_short, x_joint=x_joint,
                     pinv_long=np.linalg.pinv(x_long),
                     pinv_short=np.linalg.pinv(design_matrix(angle_deg=as_, spec=short_fit_spec))[1:],
                     pinv_joint=np.linalg.pinv(x_joint), truth=truth,
-                    face_basis_long=_face_basis(enc, tl, basis), face_basis_short=_face_basis(enc, ts, basis))
+                    face_basis_long=_face_basis(enc, tl, basis), face_basis_short=_face_basis(enc, ts, basis),
+                    face_drift_short=drift_columns_arcsec(encoder=scenario.encoder, drift=scenario.drift,
+                                                          reading_deg=as_))
 
 
 def _measure_fast(taylor, u, nr, nac, face, mount, q_arcsec, sr, sac, res_ac):
@@ -292,6 +314,14 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
         # each face's entry: the mean of its rounds (one round: as it is)
         ys.append(rounds[0] if reps == 1 else np.mean(rounds, axis=0))
     y1, y2, y3, y4 = ys
+    # the environment test: the drifted encoder re-measured on the short polygon (one round;
+    # its rig as in the short verification's first round), compensated as calibrated
+    env = [environment_draws(seed=seed, trial=t, n_short=ns) for t in trial_ids]
+    zd = np.array([e[0] for e in env])
+    face5 = faces[3][:, :ns] - _mul(zd, p.face_drift_short)
+    y5 = _measure_fast(p.taylor_short, np.array([e[1] for e in env]), np.array([e[2] for e in env]),
+                       np.array([e[3] for e in env]), face5, sp.mount_offset_arcsec, q, sr, ac.noise_arcsec,
+                       ac.resolution_arcsec)
     # every product row by row (_mul): a trial's numbers do not depend on its batch
     c_long = _mul(y1, p.pinv_long)
     long_at_short = _mul(c_long, p.x_long_at_short)
@@ -308,23 +338,31 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     }
     xj_short = p.x_joint[nl:]
     out["joint_short_sigma3_after_arcsec"] = sigma3_arcsec(error_arcsec=y4 - _mul(c_joint, xj_short))
-    out.update(truths(p, a, c_long=c_long, c_short=c_short, c_joint=c_joint))
+    out["y_environment"] = y5
+    out["environment_sigma3_arcsec"] = sigma3_arcsec(error_arcsec=y5 - long_at_short - _mul(c_short, p.x_short))
+    out["joint_environment_sigma3_arcsec"] = sigma3_arcsec(error_arcsec=y5 - _mul(c_joint, xj_short))
+    out["drift_z"] = zd
+    out.update(truths(p, a, c_long=c_long, c_short=c_short, c_joint=c_joint, drift_z=zd))
     return out
 
 
-def truths(p: Prepared, a: np.ndarray, *, c_long, c_short, c_joint) -> dict:
+def truths(p: Prepared, a: np.ndarray, *, c_long, c_short, c_joint, drift_z=None) -> dict:
     """The truths of instruments ``a`` (rows, :func:`instrument_draws`) and of their
     compensations by each variant's coefficients (:mod:`budget.inductosyn.truth`; the fits'
     coefficients are only read, as a lab would apply them)."""
     t = p.truth
     fit_seq = np.concatenate([c_long[:, 1:], c_short, np.zeros((c_long.shape[0], 4))], axis=1)
     fit_joint = c_joint[:, 2:]
+    mx, mxj = t.maxabs_after_arcsec(a, fit_seq, fit_joint)
     return {"instrument_a": a, "true_sigma3_before_arcsec": t.sigma3_before_arcsec(a),
             "true_coefficients": t.coefficients(a), "true_mean_arcsec": t.mean(a),
             "dense_sigma3_after_arcsec": t.sigma3_after_arcsec(a, fit_seq),
             "joint_dense_sigma3_after_arcsec": t.sigma3_after_arcsec(a, fit_joint),
-            "dense_maxabs_after_arcsec": t.maxabs_after_arcsec(a, fit_seq),
-            "joint_dense_maxabs_after_arcsec": t.maxabs_after_arcsec(a, fit_joint)}
+            "dense_maxabs_after_arcsec": mx, "joint_dense_maxabs_after_arcsec": mxj,
+            **({} if drift_z is None else {
+                "true_environment_sigma3_arcsec": t.sigma3_after_arcsec(np.concatenate([a, drift_z], axis=1), fit_seq),
+                "true_joint_environment_sigma3_arcsec": t.sigma3_after_arcsec(np.concatenate([a, drift_z], axis=1),
+                                                                              fit_joint)})}
 
 
 def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int) -> dict:

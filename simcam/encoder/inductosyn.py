@@ -71,6 +71,7 @@ __all__ = [
     "default",
     "default_text",
     "demodulated_error",
+    "drifted_params",
     "first_order_electrical_error_rad",
     "from_dict",
     "load",
@@ -698,7 +699,13 @@ def apply_drift(*, params: InductosynParams, drift: DriftParams, seed: int) -> I
     quadrature_error_deg, eccentricity_um, ellipticity_ppm).
     """
     rng = np.random.default_rng(np.random.SeedSequence(seed))
-    z = rng.standard_normal(7)
+    return drifted_params(params=params, drift=drift, z=rng.standard_normal(7))
+
+
+def drifted_params(*, params: InductosynParams, drift: DriftParams, z) -> InductosynParams:
+    """Encoder parameters moved by the standard normal draws ``z`` (7, in the order of
+    :func:`apply_drift`) times the sizes in ``drift`` (seed 001 section 4.3)."""
+    z = np.asarray(z, dtype=float)
     el = params.electrical
     me = params.mechanical
     el2 = el.model_copy(update=dict(
