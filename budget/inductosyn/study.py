@@ -33,8 +33,9 @@ import numpy as np
 
 from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
 from budget.inductosyn.report import details, report_sections
-from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Plannable, Prepared, Presented, ProtocolShapes,
-                                        WorldEffects)
+from budget.inductosyn.claims import CLAIMS
+from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Claims, Plannable, Prepared, Presented,
+                                        ProtocolShapes, WorldEffects)
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
@@ -56,7 +57,7 @@ POLYGON_PAIRS = ((12, 11), (12, 13), (18, 17), (24, 23), (36, 37))
 
 
 class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffects, Plannable, ProtocolShapes,
-                      Presented):
+                      Presented, Claims):
     """Seed 001: polygon calibration of an inductosyn's long- and short-period errors."""
 
     name = "inductosyn"
@@ -194,6 +195,12 @@ class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffe
         return {"long polygon readings": 2 * cal.repeats * cal.long_polygon.faces * cal.face_time_s,
                 "short polygon readings": 2 * cal.repeats * cal.short_polygon.faces * cal.face_time_s,
                 "pass set-ups": 3 * cal.pass_setup_s}
+
+    # ------------------------------------------------------------ claims
+    def claims(self, scenario) -> tuple:
+        """Seed 001's claims (:data:`budget.inductosyn.claims.CLAIMS`); each names the embedded
+        default, whatever ``scenario``."""
+        return CLAIMS
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:

@@ -390,7 +390,11 @@ def from_dict(data: dict, *, source: str = "scenario") -> InductosynScenario:
 
 def load(path: str | Path | None = None) -> InductosynScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
-    for None, the embedded default."""
+    for None or ``"embedded:default"`` (the name a claims ledger gives), the embedded default."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        if path != "embedded:default":
+            raise ScenarioError(f"{path}: no embedded inductosyn scenario {path.split(':', 1)[1]!r} (have default)")
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="inductosyn")
 
 
