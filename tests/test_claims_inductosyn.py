@@ -42,7 +42,7 @@ def _half_width(c, run) -> tuple[float, float]:
 
 def _check_ledger(claims, runs, results, trials: int) -> None:
     """The ledger's structure, and every verdict against its own numbers and the runs'."""
-    assert len(claims) == 27 and claims == CLAIMS
+    assert len(claims) == 26 and claims == CLAIMS
     assert ledger_runs(claims) == ((DEFAULT_SCENARIO, "seed"), (DEFAULT_SCENARIO, "realistic"))
     for (_, world), res in runs.items():
         on = scenario_effects(res.scenario).active()

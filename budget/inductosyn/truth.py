@@ -218,11 +218,14 @@ def _maxabs_about_mean(e0, table, v, slope, w):  # pragma: no cover - compiled
     return best
 
 
-def drift_columns_arcsec(*, encoder: InductosynParams, drift, reading_deg) -> np.ndarray:
-    """The error (as a function of the reading) that one standard deviation of each of the 7
+def drift_columns_arcsec(*, encoder: InductosynParams, drift, theta0_deg, slope) -> np.ndarray:
+    """The error, as a function of the reading, that one standard deviation of each of the 7
     drifting parameters (:func:`simcam.encoder.inductosyn.drifted_params`, seed 001 section
-    4.3) adds: central differences ``(e(p + s) - e(p - s)) / 2``, columns in the drift's
-    order; their error is of third order in the drift (the second-order terms cancel)."""
+    4.3) adds: ``(delta_+(theta_0) - delta_-(theta_0)) / 2 * slope`` at the readings whose
+    true angles under ``encoder`` are ``theta0_deg`` (``slope = dtheta_0 / dr``), the central
+    difference of the error as a function of the true angle (its second-order terms cancel)
+    carried to the reading to first order, as the pitch terms are (module docstring).
+    Columns in the drift's order."""
     from simcam.encoder.inductosyn import drifted_params
 
     cols = []
@@ -231,8 +234,7 @@ def drift_columns_arcsec(*, encoder: InductosynParams, drift, reading_deg) -> np
         z[i] = 1.0
         up = Inductosyn(params=drifted_params(params=encoder, drift=drift, z=z))
         dn = Inductosyn(params=drifted_params(params=encoder, drift=drift, z=-z))
-        cols.append((up.error_at_reading_arcsec(reading_deg=reading_deg)
-                     - dn.error_at_reading_arcsec(reading_deg=reading_deg)) / 2)
+        cols.append((up.error_arcsec(angle_deg=theta0_deg) - dn.error_arcsec(angle_deg=theta0_deg)) / 2 * slope)
     return np.stack(cols, axis=-1)
 
 
@@ -260,18 +262,24 @@ def fourier_truth(*, encoder: InductosynParams, terms=(), step_deg: float = 0.01
     theta0 = r - e0 / ARCSEC_PER_DEG
     h = enc.pitch_arcsec(angle_deg=theta0, harmonics=basis, separate=True) * slope[:, None]
     if drift is not None:
-        h = np.concatenate([h, drift_columns_arcsec(encoder=encoder, drift=drift, reading_deg=r)], axis=1)
-    hx_all = np.fft.rfft(h, axis=0) / n
+        h = np.concatenate([h, drift_columns_arcsec(encoder=encoder, drift=drift, theta0_deg=theta0, slope=slope)],
+                           axis=1)
+    # the basis' spectrum at the fitted orders and the constant only (a direct DFT there)
+    orders_and_0 = np.r_[0, truth_orders(encoder.pole_pairs)]
+    hx_some = np.exp(-1j * np.outer(orders_and_0, np.radians(r))) @ h / n if h.shape[1] else np.zeros(
+        (orders_and_0.size, 0), complex)
     orders = truth_orders(encoder.pole_pairs)
     var0 = float(np.sum(w * np.abs(x_all) ** 2))
-    v = np.real((w * np.conj(x_all)) @ hx_all) if h.shape[1] else np.zeros(0)
-    gram = np.real(np.conj(hx_all).T @ (w[:, None] * hx_all)) if h.shape[1] else np.zeros((0, 0))
+    # Parseval on the grid: sum_{m>=1} w_m Re(conj(X_mi) X_mj) = <h_i h_j> - <h_i><h_j> (real signals)
+    hmean = hx_some[0].real.copy()
+    v = h.T @ e0 / n - hmean * x_all[0].real
+    gram = h.T @ h / n - np.outer(hmean, hmean)
     q = encoder.resolution_deg * ARCSEC_PER_DEG
     terms = tuple(terms)
     mech_order = np.array([t.order if t.domain == "mechanical" else 0 for t in terms], dtype=int)
     mech_amp = np.array([t.amplitude_arcsec for t in terms], dtype=float)
     n_drift = h.shape[1] - 2 * len(terms)
-    return FourierTruth(n=n, orders=orders, x0=x_all[orders], var0=var0, hx=hx_all[orders], v=v, gram=gram,
+    return FourierTruth(n=n, orders=orders, x0=x_all[orders], var0=var0, hx=hx_some[1:], v=v, gram=gram,
                         q_var=q * q / 12.0, reading_deg=r, e0_arcsec=e0, h_arcsec=h, slope=slope,
-                        mean0=float(x_all[0].real), hmean=hx_all[0].real.copy(),
+                        mean0=float(x_all[0].real), hmean=hmean,
                         mech_order=mech_order, mech_amp_arcsec=mech_amp, n_drift=n_drift)

@@ -255,7 +255,8 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
                     pinv_joint=np.linalg.pinv(x_joint), truth=truth,
                     face_basis_long=_face_basis(enc, tl, basis), face_basis_short=_face_basis(enc, ts, basis),
                     face_drift_short=drift_columns_arcsec(encoder=scenario.encoder, drift=scenario.drift,
-                                                          reading_deg=as_))
+                                                          theta0_deg=ts.angles_deg - ts.e0_arcsec / ARCSEC_PER_DEG,
+                                                          slope=ts.s1))
 
 
 def _measure_fast(taylor, u, nr, nac, face, mount, q_arcsec, sr, sac, res_ac):
