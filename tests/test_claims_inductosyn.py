@@ -7,7 +7,14 @@ import pytest
 
 from budget.inductosyn.claims import CLAIMS, DEFAULT_SCENARIO
 from budget.inductosyn.study import STUDY
-from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import (
+    WORLDS,
+    evaluate_claims,
+    ledger_markdown,
+    ledger_runs,
+    study_claims,
+    world_scenario,
+)
 from budget.runner.numbers import fmt
 from budget.runner.run import run_study
 from simcam.effects import scenario_effects

@@ -14,9 +14,18 @@ from scipy.special import jv
 
 from budget.inductosyn.truth import fourier_truth, instrument_coefficients
 from budget.runner.study import INSTRUMENT_SPAWN_KEY, instrument_seed_sequence
-from simcam.encoder.inductosyn import (INSTRUMENT_SPAWN_KEY as SIMCAM_KEY, Inductosyn, InductosynParams,
-                                       PitchHarmonic, default, from_dict, pinned_instrument, world_encoder_params,
-                                       world_pitch_phases_deg, world_pitch_terms)
+from simcam.encoder.inductosyn import INSTRUMENT_SPAWN_KEY as SIMCAM_KEY
+from simcam.encoder.inductosyn import (
+    Inductosyn,
+    InductosynParams,
+    PitchHarmonic,
+    default,
+    from_dict,
+    pinned_instrument,
+    world_encoder_params,
+    world_pitch_phases_deg,
+    world_pitch_terms,
+)
 from simcam.infra.errors import ScenarioError
 from simcam.units import ARCSEC_PER_RAD
 

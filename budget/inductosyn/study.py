@@ -31,11 +31,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from budget.inductosyn.claims import CLAIMS
 from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
 from budget.inductosyn.report import details, report_sections
-from budget.inductosyn.claims import CLAIMS
-from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Claims, Plannable, Prepared, Presented,
-                                        ProtocolShapes, WorldEffects)
+from budget.runner.capabilities import (
+    BatchedTrials,
+    CheckedScenario,
+    Claims,
+    Plannable,
+    Prepared,
+    Presented,
+    ProtocolShapes,
+    WorldEffects,
+)
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes

@@ -213,8 +213,7 @@ def _maxabs_about_mean(e0, table, v, slope, w):  # pragma: no cover - compiled
     best = 0.0
     for j in range(n):
         d = abs(e[j] - mean)
-        if d > best:
-            best = d
+        best = max(best, d)
     return best
 
 

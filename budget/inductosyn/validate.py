@@ -34,11 +34,21 @@ from budget.inductosyn.harmonics import (
     fit_joint,
     sigma3_arcsec,
 )
-from budget.inductosyn.truth import (FourierTruth, basis_terms, drift_columns_arcsec, fourier_truth,
-                                     instrument_coefficients)
+from budget.inductosyn.truth import (
+    FourierTruth,
+    basis_terms,
+    drift_columns_arcsec,
+    fourier_truth,
+    instrument_coefficients,
+)
 from budget.runner.study import instrument_seed_sequence
-from simcam.encoder.inductosyn import (Inductosyn, InductosynScenario, world_encoder_params, world_pitch_phases_deg,
-                                       world_pitch_terms)
+from simcam.encoder.inductosyn import (
+    Inductosyn,
+    InductosynScenario,
+    world_encoder_params,
+    world_pitch_phases_deg,
+    world_pitch_terms,
+)
 from simcam.encoder.polygon import (
     face_taylor,
     measure_polygon,
