@@ -47,10 +47,10 @@ def main() -> None:
         run_trials(prepared=p, trials=args.trials, seed=args.seed)
         times.append(time.perf_counter() - t0)
     print_machine()
-    print(f"scenario preparation (truth on {p.dense_true_deg.size} points, face expansions, "
+    print(f"scenario preparation (truth on {p.truth.n} points, face expansions, "
           f"pseudo-inverses): {t_prep:.3f} s")
     print(f"{args.trials} full calibration trials (24+24+23+23 points, in-sequence and joint "
-          f"fits, verification over {p.dense_true_deg.size} points): best {min(times):.3f} s, "
+          f"fits, verification over {p.truth.n} points): best {min(times):.3f} s, "
           f"median {statistics.median(times):.3f} s over {args.repeats} runs")
     emit_result("harmonics", [
         figure("trials_s", f"{args.trials} full inductosyn calibration trials (s, best)", min(times), "s",

@@ -107,7 +107,23 @@ def test_ideal_world_equals_pre_change_results(tmp_path, capsys):
     d = json.loads(js.read_text())
     got = {f"{c}/{a}/{v}": (s["truth"], s["mean"], s["std"])
            for c, ax in d["classes"].items() for a, vs in ax.items() for v, s in vs.items()}
-    assert_close_to_recorded(got, PRE_CHANGE_ALL, abs_floor=4 * math.ulp(360.0) * 3600.0)
+    # the estimates and the coefficient truths as recorded: the Fourier truth
+    # (budget.inductosyn.truth) gives the old least-squares projection's coefficients (both
+    # project on orthogonal harmonics over the same grid of readings). The "before" truth
+    # moved from a grid of true angles with its quantised readings to Parseval plus q^2/12:
+    # within 1e-5 relative (the grid's realised quantisation). The residual truths are now
+    # uniform in the reading (the lab's tables' own weighting) and the "std" of a class with
+    # per-trial truths is of its differences: both are not compared here (test_inductosyn_truth.py).
+    # (the environment class came later: it has no recorded figures)
+    est = {k: (None, g[1], g[2] if not k.startswith("residual") else None) for k, g in got.items()
+           if not k.startswith("environment")}
+    rec = {k: (None, r[1], r[2] if not k.startswith("residual") else None) for k, r in PRE_CHANGE_ALL.items()}
+    assert_close_to_recorded(est, rec, abs_floor=4 * math.ulp(360.0) * 3600.0)
+    for k, r in PRE_CHANGE_ALL.items():
+        if k.startswith("coefficient"):
+            assert math.isclose(got[k][0], r[0], rel_tol=1e-9, abs_tol=1e-12), k
+        elif k.startswith("before"):
+            assert math.isclose(got[k][0], r[0], rel_tol=1e-5), k
 
 
 # ------------------------------------------------------- polygon certificate residuals
@@ -271,20 +287,37 @@ def test_certificate_residuals_enter_every_trial_once_and_the_same():
     b = run_trials(prepared=prepare(scenario=ideal, dense_step_deg=1.0), trials=5, seed=3)
     from simcam.encoder.polygon import world_alpha_arcsec
 
-    w = world_alpha_arcsec(scenario=sc, seed=3, trials=range(5))
+    from budget.inductosyn.validate import instrument_draws
+
+    inst, _ = instrument_draws(scenario=sc, seed=3, trials=range(5))
+    w = world_alpha_arcsec(scenario=sc, seed=3, trials=range(5), instruments=inst)
     assert abs(float(np.sum(w[0][0]))) < 1e-12 and np.std(w[0][0]) > 0.02  # closure, and not nothing
     for key, wi in (("y_long", w[0]), ("y_short", w[2])):
-        np.testing.assert_array_equal(wi, np.broadcast_to(wi[0], wi.shape))  # one polygon
+        assert not np.array_equal(wi[0], wi[1])  # each trial's own instrument (validation.instrument_seed unset)
         assert np.max(np.abs((a[key] - b[key]) + wi)) <= 0.01 + 1e-9
+    # a pinned instrument: one polygon in every trial
+    data = sc.model_dump()
+    data["validation"]["instrument_seed"] = 7
+    pinned = from_dict(data)
+    inst, _ = instrument_draws(scenario=pinned, seed=3, trials=range(5))
+    w = world_alpha_arcsec(scenario=pinned, seed=3, trials=range(5), instruments=inst)
+    for wi in (w[0], w[2]):
+        np.testing.assert_array_equal(wi, np.broadcast_to(wi[0], wi.shape))
 
 
 def test_encoder_effects_change_the_truth_and_rig_effects_do_not():
     from budget.inductosyn.study import STUDY
 
     deps = STUDY.truth_depends_on_effects(default())
-    base = STUDY.truths(_only("polygon_tilt_arcsec").model_copy(), 0)
+
+    def pinned(sc):  # one instrument: its truths are the study's fixed truths
+        data = sc.model_dump()
+        data["validation"]["instrument_seed"] = 0
+        return from_dict(data)
+
+    base = STUDY.truths(pinned(_only("polygon_tilt_arcsec")), 0)
     for name in InductosynEffects().names():
-        tr = STUDY.truths(_only(name), 0)
+        tr = STUDY.truths(pinned(_only(name)), 0)
         same = all(tr[k].value == base[k].value for k in base)
         assert same == (name not in deps), name
 

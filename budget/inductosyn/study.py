@@ -31,10 +31,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS, HarmonicSpec, sigma3_arcsec
+from budget.inductosyn.claims import CLAIMS
+from budget.inductosyn.harmonics import COEFFICIENTS, PUBLISHED_COEFFICIENTS
 from budget.inductosyn.report import details, report_sections
-from budget.runner.capabilities import (BatchedTrials, CheckedScenario, Plannable, Prepared, Presented, ProtocolShapes,
-                                        WorldEffects)
+from budget.runner.capabilities import (
+    BatchedTrials,
+    CheckedScenario,
+    Claims,
+    Plannable,
+    Prepared,
+    Presented,
+    ProtocolShapes,
+    WorldEffects,
+)
 from budget.runner.study import ClassSpec, Knob, Study, TrialResult, Truth
 
 #: the coefficients validated (:data:`budget.inductosyn.harmonics.COEFFICIENTS`) are axes of its classes
@@ -56,7 +65,7 @@ POLYGON_PAIRS = ((12, 11), (12, 13), (18, 17), (24, 23), (36, 37))
 
 
 class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffects, Plannable, ProtocolShapes,
-                      Presented):
+                      Presented, Claims):
     """Seed 001: polygon calibration of an inductosyn's long- and short-period errors."""
 
     name = "inductosyn"
@@ -73,17 +82,24 @@ class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffe
         prepare(scenario=scenario, dense_step_deg=1.0)
 
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
+        # the instrument's truths are per trial unless validation.instrument_seed pins one
+        per_instrument = scenario.validation.instrument_seed is None
         return (
             ClassSpec("before", "short-period error before compensation", _UNIT, ("angle",),
                       "the 23-face table's 3 sigma after the long-period fit, against the 3 sigma of the "
-                      "error over the whole circle"),
+                      "error over the whole circle", per_trial_truth=per_instrument),
             ClassSpec("residual", "error after compensation", _UNIT, ("angle",),
                       "the 23-face verification's 3 sigma, against the 3 sigma over the whole circle of "
                       "the trial's compensated error", per_trial_truth=True, role="residual"),
+            ClassSpec("environment", "error after the environment test", _UNIT, ("angle",),
+                      "the 23-face re-measurement's 3 sigma after the drift of temperature cycling and "
+                      "vibration (seed 001 section 4.3, table 3), compensated as calibrated, against the 3 "
+                      "sigma over the whole circle of the trial's drifted, compensated error",
+                      per_trial_truth=True, role="residual"),
             ClassSpec("coefficient", "harmonic coefficient", "arcsec", COEFFICIENTS,
                       "each fitted coefficient (eq 7 mechanical A_L, eq 8 electrical A_S; the joint fit "
-                      "also electrical 3-4), against the projection of the continuous true error (as a "
-                      "function of the reading) on the same harmonics"),
+                      "also electrical 3-4), against the Fourier coefficient of the continuous true error "
+                      "(as a function of the reading) over the whole turn", per_trial_truth=per_instrument),
         )
 
     def truth_depends_on_effects(self, scenario) -> set[str]:
@@ -108,6 +124,7 @@ class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffe
         if list(ks) != list(range(ks[0], ks[0] + len(ks))):
             return [self.trial(scenario, seed, k) for k in ks]
         r = run_trials(prepared=self.prepared(scenario), trials=len(ks), seed=seed, first_trial=ks[0])
+        per_instrument = scenario.validation.instrument_seed is None
         # the same columns in both variants' coefficient vectors: c_long = e0, A_L..;
         # c_short = A_S1c..A_S2s; c_joint = e0 of each table, A_L.., A_S1c..A_S4s
         seq = np.concatenate([r["c_long"][:, 1:], r["c_short"]], axis=1)
@@ -117,34 +134,46 @@ class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffe
             before = float(r["short_sigma3_before_arcsec"][i])
             est = {("before", "published", "angle"): before, ("before", "improved", "angle"): before,
                    ("residual", "published", "angle"): float(r["short_sigma3_after_arcsec"][i]),
-                   ("residual", "improved", "angle"): float(r["joint_short_sigma3_after_arcsec"][i])}
+                   ("residual", "improved", "angle"): float(r["joint_short_sigma3_after_arcsec"][i]),
+                   ("environment", "published", "angle"): float(r["environment_sigma3_arcsec"][i]),
+                   ("environment", "improved", "angle"): float(r["joint_environment_sigma3_arcsec"][i])}
             est.update({("coefficient", "published", nm): float(v) for nm, v in zip(PUBLISHED_COEFFICIENTS, seq[i])})
             est.update({("coefficient", "improved", nm): float(v) for nm, v in zip(COEFFICIENTS, joint[i])})
             aux = {name: float(r[name][i]) for name in _AUX}
             aux["e0_in_sequence_arcsec"] = float(r["c_long"][i, 0])
             aux["e0_joint_arcsec"] = float(r["c_joint"][i, 0])
+            aux["true_e0_arcsec"] = float(r["true_mean_arcsec"][i])
             extra = {}
-            if k == 0:  # the report's plots: trial 0's raw tables and coefficients
-                extra = {name: r[name][i].copy() for name in ("y_long", "y_short", "c_long", "c_short", "c_joint")}
-            out.append(TrialResult(
-                estimates=est,
-                truths={("residual", "published", "angle"): float(r["dense_sigma3_after_arcsec"][i]),
-                        ("residual", "improved", "angle"): float(r["joint_dense_sigma3_after_arcsec"][i])},
-                extra=extra, aux=aux))
+            if k == 0:  # the report's plots: trial 0's raw tables, coefficients and instrument
+                extra = {name: r[name][i].copy() for name in ("y_long", "y_short", "c_long", "c_short", "c_joint",
+                                                              "instrument_a")}
+            truths = {("residual", "published", "angle"): float(r["dense_sigma3_after_arcsec"][i]),
+                      ("residual", "improved", "angle"): float(r["joint_dense_sigma3_after_arcsec"][i]),
+                      ("environment", "published", "angle"): float(r["true_environment_sigma3_arcsec"][i]),
+                      ("environment", "improved", "angle"): float(r["true_joint_environment_sigma3_arcsec"][i])}
+            if per_instrument:
+                for var, names in (("published", PUBLISHED_COEFFICIENTS), ("improved", COEFFICIENTS)):
+                    truths[("before", var, "angle")] = float(r["true_sigma3_before_arcsec"][i])
+                    truths.update({("coefficient", var, nm): float(r["true_coefficients"][i, COEFFICIENTS.index(nm)])
+                                   for nm in names})
+            out.append(TrialResult(estimates=est, truths=truths, extra=extra, aux=aux))
         return out
 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         return self.trial_batch(scenario, seed, [k])[0]
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
-        from budget.inductosyn.validate import JOINT_ELEC, reference_coefficients
+        """The pinned instrument's truths (``validation.instrument_seed`` set; otherwise
+        every instrument truth is per trial): its Fourier truth (:mod:`budget.inductosyn.truth`)."""
+        from budget.inductosyn.validate import instrument_draws
 
+        if scenario.validation.instrument_seed is None:
+            return {}
         p = self.prepared(scenario)
-        out = {("before", "angle"): Truth(float(sigma3_arcsec(error_arcsec=p.dense_before_arcsec)), 0.0,
-                                          {"dense_points": int(p.dense_true_deg.size)})}
-        names = HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC).names()
-        ref = reference_coefficients(p)
-        out.update({("coefficient", nm): Truth(float(v)) for nm, v in zip(names, ref) if nm in COEFFICIENTS})
+        a = instrument_draws(scenario=scenario, seed=seed, trials=[0])[1]
+        out = {("before", "angle"): Truth(float(p.truth.sigma3_before_arcsec(a)[0]), 0.0,
+                                          {"truth_points": int(p.truth.n)})}
+        out.update({("coefficient", nm): Truth(float(v)) for nm, v in zip(COEFFICIENTS, p.truth.coefficients(a)[0])})
         return out
 
     # ------------------------------------------------------------ protocol planning
@@ -174,6 +203,12 @@ class InductosynStudy(Study, Prepared, CheckedScenario, BatchedTrials, WorldEffe
         return {"long polygon readings": 2 * cal.repeats * cal.long_polygon.faces * cal.face_time_s,
                 "short polygon readings": 2 * cal.repeats * cal.short_polygon.faces * cal.face_time_s,
                 "pass set-ups": 3 * cal.pass_setup_s}
+
+    # ------------------------------------------------------------ claims
+    def claims(self, scenario) -> tuple:
+        """Seed 001's claims (:data:`budget.inductosyn.claims.CLAIMS`); each names the embedded
+        default, whatever ``scenario``."""
+        return CLAIMS
 
     # ------------------------------------------------------------ report
     def details(self, result) -> dict:

@@ -34,7 +34,21 @@ from budget.inductosyn.harmonics import (
     fit_joint,
     sigma3_arcsec,
 )
-from simcam.encoder.inductosyn import Inductosyn, InductosynScenario, world_encoder_params
+from budget.inductosyn.truth import (
+    FourierTruth,
+    basis_terms,
+    drift_columns_arcsec,
+    fourier_truth,
+    instrument_coefficients,
+)
+from budget.runner.study import instrument_seed_sequence
+from simcam.encoder.inductosyn import (
+    Inductosyn,
+    InductosynScenario,
+    world_encoder_params,
+    world_pitch_phases_deg,
+    world_pitch_terms,
+)
 from simcam.encoder.polygon import (
     face_taylor,
     measure_polygon,
@@ -44,8 +58,8 @@ from simcam.encoder.polygon import (
 )
 from simcam.units import ARCSEC_PER_DEG
 
-__all__ = ["JOINT_ELEC", "LONG", "Prepared", "dense_stats", "prepare", "reference_coefficients",
-           "run_trials", "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]
+__all__ = ["ENVIRONMENT_STREAM", "JOINT_ELEC", "LONG", "Prepared", "environment_draws", "instrument_draws", "prepare", "run_trials",
+           "simulate_trial_exact", "split_draws", "trial_draws", "trial_rng"]
 
 LONG = HarmonicSpec(mech_orders=(1, 2), elec_orders=(), n_constants=1)
 #: The improved variant fits electrical orders 1-4 jointly on both polygons: on 23 faces
@@ -112,26 +126,6 @@ def split_draws(*, u, z, n_long: int, n_short: int, repeats: int = 1):
 
 
 # ------------------------------------------------------------------ numba kernel
-@numba.njit(cache=True, parallel=True)
-def _residual_extrema(before, b, coef, out_max, out_min):  # pragma: no cover - compiled
-    """max and min over points j of ``before[j] - b[j] . coef[k]`` for each trial k."""
-    nk, p = coef.shape
-    nj = before.shape[0]
-    for k in numba.prange(nk):
-        mx = -np.inf
-        mn = np.inf
-        for j in range(nj):
-            r = before[j]
-            for i in range(p):
-                r -= b[j, i] * coef[k, i]
-            if r > mx:
-                mx = r
-            if r < mn:
-                mn = r
-        out_max[k] = mx
-        out_min[k] = mn
-
-
 @numba.njit(cache=True)
 def _rows_times(x, m):  # pragma: no cover - compiled
     """``x @ m.T`` row by row in a fixed summation order.
@@ -152,37 +146,21 @@ def _rows_times(x, m):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True)
-def _quad_forms(coef, g, bm, bt):  # pragma: no cover - compiled
-    """Per row k: ``coef[k].bm``, ``coef[k].bt`` and ``coef[k] . g . coef[k]``, fixed order."""
-    nk, p = coef.shape
-    cm = np.empty(nk)
-    ct = np.empty(nk)
-    q = np.empty(nk)
-    for k in range(nk):
-        a = 0.0
-        b = 0.0
-        c = 0.0
-        for i in range(p):
-            a += coef[k, i] * bm[i]
-            b += coef[k, i] * bt[i]
-            gi = 0.0
-            for j in range(p):
-                gi += g[i, j] * coef[k, j]
-            c += coef[k, i] * gi
-        cm[k] = a
-        ct[k] = b
-        q[k] = c
-    return cm, ct, q
-
-
 def _mul(x, m):
     return _rows_times(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(m, dtype=np.float64))
 
 
 @dataclass
 class Prepared:
-    """Everything about one scenario that does not change between trials."""
+    """Everything about one scenario that does not change between trials.
+
+    ``encoder`` is the scenario's encoder without the world's pitch terms; each trial's
+    instrument adds those terms with its own phases (:func:`instrument_draws`): to the face
+    tables through ``face_basis_long`` / ``face_basis_short`` (their error at each face, first
+    order, :mod:`budget.inductosyn.truth`) and to the truths through ``truth``; its drift
+    after the environment (seed 001 section 4.3) to the short polygon's re-measurement through
+    ``face_drift_short`` (:func:`environment_draws`).
+    """
 
     scenario: InductosynScenario
     encoder: Inductosyn
@@ -190,9 +168,6 @@ class Prepared:
     taylor_short: object
     angles_long_deg: np.ndarray
     angles_short_deg: np.ndarray
-    dense_true_deg: np.ndarray
-    dense_reading_deg: np.ndarray
-    dense_before_arcsec: np.ndarray
     x_long: np.ndarray
     x_long_at_short: np.ndarray
     x_short: np.ndarray
@@ -200,17 +175,60 @@ class Prepared:
     pinv_long: np.ndarray
     pinv_short: np.ndarray
     pinv_joint: np.ndarray
-    b_seq: np.ndarray
-    b_joint: np.ndarray
+    truth: FourierTruth
+    face_basis_long: np.ndarray
+    face_basis_short: np.ndarray
+    face_drift_short: np.ndarray
+
+    @property
+    def pinned(self) -> bool:
+        """Whether ``validation.instrument_seed`` pins one instrument for every trial."""
+        return self.scenario.validation.instrument_seed is not None
+
+
+def _face_basis(encoder: Inductosyn, taylor, basis) -> np.ndarray:
+    """The error each basis term adds at each face's reading, ``(faces, J)``:
+    ``g_j(theta_0) dtheta_0/dr`` (first order, :mod:`budget.inductosyn.truth`)."""
+    theta0 = taylor.angles_deg - taylor.e0_arcsec / ARCSEC_PER_DEG
+    return encoder.pitch_arcsec(angle_deg=theta0, harmonics=basis, separate=True) * taylor.s1[:, None]
+
+
+def instrument_draws(*, scenario: InductosynScenario, seed: int, trials) -> tuple[list, np.ndarray]:
+    """Each trial's instrument: its seed sequence
+    (:func:`budget.runner.study.instrument_seed_sequence` of ``validation.instrument_seed``)
+    and the coefficients ``a`` of its encoder's pitch phases (rows,
+    :func:`budget.inductosyn.truth.instrument_coefficients`)."""
+    inst = [instrument_seed_sequence(scenario.validation.instrument_seed, seed, k) for k in trials]
+    n_terms = len(world_pitch_terms(scenario=scenario))
+    if n_terms == 0:
+        return inst, np.zeros((len(inst), 0))
+    return inst, instrument_coefficients(np.array([world_pitch_phases_deg(scenario=scenario, instrument=i)
+                                                   for i in inst]))
+
+
+#: spawn-key tail of a trial's environment draws: ``SeedSequence(seed, spawn_key=(k, 2))``
+#: (the world's draws are ``(k, 1)``, the lab's ``(k,)``)
+ENVIRONMENT_STREAM = 2
+
+
+def environment_draws(*, seed: int, trial: int, n_short: int) -> tuple[np.ndarray, ...]:
+    """Trial ``trial``'s environment test (seed 001 section 4.3): the drift's 7 standard
+    normal draws (:func:`simcam.encoder.inductosyn.drifted_params`), then the short
+    polygon's re-measurement after it, one round: quantisation phases, reading and
+    autocollimator noise (``n_short`` each)."""
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(trial, ENVIRONMENT_STREAM))))
+    z = rng.standard_normal(7)
+    return z, rng.random(n_short), rng.standard_normal(n_short), rng.standard_normal(n_short)
 
 
 def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
-    """Truth on the dense grid, face expansions and the pseudo-inverses of the designs.
+    """Face expansions, the pseudo-inverses of the designs and the Fourier truth.
 
-    The encoder is the world's (:func:`simcam.encoder.inductosyn.world_encoder_params`:
-    the scenario's encoder plus the world's encoder effects), so every truth includes them.
+    ``dense_step_deg``: the step of the truth's grid of readings
+    (:func:`budget.inductosyn.truth.fourier_truth`), at most ``360 / (16 P)`` deg (a grid
+    whose Nyquist order is 8 electrical periods).
     """
-    enc = Inductosyn(params=world_encoder_params(scenario=scenario))
+    enc = Inductosyn(params=scenario.encoder)
     cal = scenario.calibration
     pp = scenario.encoder.pole_pairs
     al = nominal_face_angles_deg(faces=cal.long_polygon.faces)
@@ -218,10 +236,6 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
     q = max(scenario.encoder.resolution_deg * ARCSEC_PER_DEG, 0.01)
     tl = face_taylor(encoder=enc, faces=cal.long_polygon.faces, step_arcsec=q)
     ts = face_taylor(encoder=enc, faces=cal.short_polygon.faces, step_arcsec=q)
-    n_dense = int(round(360.0 / dense_step_deg))
-    dense = np.arange(n_dense) * (360.0 / n_dense)
-    reading = enc.quantise_deg(reading_deg=enc.continuous_reading_deg(angle_deg=dense))
-    before = (reading - dense) * ARCSEC_PER_DEG
     # eq 8 with its nuisance offset (the table is relative to its first face); the offset
     # is fitted, not compensated: only the harmonic rows of the pseudo-inverse are kept
     short_fit_spec = HarmonicSpec(mech_orders=(), elec_orders=(1, 2), pole_pairs=pp, n_constants=1,
@@ -238,46 +252,27 @@ def prepare(*, scenario: InductosynScenario, dense_step_deg: float) -> Prepared:
     x_long_s = design_matrix(angle_deg=as_, spec=LONG)
     x_short = design_matrix(angle_deg=as_, spec=short_spec)
     x_joint = design_matrix(angle_deg=np.r_[al, as_], spec=joint_spec, table_index=idx)
-    b_seq = np.concatenate([design_matrix(angle_deg=reading, spec=LONG),
-                            design_matrix(angle_deg=reading, spec=short_spec)], axis=1)
-    b_joint = design_matrix(angle_deg=reading, spec=joint_spec,
-                            table_index=np.zeros(reading.size, int))
+    terms = world_pitch_terms(scenario=scenario)
+    basis = basis_terms(terms)
+    # the grid resolves 8 electrical periods' harmonics at least (eq 8's orders 1-4 and beyond)
+    truth = fourier_truth(encoder=scenario.encoder, terms=terms, step_deg=min(dense_step_deg, 360.0 / (16 * pp)),
+                          drift=scenario.drift)
     return Prepared(scenario=scenario, encoder=enc, taylor_long=tl, taylor_short=ts,
-                    angles_long_deg=al, angles_short_deg=as_, dense_true_deg=dense,
-                    dense_reading_deg=reading, dense_before_arcsec=before, x_long=x_long,
+                    angles_long_deg=al, angles_short_deg=as_, x_long=x_long,
                     x_long_at_short=x_long_s, x_short=x_short, x_joint=x_joint,
                     pinv_long=np.linalg.pinv(x_long),
                     pinv_short=np.linalg.pinv(design_matrix(angle_deg=as_, spec=short_fit_spec))[1:],
-                    pinv_joint=np.linalg.pinv(x_joint), b_seq=b_seq, b_joint=b_joint)
+                    pinv_joint=np.linalg.pinv(x_joint), truth=truth,
+                    face_basis_long=_face_basis(enc, tl, basis), face_basis_short=_face_basis(enc, ts, basis),
+                    face_drift_short=drift_columns_arcsec(encoder=scenario.encoder, drift=scenario.drift,
+                                                          theta0_deg=ts.angles_deg - ts.e0_arcsec / ARCSEC_PER_DEG,
+                                                          slope=ts.s1))
 
 
 def _measure_fast(taylor, u, nr, nac, face, mount, q_arcsec, sr, sac, res_ac):
     d = (u - 0.5) * q_arcsec - nr * sr
     alpha = taylor.true_offset_arcsec(d_arcsec=d) + face + mount + nac * sac
     return -quantise_arcsec(value_arcsec=alpha, resolution_arcsec=res_ac)
-
-
-def dense_stats(before, b, coef):
-    """3 sigma, mean and max |r - mean| of ``r = before - b @ coef`` for each trial.
-
-    The variance by the Gram identity ``<r^2> = <t^2> - 2 c.<B t> + c.<B^T B>.c``; the
-    extrema by a fused numba loop (max |r - mean| = max(max r - mean, mean - min r)).
-    """
-    n = before.size
-    g = b.T @ b / n
-    bt = b.T @ before / n
-    bm = b.mean(axis=0)
-    cm, ct, q = _quad_forms(np.ascontiguousarray(coef, dtype=np.float64), np.ascontiguousarray(g),
-                            np.ascontiguousarray(bm), np.ascontiguousarray(bt))
-    mean = before.mean() - cm
-    ms = np.mean(before**2) - 2 * ct + q
-    var = np.maximum(ms - mean**2, 0.0) * n / (n - 1)
-    mx = np.empty(coef.shape[0])
-    mn = np.empty(coef.shape[0])
-    _residual_extrema(np.ascontiguousarray(before, dtype=np.float64),
-                      np.ascontiguousarray(b, dtype=np.float64),
-                      np.ascontiguousarray(coef, dtype=np.float64), mx, mn)
-    return 3 * np.sqrt(var), mean, np.maximum(mx - mean, mean - mn)
 
 
 def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int = 0) -> dict:
@@ -287,7 +282,10 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     -------
     dict of arrays (one row per trial): raw tables ``y_long``, ``y_long_verify``,
     ``y_short``, ``y_short_verify``; coefficients ``c_long``, ``c_short``, ``c_joint``;
-    3 sigma (arcsec) of each published stage and of the dense-grid residuals.
+    3 sigma (arcsec) of each published stage; and the truths of each trial's instrument
+    (:mod:`budget.inductosyn.truth`): ``instrument_a``, ``true_sigma3_before_arcsec``,
+    ``true_coefficients`` (A_L1c .. A_S4s), ``true_mean_arcsec`` (the constant), the 3 sigma
+    and max |error - mean| over the turn after each compensation.
     """
     p = prepared
     sc = p.scenario
@@ -305,12 +303,16 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
         uu[i], zz[i] = trial_draws(rng=trial_rng(seed=seed, trial=first_trial + i), n_long=nl, n_short=ns,
                                    repeats=reps)
     fl, fs, passes = split_draws(u=uu, z=zz, n_long=nl, n_short=ns, repeats=reps)
-    # each pass reads its polygon ``reps`` times (round-major): the same face errors every round
-    fl = np.tile(fl * lp.face_error_arcsec, reps)
-    fs = np.tile(fs * sp.face_error_arcsec, reps)
+    # each trial's instrument: its encoder's pitch terms move each face's error by h(face) . a
+    trial_ids = range(first_trial, first_trial + k)
+    inst, a = instrument_draws(scenario=sc, seed=seed, trials=trial_ids)
+    # each pass reads its polygon ``reps`` times (round-major): the same face errors every round;
+    # the true offset is minus the error, so the instrument's terms enter with a minus sign
+    fl = np.tile(fl * lp.face_error_arcsec - _mul(a, p.face_basis_long), reps)
+    fs = np.tile(fs * sp.face_error_arcsec - _mul(a, p.face_basis_short), reps)
     faces = [fl, fl, fs, fs]
     # the world's rig effects add to each face's deviation (None: all off, tables unchanged)
-    world = world_alpha_arcsec(scenario=sc, seed=seed, trials=range(first_trial, first_trial + k))
+    world = world_alpha_arcsec(scenario=sc, seed=seed, trials=trial_ids, instruments=inst)
     if world is not None:
         faces = [f + w for f, w in zip(faces, world)]
     ys = []
@@ -323,6 +325,14 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
         # each face's entry: the mean of its rounds (one round: as it is)
         ys.append(rounds[0] if reps == 1 else np.mean(rounds, axis=0))
     y1, y2, y3, y4 = ys
+    # the environment test: the drifted encoder re-measured on the short polygon (one round;
+    # its rig as in the short verification's first round), compensated as calibrated
+    env = [environment_draws(seed=seed, trial=t, n_short=ns) for t in trial_ids]
+    zd = np.array([e[0] for e in env])
+    face5 = faces[3][:, :ns] - _mul(zd, p.face_drift_short)
+    y5 = _measure_fast(p.taylor_short, np.array([e[1] for e in env]), np.array([e[2] for e in env]),
+                       np.array([e[3] for e in env]), face5, sp.mount_offset_arcsec, q, sr, ac.noise_arcsec,
+                       ac.resolution_arcsec)
     # every product row by row (_mul): a trial's numbers do not depend on its batch
     c_long = _mul(y1, p.pinv_long)
     long_at_short = _mul(c_long, p.x_long_at_short)
@@ -339,13 +349,31 @@ def run_trials(*, prepared: Prepared, trials: int, seed: int, first_trial: int =
     }
     xj_short = p.x_joint[nl:]
     out["joint_short_sigma3_after_arcsec"] = sigma3_arcsec(error_arcsec=y4 - _mul(c_joint, xj_short))
-    c_seq = np.concatenate([c_long, c_short], axis=1)
-    s3, mean, mx = dense_stats(p.dense_before_arcsec, p.b_seq, c_seq)
-    out.update(dense_sigma3_after_arcsec=s3, dense_mean_after_arcsec=mean, dense_maxabs_after_arcsec=mx)
-    s3j, meanj, mxj = dense_stats(p.dense_before_arcsec, p.b_joint, c_joint)
-    out.update(joint_dense_sigma3_after_arcsec=s3j, joint_dense_mean_after_arcsec=meanj,
-               joint_dense_maxabs_after_arcsec=mxj)
+    out["y_environment"] = y5
+    out["environment_sigma3_arcsec"] = sigma3_arcsec(error_arcsec=y5 - long_at_short - _mul(c_short, p.x_short))
+    out["joint_environment_sigma3_arcsec"] = sigma3_arcsec(error_arcsec=y5 - _mul(c_joint, xj_short))
+    out["drift_z"] = zd
+    out.update(truths(p, a, c_long=c_long, c_short=c_short, c_joint=c_joint, drift_z=zd))
     return out
+
+
+def truths(p: Prepared, a: np.ndarray, *, c_long, c_short, c_joint, drift_z=None) -> dict:
+    """The truths of instruments ``a`` (rows, :func:`instrument_draws`) and of their
+    compensations by each variant's coefficients (:mod:`budget.inductosyn.truth`; the fits'
+    coefficients are only read, as a lab would apply them)."""
+    t = p.truth
+    fit_seq = np.concatenate([c_long[:, 1:], c_short, np.zeros((c_long.shape[0], 4))], axis=1)
+    fit_joint = c_joint[:, 2:]
+    mx, mxj = t.maxabs_after_arcsec(a, fit_seq, fit_joint)
+    return {"instrument_a": a, "true_sigma3_before_arcsec": t.sigma3_before_arcsec(a),
+            "true_coefficients": t.coefficients(a), "true_mean_arcsec": t.mean(a),
+            "dense_sigma3_after_arcsec": t.sigma3_after_arcsec(a, fit_seq),
+            "joint_dense_sigma3_after_arcsec": t.sigma3_after_arcsec(a, fit_joint),
+            "dense_maxabs_after_arcsec": mx, "joint_dense_maxabs_after_arcsec": mxj,
+            **({} if drift_z is None else {
+                "true_environment_sigma3_arcsec": t.sigma3_after_arcsec(np.concatenate([a, drift_z], axis=1), fit_seq),
+                "true_joint_environment_sigma3_arcsec": t.sigma3_after_arcsec(np.concatenate([a, drift_z], axis=1),
+                                                                              fit_joint)})}
 
 
 def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int) -> dict:
@@ -353,7 +381,8 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
 
     Returns the four raw tables and the in-sequence and joint fits.
     """
-    enc = Inductosyn(params=world_encoder_params(scenario=scenario))
+    inst, _ = instrument_draws(scenario=scenario, seed=seed, trials=[trial])
+    enc = Inductosyn(params=world_encoder_params(scenario=scenario, instrument=inst[0]))
     cal = scenario.calibration
     nl, ns = cal.long_polygon.faces, cal.short_polygon.faces
     reps = cal.repeats
@@ -362,7 +391,7 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
     fl = np.tile(fl * cal.long_polygon.face_error_arcsec, reps)
     fs = np.tile(fs * cal.short_polygon.face_error_arcsec, reps)
     faces = [fl, fl, fs, fs]
-    world = world_alpha_arcsec(scenario=scenario, seed=seed, trials=[trial])
+    world = world_alpha_arcsec(scenario=scenario, seed=seed, trials=[trial], instruments=inst)
     if world is not None:
         faces = [f + w[0] for f, w in zip(faces, world)]
     tables = []
@@ -385,19 +414,3 @@ def simulate_trial_exact(*, scenario: InductosynScenario, seed: int, trial: int)
                               (tables[2].angle_deg, tables[2].error_arcsec)],
                       pole_pairs=scenario.encoder.pole_pairs, elec_orders=JOINT_ELEC)
     return {"tables": tables, "in_sequence": seq, "joint": joint}
-
-
-def reference_coefficients(p: Prepared, step_deg: float = 0.01) -> np.ndarray:
-    """Fourier projection of the true error as a function of the reading.
-
-    The continuous truth ``e(r) = r - f^-1(r)`` on a uniform grid of readings (no
-    quantisation), projected on constant + mechanical 1,2 + electrical 1-4: the
-    coefficients the fits estimate.
-    """
-    n = int(round(360.0 / step_deg))
-    r = np.arange(n) * (360.0 / n)
-    e = p.encoder.error_at_reading_arcsec(reading_deg=r)
-    b = design_matrix(angle_deg=r, spec=HarmonicSpec(mech_orders=(1, 2), elec_orders=JOINT_ELEC,
-                                                     pole_pairs=p.scenario.encoder.pole_pairs))
-    c, *_ = np.linalg.lstsq(b, e, rcond=None)
-    return c

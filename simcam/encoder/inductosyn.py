@@ -71,6 +71,7 @@ __all__ = [
     "default",
     "default_text",
     "demodulated_error",
+    "drifted_params",
     "first_order_electrical_error_rad",
     "from_dict",
     "load",
@@ -78,7 +79,12 @@ __all__ = [
     "tracking_null_numeric_rad",
     "tracking_null_rad",
     "winding_harmonic_order_map",
+    "INSTRUMENT_SPAWN_KEY",
+    "instrument_rng",
+    "pinned_instrument",
     "world_encoder_params",
+    "world_pitch_phases_deg",
+    "world_pitch_terms",
 ]
 
 
@@ -262,12 +268,14 @@ class CalibrationParams(StrictModel):
 
 class ValidationParams(ValidationSettings):
     """Monte Carlo settings (:class:`simcam.config_base.ValidationSettings`; trials are
-    vectorised, hence the large cap and batch) and the step of the dense truth grid."""
+    vectorised, hence the large cap and batch) and ``dense_step_deg``, the step of the
+    truth's grid of readings over the turn (its Fourier analysis,
+    :mod:`budget.inductosyn.truth`; at most 360 / (16 pole pairs) is used)."""
 
     trials: Trials = 1000
     max_trials: Trials = 1_000_000
     batch_trials: BatchTrials = 1000
-    dense_step_deg: float = Field(0.001, gt=0, le=1)
+    dense_step_deg: float = Field(0.01, gt=0, le=1)
 
 
 class InductosynEffects(EffectsBase):
@@ -328,16 +336,26 @@ class InductosynWorld(WorldBase):
     * ``face_curvature_arcsec_per_mm``: change of a face's normal per mm along the face
       (1/R of a spherical face; lambda/10 over a 20 mm face is about 0.25 arcsec/mm).
     * ``nonharmonic_max_order``: highest mechanical order of the irregular pitch error.
-    * ``instrument_seed``: which polygon and encoder of the population (their fixed face
-      errors, pyramidal errors and harmonic phases); the per-calibration draws (mounting
-      azimuths, drifts) come from the trial's seed.
+
+    Which polygon and encoder of the population (their certificate residuals, pyramidal
+    errors and harmonic phases) is ``validation.instrument_seed``'s (unset: each trial draws
+    its own; :func:`instrument_rng`); the per-calibration draws (mounting azimuths, drifts)
+    come from the trial's seed. The former ``world.instrument_seed`` is refused with a line
+    pointing there.
     """
 
     effects: InductosynEffects = InductosynEffects()
     pyramidal_error_arcsec: float = Field(5.0, ge=0, le=3600, description="at most 1 deg: the small-angle model")
     face_curvature_arcsec_per_mm: float = Field(0.5, ge=0)
     nonharmonic_max_order: int = Field(72, ge=3, le=2000)
-    instrument_seed: int = Field(1, ge=0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _moved_instrument_seed(cls, data):
+        if isinstance(data, dict) and "instrument_seed" in data:
+            raise ScenarioError("world.instrument_seed: moved to validation.instrument_seed (unset: each trial "
+                                "draws its own polygon and encoder; an integer pins one)")
+        return data
 
 
 class InductosynScenario(ScenarioBase):
@@ -372,7 +390,11 @@ def from_dict(data: dict, *, source: str = "scenario") -> InductosynScenario:
 
 def load(path: str | Path | None = None) -> InductosynScenario:
     """The scenario file at ``path`` (strict TOML, :func:`simcam.config_base.read_toml`) or,
-    for None, the embedded default."""
+    for None or ``"embedded:default"`` (the name a claims ledger gives), the embedded default."""
+    if isinstance(path, str) and path.startswith("embedded:"):
+        if path != "embedded:default":
+            raise ScenarioError(f"{path}: no embedded inductosyn scenario {path.split(':', 1)[1]!r} (have default)")
+        path = None
     return load_scenario_file(path, from_dict=from_dict, default_text=default_text, study="inductosyn")
 
 
@@ -600,12 +622,32 @@ class Inductosyn:
         te = 2 * math.pi * (cycles - np.floor(cycles))
         de = tracking_null_rad(theta_e_rad=te, elec=p.electrical) - te
         out = np.degrees(dm) + np.degrees(de) / p.pole_pairs
-        for ph in p.pitch_harmonics:
+        return out + self._pitch_deg(scale_deg, te, p.pitch_harmonics)
+
+    @staticmethod
+    def _pitch_deg(scale_deg, te, harmonics):
+        out = 0.0
+        for ph in harmonics:
             arg = np.radians(scale_deg) * ph.order
             if ph.domain == "electrical":
                 arg = te * ph.order
             out = out + ph.amplitude_arcsec / ARCSEC_PER_DEG * np.sin(arg + math.radians(ph.phase_deg))
         return out
+
+    def pitch_arcsec(self, *, angle_deg, harmonics, separate: bool = False) -> np.ndarray:
+        """The error (arcsec) that pitch harmonics ``harmonics`` (:class:`PitchHarmonic`) would
+        add at true shaft angles ``angle_deg`` on this encoder: their arguments are its scale
+        angle and electrical phase there, as in :meth:`error_arcsec`. ``separate``: one
+        column per harmonic (last axis) rather than their sum."""
+        p = self.params
+        th = np.asarray(angle_deg, dtype=float)
+        scale_deg = th + np.degrees(mechanical_error_rad(theta_rad=np.radians(th), mech=p.mechanical))
+        cycles = p.pole_pairs * scale_deg / 360.0
+        te = 2 * math.pi * (cycles - np.floor(cycles))
+        if separate:
+            return np.stack([np.zeros_like(th) + self._pitch_deg(scale_deg, te, (h,)) * ARCSEC_PER_DEG
+                             for h in harmonics], axis=-1) if harmonics else np.zeros(th.shape + (0,))
+        return np.zeros_like(th) + self._pitch_deg(scale_deg, te, harmonics) * ARCSEC_PER_DEG
 
     def continuous_reading_deg(self, *, angle_deg):
         """Noise-free, unquantised reading (deg) at true shaft angle ``angle_deg``."""
@@ -661,7 +703,13 @@ def apply_drift(*, params: InductosynParams, drift: DriftParams, seed: int) -> I
     quadrature_error_deg, eccentricity_um, ellipticity_ppm).
     """
     rng = np.random.default_rng(np.random.SeedSequence(seed))
-    z = rng.standard_normal(7)
+    return drifted_params(params=params, drift=drift, z=rng.standard_normal(7))
+
+
+def drifted_params(*, params: InductosynParams, drift: DriftParams, z) -> InductosynParams:
+    """Encoder parameters moved by the standard normal draws ``z`` (7, in the order of
+    :func:`apply_drift`) times the sizes in ``drift`` (seed 001 section 4.3)."""
+    z = np.asarray(z, dtype=float)
     el = params.electrical
     me = params.mechanical
     el2 = el.model_copy(update=dict(
@@ -679,37 +727,71 @@ def apply_drift(*, params: InductosynParams, drift: DriftParams, seed: int) -> I
     return validate_model(InductosynParams, data, source="drift")
 
 
-def _instrument_rng(world: InductosynWorld, stream: int) -> np.random.Generator:
-    """Fixed draws of the instrument realisation ``world.instrument_seed`` (stream 0: polygon,
-    1: encoder), independent of the Monte Carlo seed."""
-    return np.random.default_rng(np.random.SeedSequence(world.instrument_seed, spawn_key=(stream,)))
+#: first spawn key of the instruments' seed sequences: the same number as
+#: :data:`budget.runner.study.INSTRUMENT_SPAWN_KEY` (the world package cannot import the lab's)
+INSTRUMENT_SPAWN_KEY = 2**31 + 1
 
 
-def world_encoder_params(*, scenario: InductosynScenario) -> InductosynParams:
-    """The encoder of the world: ``scenario.encoder`` plus the world's encoder effects.
+def pinned_instrument(*, scenario: InductosynScenario) -> np.random.SeedSequence:
+    """The instrument ``validation.instrument_seed`` pins (0 when unset):
+    ``SeedSequence(instrument_seed, spawn_key=(INSTRUMENT_SPAWN_KEY,))``, the sequence
+    :func:`budget.runner.study.instrument_seed_sequence` gives every trial of a pinned run."""
+    return np.random.SeedSequence(scenario.validation.instrument_seed or 0, spawn_key=(INSTRUMENT_SPAWN_KEY,))
+
+
+def instrument_rng(instrument: np.random.SeedSequence, stream: int) -> np.random.Generator:
+    """Draws of one instrument (``instrument``: its seed sequence, one per trial or pinned,
+    :func:`budget.runner.study.instrument_seed_sequence`); stream 0: the polygons, 1: the
+    encoder. Independent of the trial's measurement and world draws."""
+    return np.random.default_rng(np.random.SeedSequence(instrument.entropy,
+                                                        spawn_key=tuple(instrument.spawn_key) + (stream,)))
+
+
+def world_pitch_terms(*, scenario: InductosynScenario) -> tuple[PitchHarmonic, ...]:
+    """The world's encoder effects as :class:`PitchHarmonic` terms of phase 0, one per phase
+    :func:`world_pitch_phases_deg` draws (the instrument sets only the phases).
 
     ``electrical_harmonic_3_arcsec``: ``A3 sin(3 theta_e + phi3)``; ``nonharmonic_arcsec``:
     ``sum_{m=3}^{M} a_m sin(m theta + phi_m)`` with ``a_m = c/m``, ``c`` such that the rms
-    over a turn, ``sqrt(sum a_m^2 / 2)``, is the magnitude (Parseval). Both as
-    :class:`PitchHarmonic` terms of the scale (phases from ``world.instrument_seed``), so
-    the truth (:meth:`Inductosyn.error_arcsec`, the dense grid, the Fourier projection)
-    includes them exactly. With both magnitudes 0 the scenario's encoder is returned
-    unchanged (the same object).
-    """
+    over a turn, ``sqrt(sum a_m^2 / 2)``, is the magnitude (Parseval). A magnitude 0 gives
+    no term."""
     w = scenario.world
     eff = w.effects
-    if eff.electrical_harmonic_3_arcsec == 0.0 and eff.nonharmonic_arcsec == 0.0:
-        return scenario.encoder
-    rng = _instrument_rng(w, 1)
-    phi3 = rng.uniform(0.0, 360.0)
-    orders = np.arange(3, w.nonharmonic_max_order + 1)
-    phis = rng.uniform(0.0, 360.0, orders.size)  # drawn whatever the magnitudes (common numbers)
-    extra = []
+    out = []
     if eff.electrical_harmonic_3_arcsec > 0:
-        extra.append(PitchHarmonic(domain="electrical", order=3, amplitude_arcsec=eff.electrical_harmonic_3_arcsec,
-                                   phase_deg=float(phi3)))
+        out.append(PitchHarmonic(domain="electrical", order=3, amplitude_arcsec=eff.electrical_harmonic_3_arcsec))
     if eff.nonharmonic_arcsec > 0:
+        orders = np.arange(3, w.nonharmonic_max_order + 1)
         c = eff.nonharmonic_arcsec * math.sqrt(2.0 / float(np.sum(1.0 / orders**2.0)))
-        extra += [PitchHarmonic(domain="mechanical", order=int(m), amplitude_arcsec=float(c / m), phase_deg=float(ph))
-                  for m, ph in zip(orders, phis)]
-    return scenario.encoder.model_copy(update={"pitch_harmonics": tuple(scenario.encoder.pitch_harmonics) + tuple(extra)})
+        out += [PitchHarmonic(domain="mechanical", order=int(m), amplitude_arcsec=float(c / m)) for m in orders]
+    return tuple(out)
+
+
+def world_pitch_phases_deg(*, scenario: InductosynScenario, instrument: np.random.SeedSequence) -> np.ndarray:
+    """The phases (deg) of :func:`world_pitch_terms` for ``instrument``: from
+    ``instrument_rng(instrument, 1)``, ``phi3`` then ``phi_3 .. phi_M``, all drawn whatever the
+    magnitudes (common numbers), those of the terms present returned in their order."""
+    w = scenario.world
+    eff = w.effects
+    rng = instrument_rng(instrument, 1)
+    phi3 = rng.uniform(0.0, 360.0)
+    phis = rng.uniform(0.0, 360.0, w.nonharmonic_max_order - 2)
+    out = ([phi3] if eff.electrical_harmonic_3_arcsec > 0 else []) + (list(phis) if eff.nonharmonic_arcsec > 0 else [])
+    return np.asarray(out, dtype=float)
+
+
+def world_encoder_params(*, scenario: InductosynScenario,
+                         instrument: np.random.SeedSequence | None = None) -> InductosynParams:
+    """The encoder of the world: ``scenario.encoder`` plus the world's encoder effects
+    (:func:`world_pitch_terms` with the phases of ``instrument``,
+    :func:`world_pitch_phases_deg`; None: :func:`pinned_instrument`), so the truth
+    (:meth:`Inductosyn.error_arcsec`) includes them exactly. With both magnitudes 0 the
+    scenario's encoder is returned unchanged (the same object).
+    """
+    terms = world_pitch_terms(scenario=scenario)
+    if not terms:
+        return scenario.encoder
+    inst = pinned_instrument(scenario=scenario) if instrument is None else instrument
+    phases = world_pitch_phases_deg(scenario=scenario, instrument=inst)
+    extra = tuple(t.model_copy(update={"phase_deg": float(ph)}) for t, ph in zip(terms, phases))
+    return scenario.encoder.model_copy(update={"pitch_harmonics": tuple(scenario.encoder.pitch_harmonics) + extra})

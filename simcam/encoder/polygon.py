@@ -31,7 +31,8 @@ from simcam.encoder.inductosyn import (
     Inductosyn,
     InductosynScenario,
     PolygonParams,
-    _instrument_rng,
+    instrument_rng,
+    pinned_instrument,
 )
 from simcam.noise_processes import random_walk, white_noise
 from simcam.units import ARCSEC_PER_DEG, ARCSEC_PER_RAD, SECONDS_PER_HOUR
@@ -272,7 +273,24 @@ def _thermal_basis(angle_deg, pole_pairs: int) -> np.ndarray:
                      np.cos(te), np.sin(te), np.cos(2 * te), np.sin(2 * te)])
 
 
-def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> list[np.ndarray] | None:
+def _instrument_polygons(scenario: InductosynScenario, instrument) -> dict:
+    """The instrument's polygons: certificate residuals and pyramidal errors (rad) of each,
+    tiled over the pass's rounds (stream 0 of :func:`simcam.encoder.inductosyn.instrument_rng`)."""
+    w = scenario.world
+    cal = scenario.calibration
+    ri = instrument_rng(instrument, 0)
+    fixed = {}
+    for key, poly in (("long", cal.long_polygon), ("short", cal.short_polygon)):
+        z = ri.standard_normal(poly.faces)
+        g = ri.standard_normal(poly.faces)
+        fixed[key] = (np.tile(certified_face_errors_arcsec(z=z, u_arcsec=w.effects.polygon_face_error_arcsec),
+                              cal.repeats),
+                      np.tile(g * w.pyramidal_error_arcsec / ARCSEC_PER_RAD, cal.repeats))
+    return fixed
+
+
+def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials,
+                       instruments=None) -> list[np.ndarray] | None:
     """What the world adds to the autocollimator deviation ``alpha`` of each pass (arcsec).
 
     For trials ``trials`` (a sequence of trial numbers) returns four arrays (long raw, long
@@ -282,8 +300,9 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     ``world.effects``):
 
     * ``polygon_face_error_arcsec``: the polygon's certificate residuals
-      (:func:`certified_face_errors_arcsec`), one set per polygon of the instrument, the same
-      in every trial;
+      (:func:`certified_face_errors_arcsec`), one set per polygon of the trial's instrument
+      (``instruments``: one seed sequence per trial, :func:`simcam.encoder.inductosyn.instrument_rng`
+      stream 0; None: :func:`simcam.encoder.inductosyn.pinned_instrument` for every trial);
     * ``autocollimator_drift_arcsec_per_sqrt_h``: a random walk over the whole session
       (:func:`pass_times_s`), 0 at the first reading;
     * ``polygon_eccentricity_um``: beam walk over the curved face
@@ -314,14 +333,6 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     t_all = np.concatenate(times)
     sizes = [a.size for a in angles]
     edges = np.cumsum([0] + sizes)
-    # the instrument: certificate residuals and pyramidal errors of each polygon (fixed)
-    ri = _instrument_rng(w, 0)
-    fixed = {}
-    for key, poly in (("long", cal.long_polygon), ("short", cal.short_polygon)):
-        z = ri.standard_normal(poly.faces)
-        g = ri.standard_normal(poly.faces)
-        fixed[key] = (np.tile(certified_face_errors_arcsec(z=z, u_arcsec=eff.polygon_face_error_arcsec), reps),
-                      np.tile(g * w.pyramidal_error_arcsec / ARCSEC_PER_RAD, reps))
     keys = ("long", "long", "short", "short")
     basis = [_thermal_basis(a, scenario.encoder.pole_pairs) for a in angles]
     radius_mm = math.inf if w.face_curvature_arcsec_per_mm == 0 else ARCSEC_PER_RAD / w.face_curvature_arcsec_per_mm
@@ -330,8 +341,11 @@ def world_alpha_arcsec(*, scenario: InductosynScenario, seed: int, trials) -> li
     q_ac = eff.autocollimator_drift_arcsec_per_sqrt_h / math.sqrt(SECONDS_PER_HOUR)
     q_th = eff.thermal_drift_arcsec_per_sqrt_h / math.sqrt(SECONDS_PER_HOUR)
     trials = list(trials)
+    if instruments is None:
+        instruments = [pinned_instrument(scenario=scenario)] * len(trials)
     out = [np.zeros((len(trials), n)) for n in sizes]
     for row, k in enumerate(trials):
+        fixed = _instrument_polygons(scenario, instruments[row])
         rng = world_rng(seed=seed, trial=k)
         az = rng.uniform(0.0, 2 * math.pi, 4)
         ac = random_walk(rng, t_all, q_ac)
