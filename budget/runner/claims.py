@@ -45,13 +45,15 @@ from budget.runner.findings import unit_prose
 from budget.runner.numbers import fmt
 from budget.runner.verdicts import DEFAULT_CONFIDENCE, SOURCES, Tolerance, Verdict, judge
 from simcam.effects import scenario_effects
+from simcam.infra.errors import UserInputError
 
 if TYPE_CHECKING:
     from budget.runner.result import StudyResult
     from budget.runner.study import Study
 
-__all__ = ["KINDS", "WORLDS", "WORLD_LABELS", "Claim", "ClaimResult", "ToleranceRule", "evaluate_claims",
-           "ledger_markdown", "ledger_runs", "study_claims", "world_scenario"]
+__all__ = ["KINDS", "NOT_RUN_HERE", "WORLDS", "WORLD_LABELS", "Claim", "ClaimResult", "ToleranceRule",
+           "evaluate_claims", "evaluate_run", "ledger_markdown", "ledger_runs", "paper_figure", "run_worlds",
+           "study_claims", "verdict_words", "world_scenario"]
 
 #: what a claim states (module docstring)
 KINDS = ("method", "performance", "bound")
@@ -59,6 +61,8 @@ KINDS = ("method", "performance", "bound")
 WORLDS = ("seed", "realistic")
 #: how a report names each world
 WORLD_LABELS = {"seed": "seed's own world", "realistic": "realistic world"}
+#: a ledger's cell for a world the run did not simulate (a validate report)
+NOT_RUN_HERE = "not run here: `budget claims` runs both"
 
 
 def _one_line(value: Any) -> bool:
@@ -313,6 +317,41 @@ def world_scenario(study: Study, scenario: Any, world: str) -> Any:
     return study.from_dict(data, source=f"{getattr(scenario, 'source', 'scenario')} (the seed's own world)")
 
 
+def _content(scenario: Any) -> Any:
+    """What a scenario simulates: its content less the Monte Carlo settings and its name."""
+    return scenario.model_dump(mode="json", exclude={"validation", "name"})
+
+
+def run_worlds(study: Study, claims, scenario: Any) -> dict[str, tuple[str, ...]]:
+    """``{claim scenario: worlds}``: which worlds of which of ``claims``' scenarios
+    ``scenario`` is (its content, the Monte Carlo settings aside); a study without world
+    effects is both worlds of its scenario at once."""
+    here = _content(scenario)
+    out: dict[str, tuple[str, ...]] = {}
+    for name, world in ledger_runs(claims):
+        try:
+            named = study.load_scenario(name)
+        except (UserInputError, OSError):  # a name only `budget claims` resolves: not this run
+            continue
+        if _content(world_scenario(study, named, world)) == here:
+            out[name] = out.get(name, ()) + (world,)
+    return out
+
+
+def evaluate_run(study: Study, claims, result: StudyResult, *,
+                 confidence: float = DEFAULT_CONFIDENCE) -> tuple[ClaimResult, ...]:
+    """The claims of ``claims`` whose scenario ``result`` ran (:func:`run_worlds`), judged in
+    the world(s) it ran; the other world has no result (:data:`NOT_RUN_HERE` in the table)."""
+    claims = tuple(claims)
+    _check_unique(claims)
+    worlds = run_worlds(study, claims, result.scenario)
+    out = []
+    for c in claims:
+        for world in worlds.get(c.scenario, ()) if c.testable else ():
+            out.append(_evaluate(c, world, result, confidence))
+    return tuple(out)
+
+
 def evaluate_claims(claims, runs: Mapping[tuple[str, str], StudyResult], *,
                     confidence: float = DEFAULT_CONFIDENCE) -> tuple[ClaimResult, ...]:
     """A :class:`ClaimResult` per claim and world (:data:`WORLDS` order), judged from
@@ -391,17 +430,18 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _paper(c: Claim) -> str:
+def paper_figure(c: Claim) -> str:
+    """The paper's figure(s) of ``c`` in words, with the unit."""
     figs = " / ".join(fmt(f) for f in c.figures)
     unit = unit_prose(c.unit)
     if c.kind == "method":
-        return "its estimate equals the truth" + (f" (the paper measured {figs} {unit} with it)" if figs else "")
+        return "its estimate equals the truth" + (f" (the paper measured {figs} {unit})" if figs else "")
     if c.kind == "bound" and c.testable:
         return f"at most {figs} {unit}"
     return f"{figs} {unit}"
 
 
-def _verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
+def verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
     """Both worlds' verdicts in words, with the tolerance and what would settle an
     undetermined one."""
     pair = [(w, r) for w, r in (("seed", seed), ("realistic", real)) if r is not None]
@@ -443,10 +483,10 @@ def ledger_markdown(results) -> str:
         c = claims[cid]
         seed, real = by_world.get("seed"), by_world.get("realistic")
         if c.testable:
-            verdict = _verdict_words(seed, real)
-            ours = [r.ours if r is not None else "-" for r in (seed, real)]
+            verdict = verdict_words(seed, real)
+            ours = [r.ours if r is not None else NOT_RUN_HERE for r in (seed, real)]
         else:
             verdict, ours = f"untestable: {c.untestable}", ["-", "-"]
         head = f"{c.words} ({c.kind}, {c.axis}; {c.section})"
-        lines.append("| " + " | ".join(_cell(t) for t in (head, _paper(c), *ours, verdict)) + " |")
+        lines.append("| " + " | ".join(_cell(t) for t in (head, paper_figure(c), *ours, verdict)) + " |")
     return "\n".join(lines)

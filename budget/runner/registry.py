@@ -37,6 +37,9 @@ class StudyEntry:
     aliases: tuple[str, ...] = ()
     #: names it had before (e.g. as a sweep file's ``kind``): refused, naming this one
     former_names: tuple[str, ...] = ()
+    #: trials per run of ``budget claims`` by default (every study together within 10 minutes
+    #: on 2 cores; docs/claims.md gives the measured times)
+    ledger_trials: int = 20
 
     @property
     def module(self) -> str:

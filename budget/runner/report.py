@@ -21,6 +21,7 @@ from budget.figures import save
 from budget.runner.capabilities import Presented, capability
 from budget.runner.findings import finding_sentence, findings_json, findings_markdown, unit_prose, with_unit
 from budget.runner.html import write_html
+from budget.runner.ledger_view import ledger_section
 from budget.runner.numbers import fmt
 from simcam.effects import scenario_effects
 from simcam.infra.cli import write_json_atomic
@@ -227,9 +228,12 @@ def world_line(scenario) -> str:
     return f"world: {len(on)} of {len(effects.names())} unmodelled effects on ({', '.join(on)})"
 
 
-def write_report(result, out_dir: str | os.PathLike) -> Path:
+def write_report(result, out_dir: str | os.PathLike, *, claims=None) -> Path:
     """Write ``report.md``, ``estimates.png``, the study's sections and figures,
-    ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
+    ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``. The report
+    opens with the ledger of the study's claims judged in this run's world
+    (:func:`budget.runner.ledger_view.ledger_section`; ``claims``: in place of the declared
+    ones, e.g. with a user's tolerances)."""
 
     with staged_report(out_dir) as tmp:
         study = result.study
@@ -241,6 +245,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
                  + f"(hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
                  world_line(result.scenario).replace("world: ", "World: ", 1) + ".", "",
+                 *ledger_section(result, claims),
                  "## Findings", "", *findings_markdown(result, fdata),
                  "## Method", "",
                  "Each trial simulates one measurement with known injected errors and runs the lab's "
