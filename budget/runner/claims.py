@@ -326,9 +326,12 @@ def run_worlds(study: Study, claims, scenario: Any) -> dict[str, tuple[str, ...]
     """``{claim scenario: worlds}``: which worlds of which of ``claims``' scenarios
     ``scenario`` is (its content, the Monte Carlo settings aside); a study without world
     effects is both worlds of its scenario at once."""
+    runs = ledger_runs(claims)
+    if not runs:
+        return {}
     here = _content(scenario)
     out: dict[str, tuple[str, ...]] = {}
-    for name, world in ledger_runs(claims):
+    for name, world in runs:
         try:
             named = study.load_scenario(name)
         except (UserInputError, OSError):  # a name only `budget claims` resolves: not this run
@@ -435,7 +438,7 @@ def paper_figure(c: Claim) -> str:
     figs = " / ".join(fmt(f) for f in c.figures)
     unit = unit_prose(c.unit)
     if c.kind == "method":
-        return "its estimate equals the truth" + (f" (the paper measured {figs} {unit})" if figs else "")
+        return "its estimate equals the truth" + (f" (the paper measured {figs} {unit} with it)" if figs else "")
     if c.kind == "bound" and c.testable:
         return f"at most {figs} {unit}"
     return f"{figs} {unit}"

@@ -186,7 +186,7 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
 
     panels = estimates_panels(result) if panels is None else panels
     biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
-                     if f["rule"] == "biased"})
+                     if f["rule"] == "fails"})
     binned = [p for p in panels if p["edges"] is not None]
     s = ("Each panel: the estimates of one class and axis over the trials (for per-trial truths, estimate "
          "minus the trial's truth), one outline per variant")
@@ -209,9 +209,9 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
         s += (" Every trial gives the same value, drawn as a vertical line of the variant's colour "
               "(no histogram): " + "; ".join(items) + ".")
     if biased:
-        s += " Off the line (significantly biased): " + ", ".join(biased) + "."
+        s += " Off the line by more than its tolerance (the verdict fails): " + ", ".join(biased) + "."
     else:
-        s += " Every variant's histogram is centred on the truth within its standard error."
+        s += " No variant's estimate fails its tolerance about the truth."
     return s
 
 
