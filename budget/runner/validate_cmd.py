@@ -13,7 +13,7 @@ from budget.arguments import checked_command
 from budget.runner import report, run  # their functions looked up when called (tests replace them)
 from budget.runner.executors import default_workers
 from budget.runner.claims import study_claims
-from budget.runner.findings import findings_lines
+from budget.runner.findings import findings_json, findings_lines
 from budget.runner.ledger_view import ledger_lines
 from budget.runner.registry import get_study, summary
 from budget.runner.report import format_table, world_line, write_outputs
@@ -58,8 +58,9 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
     claims = with_requirements(study_claims(study, scenario), requirements or {})
     for line in ledger_lines(res, claims):  # the paper's claims first
         click.echo(line)
-    click.echo(format_table(res))
-    click.echo("\n".join(findings_lines(res)))  # the findings in words
+    fdata = findings_json(res, claims)
+    click.echo(format_table(res, fdata))
+    click.echo("\n".join(findings_lines(res, fdata)))  # the findings in words
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
     write_outputs(res, json_out=json_out, report_dir=report_dir,
