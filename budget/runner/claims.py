@@ -264,8 +264,8 @@ class ClaimResult:
             if self.truth != 0:
                 s += f" ({100 * bias / abs(self.truth):+.1f} %)"
             return s
-        if self.truth is not None:
-            return f"{fmt(self.truth)} +- {fmt(self.truth_se)}"
+        if self.truth is not None:  # a truth without sampling error has no "+- 0"
+            return f"{fmt(self.truth)} +- {fmt(self.truth_se)}" if self.truth_se else fmt(self.truth)
         return "-"
 
     @property

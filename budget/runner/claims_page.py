@@ -53,7 +53,6 @@ table{border-collapse:collapse;width:100%;table-layout:fixed;font-size:.88em;mar
 td{overflow-wrap:anywhere}
 td,th{border:1px solid #d4d4d4;padding:.35em .5em;text-align:left;vertical-align:top}
 th{background:#f2f2f2}
-td.num{white-space:nowrap}
 small{color:#555}
 .holds{background:#e3f4e3}.fails{background:#fbe3e1}.undetermined{background:#fff4d6}.none{background:#f1f1f1}
 span.badge{display:inline-block;padding:0 .4em;border-radius:3px;font-weight:600;margin-right:.2em}
@@ -87,6 +86,14 @@ def _ours(led, r) -> str:
     return f'<td class="{cls}">{_badge(r)}<br>{text}{more}</td>'
 
 
+def _paper_short(c) -> str:
+    """The paper's column: its figure, or for a method claim what it claims of its estimate."""
+    if c.kind != "method":
+        return paper_figure(c)
+    figs = " / ".join(f"{f:g}" for f in c.figures)
+    return "estimate = truth" + (f" (it measured {figs} {unit_prose(c.unit)})" if figs else "")
+
+
 def _rows(ledgers) -> list[str]:
     rows = []
     for led in ledgers:
@@ -98,7 +105,7 @@ def _rows(ledgers) -> list[str]:
             seed, real = worlds.get("seed"), worlds.get("realistic")
             cells = [f'<td class="claim">{_e(c.words)} <span class="sec">({_e(c.kind)}; {_e(c.section)}'
                      f'{"; " + _e(c.condition) if c.condition else ""})</span></td>',
-                     f'<td class="num">{_e(paper_figure(c))}</td>']
+                     f"<td>{_e(_paper_short(c))}</td>"]
             if c.testable:
                 words, _, why = verdict_words(seed, real).partition(" (tolerance")
                 why = f"<br><small>tolerance{_e(why[:-1])}</small>" if why else ""
