@@ -37,11 +37,11 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from budget.arguments import check_arguments
+from budget.runner.claims_run import run_claims
 from budget.runner.executors import default_workers
 from budget.runner.registry import get_study, study_names
 from budget.runner.study import Study
-
-from budget.arguments import check_arguments
 
 __all__ = ["claims", "plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
@@ -203,8 +203,6 @@ def claims(out, *, studies=(), trials: int | None = None, seed: int = 0, workers
     of the declared tolerances. Returns a ``ClaimsResult`` (``ledgers``, ``page``,
     ``counts()``, ``to_json()``)."""
     check_arguments(locals())  # each argument's type and range, named, before any work
-    from budget.runner.claims_run import run_claims
-
     if isinstance(studies, str):
         studies = [studies]
     if isinstance(tolerances, str):

@@ -9,15 +9,18 @@ from __future__ import annotations
 import json
 import re
 from html.parser import HTMLParser
-from pathlib import Path
 
 import pytest
 from claims_toy import STUDY
 from click.testing import CliRunner
 
-from budget.runner.claims_run import LEDGER_JSON, PAGE, run_claims
+from budget.runner.claims_run import LEDGER_JSON, run_claims
 from budget.runner.ledger_view import instrument_line, ledger_lines, ledger_section
-from budget.runner.requirements import parse_requirements, split_tolerance_options, with_requirements
+from budget.runner.requirements import (
+    parse_requirements,
+    split_tolerance_options,
+    with_requirements,
+)
 from budget.runner.run import run_study
 from simcam.infra.errors import UserInputError
 
@@ -80,7 +83,7 @@ def test_the_page_links_each_row_to_an_existing_report_and_the_json(page):
     data = json.loads(page.json_path.read_text())
     (st,) = data["studies"]
     assert st["study"] == "claimstoy" and len(st["claims"]) == 8
-    fig = [c for c in st["claims"] if c["id"] == "variance.figure" and c["world"] == "realistic"][0]
+    fig = next(c for c in st["claims"] if c["id"] == "variance.figure" and c["world"] == "realistic")
     assert fig["outcome"] == "fails" and fig["truth"] == pytest.approx(4.25)
     assert fig["tolerance"] == {"low": pytest.approx(3.92), "high": pytest.approx(4.08),
                                 "reason": "2 % of the figure", "source": "default"}

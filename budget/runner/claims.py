@@ -43,7 +43,13 @@ from typing import TYPE_CHECKING, Any
 from budget.runner.capabilities import Claims, capability
 from budget.runner.findings import unit_prose
 from budget.runner.numbers import fmt
-from budget.runner.verdicts import DEFAULT_CONFIDENCE, SOURCES, Tolerance, Verdict, judge
+from budget.runner.verdicts import (
+    DEFAULT_CONFIDENCE,
+    SOURCES,
+    Tolerance,
+    Verdict,
+    judge,
+)
 from simcam.effects import scenario_effects
 from simcam.infra.errors import UserInputError
 

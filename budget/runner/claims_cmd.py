@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import click
 
+from budget.runner.claims_run import run_claims
 from budget.runner.executors import default_workers
 from budget.runner.registry import study_names
 from simcam.infra.cli import overwrite_option
+from simcam.infra.errors import UserInputError
 
 __all__ = ["claims_command"]
 
@@ -39,9 +41,6 @@ declared tolerance of every claim on it (a method's bias within -+VALUE, a figur
                    "CLASS (repeatable).")
 @click.option("--progress/--no-progress", default=False, help="A progress bar per run.")
 def claims_command(out, overwrite, trials, seed, workers, studies, tolerances, progress):
-    from budget.runner.claims_run import run_claims
-    from simcam.infra.errors import UserInputError
-
     known = study_names()
     for s in studies:
         if s not in known:

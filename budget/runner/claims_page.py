@@ -2,8 +2,8 @@
 HTML file.
 
 One table per source document (a study's ``seed_document``; the attitude study joins seed
-000's), headed by the document's bibliographic citation (:data:`CITATIONS`, as
-docs/references.md gives them), one row per claim: the paper's words and section, its
+000's), headed by the document's bibliographic citation (:data:`budget.sources.CITATIONS`,
+as docs/references.md gives them), one row per claim: the paper's words and section, its
 figure, ours in the seed's own world and in the realistic world (each linking to the full
 report of the run that judged it), and the verdict in words
 (:func:`budget.runner.claims.verdict_words`). Nothing is fetched from a network.
@@ -16,31 +16,9 @@ from pathlib import Path
 
 from budget.runner.claims import WORLD_LABELS, WORLDS, paper_figure, verdict_words
 from budget.runner.findings import unit_prose
+from budget.sources import citation
 
-__all__ = ["CITATIONS", "page_html", "write_page"]
-
-#: seed document -> (short name, full citation); docs/references.md
-CITATIONS = {
-    "000": ("Wang et al. 2018",
-            "Wang Weizhi, Wang Yan, Yu Yanbo, Di Jingjing, Zong Yunhua, Gao Weijun, \u201cAccuracy determination "
-            "for sub-arcsec star camera\u201d, Infrared and Laser Engineering 47(9), 0917002 (2018), "
-            "doi:10.3788/IRLA201847.0917002"),
-    "001": ("Dong et al. 2019",
-            "Dong Hao, Sun Tuo, Wu Li'na, Tang Shuai, Liu Xiaobo, \u201cAn angular error compensation technology "
-            "for airborne infrared spectral camera\u201d, Infrared and Laser Engineering 48(10), 1013007 (2019), "
-            "doi:10.3788/IRLA201948.1013007"),
-    "002": ("Miao et al.",
-            "Miao Zhuang, He Bin, Wang Junqi, Chen Qixing, Yang Xiaojie, whiskbroom TDICCD space camera: "
-            "image-motion velocity model and Monte Carlo error synthesis (journal version of Z. Miao's "
-            "master thesis, 2016)"),
-    "003": ("Jia, Xu & Chen 2012",
-            "Jia Yinghong, Xu Shijie, Chen Tong, \u201cImaging position error compensation of scan mirror for "
-            "spacecraft\u201d, Journal of Beijing University of Aeronautics and Astronautics 38(2), 153-159 "
-            "(2012)"),
-    "004": ("Guan et al. 2022",
-            "Guan Zhichao, Li Zhen, Jiang Yonghua, Zhang Guo, Shen Xin, Chinese patent \u201cStar-observation "
-            "mode on-board geometric calibration method for a linear-array camera\u201d (2022)"),
-}
+__all__ = ["page_html", "write_page"]
 
 _STYLE = """
 body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:1150px;margin:1.5em auto;
@@ -100,7 +78,7 @@ def _rows(ledgers) -> list[str]:
         by_id: dict = {}
         for r in led.results:
             by_id.setdefault(r.claim.id, {})[r.world] = r
-        for cid, worlds in by_id.items():
+        for worlds in by_id.values():
             c = next(iter(worlds.values())).claim
             seed, real = worlds.get("seed"), worlds.get("realistic")
             cells = [f'<td class="claim">{_e(c.words)} <span class="sec">({_e(c.kind)}; {_e(c.section)}'
@@ -117,7 +95,7 @@ def _rows(ledgers) -> list[str]:
 
 
 def _paper_section(doc: str, ledgers) -> list[str]:
-    short, full = CITATIONS.get(doc, (f"seed {doc}", f"source document {doc}"))
+    short, full = citation(doc)
     studies = ", ".join(f"<code>{_e(led.study)}</code>" for led in ledgers)
     out = [f"<h2>{_e(short)}</h2>", f'<p class="cite">{_e(full)}. Studies: {studies}.</p>']
     rows = _rows(ledgers)

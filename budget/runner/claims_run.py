@@ -19,17 +19,25 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
-from budget.runner.claims import WORLDS, ClaimResult, evaluate_claims, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import (
+    WORLDS,
+    ClaimResult,
+    evaluate_claims,
+    ledger_runs,
+    study_claims,
+    world_scenario,
+)
+from budget.runner.claims_page import write_page
 from budget.runner.registry import entry, get_study, study_names
+from budget.runner.report import write_report
 from budget.runner.requirements import parse_requirements, with_requirements
 from budget.runner.study import Study
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
 from simcam.infra.outputs import StagedOutputs, check_output_dir
 
-__all__ = ["PAGE", "LEDGER_JSON", "ClaimsResult", "StudyLedger", "is_earlier_claims", "run_claims"]
+__all__ = ["LEDGER_JSON", "PAGE", "ClaimsResult", "StudyLedger", "is_earlier_claims", "run_claims"]
 
 #: the front page and the ledger's JSON in the output folder
 PAGE, LEDGER_JSON = "index.html", "claims.json"
@@ -184,8 +192,6 @@ def run_claims(out, *, studies=(), trials: int | None = None, seed: int = 0, wor
     run (default: each study's registered ``ledger_trials``); ``tolerances``: texts
     ``CLASS=VALUE`` (:mod:`budget.runner.requirements`); ``echo(line)``: progress lines.
     """
-    from budget.runner.claims_page import write_page
-    from budget.runner.report import write_report
     from budget.runner.run import run_study
 
     echo = echo or (lambda line: None)

@@ -71,7 +71,7 @@ def _size(st: dict) -> tuple[float, str]:
 def class_verdict(result, key, st: dict, rules: dict, *, unit: str = "") -> ClassVerdict:
     """The verdict of ``key`` with its statistics ``st`` (module docstring); ``rules`` from
     :func:`method_rules`."""
-    cls, var, ax = key
+    cls, _var, ax = key
     spec = result.class_spec(cls) if cls in {c.name for c in result.classes} else None
     if st.get("role") == "input":
         return ClassVerdict(None, "an input of the method, taken as given")

@@ -8,8 +8,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from budget.runner.claims import (NOT_RUN_HERE, WORLD_LABELS, Claim, ClaimResult, evaluate_run, ledger_markdown,
-                                  paper_figure, study_claims)
+from budget.runner.claims import (
+    NOT_RUN_HERE,
+    WORLD_LABELS,
+    Claim,
+    ClaimResult,
+    evaluate_run,
+    ledger_markdown,
+    paper_figure,
+    study_claims,
+)
 
 __all__ = ["RunLedger", "instrument_line", "ledger_lines", "ledger_section", "run_ledger"]
 

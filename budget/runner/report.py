@@ -19,7 +19,13 @@ import numpy as np
 
 from budget.figures import save
 from budget.runner.capabilities import Presented, capability
-from budget.runner.findings import finding_sentence, findings_json, findings_markdown, unit_prose, with_unit
+from budget.runner.findings import (
+    finding_sentence,
+    findings_json,
+    findings_markdown,
+    unit_prose,
+    with_unit,
+)
 from budget.runner.html import write_html
 from budget.runner.ledger_view import ledger_section
 from budget.runner.numbers import fmt
@@ -29,9 +35,20 @@ from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
 from simcam.infra.outputs import StagedOutputs
 
-__all__ = ["TABLE_LEGEND", "estimates_caption", "estimates_panels", "finding", "format_table", "table_legend",
-           "table_markdown", "plot_estimates", "publish_report", "staged_report",
-           "write_outputs", "write_report"]
+__all__ = [
+    "TABLE_LEGEND",
+    "estimates_caption",
+    "estimates_panels",
+    "finding",
+    "format_table",
+    "plot_estimates",
+    "publish_report",
+    "staged_report",
+    "table_legend",
+    "table_markdown",
+    "write_outputs",
+    "write_report",
+]
 
 
 def _verdicts(result, fdata: dict | None) -> dict:

@@ -10,9 +10,12 @@ import sys
 import click
 
 from budget.arguments import checked_command
-from budget.runner import report, run  # their functions looked up when called (tests replace them)
-from budget.runner.executors import default_workers
+from budget.runner import (  # their functions looked up when called (tests replace them)
+    report,
+    run,
+)
 from budget.runner.claims import study_claims
+from budget.runner.executors import default_workers
 from budget.runner.findings import findings_json, findings_lines
 from budget.runner.ledger_view import ledger_lines
 from budget.runner.registry import get_study, summary

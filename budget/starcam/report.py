@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from budget.figures import save
 from budget.figures import plt as pyplot  # matplotlib.pyplot, set up on first use
+from budget.figures import save
 
 
 def _plt():

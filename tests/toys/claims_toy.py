@@ -11,9 +11,10 @@ unbiased; either has a per-trial sd of ``v sqrt(2 / 7)``.
 
 from __future__ import annotations
 
+from toy_world_study import ToyWorldStudy
+
 from budget.runner.capabilities import Claims
 from budget.runner.claims import Claim, ToleranceRule
-from toy_world_study import ToyWorldStudy
 
 #: the one scenario its claims name
 SCENARIO = "embedded:default"
