@@ -255,7 +255,8 @@ def _variant_summary(result, items: list[dict]) -> dict:
         for cls, fs in classes.items():
             o = _class_outcome(fs)
             gauge = [f["axis"] for f in fs if f["rule"] == "gauge"]
-            name = cls if not gauge or o is None else f"{cls} ({', '.join(f['axis'] for f in fs if f['rule'] != 'gauge')} only)"
+            judged = ", ".join(f["axis"] for f in fs if f["rule"] != "gauge")
+            name = cls if not gauge or o is None else f"{cls} ({judged} only)"
             groups[o or "other"].append(name)
         out[var] = {**groups, "recovered": groups["holds"], "not_recovered": groups["fails"],
                     "reference": all(f["rule"] == "reference" for fs in classes.values() for f in fs)}
