@@ -51,7 +51,7 @@ from budget.runner.verdicts import (
     judge,
 )
 from simcam.effects import scenario_effects
-from simcam.infra.errors import UserInputError
+from simcam.infra.errors import ScenarioError, UserInputError
 
 if TYPE_CHECKING:
     from budget.runner.result import StudyResult
@@ -340,7 +340,7 @@ def run_worlds(study: Study, claims, scenario: Any) -> dict[str, tuple[str, ...]
     for name, world in runs:
         try:
             named = study.load_scenario(name)
-        except (UserInputError, OSError):  # a name only `budget claims` resolves: not this run
+        except (UserInputError, ScenarioError, OSError):  # a name this study cannot load: not this run
             continue
         if _content(world_scenario(study, named, world)) == here:
             out[name] = out.get(name, ()) + (world,)
