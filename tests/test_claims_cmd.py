@@ -177,3 +177,16 @@ def test_cli_help_and_bad_study():
     assert r.exit_code != 0 and "--study nope: unknown study" in str(r.exception or r.output)
     r = CliRunner().invoke(cli, ["starcam", "validate", "--help"])
     assert "CLASS=VALUE" in r.output and "standard error" in r.output
+
+
+def test_a_pinned_instrument_is_said_also_without_claims():
+    from types import SimpleNamespace
+
+    from toy_world_study import STUDY as NO_CLAIMS
+
+    run = SimpleNamespace(study=NO_CLAIMS, scenario=SimpleNamespace(validation=SimpleNamespace(instrument_seed=3)))
+    (line, blank) = ledger_section(run)
+    assert line.startswith("**One instrument (instrument seed 3)") and "that instrument only" in line and blank == ""
+    assert ledger_lines(run) == [line.strip("*")]
+    run.scenario.validation.instrument_seed = None
+    assert ledger_section(run) == [] and ledger_lines(run) == []

@@ -52,12 +52,14 @@ def instrument_line(scenario) -> str | None:
 
 
 def ledger_section(result, claims=None) -> list[str]:
-    """Markdown lines of the report's first section, "What holds of the paper's claims"."""
+    """Markdown lines of the report's first section, "What holds of the paper's claims" (with
+    a pinned instrument, :func:`instrument_line` in bold, also without claims)."""
     led = run_ledger(result, claims)
+    note = instrument_line(result.scenario)
     if not (led.results or led.elsewhere or led.untestable):
-        return []
+        return [f"**{note}**", ""] if note is not None else []
     lines = ["## What holds of the paper's claims", ""]
-    if (note := instrument_line(result.scenario)) is not None:
+    if note is not None:
         lines += [f"**{note}**", ""]
     if led.results:
         worlds = sorted({r.world for r in led.results})
@@ -85,10 +87,11 @@ def _short(r: ClaimResult) -> str:
 def ledger_lines(result, claims=None) -> list[str]:
     """Terminal lines of the same ledger: one per claim and world judged here."""
     led = run_ledger(result, claims)
+    note = instrument_line(result.scenario)
     if not (led.results or led.elsewhere):
-        return []
+        return [note] if note is not None else []
     out = ["claims of the paper (this run's world; `budget claims` runs both):"]
-    if (note := instrument_line(result.scenario)) is not None:
+    if note is not None:
         out.append(f"  {note}")
     for r in led.results:
         paper = "" if r.claim.kind == "method" else f"paper {paper_figure(r.claim)}; "
