@@ -37,7 +37,7 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
-from budget.arguments import check_arguments
+from budget.arguments import check_arguments, check_path
 from budget.runner.claims_run import run_claims
 from budget.runner.executors import default_workers
 from budget.runner.registry import get_study, study_names
@@ -202,7 +202,8 @@ def claims(out, *, studies=(), trials: int | None = None, seed: int = 0, workers
     registered study); ``tolerances``: texts ``"CLASS=VALUE"``, a user's requirement in place
     of the declared tolerances. Returns a ``ClaimsResult`` (``ledgers``, ``page``,
     ``counts()``, ``to_json()``)."""
-    check_arguments(locals())  # each argument's type and range, named, before any work
+    check_path(out, "out", what="output folder")
+    check_arguments({k: v for k, v in locals().items() if k != "out"})  # each argument, named, before any work
     if isinstance(studies, str):
         studies = [studies]
     if isinstance(tolerances, str):

@@ -190,3 +190,16 @@ def test_a_pinned_instrument_is_said_also_without_claims():
     assert ledger_lines(run) == [line.strip("*")]
     run.scenario.validation.instrument_seed = None
     assert ledger_section(run) == [] and ledger_lines(run) == []
+
+
+def test_the_api_checks_its_arguments_and_returns_the_typed_result(tmp_path):
+    import budget
+    from budget.runner.claims_run import ClaimsResult
+
+    with pytest.raises(TypeError, match="out=5: the output folder must be a path"):
+        budget.claims(5)
+    with pytest.raises(UserInputError, match="seed"):
+        budget.claims(tmp_path / "o", seed=-1)
+    res = budget.claims(tmp_path / "o", studies=[STUDY], trials=4, seed=0, workers=1, tolerances="variance=1")
+    assert isinstance(res, ClaimsResult) and res.page.is_file() and res.requirements == {"variance": 1.0}
+    assert "claims" in budget.__all__
