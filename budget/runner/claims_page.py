@@ -94,9 +94,14 @@ def _rows(ledgers) -> list[str]:
     return rows
 
 
+def _trials(led) -> str:
+    n = sorted({run["trials"] for run in led.runs.values()})
+    return f" ({', '.join(map(str, n))} trials per run)" if n else ""
+
+
 def _paper_section(doc: str, ledgers) -> list[str]:
     short, full = citation(doc)
-    studies = ", ".join(f"<code>{_e(led.study)}</code>" for led in ledgers)
+    studies = ", ".join(f"<code>{_e(led.study)}</code>" + _trials(led) for led in ledgers)
     out = [f"<h2>{_e(short)}</h2>", f'<p class="cite">{_e(full)}. Studies: {studies}.</p>']
     rows = _rows(ledgers)
     if not rows:
@@ -125,7 +130,7 @@ def page_html(result) -> str:
     for led in result.ledgers:
         by_doc.setdefault(led.seed_document, []).append(led)
     trials = (f"{result.trials} trials per run" if result.trials is not None
-              else "each study's default trials per run (see each report)")
+              else "each study's default trials per run (named beside it)")
     req = ""
     if result.requirements:
         req = (" Your requirements replace the declared tolerances on "
