@@ -464,12 +464,14 @@ def verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
     else:
         s = ", ".join(f"{r.verdict.outcome if r.verdict else 'no verdict (' + r.no_verdict + ')'} in the "
                       f"{WORLD_LABELS[w]}" for w, r in pair)
-    for w, r in judged:
+    same = len(judged) == 2 and judged[0][1].verdict == judged[1][1].verdict  # one run served both worlds
+    for w, r in judged[:1] if same else judged:
         v = r.verdict
+        w_ = "both worlds (one run)" if same else WORLD_LABELS[w]
         if v.outcome == "undetermined":
-            s += (f"; {WORLD_LABELS[w]}: on the tolerance's edge, no number of trials settles it" if v.on_edge
-                  else f"; {WORLD_LABELS[w]}: about {v.n_to_settle} trials would settle it" if v.n_to_settle
-                  else f"; {WORLD_LABELS[w]}: about {fmt(v.growth_to_settle, 2)} times the truth's samples "
+            s += (f"; {w_}: on the tolerance's edge, no number of trials settles it" if v.on_edge
+                  else f"; {w_}: about {v.n_to_settle} trials would settle it" if v.n_to_settle
+                  else f"; {w_}: about {fmt(v.growth_to_settle, 2)} times the truth's samples "
                        "would settle it")
     tols = {r.verdict.tolerance.describe() for _, r in judged}
     first = judged[0][1].verdict.tolerance
