@@ -1,6 +1,6 @@
 """budget: the lab. Turns measurements into error estimates (and, in validation, compares them to truth).
 
-The Python API (docs/api.md): :func:`budget.validate`, :func:`budget.robustness`, :func:`budget.plan`,
+The Python API (docs/api.md): :func:`budget.validate`, :func:`budget.claims`, :func:`budget.robustness`, :func:`budget.plan`,
 :func:`budget.sweep`, :func:`budget.studies`, :func:`budget.scenario_text` (:mod:`budget.api`).
 They are looked up on first use, so ``import budget`` (and the console script's start,
 :mod:`budget.__main__`) imports nothing else.
@@ -8,7 +8,7 @@ They are looked up on first use, so ``import budget`` (and the console script's 
 
 __version__ = "0.1.0"
 
-__all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
+__all__ = ["claims", "plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
 
 def __getattr__(name: str):

@@ -37,13 +37,13 @@ import sys
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
+from budget.arguments import check_arguments, check_path
+from budget.runner.claims_run import run_claims
 from budget.runner.executors import default_workers
 from budget.runner.registry import get_study, study_names
 from budget.runner.study import Study
 
-from budget.arguments import check_arguments
-
-__all__ = ["plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
+__all__ = ["claims", "plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
 
 def studies() -> list[str]:
@@ -192,6 +192,26 @@ def plan(study, scenario=None, *, require=(), variant: str | None = None, confid
                              budget_hours=budget_hours, trials=trials, seed=seed,
                              workers=default_workers() if workers is None else workers, progress=progress,
                              sure=sure, fix=fix)
+
+
+def claims(out, *, studies=(), trials: int | None = None, seed: int = 0, workers: int | None = None,
+           tolerances=(), overwrite: bool = False, progress: bool = False):
+    """Every study's claims ledger in both worlds, written to the folder ``out`` as one page
+    (``index.html``), the ledger's JSON and each run's report: what ``budget claims`` does
+    (:func:`budget.runner.claims_run.run_claims`). ``studies``: names (default: every
+    registered study); ``tolerances``: texts ``"CLASS=VALUE"``, a user's requirement in place
+    of the declared tolerances. Returns a ``ClaimsResult`` (``ledgers``, ``page``,
+    ``counts()``, ``to_json()``)."""
+    check_path(out, "out", what="output folder")
+    check_arguments({k: v for k, v in locals().items() if k != "out"})  # each argument, named, before any work
+    if isinstance(studies, str):
+        studies = [studies]
+    if isinstance(tolerances, str):
+        tolerances = [tolerances]
+    with _on_workers(*[s for s in studies if isinstance(s, Study)]):
+        return run_claims(out, studies=tuple(studies), trials=trials, seed=seed,
+                          workers=default_workers() if workers is None else workers, tolerances=tuple(tolerances),
+                          overwrite=overwrite, progress=progress)
 
 
 def sweep(sweep_file, out, *, workers: int | None = None, progress: bool = False):

@@ -25,6 +25,7 @@ from simcam.infra.lifecycle import quick_teardown
 COMMANDS = {
     "sweep": "budget.sweeps.run:sweep_command",
     "plot": "budget.sweeps.plot:plot_command",
+    "claims": "budget.runner.claims_cmd:claims_command",
 }
 #: the main job's alias: ``budget validate`` is ``budget starcam validate``
 MAIN_STUDY = "starcam"
@@ -66,7 +67,8 @@ def cli() -> None:
     """Error-budget tools: `budget <study> <verb>` runs a study's lab methods on frames or
     tables (e.g. `budget starcam measure`) or validates them against injected truth
     (`budget <study> validate`; `budget validate` is the star camera's, the main job);
-    `budget sweep` / `budget plot` sweep design parameters. `budget harmonics` is an alias
+    `budget sweep` / `budget plot` sweep design parameters; `budget claims` judges every
+    paper's claims and writes one page. `budget harmonics` is an alias
     of `budget inductosyn`."""
 
 

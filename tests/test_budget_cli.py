@@ -23,7 +23,7 @@ def _ctx():
 
 def test_top_level_lists_the_studies_and_the_machinery_only():
     names = cli.list_commands(_ctx())
-    assert names == sorted({*study_names(), "validate", "sweep", "plot"})
+    assert names == sorted({*study_names(), "validate", "sweep", "plot", "claims"})
     for gone in ("measure", "simulate", "combine", "harmonics"):
         assert gone not in names
 

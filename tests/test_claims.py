@@ -176,7 +176,7 @@ def test_performance_and_bound_claims_judge_the_truth(toy_runs):
     res = evaluate_claims([perf, bound, per_trial], toy_runs)
     p, b, m = res[0], res[2], res[4]
     assert p.verdict.estimate == 4.0 and p.verdict.se == 0.0 and p.verdict.n is None
-    assert p.verdict.outcome == "holds" and p.truth == 4.0 and p.ours == "4 +- 0"
+    assert p.verdict.outcome == "holds" and p.truth == 4.0 and p.ours == "4"  # an unsampled truth: no "+- 0"
     assert b.verdict.outcome == "fails" and "wholly above" in b.sentence and "at most 3.9" in b.sentence
     # per-trial truths (mu_k ~ N(0, 10^2)): their mean over the run's trials, sd / sqrt(n)
     mus = toy_runs[("toy", "seed")].trial_truths[("mean", "published", "a")]

@@ -62,7 +62,7 @@ COMMANDS = [("simcam", ["render"]), ("simcam", ["optics"]), ("budget", ["validat
             ("budget", ["whiskbroom", "synthesize"]), ("budget", ["scanmirror", "validate"]),
             ("budget", ["scanmirror", "simulate"]), ("budget", ["linecam", "validate"]),
             ("budget", ["linecam", "simulate"]), ("budget", ["linecam", "calibrate"]), ("budget", ["plot"]),
-            ("budget", ["scanmirror", "robustness"]), ("budget", ["starcam", "robustness"])]
+            ("budget", ["scanmirror", "robustness"]), ("budget", ["starcam", "robustness"]), ("budget", ["claims"])]
 
 
 @pytest.mark.parametrize("prog,args", COMMANDS, ids=[" ".join([p, *a]) for p, a in COMMANDS])

@@ -344,3 +344,20 @@ def test_cases_of_every_study_with_a_world(name):
         d["world"]["effects"] = None
         assert d == base
         assert c.scenario.world.effects.active() == c.active
+
+
+class _ReferenceToy(ToyWorldStudy):
+    """The toy world with ``improved`` declared a reference variant (it estimates nothing)."""
+
+    reference_variants = ("improved",)
+
+
+def test_a_reference_variant_is_never_shown_ok():
+    study = _ReferenceToy()
+    res = run_robustness(study, study.load_scenario(), trials=10, seed=1, workers=1)
+    for case, row in res.cells().items():
+        for (cls, var, ax), cell in row.items():
+            if var == "improved":
+                assert cell["claim_holds"] is None, (case, cls, ax)
+            shown = summary_cell([(ax, cell)])
+            assert shown.startswith("--" if var == "improved" else ("ok", "FAIL")), (case, cls, var, shown)

@@ -43,15 +43,23 @@ from typing import TYPE_CHECKING, Any
 from budget.runner.capabilities import Claims, capability
 from budget.runner.findings import unit_prose
 from budget.runner.numbers import fmt
-from budget.runner.verdicts import DEFAULT_CONFIDENCE, SOURCES, Tolerance, Verdict, judge
+from budget.runner.verdicts import (
+    DEFAULT_CONFIDENCE,
+    SOURCES,
+    Tolerance,
+    Verdict,
+    judge,
+)
 from simcam.effects import scenario_effects
+from simcam.infra.errors import ScenarioError, UserInputError
 
 if TYPE_CHECKING:
     from budget.runner.result import StudyResult
     from budget.runner.study import Study
 
-__all__ = ["KINDS", "WORLDS", "WORLD_LABELS", "Claim", "ClaimResult", "ToleranceRule", "evaluate_claims",
-           "ledger_markdown", "ledger_runs", "study_claims", "world_scenario"]
+__all__ = ["KINDS", "NOT_RUN_HERE", "WORLDS", "WORLD_LABELS", "Claim", "ClaimResult", "ToleranceRule",
+           "evaluate_claims", "evaluate_run", "ledger_markdown", "ledger_runs", "paper_figure", "run_worlds",
+           "study_claims", "verdict_words", "world_scenario"]
 
 #: what a claim states (module docstring)
 KINDS = ("method", "performance", "bound")
@@ -59,6 +67,8 @@ KINDS = ("method", "performance", "bound")
 WORLDS = ("seed", "realistic")
 #: how a report names each world
 WORLD_LABELS = {"seed": "seed's own world", "realistic": "realistic world"}
+#: a ledger's cell for a world the run did not simulate (a validate report)
+NOT_RUN_HERE = "not run here: `budget claims` runs both"
 
 
 def _one_line(value: Any) -> bool:
@@ -260,8 +270,8 @@ class ClaimResult:
             if self.truth != 0:
                 s += f" ({100 * bias / abs(self.truth):+.1f} %)"
             return s
-        if self.truth is not None:
-            return f"{fmt(self.truth)} +- {fmt(self.truth_se)}"
+        if self.truth is not None:  # a truth without sampling error has no "+- 0"
+            return f"{fmt(self.truth)} +- {fmt(self.truth_se)}" if self.truth_se else fmt(self.truth)
         return "-"
 
     @property
@@ -311,6 +321,44 @@ def world_scenario(study: Study, scenario: Any, world: str) -> Any:
     data = scenario.model_dump(mode="json", exclude_none=True)
     data.setdefault("world", {})["effects"] = effects.ideal().magnitudes()
     return study.from_dict(data, source=f"{getattr(scenario, 'source', 'scenario')} (the seed's own world)")
+
+
+def _content(scenario: Any) -> Any:
+    """What a scenario simulates: its content less the Monte Carlo settings and its name."""
+    return scenario.model_dump(mode="json", exclude={"validation", "name"})
+
+
+def run_worlds(study: Study, claims, scenario: Any) -> dict[str, tuple[str, ...]]:
+    """``{claim scenario: worlds}``: which worlds of which of ``claims``' scenarios
+    ``scenario`` is (its content, the Monte Carlo settings aside); a study without world
+    effects is both worlds of its scenario at once."""
+    runs = ledger_runs(claims)
+    if not runs:
+        return {}
+    here = _content(scenario)
+    out: dict[str, tuple[str, ...]] = {}
+    for name, world in runs:
+        try:
+            named = study.load_scenario(name)
+        except (UserInputError, ScenarioError, OSError):  # a name this study cannot load: not this run
+            continue
+        if _content(world_scenario(study, named, world)) == here:
+            out[name] = out.get(name, ()) + (world,)
+    return out
+
+
+def evaluate_run(study: Study, claims, result: StudyResult, *,
+                 confidence: float = DEFAULT_CONFIDENCE) -> tuple[ClaimResult, ...]:
+    """The claims of ``claims`` whose scenario ``result`` ran (:func:`run_worlds`), judged in
+    the world(s) it ran; the other world has no result (:data:`NOT_RUN_HERE` in the table)."""
+    claims = tuple(claims)
+    _check_unique(claims)
+    worlds = run_worlds(study, claims, result.scenario)
+    out = []
+    for c in claims:
+        for world in worlds.get(c.scenario, ()) if c.testable else ():
+            out.append(_evaluate(c, world, result, confidence))
+    return tuple(out)
 
 
 def evaluate_claims(claims, runs: Mapping[tuple[str, str], StudyResult], *,
@@ -391,7 +439,8 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _paper(c: Claim) -> str:
+def paper_figure(c: Claim) -> str:
+    """The paper's figure(s) of ``c`` in words, with the unit."""
     figs = " / ".join(fmt(f) for f in c.figures)
     unit = unit_prose(c.unit)
     if c.kind == "method":
@@ -401,7 +450,7 @@ def _paper(c: Claim) -> str:
     return f"{figs} {unit}"
 
 
-def _verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
+def verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
     """Both worlds' verdicts in words, with the tolerance and what would settle an
     undetermined one."""
     pair = [(w, r) for w, r in (("seed", seed), ("realistic", real)) if r is not None]
@@ -415,12 +464,14 @@ def _verdict_words(seed: ClaimResult | None, real: ClaimResult | None) -> str:
     else:
         s = ", ".join(f"{r.verdict.outcome if r.verdict else 'no verdict (' + r.no_verdict + ')'} in the "
                       f"{WORLD_LABELS[w]}" for w, r in pair)
-    for w, r in judged:
+    same = len(judged) == 2 and judged[0][1].verdict == judged[1][1].verdict  # one run served both worlds
+    for w, r in judged[:1] if same else judged:
         v = r.verdict
+        w_ = "both worlds (one run)" if same else WORLD_LABELS[w]
         if v.outcome == "undetermined":
-            s += (f"; {WORLD_LABELS[w]}: on the tolerance's edge, no number of trials settles it" if v.on_edge
-                  else f"; {WORLD_LABELS[w]}: about {v.n_to_settle} trials would settle it" if v.n_to_settle
-                  else f"; {WORLD_LABELS[w]}: about {fmt(v.growth_to_settle, 2)} times the truth's samples "
+            s += (f"; {w_}: on the tolerance's edge, no number of trials settles it" if v.on_edge
+                  else f"; {w_}: about {v.n_to_settle} trials would settle it" if v.n_to_settle
+                  else f"; {w_}: about {fmt(v.growth_to_settle, 2)} times the truth's samples "
                        "would settle it")
     tols = {r.verdict.tolerance.describe() for _, r in judged}
     first = judged[0][1].verdict.tolerance
@@ -443,10 +494,10 @@ def ledger_markdown(results) -> str:
         c = claims[cid]
         seed, real = by_world.get("seed"), by_world.get("realistic")
         if c.testable:
-            verdict = _verdict_words(seed, real)
-            ours = [r.ours if r is not None else "-" for r in (seed, real)]
+            verdict = verdict_words(seed, real)
+            ours = [r.ours if r is not None else NOT_RUN_HERE for r in (seed, real)]
         else:
             verdict, ours = f"untestable: {c.untestable}", ["-", "-"]
         head = f"{c.words} ({c.kind}, {c.axis}; {c.section})"
-        lines.append("| " + " | ".join(_cell(t) for t in (head, _paper(c), *ours, verdict)) + " |")
+        lines.append("| " + " | ".join(_cell(t) for t in (head, paper_figure(c), *ours, verdict)) + " |")
     return "\n".join(lines)

@@ -37,6 +37,8 @@ table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
 td,th{border:1px solid #ccc;padding:.2em .5em;text-align:left}
 th{background:#f0f0f0}
 section#findings{background:#f7fbff;border:1px solid #c9ddf0;border-radius:6px;padding:.2em 1em 1em}
+details{margin:1.2em 0;border:1px solid #ddd;border-radius:4px;padding:.3em .8em}
+summary{cursor:pointer;font-weight:600}
 """
 
 
@@ -57,10 +59,14 @@ def _figure(img: etree.Element, base: Path | None) -> etree.Element:
     return fig
 
 
+#: sections folded away (``<details>``): h2 title -> the summary line shown
+FOLDED = {"scenario": "Scenario (the resolved TOML: click to show)"}
+
+
 class _ReportPage(Treeprocessor):
     """Embeds the figures (:func:`_figure`; an image alone in its paragraph replaces the
-    paragraph) and wraps the section titled "Findings" (to the next h1 or h2) in
-    ``<section id="findings">``."""
+    paragraph), wraps the section titled "Findings" (to the next h1 or h2) in
+    ``<section id="findings">`` and folds each section of :data:`FOLDED` into ``<details>``."""
 
     def __init__(self, md, base: Path | None):
         super().__init__(md)
@@ -85,8 +91,17 @@ class _ReportPage(Treeprocessor):
         for child in list(root):
             if child.tag in ("h1", "h2"):
                 section = None
-                if child.tag == "h2" and "".join(child.itertext()).strip().lower() == "findings":
+                title = "".join(child.itertext()).strip().lower()
+                if child.tag == "h2" and title == "findings":
                     section = etree.Element("section", id="findings")
+                elif child.tag == "h2" and title in FOLDED:
+                    section = etree.Element("details")
+                    etree.SubElement(section, "summary").text = FOLDED[title]
+                    root.insert(list(root).index(child), section)
+                    section.tail = "\n"
+                    root.remove(child)  # the summary replaces the heading
+                    continue
+                if section is not None and section.tag == "section":
                     section.text, section.tail = "\n", "\n"
                     root.insert(list(root).index(child), section)
             if section is not None:
@@ -96,7 +111,7 @@ class _ReportPage(Treeprocessor):
 
 def markdown_to_html(md: str, *, base: Path | None = None) -> str:
     """The body HTML of a report's Markdown; images under ``base`` embedded. The section
-    titled "Findings" is wrapped in ``<section id="findings">``."""
+    titled "Findings" is wrapped in ``<section id="findings">``, the "Scenario" folded away."""
     conv = markdown.Markdown(extensions=["tables", "fenced_code"], output_format="html")
     conv.preprocessors.deregister("html_block")  # raw HTML is text in a report, never markup
     conv.inlinePatterns.deregister("html")

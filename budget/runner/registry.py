@@ -37,6 +37,9 @@ class StudyEntry:
     aliases: tuple[str, ...] = ()
     #: names it had before (e.g. as a sweep file's ``kind``): refused, naming this one
     former_names: tuple[str, ...] = ()
+    #: trials per run of ``budget claims`` by default (every study together within 10 minutes
+    #: on 2 cores; docs/claims.md gives the measured times)
+    ledger_trials: int = 20
 
     @property
     def module(self) -> str:
@@ -47,19 +50,22 @@ class StudyEntry:
 REGISTRY: tuple[StudyEntry, ...] = (
     StudyEntry("starcam", "budget.starcam.study:STUDY",
                "Seed 000: star-camera TE, HSFE and LSFE lab methods.", cli_module="budget.starcam.cli",
-               former_names=("camera",)),
+               former_names=("camera",), ledger_trials=40),
     StudyEntry("inductosyn", "budget.inductosyn.study:STUDY",
                "Seed 001: polygon calibration of an inductosyn's harmonic errors.", cli_module="budget.inductosyn.cli",
-               aliases=("harmonics",)),
+               aliases=("harmonics",), ledger_trials=40),
     StudyEntry("whiskbroom", "budget.whiskbroom.study:STUDY",
-               "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF.", cli_module="budget.whiskbroom.cli"),
+               "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF.", cli_module="budget.whiskbroom.cli",
+               ledger_trials=30),
     StudyEntry("scanmirror", "budget.scanmirror.study:STUDY",
                "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars.",
-               cli_module="budget.scanmirror.cli"),
+               cli_module="budget.scanmirror.cli", ledger_trials=40),
     StudyEntry("linecam", "budget.linecam.study:STUDY",
-               "Seed 004: star-based on-orbit calibration of a TDI line camera.", cli_module="budget.linecam.cli"),
+               "Seed 004: star-based on-orbit calibration of a TDI line camera.", cli_module="budget.linecam.cli",
+               ledger_trials=20),
     StudyEntry("attitude", "budget.attitude.study:STUDY",
-               "Seed 000's star camera on the real sky: attitude error against eq 32.", cli_module="budget.attitude.cli"),
+               "Seed 000's star camera on the real sky: attitude error against eq 32.", cli_module="budget.attitude.cli",
+               ledger_trials=40),
 )
 _BY_NAME = {e.name: e for e in REGISTRY}
 _ALIASES = {a: e.name for e in REGISTRY for a in e.aliases}

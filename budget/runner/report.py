@@ -19,8 +19,15 @@ import numpy as np
 
 from budget.figures import save
 from budget.runner.capabilities import Presented, capability
-from budget.runner.findings import finding_sentence, findings_json, findings_markdown, unit_prose, with_unit
+from budget.runner.findings import (
+    finding_sentence,
+    findings_json,
+    findings_markdown,
+    unit_prose,
+    with_unit,
+)
 from budget.runner.html import write_html
+from budget.runner.ledger_view import ledger_section
 from budget.runner.numbers import fmt
 from simcam.effects import scenario_effects
 from simcam.infra.cli import write_json_atomic
@@ -28,37 +35,92 @@ from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import partial_prefix, remove_stale_partials
 from simcam.infra.outputs import StagedOutputs
 
-__all__ = ["estimates_caption", "estimates_panels", "finding", "format_table", "plot_estimates", "publish_report", "staged_report",
-           "write_outputs", "write_report"]
+__all__ = [
+    "TABLE_LEGEND",
+    "estimates_caption",
+    "estimates_panels",
+    "finding",
+    "format_table",
+    "plot_estimates",
+    "publish_report",
+    "staged_report",
+    "table_legend",
+    "table_markdown",
+    "write_outputs",
+    "write_report",
+]
 
 
-def _sig(st: dict) -> str:
-    """The table's verdict column: input, ref(erence), n/d (not determined), exact, yes/no."""
-    if st.get("role") in ("input", "residual"):
-        return st["role"]
-    if st.get("reference"):
-        return "ref"
-    if st.get("determined") is False:
-        return "n/d"
-    if st.get("exact_to_numerical_precision"):
-        return "exact"
-    return "yes" if st["bias_significant"] else "no"
+def _verdicts(result, fdata: dict | None) -> dict:
+    """``{(class, variant, axis): the table's verdict cell}`` from the findings' verdicts."""
+    fdata = fdata or findings_json(result)
+    short = {"input": "input", "reference": "ref", "gauge": "n/d", "none": "-"}
+    return {(f["class"], f["variant"], f["axis"]): short.get(f["rule"], f["rule"]) for f in fdata["findings"]}
 
 
-def format_table(result) -> str:
-    """A fixed-width text table of every key: truth (+- se), mean, bias (%), spread, coverage."""
-    rows = [("class", "axis", "variant", "truth", "+-se", "mean", "bias", "bias %", "sig", "spread", "cov 1s")]
+def format_table(result, fdata: dict | None = None) -> str:
+    """A fixed-width text table of every key: truth (+- se), mean, bias (%), the verdict,
+    spread, coverage (the terminal's; the report's is :func:`table_markdown`)."""
+    verdicts = _verdicts(result, fdata)
+    rows = [("class", "axis", "variant", "truth", "+-se", "mean", "bias", "bias %", "verdict", "spread", "cov 1s")]
     for key in result.keys():
         st = result.statistics(key)
         cls, var, ax = key
         cov = st.get("coverage")
         rows.append((cls, ax, var, fmt(st["truth"]), fmt(st["truth_se"]), fmt(st["mean"]), fmt(st["bias"]),
                      "n/a" if not math.isfinite(st["bias_percent"]) else f"{st['bias_percent']:+.1f}",
-                     _sig(st),
-                     fmt(st["std"]),
-                     f"{cov['within_1sigma']:.2f}" if cov else "-"))
+                     verdicts[key], fmt(st["std"]), f"{cov['within_1sigma']:.2f}" if cov else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
+
+
+#: the report table's columns and what each means (its legend)
+TABLE_LEGEND = (
+    ("class", "the error class (its label; the unit column gives its unit)"),
+    ("axis", "the axis or component"),
+    ("variant", "`published`: the source document's method; the others: improved estimators using only what a "
+                "lab knows; `(ref)`: a reference that estimates nothing"),
+    ("unit", "the unit of every number in the row but the percentage and the coverage"),
+    ("truth", "what the method claims to measure, from the injected physics (per-trial truths: their mean), "
+              "with its own Monte Carlo standard error where it is sampled"),
+    ("mean estimate", "the variant's estimate averaged over the trials"),
+    ("bias", "mean estimate less truth, with its standard error over the trials"),
+    ("bias % of truth", "the bias as a percentage of the truth, only where the truth is far from zero "
+                        "against its spread"),
+    ("verdict", "holds / fails / undetermined: the bias's 95 % interval wholly inside, wholly outside or across "
+                "the tolerance (the Findings give each tolerance and its reason); `input`, `ref` and `n/d` (a "
+                "gauge freedom the data cannot determine) have none"),
+    ("spread", "the standard deviation of the estimate (less the trial's truth, for per-trial truths) over "
+               "the trials"),
+    ("within 1 sigma", "the fraction of trials whose stated 1-sigma holds the truth (68.3 % expected); "
+                       "blank where no sigma is stated"),
+)
+
+
+def table_markdown(result, fdata: dict | None = None) -> str:
+    """The report's results table in Markdown (an HTML table in ``report.html``), one row
+    per key, units in their own column; :data:`TABLE_LEGEND` explains the columns."""
+    verdicts = _verdicts(result, fdata)
+    lines = ["| " + " | ".join(c for c, _ in TABLE_LEGEND) + " |", "|" + "---|" * len(TABLE_LEGEND)]
+    for key in result.keys():
+        st = result.statistics(key)
+        cls, var, ax = key
+        spec = result.class_spec(cls)
+        unit = "-" if spec.unit.strip() in ("", "1") else unit_prose(spec.unit)
+        cov = st.get("coverage")
+        truth = fmt(st["truth"]) + (f" +- {fmt(st['truth_se'])}" if st["truth_se"] else "")
+        pct = f"{st['bias_percent']:+.1f} %" if math.isfinite(st["bias_percent"]) else ""
+        ref = " (ref)" if st.get("reference") else ""
+        cells = (spec.label, ax, f"`{var}`{ref}", unit, truth, fmt(st["mean"]),
+                 f"{fmt(st['bias'], sign=True)} +- {fmt(st['se_bias'])}", pct, verdicts[key], fmt(st["std"]),
+                 f"{100 * cov['within_1sigma']:.1f} %" if cov else "")
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(lines)
+
+
+def table_legend() -> str:
+    """The table's legend: one line per column."""
+    return "Columns: " + "; ".join(f"**{c}**, {what}" for c, what in TABLE_LEGEND) + "."
 
 
 def finding(result, key) -> str:
@@ -185,7 +247,7 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
 
     panels = estimates_panels(result) if panels is None else panels
     biased = sorted({f"{f['class']} ({f['axis']}) {f['variant']}" for f in fdata["findings"]
-                     if f["rule"] == "biased"})
+                     if f["rule"] == "fails"})
     binned = [p for p in panels if p["edges"] is not None]
     s = ("Each panel: the estimates of one class and axis over the trials (for per-trial truths, estimate "
          "minus the trial's truth), one outline per variant")
@@ -208,9 +270,9 @@ def estimates_caption(result, fdata: dict, panels: list[dict] | None = None) -> 
         s += (" Every trial gives the same value, drawn as a vertical line of the variant's colour "
               "(no histogram): " + "; ".join(items) + ".")
     if biased:
-        s += " Off the line (significantly biased): " + ", ".join(biased) + "."
+        s += " Off the line by more than its tolerance (the verdict fails): " + ", ".join(biased) + "."
     else:
-        s += " Every variant's histogram is centred on the truth within its standard error."
+        s += " No variant's estimate fails its tolerance about the truth."
     return s
 
 
@@ -227,20 +289,24 @@ def world_line(scenario) -> str:
     return f"world: {len(on)} of {len(effects.names())} unmodelled effects on ({', '.join(on)})"
 
 
-def write_report(result, out_dir: str | os.PathLike) -> Path:
+def write_report(result, out_dir: str | os.PathLike, *, claims=None) -> Path:
     """Write ``report.md``, ``estimates.png``, the study's sections and figures,
-    ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``."""
+    ``scenario.toml`` and ``summary.json`` (the JSON result) into ``out_dir``. The report
+    opens with the ledger of the study's claims judged in this run's world
+    (:func:`budget.runner.ledger_view.ledger_section`; ``claims``: in place of the declared
+    ones, e.g. with a user's tolerances)."""
 
     with staged_report(out_dir) as tmp:
         study = result.study
 
-        fdata = findings_json(result)
+        fdata = findings_json(result, claims)
         lines = [f"# {study.title}: Monte Carlo validation", "",
                  f"Study `{study.name}` (seed document {study.seed_document}); scenario "
                  + (f"`{getattr(result.scenario, 'name', '')}` " if getattr(result.scenario, "name", "") else "")
                  + f"(hash `{study.scenario_hash(result.scenario)}`), "
                  f"seed {result.seed}, {result.trials} trials (stopped by {result.stopped_by}).", "",
                  world_line(result.scenario).replace("world: ", "World: ", 1) + ".", "",
+                 *ledger_section(result, claims),
                  "## Findings", "", *findings_markdown(result, fdata),
                  "## Method", "",
                  "Each trial simulates one measurement with known injected errors and runs the lab's "
@@ -251,12 +317,7 @@ def write_report(result, out_dir: str | os.PathLike) -> Path:
         for c in result.classes:
             unit = "dimensionless" if c.unit.strip() in ("1", "") else c.unit
             lines.append(f"* **{c.label}** (`{c.name}`, {unit}): {c.description}")
-        lines += ["", "## Table", "", "```", format_table(result), "```", "",
-                  "`+-se` is the truth's own Monte Carlo standard error; a bias is significant (`sig`) when it "
-                  "exceeds 3 standard errors of the trials' mean combined with the truth's and the class's "
-                  "numerical floor (`exact` below it); `ref` marks a reference variant that does not estimate, "
-                  "`n/d` a quantity the data cannot determine; `bias %` only where the truth is far from zero "
-                  "against its spread.", "",
+        lines += ["", "## Table", "", table_markdown(result, fdata), "", table_legend(), "",
                   "![estimates](estimates.png)", "",
                   plot_estimates(result, tmp / "estimates.png", fdata).caption, ""]
         for sec in capability(study, Presented).report_sections(result, tmp):

@@ -38,8 +38,10 @@ trials whose error is within it:
 * the coverage part, where a sigma is stated: ``|c - 0.6827| <= 3 sqrt(0.6827 * 0.3173 / m)``
   (the binomial 3-standard-error band for ``m`` trials);
 * ``claim_holds`` = both parts; ``null`` for a class of role ``"residual"`` (what a
-  compensation leaves: no claim to test) and for an axis the data cannot determine
-  (:attr:`ClassSpec.undetermined`, a gauge freedom: its estimate is a convention).
+  compensation leaves: no claim to test) or ``"input"`` (taken as given), for a reference
+  variant (:attr:`Study.reference_variants`: it estimates nothing, so it is never shown
+  ``ok``) and for an axis the data cannot determine (:attr:`ClassSpec.undetermined`, a
+  gauge freedom: its estimate is a convention).
 
 The result, :class:`RobustnessResult`, gives the JSON (schema ``budget.robustness/1``:
 ``cases[name].classes[class][axis][variant]`` with ``bias``, ``se_bias``, ``std``,
@@ -359,9 +361,11 @@ class RobustnessResult:
                 spec = res.class_spec(cls)
                 st = res.statistics(key)
                 cov = st.get("coverage")
-                # no claim: a residual, or an axis the data cannot determine (a gauge freedom,
-                # ClassSpec.undetermined: its estimate is a convention, no sigma is stated)
-                no_claim = spec.role == "residual" or st.get("determined") is False
+                # no claim: a residual, an input, a reference variant (it estimates nothing), or an
+                # axis the data cannot determine (a gauge freedom, ClassSpec.undetermined: its
+                # estimate is a convention, no sigma is stated)
+                no_claim = (spec.role in ("residual", "input") or st.get("determined") is False
+                            or var in self.study.reference_variants)
                 claim = None if no_claim else capability(self.study, WorldEffects).claim(case.scenario, cls, var)
                 cell = {"bias": st["bias"], "se_bias": st["se_bias"], "std": st["std"], "mean": st["mean"],
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
@@ -584,7 +588,8 @@ class RobustnessResult:
                                     f"(they depend on {', '.join(sorted(depends)) or 'no effect'})."),
                       "", "## Verdicts", "", self.markdown_table(), "",
                       "Each cell, one class and variant: `ok` when its claim holds on every axis, `FAIL k/n` "
-                      "when it fails on k of its n axes (`--`: a residual or an undetermined axis, no claim), "
+                      "when it fails on k of its n axes (`--`: no claim to judge: a residual, an input, a reference "
+                      "variant that estimates nothing, or an undetermined axis), "
                       "then the bias in the class's unit of the axis farthest past its claim (named in "
                       "brackets); every axis is in `robustness.json`. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
             lines += [f"* {s}" for s in self.sentences()]

@@ -10,11 +10,17 @@ import sys
 import click
 
 from budget.arguments import checked_command
-from budget.runner import report, run  # their functions looked up when called (tests replace them)
+from budget.runner import (  # their functions looked up when called (tests replace them)
+    report,
+    run,
+)
+from budget.runner.claims import study_claims
 from budget.runner.executors import default_workers
-from budget.runner.findings import findings_lines
+from budget.runner.findings import findings_json, findings_lines
+from budget.runner.ledger_view import ledger_lines
 from budget.runner.registry import get_study, summary
 from budget.runner.report import format_table, world_line, write_outputs
+from budget.runner.requirements import split_tolerance_options, with_requirements
 from budget.runner.robustness import scenario_with_effects
 from simcam.dotted import scenario_with
 from simcam.effects import scenario_effects
@@ -27,10 +33,14 @@ __all__ = ["ideal_world_scenario", "run_and_write", "validate_command_for"]
 
 def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, workers=None, scheduler=None,
                   dask_local=None, json_out=None, report_dir=None, progress=None, more_lines=None,
-                  overwrite=False, truth_size="adaptive", inputs=()):
+                  overwrite=False, truth_size="adaptive", inputs=(), requirements=None):
     """What ``validate`` does once its options are read: run the study through the runner,
-    print the header and the table (then ``more_lines(result)``, if given: a study's own
-    summary lines), write the JSON and the report. Returns the :class:`StudyResult`.
+    print the header, the ledger of the paper's claims judged in this run's world, the table
+    (then ``more_lines(result)``, if given: a study's own summary lines), write the JSON and
+    the report. Returns the :class:`StudyResult`.
+
+    ``requirements``: ``{class: value}`` from ``--tolerance CLASS=VALUE``, the claims' tolerances
+    in place of the declared ones (:mod:`budget.runner.requirements`).
 
     ``workers=None`` (and no Dask) means all cores; ``progress=None`` a bar only on a terminal;
     ``overwrite`` lets the report replace a folder that is not an earlier report;
@@ -48,12 +58,23 @@ def run_and_write(study, scenario, *, trials=None, tolerance=None, seed=0, worke
                f"seed {seed}: {res.trials} trials (stopped by {res.stopped_by}) in {res.elapsed_s:.1f} s "
                f"on {res.executor}")
     click.echo(world_line(scenario))
-    click.echo(format_table(res))
-    click.echo("\n".join(findings_lines(res)))  # the findings in words
+    claims = with_requirements(study_claims(study, scenario), requirements or {})
+    for line in ledger_lines(res, claims):  # the paper's claims first
+        click.echo(line)
+    fdata = findings_json(res, claims)
+    click.echo(format_table(res, fdata))
+    click.echo("\n".join(findings_lines(res, fdata)))  # the findings in words
     for line in (more_lines(res) if more_lines is not None else []):
         click.echo(line)
-    write_outputs(res, json_out=json_out, report_dir=report_dir, write_report=report.write_report)
+    write_outputs(res, json_out=json_out, report_dir=report_dir,
+                  write_report=(lambda r, folder: report.write_report(r, folder, claims=claims)) if requirements
+                  else report.write_report)
     return res
+
+
+def claim_classes(study, scenario) -> tuple[str, ...]:
+    """The classes ``--tolerance CLASS=VALUE`` may name: those the study's claims map to."""
+    return tuple(dict.fromkeys(c.class_name for c in study_claims(study, scenario) if c.testable))
 
 
 def ideal_world_scenario(study, scenario, *, source: str):
@@ -85,8 +106,10 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
     @click.argument("scenario", required=False, type=click.Path(dir_okay=False))
     @click.option("--trials", type=click.IntRange(min=2), default=None,
                   help="Number of Monte Carlo trials (default: the scenario's validation.trials).")
-    @click.option("--tolerance", type=click.FloatRange(min=0, min_open=True), default=None,
-                  help="Stop when every Monte Carlo standard error is below this (in the classes' unit).")
+    @click.option("--tolerance", "tolerances", multiple=True, metavar="SE | CLASS=VALUE",
+                  help="A bare number: stop when every Monte Carlo standard error is below it (in the classes' "
+                       "unit). CLASS=VALUE (repeatable): your requirement on CLASS, in its unit, replaces the "
+                       "declared tolerance of the paper's claims on it (docs/claims.md).")
     @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
     @click.option("--truth-size", "truth_size", type=click.Choice(["adaptive", "fixed"]), default="adaptive",
                   show_default=True,
@@ -107,10 +130,11 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
                        "speak for that instrument only (default: the scenario's validation.instrument_seed, "
                        "unset in the embedded defaults: each trial draws its own instrument).")
     @click.option("--progress/--no-progress", default=None, help="Progress bar (default: on a terminal).")
-    def validate(scenario, trials, tolerance, seed, truth_size, workers, scheduler, dask_local, json_out, report_dir,
+    def validate(scenario, trials, tolerances, seed, truth_size, workers, scheduler, dask_local, json_out, report_dir,
                  overwrite, ideal_world, instrument_seed, progress):
         study = get_study(study_name)
         scn = study.load_scenario(scenario)
+        tolerance, requirements = split_tolerance_options(tolerances, claim_classes(study, scn))
         if instrument_seed is not None:
             scn = pinned_instrument_scenario(study, scn, instrument_seed,
                                              source=str(scenario or f"embedded {study_name} default"))
@@ -119,6 +143,6 @@ def validate_command_for(study_name: str, *, name: str = "validate", help_text: 
         run_and_write(study, scn, trials=trials, tolerance=tolerance, seed=seed,
                       workers=workers, scheduler=scheduler, dask_local=dask_local, json_out=json_out,
                       report_dir=report_dir, progress=progress, more_lines=more_lines, overwrite=overwrite,
-                      truth_size=truth_size, inputs=(scenario,))
+                      truth_size=truth_size, inputs=(scenario,), requirements=requirements)
 
     return checked_command(validate)  # the option values checked as the API's arguments
