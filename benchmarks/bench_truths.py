@@ -2,7 +2,7 @@
 
 * **truths at the main job's precision**: the embedded default's truths sized for 200 trials
   (the runner's pilot of the first 20 trials gives the trials' spread; the truths' target
-  is a quarter of the bias standard error, :func:`budget.runner.run.truth_targets`), in
+  is a quarter of the bias standard error, :func:`budget.runner.scheduler.truth_targets`), in
   this process on one core: the sizing (its 64-frame pilot) and the truths, wall and CPU
   (best of 3); beside them the fixed-size truths (the scenario's 2000 HSFE frames per phase,
   1000 TE frames), **plain vs reduced side by side**: the plain estimators

@@ -187,7 +187,7 @@ def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
         est = []
         for k in range(trials):
             noise_seed, map_seed, _ = V.trial_seeds(0, k)
-            data = simulate(make_plan("hsfe", scn, seed=noise_seed), V._camera(scn, map_seed), seed=noise_seed)
+            data = simulate(make_plan("hsfe", scn, seed=noise_seed), STUDY.prepared(scn).camera(map_seed), seed=noise_seed)
             r = estimate("hsfe", data.centroids, plate_scale_arcsec=5.5, extra_variants=False)["improved"]
             est.append((r.sigma_x_px, r.sigma_y_px))
         est = np.array(est)
@@ -242,7 +242,7 @@ def _hsfe_exceedances(protocol: dict, n: int) -> np.ndarray:
 
     scn = _planned(protocol)
     f = 3.0 * scn.camera.scale_arcsec_per_px
-    cam = V._camera(scn)
+    cam = STUDY.prepared(scn).camera()
     truth = hsfe_truth(cam, frames=400, seed=7)
     assert max(truth.se_x_px, truth.se_y_px) * f < REQUIRED_ARCSEC / 20
     err = []

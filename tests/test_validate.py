@@ -315,7 +315,7 @@ def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
     for q, r in zip(parts[1:], results[1:]):
         cells.setdefault(q[1], []).append(r)
     assert sorted(cells) == [0, 1, 2, 3]
-    per_map = [hsfe_from_cells(V._camera(scn, V.trial_seeds(seed, m)[1]), cells[m],
+    per_map = [hsfe_from_cells(STUDY.prepared(scn).camera(V.trial_seeds(seed, m)[1]), cells[m],
                                frames=scn.validation.hsfe_truth_frames) for m in range(4)]
     w = per_map[0].details["stars"]
     h2 = np.array([[h.x_px**2, h.y_px**2] for h in per_map]).ravel()
