@@ -91,14 +91,13 @@ def main() -> None:
         runs.append((size_cpu + ada_cpu, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu))
     _, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu = min(runs, key=lambda r: r[0])
     fix, fix_wall, fix_cpu = _timed(lambda: study.truths(scn, 1))
-    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False))
+    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False, setup=study.prepared(scn)))
     plain = study._contract_truths(scn, plain_raw)
     from budget.starcam.truth import te_truth
-    from budget.starcam.validate import _camera
 
     # the plain TE truth alone (its share of the plain truths' CPU; HSFE is nearly all the rest)
-    _, _, te_cpu = _timed(lambda: te_truth(_camera(scn), frames=scn.validation.te_truth_frames, seed=3,
-                                           control_variate=False))
+    cam = study.prepared(scn).camera()
+    _, _, te_cpu = _timed(lambda: te_truth(cam, frames=scn.validation.te_truth_frames, seed=3, control_variate=False))
     keys = [(c, a) for c in ("hsfe", "te") for a in ("x", "y")]
 
     def _ratio(cls):
