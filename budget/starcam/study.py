@@ -201,7 +201,9 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
         """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
         or ``[validation]``: frames of each protocol's conditions, the HSFE poses (in either
         step pattern, :meth:`protocol_shapes`) and the dark frames per condition; those ``protocols.plan_knobs`` names
-        (default all six; a lab planning one test lists its own, which keeps the search small). Lower bounds are what the
+        (default the six counts; a lab planning one test lists its own, which keeps the search small;
+        ``distortion.extent``, the calibration grid's extent, only where listed, so that a default
+        plan keeps seed 000's grid). Lower bounds are what the
         estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
         improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
         their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
@@ -223,6 +225,9 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
             "dark_frames": Knob("validation.dark_frames", "int", 0, 30, "frames",
                                 "dark frames per condition subtracted before centroiding (0: the window "
                                 "border's background)"),
+            "distortion.extent": Knob("lab.calibration_target.extent_fraction", "real", 0.3, 1.0, "of the mosaic",
+                                      "LSFE-C1: the calibration grid's extent (its points tile this fraction of "
+                                      "the mosaic; seed 000's grid: 0.85)"),
         }
         return tuple(knobs[name] for name in scenario.protocols.plan_knobs)
 
@@ -299,6 +304,7 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
             "protocols.chromatic.frames": lsfe_s,
             "protocols.chromatic.filters_nm": lsfe_s,
             "protocols.distortion.frames": ("lsfe_c1", "lsfe", "total"),
+            "lab.calibration_target.extent_fraction": ("lsfe_c1", "lsfe", "total"),
             "validation.dark_frames": every,
         }
 

@@ -321,22 +321,27 @@ class LabTimingModel(_Model):
 #: the counts of the seed-000 protocols a plan may change (``protocols.plan_knobs``): TE frames,
 #: HSFE frames per pose, HSFE poses (``protocols.hsfe.conditions``, in either pattern),
 #: chromatic frames per field and filter, distortion frames, dark frames per condition
-#: (``validation.dark_frames``)
-PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames")
+#: (``validation.dark_frames``); and, named only where a plan lists it, the calibration grid's
+#: extent (``distortion.extent``, ``lab.calibration_target.extent_fraction``)
+PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames",
+              "distortion.extent")
+#: the knobs a plan changes by default: the counts (seed 000's grid extent stays as published)
+DEFAULT_PLAN_KNOBS = PLAN_KNOBS[:6]
 
 
 class ProtocolsModel(_Model):
     """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols),
     how long the lab's steps take (``timing``) and which counts ``budget starcam plan`` may
-    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default all of them; the
-    others stay as the scenario gives them, e.g. a lab that plans only its HSFE test)."""
+    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default the six counts,
+    :data:`DEFAULT_PLAN_KNOBS`; the others stay as the scenario gives them, e.g. a lab that plans
+    only its HSFE test, or keeps seed 000's calibration grid extent)."""
 
     te: TEProtocolModel = TEProtocolModel()
     hsfe: HSFEProtocolModel = HSFEProtocolModel()
     chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
     distortion: DistortionProtocolModel = DistortionProtocolModel()
     timing: LabTimingModel = LabTimingModel()
-    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = PLAN_KNOBS
+    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = DEFAULT_PLAN_KNOBS
 
     @field_validator("plan_knobs")
     @classmethod
