@@ -7,9 +7,12 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import budget.starcam
 from budget.runner.capabilities import SETUPS_KEPT, prepared
 from budget.starcam.study import STUDY
+from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import default, with_updates
 
 STARCAM = Path(budget.starcam.__file__).parent
@@ -59,3 +62,24 @@ def test_the_cache_finder_finds_one(tmp_path):
     p = tmp_path / "m.py"
     p.write_text("import functools\n_CACHE: dict = {}\nX = dict()\n@functools.lru_cache\ndef f():\n    pass\n")
     assert _module_level_caches(p) == ["m.py: _CACHE", "m.py: X", "m.py: @functools.lru_cache f"]
+
+
+def test_a_pinned_instrument_seed_draws_the_camera_and_nothing_else():
+    """validation.instrument_seed = N: the camera's drawn properties (its maps' key, its
+    onboard calibration's errors) come from N whatever the scenario seed, and a trial is then the
+    same for two scenario seeds (no other draw reads it); another N is another camera."""
+    base = with_updates(default(), {"validation.protocols": ["distortion"]})
+    a = with_updates(base, {"validation.instrument_seed": 5})
+    b = with_updates(base, {"validation.instrument_seed": 5, "seed": base.seed + 1})
+    c = with_updates(base, {"validation.instrument_seed": 6})
+    ca, cb, cc, c0 = (prepared(STUDY, s).camera() for s in (a, b, c, base))
+    assert ca.detector_key == cb.detector_key and len({ca.detector_key, cc.detector_key, c0.detector_key}) == 3
+    assert (ca.onboard_correction.coef_x == cb.onboard_correction.coef_x).all()
+    assert not (ca.onboard_correction.coef_x == cc.onboard_correction.coef_x).all()
+    assert STUDY.trial(a, 3, 1).estimates == STUDY.trial(b, 3, 1).estimates
+    assert c0.scenario.seed == base.seed  # unset: the scenario seed's camera, as before
+
+
+def test_a_pinned_instrument_refuses_new_maps_per_trial():
+    with pytest.raises(ScenarioError, match=r"validation: .*new_maps_per_trial: a pinned instrument_seed"):
+        with_updates(default(), {"validation.instrument_seed": 5, "validation.new_maps_per_trial": True})

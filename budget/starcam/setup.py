@@ -9,6 +9,9 @@ take their sizes as arguments; the camera never reads them).
 
 from __future__ import annotations
 
+import numpy as np
+
+from budget.runner.study import instrument_seed_sequence
 from simcam.config_base import model_hash
 
 #: validation fields that only size the truths' sampling
@@ -24,14 +27,30 @@ def setup_key(scenario) -> str:
     return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
 
 
+def instrument_scenario(scenario):
+    """The scenario whose seed draws the camera's fixed properties (PRNU/DSNU maps,
+    :data:`simcam.starcam.render.STREAM_DETECTOR`; the onboard calibration's errors,
+    :data:`simcam.starcam.correction.STREAM_ONBOARD_CALIBRATION`; its targets' fixed markers,
+    :mod:`simcam.starcam.targets`): ``scenario`` itself when ``validation.instrument_seed`` is
+    None, else a copy whose seed is the first word of
+    :func:`budget.runner.study.instrument_seed_sequence` of the pinned seed (one camera for
+    every trial and run seed). No other draw of a trial reads the scenario seed."""
+    pinned = scenario.validation.instrument_seed
+    if pinned is None:
+        return scenario
+    root = int(instrument_seed_sequence(pinned, 0, 0).generate_state(1, dtype=np.uint32)[0])
+    return scenario.model_copy(update={"seed": root})
+
+
 class CameraSetup:
     """The camera of a scenario (its own detector maps) and, built on first use, cameras with
     the maps of other detector seeds (new maps per trial) and the chromatic test's spectral
     design (:func:`budget.starcam.protocols.spectral_design`). Built from the first scenario of
-    its :func:`setup_key`; every scenario of that key gives the same camera."""
+    its :func:`setup_key`, with the instrument :func:`instrument_scenario` gives; every
+    scenario of that key gives the same camera."""
 
     def __init__(self, scenario):
-        self.scenario = scenario
+        self.scenario = instrument_scenario(scenario)
         self._cameras: dict = {}
         self._spectral = None
 
