@@ -125,15 +125,21 @@ def test_starcam_declares_its_claims():
 @pytest.mark.slow
 def test_ledger_full_size():
     """The scenarios' own trial counts (200) and truth sizing: the same structure and agreement,
-    and the performance verdicts, decided by truths far from their tolerances' edges."""
+    and the performance verdicts, decided by truths far from their tolerances' edges (the
+    realistic single star y, 1.760 +- 0.0014 against the edge 1.755, is left out)."""
     claims = study_claims(STUDY, STUDY.load_scenario(None))
     runs = _runs(None, 0)
     results = evaluate_claims(claims, runs)
     _check_ledger(claims, runs, results, 200)
     got = _outcomes(results)
-    holds = {"te.x", "te.y", "hsfe.x", "lsfe_c1.x", "total.x"}
+    # LSFE-C1 over the whole field (issue #33): 0.345 / 0.432 in the seed's world, inside the
+    # paper's 0.29 / 0.41 +- 0.1; 1.55 / 0.80 in the realistic world, and the single star with it
+    holds = {"seed": {"te.x", "te.y", "hsfe.x", "lsfe_c1.x", "lsfe_c1.y", "total.x"},
+             "realistic": {"te.x", "te.y", "hsfe.x"}}
     for cls in CLASSES:
         for ax in ("x", "y"):
             for w in WORLDS:
-                want = "holds" if f"{cls}.{ax}" in holds else "fails"
+                if (cls, ax, w) == ("total", "y", "realistic"):
+                    continue
+                want = "holds" if f"{cls}.{ax}" in holds[w] else "fails"
                 assert got[(f"{cls}.{ax}.performance", w)] == want, (cls, ax, w)
