@@ -91,7 +91,8 @@ def main() -> None:
         runs.append((size_cpu + ada_cpu, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu))
     _, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu = min(runs, key=lambda r: r[0])
     fix, fix_wall, fix_cpu = _timed(lambda: study.truths(scn, 1))
-    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False, setup=study.prepared(scn)))
+    setup = study.prepared(scn)
+    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False, setup=setup))
     plain = study._contract_truths(scn, plain_raw)
     from budget.starcam.truth import te_truth
 
