@@ -2,7 +2,7 @@
 
 * **truths at the main job's precision**: the embedded default's truths sized for 200 trials
   (the runner's pilot of the first 20 trials gives the trials' spread; the truths' target
-  is a quarter of the bias standard error, :func:`budget.runner.run.truth_targets`), in
+  is a quarter of the bias standard error, :func:`budget.runner.scheduler.truth_targets`), in
   this process on one core: the sizing (its 64-frame pilot) and the truths, wall and CPU
   (best of 3); beside them the fixed-size truths (the scenario's 2000 HSFE frames per phase,
   1000 TE frames), **plain vs reduced side by side**: the plain estimators
@@ -91,14 +91,14 @@ def main() -> None:
         runs.append((size_cpu + ada_cpu, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu))
     _, sized, size_wall, size_cpu, ada, ada_wall, ada_cpu = min(runs, key=lambda r: r[0])
     fix, fix_wall, fix_cpu = _timed(lambda: study.truths(scn, 1))
-    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False))
+    setup = study.prepared(scn)
+    plain_raw, pl_wall, pl_cpu = _timed(lambda: starcam_truths(scn, seed=1, control_variate=False, setup=setup))
     plain = study._contract_truths(scn, plain_raw)
     from budget.starcam.truth import te_truth
-    from budget.starcam.validate import _camera
 
     # the plain TE truth alone (its share of the plain truths' CPU; HSFE is nearly all the rest)
-    _, _, te_cpu = _timed(lambda: te_truth(_camera(scn), frames=scn.validation.te_truth_frames, seed=3,
-                                           control_variate=False))
+    cam = study.prepared(scn).camera()
+    _, _, te_cpu = _timed(lambda: te_truth(cam, frames=scn.validation.te_truth_frames, seed=3, control_variate=False))
     keys = [(c, a) for c in ("hsfe", "te") for a in ("x", "y")]
 
     def _ratio(cls):

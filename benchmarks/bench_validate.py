@@ -58,11 +58,11 @@ def main() -> None:
     numba.set_num_threads(1)
     scn = default()
     warnings.simplefilter("ignore")
-    V.run_trial(scn, 0, 0)
+    V.run_trial(scn, 0, 0, setup=STUDY.prepared(scn))
     times = []
     for k in range(1, args.repeat + 1):
         t0 = time.perf_counter()
-        V.run_trial(scn, 0, k)
+        V.run_trial(scn, 0, k, setup=STUDY.prepared(scn))
         times.append(time.perf_counter() - t0)
     # the same trial's CPU time (each trial new: its hexapod errors and drift render new
     # scenes), in the ideal world (no world effects) and with the exact stamp route
@@ -73,11 +73,11 @@ def main() -> None:
     cpu = {}
     for name, s in (("realistic", scn), ("ideal", ideal_world_scenario(STUDY, scn, source="embedded default")),
                     ("exact", with_updates(scn, {"render.stamp_route": "exact"}))):
-        V.run_trial(s, 0, 0)
+        V.run_trial(s, 0, 0, setup=STUDY.prepared(s))
         ts = []
         for k in range(1, args.repeat + 1):
             t0 = time.process_time()
-            V.run_trial(s, 0, 100 + k)
+            V.run_trial(s, 0, 100 + k, setup=STUDY.prepared(s))
             ts.append(time.process_time() - t0)
         cpu[name] = min(ts)
     from budget.starcam.protocols import make_plan
@@ -178,7 +178,7 @@ def trial_anatomy(scn, repeat: int) -> dict:
         for k in range(max(repeat, 3)):
             means.clear()
             spent[0] = 0.0
-            V.run_trial(scn, 0, 500 + k)
+            V.run_trial(scn, 0, 500 + k, setup=STUDY.prepared(scn))
             best = spent[0] if best is None else min(best, spent[0])
         kernel_s = best
     finally:

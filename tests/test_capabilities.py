@@ -23,7 +23,8 @@ from budget.runner.capabilities import (CAPABILITIES, BatchedTrials, CheckedScen
 from budget.runner.plan import plan_protocol, resolution
 from budget.runner.report import write_report
 from budget.runner.robustness import run_robustness
-from budget.runner.run import PILOT_TRIALS, run_study, truth_targets
+from budget.runner.run import run_study
+from budget.runner.scheduler import PILOT_TRIALS, truth_targets
 from budget.sweeps.run import open_sweep, run_sweep
 from budget.sweeps.spec import load_sweep
 from full_toy import CLAIM_PX, LINE_FACTOR, STARTED, FullToyStudy
@@ -99,6 +100,18 @@ def test_setup_runs_once_per_process_and_scenario():
     assert (SETUPS[(me, a.hash)], SETUPS[(me, b.hash)]) == (1, 1)
 
 
+def test_setup_key_lets_scenarios_it_does_not_tell_apart_share_one_setup():
+    """Prepared.setup_key: the toy's leaves out truth_draws (what truth_size_for resizes), so
+    the resized scenario shares the run's set-up; another sigma_px gets its own."""
+    study, a = Watched(), _scenario(0.66)
+    b, c = a.model_copy(update={"truth_draws": 777}), a.model_copy(update={"sigma_px": 0.3})
+    assert a.hash != b.hash and study.setup_key(a) == study.setup_key(b) != study.setup_key(c)
+    assert study.prepared(a) == study.prepared(b) == a.sigma_px and study.prepared(c) == 0.3
+    me = os.getpid()
+    assert (SETUPS[(me, a.hash)], SETUPS[(me, b.hash)], SETUPS[(me, c.hash)]) == (1, 0, 1)
+    assert Prepared.setup_key(study, a) == a.hash  # the protocol's default: every field
+
+
 def test_two_workers_each_started_by_worker_init_and_set_up_once():
     """Two processes (this one and the one the runner starts) ran trials; in each the study's
     worker_init had run and setup had run once for the scenario."""
@@ -138,7 +151,7 @@ def test_truth_parts_equal_the_truths_whole_on_one_and_two_workers():
 
 def test_truth_size_for_is_asked_with_the_runners_targets():
     """With a fixed number of trials the targets are a quarter of the pilot's s / sqrt(n)
-    (budget.runner.run.truth_targets); the toy draws n = 2 (v / target)^2, so the truth's
+    (budget.runner.scheduler.truth_targets); the toy draws n = 2 (v / target)^2, so the truth's
     standard error is the target within the sampling of the sample sd of the squared draws
     (relative sd sqrt((kurtosis - 1) / 4n), kurtosis 15 for a squared normal: 5 of them)."""
     TARGETS.clear()

@@ -93,15 +93,20 @@ def test_ledger_on_small_runs(small):
     got = _outcomes(results)
     # far from their tolerances' edges, whatever the draw: the truths of the paper's noisy
     # camera (TE 1.17 / 1.26 against 1.14 / 1.23; HSFE y 0.78 against 1.01; LSFE-S
-    # 0.49 / 0.04 against the printed 0.03 / 0.66; single star y 1.58 against 1.95), the
-    # published TE within 1 % of its truth, eq 16 at -34 % / -47 % of its truth
+    # 0.49 / 0.04 against the printed 0.03 / 0.66), the published TE within 1 % of its truth,
+    # eq 16 at -34 % / -47 % of its truth
     for w in WORLDS:
         assert got[("te.x.performance", w)] == got[("te.y.performance", w)] == "holds"
         assert got[("hsfe.y.performance", w)] == "fails"
         assert got[("lsfe_s.x.performance", w)] == got[("lsfe_s.y.performance", w)] == "fails"
-        assert got[("total.y.performance", w)] == "fails"
         assert got[("te.x.method", w)] == got[("te.y.method", w)] == "holds"
         assert got[("lsfe_s.x.method", w)] == got[("lsfe_s.y.method", w)] == "fails"
+    # LSFE-C1 over the whole field (its truth since issue #33): in the realistic world 1.55" / 0.80"
+    # against the paper's 0.29 / 0.41 and eq 29's 0.35 / 0.39 from the grid's points; the single
+    # star in the seed's world 1.63 in y against 1.95
+    assert got[("lsfe_c1.x.performance", "realistic")] == got[("lsfe_c1.y.performance", "realistic")] == "fails"
+    assert got[("lsfe_c1.x.method", "realistic")] == got[("lsfe_c1.y.method", "realistic")] == "fails"
+    assert got[("total.y.performance", "seed")] == "fails"
 
 
 def test_an_input_class_has_no_verdict(small):
@@ -120,15 +125,21 @@ def test_starcam_declares_its_claims():
 @pytest.mark.slow
 def test_ledger_full_size():
     """The scenarios' own trial counts (200) and truth sizing: the same structure and agreement,
-    and the performance verdicts, decided by truths far from their tolerances' edges."""
+    and the performance verdicts, decided by truths far from their tolerances' edges (the
+    realistic single star y, 1.760 +- 0.0014 against the edge 1.755, is left out)."""
     claims = study_claims(STUDY, STUDY.load_scenario(None))
     runs = _runs(None, 0)
     results = evaluate_claims(claims, runs)
     _check_ledger(claims, runs, results, 200)
     got = _outcomes(results)
-    holds = {"te.x", "te.y", "hsfe.x", "lsfe_c1.x", "total.x"}
+    # LSFE-C1 over the whole field (issue #33): 0.345 / 0.432 in the seed's world, inside the
+    # paper's 0.29 / 0.41 +- 0.1; 1.55 / 0.80 in the realistic world, and the single star with it
+    holds = {"seed": {"te.x", "te.y", "hsfe.x", "lsfe_c1.x", "lsfe_c1.y", "total.x"},
+             "realistic": {"te.x", "te.y", "hsfe.x"}}
     for cls in CLASSES:
         for ax in ("x", "y"):
             for w in WORLDS:
-                want = "holds" if f"{cls}.{ax}" in holds else "fails"
+                if (cls, ax, w) == ("total", "y", "realistic"):
+                    continue
+                want = "holds" if f"{cls}.{ax}" in holds[w] else "fails"
                 assert got[(f"{cls}.{ax}.performance", w)] == want, (cls, ax, w)

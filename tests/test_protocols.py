@@ -304,7 +304,7 @@ def test_estimates_on_simulated_rows_equal_those_on_the_checked_table(small, wor
     # DataFrame, which is checked and turned into the same rows: every variant, every field
     # (warnings, tables) the same bit for bit; with flagged rows too, where a high threshold
     # loses the 500 nm frames (100 sigma) or also the 600 nm ones (200 sigma: the same error)
-    from budget.starcam.validate import _spectral
+    from budget.starcam.study import STUDY
 
     scn = default() if world == "realistic" else small
     cam = StarCamera(scn)
@@ -313,7 +313,7 @@ def test_estimates_on_simulated_rows_equal_those_on_the_checked_table(small, wor
         for proto in ("te", "hsfe", "chromatic", "distortion"):
             d = simulate(make_plan(proto, scn, seed=4), cam, seed=4, marker_seed=9, threshold_sigma=threshold_sigma)
             assert (d.rows["flag"] != 0).any() == (proto == "chromatic" and threshold_sigma > 3.0)
-            for spectral in (None, _spectral(scn)):
+            for spectral in (None, STUDY.prepared(scn).spectral()):
                 kw = dict(plate_scale_arcsec=scn.camera.scale_arcsec_per_px, marker_3sigma_arcsec=0.5,
                           reference_filter_nm=scn.protocols.chromatic.reference_filter_nm, spectral=spectral)
                 try:

@@ -85,7 +85,7 @@ def _default_scenes():
     for proto in ("te", "hsfe", "chromatic", "distortion"):
         plan = make_plan(proto, scn)
         for c in plan.conditions[:: max(1, len(plan.conditions) // 3)]:
-            lay = calibration_grid(scn) if c.target == "calibration_grid" else _star_grid(scn, c.field_center_px)
+            lay = calibration_grid(scn) if c.target == "calibration_grid" else _star_grid(cp, c.field_center_px)
             # poses as far from their profile's rounded pose as they come (half a step on
             # both axes), and a roll of the hexapod's size (0.5 arcsec)
             for d in ((0.499, -0.499), (0.21, 0.33)):

@@ -127,10 +127,10 @@ def test_lsfe_s_truth_does_not_depend_on_the_labs_filters():
     from budget.starcam.truth import lsfe_s_truth
 
     d = _ideal(default())
-    ref = lsfe_s_truth(V._camera(d))
+    ref = lsfe_s_truth(STUDY.prepared(d).camera())
     for fs in ([500.0, 600.0], [600.0, 800.0]):
         s = with_updates(d, {"protocols.chromatic.filters_nm": fs})
-        t = lsfe_s_truth(V._camera(s))
+        t = lsfe_s_truth(STUDY.prepared(s).camera())
         assert (t.x_px, t.y_px) == (ref.x_px, ref.y_px)
         assert truth_identity(STUDY, s) == truth_identity(STUDY, d)
         assert "protocols.chromatic.filters_nm" not in STUDY.truth_fields(s)
@@ -144,8 +144,8 @@ def test_a_filters_frames_are_the_same_whichever_other_filters_are_taken():
 
     d = with_updates(_ideal(default()), {"protocols.chromatic.frames": 3})
     s = with_updates(d, {"protocols.chromatic.filters_nm": [600.0, 800.0]})
-    full = simulate(make_plan("chromatic", d), V._camera(d), seed=11).centroids
-    sub = simulate(make_plan("chromatic", s), V._camera(s), seed=11).centroids
+    full = simulate(make_plan("chromatic", d), STUDY.prepared(d).camera(), seed=11).centroids
+    sub = simulate(make_plan("chromatic", s), STUDY.prepared(s).camera(), seed=11).centroids
     keep = full[full["filter_nm"].isin([600.0, 800.0])].reset_index(drop=True)
     pd.testing.assert_frame_equal(keep[["star", "frame", "condition", "x", "y"]],
                                   sub[["star", "frame", "condition", "x", "y"]].reset_index(drop=True))

@@ -187,7 +187,7 @@ def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
         est = []
         for k in range(trials):
             noise_seed, map_seed, _ = V.trial_seeds(0, k)
-            data = simulate(make_plan("hsfe", scn, seed=noise_seed), V._camera(scn, map_seed), seed=noise_seed)
+            data = simulate(make_plan("hsfe", scn, seed=noise_seed), STUDY.prepared(scn).camera(map_seed), seed=noise_seed)
             r = estimate("hsfe", data.centroids, plate_scale_arcsec=5.5, extra_variants=False)["improved"]
             est.append((r.sigma_x_px, r.sigma_y_px))
         est = np.array(est)
@@ -242,7 +242,7 @@ def _hsfe_exceedances(protocol: dict, n: int) -> np.ndarray:
 
     scn = _planned(protocol)
     f = 3.0 * scn.camera.scale_arcsec_per_px
-    cam = V._camera(scn)
+    cam = STUDY.prepared(scn).camera()
     truth = hsfe_truth(cam, frames=400, seed=7)
     assert max(truth.se_x_px, truth.se_y_px) * f < REQUIRED_ARCSEC / 20
     err = []
@@ -420,7 +420,7 @@ def test_each_plannable_field_changes_only_its_declared_classes_in_the_ideal_wor
 
     scn = with_updates(default(), _IDEAL)
     fc = STUDY.field_classes(scn)
-    assert set(_CHANGED) | {"validation.dark_frames"} == set(fc)
+    assert set(_CHANGED) | {"validation.dark_frames", "lab.calibration_target.extent_fraction"} == set(fc)
     assert set(fc["validation.dark_frames"]) == {c.name for c in STUDY.classes(scn)}
     for field in _CHANGED:
         assert _changed_classes(scn, field) == set(fc[field]), field
@@ -495,3 +495,27 @@ def test_requiring_a_class_the_scenario_does_not_compute_names_the_field():
         parse_requirements(STUDY, scn, ["lsfe.x<=0.01"])
     with pytest.raises(UserInputError, match=r"unknown class 'tee'; the starcam classes are lsfe_s, lsfe_c2"):
         parse_requirements(STUDY, scn, ["tee.x<=0.01"])
+
+
+def test_the_calibration_grid_extent_is_a_knob_only_where_listed():
+    """``distortion.extent`` (lab.calibration_target.extent_fraction) is a real knob a plan opens
+    by naming it; the default plan keeps seed 000's grid (the six counts); it changes LSFE-C1 and
+    what is built on it only."""
+    base = default()
+    assert "distortion.extent" not in base.protocols.plan_knobs
+    assert "lab.calibration_target.extent_fraction" not in {k.field for k in STUDY.protocol_knobs(base)}
+    scn = with_updates(base, {"protocols.plan_knobs": ["distortion.frames", "distortion.extent"]})
+    knobs = {k.field: k for k in STUDY.protocol_knobs(scn)}
+    k = knobs["lab.calibration_target.extent_fraction"]
+    assert (k.kind, k.low, k.high) == ("real", 0.3, 1.0) and k.low <= base.lab.calibration_target.extent_fraction <= k.high
+    assert STUDY.field_classes(scn)["lab.calibration_target.extent_fraction"] == ("lsfe_c1", "lsfe", "total")
+    STUDY.check(with_updates(scn, {"lab.calibration_target.extent_fraction": k.high}), where="t")
+    STUDY.check(with_updates(scn, {"lab.calibration_target.extent_fraction": k.low}), where="t")
+    # in the ideal world (run seed 11, trial 2) it moves exactly the classes declared; unlike the
+    # counts it moves a truth too: LSFE-C1's box details (and, uncalibrated, its value)
+    from budget.starcam import validate as V
+
+    ideal = with_updates(base, _IDEAL)
+    one = V.run_trial(ideal, 11, 2)["values"]
+    two = V.run_trial(with_updates(ideal, {"lab.calibration_target.extent_fraction": 0.95}), 11, 2)["values"]
+    assert {key[0] for key in one if two[key] != one[key]} == {"lsfe_c1", "lsfe", "total"}

@@ -84,14 +84,14 @@ def _realistic_scene():
     from dataclasses import replace
 
     from budget.starcam.protocols import _star_grid, make_plan
-    from budget.starcam.validate import _camera
+    from budget.starcam.study import STUDY
     from simcam.starcam.render import Placement
     from simcam.starcam.scenario import default
 
     scn = default()
-    cam = _camera(scn)
+    cam = STUDY.prepared(scn).camera()
     c = make_plan("chromatic", scn).conditions[4]
-    p = Placement(layout=_star_grid(scn, c.field_center_px), platform_dx_px=c.platform_dx_px + 0.137,
+    p = Placement(layout=_star_grid(cam, c.field_center_px), platform_dx_px=c.platform_dx_px + 0.137,
                   platform_dy_px=c.platform_dy_px - 0.211, filter_nm=c.filter_nm, condition=3004,
                   platform_roll_rad=2e-5)
     return cam, cam._scene(p), replace(p, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,

@@ -1,4 +1,4 @@
-"""Truths sized to the run's question (budget.runner.run.truth_targets, Study.truth_size_for)
+"""Truths sized to the run's question (budget.runner.scheduler.truth_targets, Study.truth_size_for)
 and the star camera's sizing and truth fields (budget.starcam.validate.truth_size_for,
 StarCameraStudy.truth_fields)."""
 
@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from budget.runner.run import PILOT_TRIALS, TRUTH_SE_FRACTION, run_study, truth_targets
+from budget.runner.run import run_study
+from budget.runner.scheduler import PILOT_TRIALS, TRUTH_SE_FRACTION, truth_targets
 from sized_toy_study import STUDY as SIZED
 from toy_study import Toy
 

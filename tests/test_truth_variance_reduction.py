@@ -25,20 +25,19 @@ Z = 4.0
 @pytest.fixture(scope="module")
 def default():
     from budget.starcam.study import STUDY
-    from budget.starcam.validate import _camera
 
     scn = STUDY.load_scenario()
-    return scn, _camera(scn)
+    return scn, STUDY.prepared(scn).camera()
 
 
 @pytest.fixture(scope="module")
 def small_grid(default):
     """The default camera with a 2 x 2 HSFE phase grid (4 phases: the checks run fast)."""
-    from budget.starcam.validate import _camera
+    from budget.starcam.study import STUDY
 
     scn, _ = default
     s = scn.model_copy(update={"validation": scn.validation.model_copy(update={"hsfe_phase_grid": 2})})
-    return _camera(s)
+    return STUDY.prepared(s).camera()
 
 
 def _hsfe_scene(cam, phase_px=0.3):

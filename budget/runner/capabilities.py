@@ -11,7 +11,8 @@ default behaviour otherwise, so no caller tests for a method's presence.
 capability                methods                                                without it
 ========================  =====================================================  ===============================
 :class:`Prepared`         ``setup(scenario)``: the set-up trials share, built     nothing is prepared
-                          once per process and scenario (:func:`prepared`)
+                          once per process and set-up key (:func:`prepared`);
+                          ``setup_key(scenario)``: what the set-up depends on
 :class:`CheckedScenario`  ``check(scenario, where=)``: what the simulator would   no early check
                           refuse later, checked cheaply (sweeps check each point)
 :class:`BatchedTrials`    ``trial_batch(scenario, seed, ks)``: many trials at     one ``trial`` per k
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from pathlib import Path
+from collections.abc import Hashable
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, runtime_checkable
 
 from simcam.dotted import get_dotted
@@ -66,6 +68,14 @@ class Prepared(Protocol):
     def setup(self, scenario: ScenarioBase) -> Any:
         """What the trials and truths of ``scenario`` share; it must depend on ``scenario`` only
         (no seed) and change no result."""
+
+    def setup_key(self, scenario: ScenarioBase) -> Hashable:
+        """What :meth:`setup` depends on: two scenarios with equal keys share one set-up in
+        :func:`prepared`'s cache (a key that leaves out fields the set-up never reads, such as
+        the truths' sampling sizes, lets the scenario that :class:`SizedTruths` resized share
+        the run's set-up). It must change wherever the set-up would. Optional: by default the
+        scenario's hash (every field)."""
+        return scenario.hash
 
 
 @runtime_checkable
@@ -339,7 +349,8 @@ def declared_capabilities(cls: type) -> tuple[type, ...]:
 
 
 #: members a capability's protocol implements itself (the rest each study must write)
-OPTIONAL_MEMBERS = frozenset({"Warmup.prewarm", "Warmup.worker_init", "WorldEffects.claim", "ProtocolShapes.shape_value", "SeparablePlans.restrict_classes",
+OPTIONAL_MEMBERS = frozenset({"Prepared.setup_key", "Warmup.prewarm", "Warmup.worker_init", "WorldEffects.claim",
+                              "ProtocolShapes.shape_value", "SeparablePlans.restrict_classes",
                               "SeparablePlans.uncomputed_class",
                               "Presented.report_sections", "Presented.likely_cause", "Presented.details"})
 
@@ -381,11 +392,12 @@ _SETUPS: OrderedDict = OrderedDict()
 
 def prepared(study: Study, scenario: ScenarioBase) -> Any:
     """The set-up of ``scenario`` (:meth:`Prepared.setup`), built once per process: the runner
-    owns this cache, keyed by the study's name and the scenario's hash, and keeps the
-    :data:`SETUPS_KEPT` most recently used. None for a study without :class:`Prepared`."""
+    owns this cache, keyed by the study's class and its :meth:`Prepared.setup_key` of the
+    scenario (by default the scenario's hash), and keeps the :data:`SETUPS_KEPT` most recently
+    used. None for a study without :class:`Prepared`."""
     if not has_capability(study, Prepared):
         return None
-    key = (type(study).__module__, type(study).__qualname__, scenario.hash)
+    key = (type(study).__module__, type(study).__qualname__, study.setup_key(scenario))
     if key in _SETUPS:
         _SETUPS.move_to_end(key)
         return _SETUPS[key]

@@ -14,9 +14,9 @@ The result, :class:`budget.runner.result.StudyResult`, gives the statistics of e
 ``(class, variant, axis)``, the JSON payload (:meth:`StudyResult.to_json`, schema
 ``budget.study-result/1``) and the report (:func:`budget.runner.report.write_report`).
 
-The truths' sizing (:func:`truth_targets`, :func:`sized_truths_scenario`,
-:func:`with_targets`, :data:`TRUTH_SE_FRACTION`) lives with the scheduler and is named here
-too, beside the runner that uses it.
+The truths' sizing (:func:`~budget.runner.scheduler.truth_targets`,
+:func:`~budget.runner.scheduler.sized_truths_scenario`, :func:`~budget.runner.scheduler.with_targets`,
+:data:`~budget.runner.scheduler.TRUTH_SE_FRACTION`) lives with the scheduler; import it from there.
 """
 
 from __future__ import annotations
@@ -31,14 +31,12 @@ from tqdm import tqdm
 from budget.runner.capabilities import Warmup, capability
 from budget.runner.executors import make_executor
 from budget.runner.result import SCHEMA, StudyResult
-from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZES, Scheduler, Stopping, init_worker,
-                                     sized_truths_scenario, truth_targets, with_targets)
+from budget.runner.scheduler import Scheduler, Stopping, init_worker
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import check_memory
 
-__all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
-           "sized_truths_scenario", "truth_targets", "with_targets"]
+__all__ = ["SCHEMA", "StudyResult", "run_study"]
 
 
 def _check_trials(trials: int | None, tolerance: float | None) -> None:

@@ -332,7 +332,7 @@ def _condition_scene(camera, plan: AcquisitionPlan, c: Condition, motion, *, mar
 
     scn = camera.scenario
     layout = (calibration_grid(scn, marker_seed=marker_seed) if c.target == "calibration_grid"
-              else _star_grid(scn, c.field_center_px))
+              else _star_grid(camera, c.field_center_px))
     stream = 1000 * PROTOCOL_STREAM[plan.protocol] + c.index
     if motion is None:
         placement = Placement(layout=layout, platform_dx_px=c.platform_dx_px, platform_dy_px=c.platform_dy_px,
@@ -390,9 +390,6 @@ def _extra_columns(plan: AcquisitionPlan, cols: dict[str, list]):
     return extra, field_labels
 
 
-_LAYOUTS: dict = {}
-
-
 def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: float, dark_frames: int) -> dict:
     """The per-row columns of a condition's centroid table (window origins, star, frame,
     condition, filter) and its windows' noise and threshold (DN): fixed for a
@@ -419,15 +416,17 @@ def _condition_columns(camera, scene, chain, c: Condition, threshold_sigma: floa
     return cc
 
 
-def _star_grid(scn: Scenario, center_px):
-    """:func:`simcam.starcam.targets.star_grid` memoised per scenario and centre (it is deterministic;
-    its arrays are not modified downstream)."""
-    key = (scn.hash, None if center_px is None else tuple(center_px))
-    lay = _LAYOUTS.get(key)
+def _star_grid(camera, center_px):
+    """:func:`simcam.starcam.targets.star_grid` of the camera's scenario, kept on the camera per
+    centre (as :func:`_condition_columns` keeps its columns): it is deterministic and its arrays
+    are not modified downstream."""
+    key = None if center_px is None else tuple(center_px)
+    store = camera.__dict__.setdefault("_star_grids", {})
+    lay = store.get(key)
     if lay is None:
-        if len(_LAYOUTS) > 256:
-            _LAYOUTS.clear()
-        lay = _LAYOUTS[key] = star_grid(scn, center_px=center_px)
+        if len(store) > 256:
+            store.clear()
+        lay = store[key] = star_grid(camera.scenario, center_px=center_px)
     return lay
 
 

@@ -13,13 +13,14 @@ from itertools import combinations
 from pathlib import Path
 
 from budget.figures import figure_markdown
-from budget.runner.capabilities import (CheckedScenario, Claims, Plannable, Presented, ProtocolShapes,
+from budget.runner.capabilities import (CheckedScenario, Claims, Plannable, Prepared, Presented, ProtocolShapes,
                                         SeparablePlans, SharedTruths, SizedTruths, SplitTruths, Warmup, WorldEffects)
 from budget.runner.numbers import fmt
 from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResult, Truth
 from budget.starcam.checks import check_geometry
 from budget.starcam.claims import CLAIMS
 from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
+from budget.starcam.setup import CameraSetup, setup_key
 from budget.starcam.warm import prewarm
 from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS, with_updates
@@ -66,7 +67,7 @@ def _paths(prefix: str, node: dict) -> list[str]:
     return out
 
 
-class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, SharedTruths, WorldEffects,
+class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, SizedTruths, SharedTruths, WorldEffects,
                       Plannable, ProtocolShapes, SeparablePlans, Presented, Claims):
     """Seed 000: a star camera's TE, HSFE and LSFE lab methods."""
 
@@ -105,10 +106,15 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
         reuses the ideal world's truths."""
         return {"distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta"}
 
-    def worker_init(self) -> None:
-        from budget.starcam.validate import worker_init
+    def setup(self, scenario) -> CameraSetup:
+        """The scenario's camera and spectral design (:class:`budget.starcam.setup.CameraSetup`),
+        kept by the runner per process (:func:`budget.runner.capabilities.prepared`)."""
+        return CameraSetup(scenario)
 
-        worker_init()
+    def setup_key(self, scenario) -> str:
+        """The scenario's hash without the truths' sampling sizes
+        (:func:`budget.starcam.setup.setup_key`): the resized truths share the trials' camera."""
+        return setup_key(scenario)
 
     def prewarm(self, scenario) -> None:
         prewarm(scenario)
@@ -120,7 +126,7 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         from budget.starcam.validate import run_trial
 
-        r = run_trial(scenario, seed, k, keep=(k == 0))
+        r = run_trial(scenario, seed, k, keep=(k == 0), setup=self.prepared(scenario))
         f = self._factor(scenario)
         est = {key: v * f for key, v in r["values"].items()}
         return TrialResult(estimates=est, extra={"kept": r["kept"]} if k == 0 else {})
@@ -131,7 +137,8 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
         from budget.starcam.validate import truth_size_for
 
         f = self._factor(scenario)
-        return truth_size_for(scenario, seed=seed, target_px={k: v / f for k, v in target_se.items()})
+        return truth_size_for(scenario, seed=seed, target_px={k: v / f for k, v in target_se.items()},
+                              setup=self.prepared(scenario))
 
     def truth_fields(self, scenario) -> tuple[str, ...]:
         """Every scenario field but those the truths cannot see (:data:`TRUTH_BLIND_FIELDS`),
@@ -165,17 +172,18 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
     def truth_part(self, scenario, seed: int, part):
         from budget.starcam.validate import truth_part
 
-        return truth_part(scenario, seed=seed, part=part)
+        return truth_part(scenario, seed=seed, part=part, setup=self.prepared(scenario))
 
     def truths_from_parts(self, scenario, seed: int, results: list) -> dict[tuple[str, str], Truth]:
         from budget.starcam.validate import truths_from_parts
 
-        return self._contract_truths(scenario, truths_from_parts(scenario, seed=seed, results=results))
+        return self._contract_truths(scenario, truths_from_parts(scenario, seed=seed, results=results,
+                                                                 setup=self.prepared(scenario)))
 
     def truths(self, scenario, seed: int) -> dict[tuple[str, str], Truth]:
         from budget.starcam.validate import truths
 
-        return self._contract_truths(scenario, truths(scenario, seed=seed))
+        return self._contract_truths(scenario, truths(scenario, seed=seed, setup=self.prepared(scenario)))
 
     def _contract_truths(self, scenario, class_truths: dict) -> dict[tuple[str, str], Truth]:
         f = self._factor(scenario)
@@ -193,7 +201,9 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
         """The seed-000 lab's counts (``budget starcam plan``), each a field of ``[protocols]``
         or ``[validation]``: frames of each protocol's conditions, the HSFE poses (in either
         step pattern, :meth:`protocol_shapes`) and the dark frames per condition; those ``protocols.plan_knobs`` names
-        (default all six; a lab planning one test lists its own, which keeps the search small). Lower bounds are what the
+        (default the six counts; a lab planning one test lists its own, which keeps the search small;
+        ``distortion.extent``, the calibration grid's extent, only where listed, so that a default
+        plan keeps seed 000's grid). Lower bounds are what the
         estimators need: a star's temporal sd (TE) and each pose's temporal variance (the
         improved HSFE) need 2+ frames; the chromatic and distortion means 2+ frames so that
         their temporal noise is estimable; 3+ diagonal poses so that the HSFE residuals keep
@@ -215,6 +225,9 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
             "dark_frames": Knob("validation.dark_frames", "int", 0, 30, "frames",
                                 "dark frames per condition subtracted before centroiding (0: the window "
                                 "border's background)"),
+            "distortion.extent": Knob("lab.calibration_target.extent_fraction", "real", 0.3, 1.0, "of the mosaic",
+                                      "LSFE-C1: the calibration grid's extent (its points tile this fraction of "
+                                      "the mosaic; seed 000's grid: 0.85)"),
         }
         return tuple(knobs[name] for name in scenario.protocols.plan_knobs)
 
@@ -291,6 +304,7 @@ class StarCameraStudy(Study, CheckedScenario, Warmup, SplitTruths, SizedTruths, 
             "protocols.chromatic.frames": lsfe_s,
             "protocols.chromatic.filters_nm": lsfe_s,
             "protocols.distortion.frames": ("lsfe_c1", "lsfe", "total"),
+            "lab.calibration_target.extent_fraction": ("lsfe_c1", "lsfe", "total"),
             "validation.dark_frames": every,
         }
 

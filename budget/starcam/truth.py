@@ -21,10 +21,11 @@ in px, per axis):
   field point, whose common offset is calibrated at system level; or the lab lamp, or a
   spectral type).
 * **LSFE-C1**: for a camera that applies its own distortion correction (the default,
-  ``optics.distortion_correction``), the rms over the calibrated field of the displacement
-  the calibrated camera still makes; for an uncalibrated camera (``kind = "none"``), the
-  residual over the field of a full cubic fitted to the true static displacement at the
-  calibration grid's points.
+  ``optics.distortion_correction``), the rms over the whole field the camera uses (the
+  mosaic, chip gaps excluded) of the displacement the calibrated camera still makes; for an
+  uncalibrated camera (``kind = "none"``), the residual over that field of a full cubic
+  fitted to the true static displacement at the calibration grid's points. Beside it the
+  lab grid's coverage of the field and the residual over the grid's bounding box.
 * **LSFE-C2**: the injected marker calibration error (sigma = 3-sigma value / 3), an input
   of the lab, not a measured result.
 * **LSFE** and **total**: independent sources, so root-sum-squares: LSFE =
@@ -505,42 +506,88 @@ def lsfe_s_truth(camera) -> ClassTruth:
     })
 
 
+#: cells of the dense whole-field grid per ``validation.field_grid`` along the mosaic's long side
+#: (the short side in proportion): 16 x 9 = 144 x 72 points on seed 000's two-chip mosaic
+C1_FIELD_CELLS_PER_GRID = 16
+
+
+def field_points_px(camera, cells_long: int):
+    """Focal-plane points (px) of the field the camera uses: the centres of a grid of square-ish
+    cells over the bounding box of its chips (``cells_long`` along the long side), those that fall
+    on a chip (the chip gaps excluded)."""
+    mos = camera.mosaic
+    cu = np.array([-0.5, mos.chip_cols - 0.5, mos.chip_cols - 0.5, -0.5])
+    cv = np.array([-0.5, -0.5, mos.chip_rows - 0.5, mos.chip_rows - 0.5])
+    u_c, v_c = zip(*(mos.chip_to_focal(np.full(4, k), cu, cv) for k in range(mos.n_chips)))
+    u_c, v_c = np.concatenate(u_c), np.concatenate(v_c)
+    lu, lv = np.ptp(u_c), np.ptp(v_c)
+    nu = cells_long if lu >= lv else max(2, round(cells_long * lu / lv))
+    nv = cells_long if lv > lu else max(2, round(cells_long * lv / lu))
+    u = u_c.min() + (np.arange(nu) + 0.5) * lu / nu
+    v = v_c.min() + (np.arange(nv) + 0.5) * lv / nv
+    uu, vv = (a.ravel() for a in np.meshgrid(u, v))
+    _, ix, _ = mos.focal_to_mosaic(uu, vv)
+    on = np.isfinite(ix)
+    return uu[on], vv[on]
+
+
+def _in_box(lay, u, v):
+    return (u >= lay.u_px.min()) & (u <= lay.u_px.max()) & (v >= lay.v_px.min()) & (v <= lay.v_px.max())
+
+
+def _fitted_residual(camera, u, v):
+    """What the calibrated camera still displaces at ideal points ``(u, v)`` (mosaic px), those
+    whose ideal point and lamp image both fall on a chip (``ok``), and their raw static displacement."""
+    mos = camera.mosaic
+    _, ix, iy = mos.focal_to_mosaic(u, v)
+    _, mx, my = mos.focal_to_mosaic(*lamp_image_focal_px(camera, u, v))
+    ok = np.isfinite(ix) & np.isfinite(mx)   # points in the chip gap image nowhere
+    rx_, ry_ = camera.report_positions(mx[ok], my[ok])
+    return rx_ - ix[ok], ry_ - iy[ok], mx[ok] - ix[ok], my[ok] - iy[ok], ok
+
+
 def lsfe_c1_truth(camera) -> ClassTruth:
-    """LSFE-C1 truth: rms over the calibrated field of the displacement the camera still makes.
+    """LSFE-C1 truth: rms over the whole field the camera uses of the displacement it still makes.
+
+    The field is the mosaic where stars fall, chip gaps excluded (:func:`field_points_px`,
+    :data:`C1_FIELD_CELLS_PER_GRID` x ``validation.field_grid`` cells along its long side; the
+    rms over the cell centres is the midpoint rule for the field's mean square, e.g. Press et al.,
+    Numerical Recipes, 3rd ed., section 4.1): a star anywhere in the field carries this error,
+    not only one inside the lab grid's box.
 
     * Calibrated camera (``optics.distortion_correction.kind = "fitted"``, the default): the
       camera reports its centroids through the correction of an earlier calibration
-      (:mod:`simcam.starcam.correction`). On a dense grid spanning the lab's calibration grid, the
-      lamp's image of each ideal point ``p`` (distortion, then lateral colour) is reported
-      at ``R(M(D(p) + s(D(p))))`` with ``R`` the camera's correction and ``M`` focal plane
-      to mosaic; the remaining displacement ``r = reported - M(p)`` about its mean over the
-      field (a common offset is the boresight, calibrated at system level), rms per axis.
-    * Uncalibrated camera (``kind = "none"``): the camera reports raw centroids, and what
-      a distortion calibration would leave is taken as the truth: a full cubic fitted to the
-      true static displacement at the lab grid's points, its residual rms over the dense
-      grid. (Eq 29 on such a camera measures the cubic part of the whole distortion, the
-      part a calibration removes.)
+      (:mod:`simcam.starcam.correction`). The lamp's image of each ideal point ``p`` (distortion,
+      then lateral colour) is reported at ``R(M(D(p) + s(D(p))))`` with ``R`` the camera's
+      correction and ``M`` focal plane to mosaic; the remaining displacement ``r = reported -
+      M(p)`` about its mean over the field (a common offset is the boresight, calibrated at
+      system level), rms per axis.
+    * Uncalibrated camera (``kind = "none"``): the camera reports raw centroids, and what a
+      distortion calibration would leave is taken as the truth: a full cubic fitted to the true
+      static displacement at the lab grid's points, its residual rms over the field (eq 29 on
+      such a camera measures the cubic part of the whole distortion, the part a calibration
+      removes).
 
-    Neither route uses the lab's centroid tables, reference coordinates or estimators.
+    Beside it (details): ``grid_coverage``, the fraction of the field's area inside the lab
+    grid's bounding box (the share of the cells there), and ``box_x_px`` / ``box_y_px``, the
+    same residual over the cells inside that box only (the truth's definition before the whole
+    field, there on a 36 x 18 grid spanning the box: what the lab grid sees). Neither route
+    uses the lab's centroid tables, reference coordinates or estimators.
     """
     scn = camera.scenario
     lay = calibration_grid(scn)
-    n = scn.validation.field_grid * 4
-    uu, vv = np.meshgrid(np.linspace(lay.u_px.min(), lay.u_px.max(), n),
-                         np.linspace(lay.v_px.min(), lay.v_px.max(), max(2, n // 2)))
-    uu, vv = uu.ravel(), vv.ravel()
-    mos = camera.mosaic
+    fu, fv = field_points_px(camera, C1_FIELD_CELLS_PER_GRID * scn.validation.field_grid)
+    box = _in_box(lay, fu, fv)
+    base = {"dense_points": int(fu.size), "grid_coverage": float(np.mean(box)),
+            "calibration_points": int(lay.n_stars), "field": "whole mosaic, chip gaps excluded"}
     corr = camera.onboard_correction
     if corr is not None:
-        _, ix, iy = mos.focal_to_mosaic(uu, vv)
-        _, mx, my = mos.focal_to_mosaic(*lamp_image_focal_px(camera, uu, vv))
-        ok = np.isfinite(ix) & np.isfinite(mx)   # points in the chip gap image nowhere
-        rx_, ry_ = camera.report_positions(mx[ok], my[ok])
-        rx, ry = rx_ - ix[ok], ry_ - iy[ok]
+        rx, ry, sx, sy, ok = _fitted_residual(camera, fu, fv)
+        inb = box[ok]
         return ClassTruth("lsfe_c1", float(np.std(rx)), float(np.std(ry)), {
-            "camera_correction": "fitted", "correction_order": int(corr.order),
-            "dense_points": int(ok.sum()),
-            "raw_static_rms_x_px": float(np.std(mx[ok] - ix[ok])), "raw_static_rms_y_px": float(np.std(my[ok] - iy[ok])),
+            **base, "camera_correction": "fitted", "correction_order": int(corr.order),
+            "box_x_px": float(np.std(rx[inb])), "box_y_px": float(np.std(ry[inb])),
+            "raw_static_rms_x_px": float(np.std(sx)), "raw_static_rms_y_px": float(np.std(sy)),
             "max_abs_x_px": float(np.abs(rx - rx.mean()).max()), "max_abs_y_px": float(np.abs(ry - ry.mean()).max()),
         })
 
@@ -555,12 +602,16 @@ def lsfe_c1_truth(camera) -> ClassTruth:
     a = poly_design((lay.u_px - cu0) / su, (lay.v_px - cv0) / sv, 3)
     coef_x, *_ = np.linalg.lstsq(a, gx, rcond=None)
     coef_y, *_ = np.linalg.lstsq(a, gy, rcond=None)
-    fx, fy = static(uu, vv)
-    b = poly_design((uu - cu0) / su, (vv - cv0) / sv, 3)
+
+    fx, fy = static(fu, fv)
+    _, mx, _ = camera.mosaic.focal_to_mosaic(fu + fx, fv + fy)
+    on = np.isfinite(mx)   # where a star's image falls on a chip
+    fx, fy, inb = fx[on], fy[on], box[on]
+    b = poly_design((fu[on] - cu0) / su, (fv[on] - cv0) / sv, 3)
     rx, ry = fx - b @ coef_x, fy - b @ coef_y
     return ClassTruth("lsfe_c1", float(np.sqrt(np.mean(rx**2))), float(np.sqrt(np.mean(ry**2))), {
-        "camera_correction": "none (truth: what a cubic calibration would leave)",
-        "dense_points": int(uu.size), "calibration_points": int(lay.n_stars),
+        **base, "camera_correction": "none (truth: what a cubic calibration would leave)",
+        "box_x_px": float(np.sqrt(np.mean(rx[inb]**2))), "box_y_px": float(np.sqrt(np.mean(ry[inb]**2))),
         "static_rms_x_px": float(np.std(fx)), "static_rms_y_px": float(np.std(fy)),
         "cubic_part_rms_x_px": float(np.std(b @ coef_x)), "cubic_part_rms_y_px": float(np.std(b @ coef_y)),
     })

@@ -20,7 +20,7 @@ import warnings
 import numpy as np
 
 from budget.starcam.protocols import PROTOCOLS, estimate, make_plan, simulate
-from simcam.config_base import model_hash
+from budget.starcam.setup import CameraSetup
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -48,24 +48,6 @@ def protocols_for(classes) -> tuple[str, ...]:
     need = {p for c in classes for p in CLASS_NEEDS[c]}
     return tuple(p for p in PROTOCOLS if p in need)
 
-_CACHE: dict = {}
-#: numba threads inside a trial's kernels: none. Processes are the parallelism (one worker per
-#: core by default); on a 2-core machine a threaded trial was no faster (0.103 s against
-#: 0.102 s), and a first run on a fresh install would compile every kernel twice, once
-#: threaded and once serial (about 11 s more)
-_PARALLEL: bool | None = False
-
-
-def worker_init() -> None:
-    """Worker processes run the serial kernels: the processes are the parallelism (the
-    runner gives each worker one numba thread, :func:`budget.runner.executors.worker_setup`).
-
-    Pools pass it through :func:`simcam.infra.lifecycle.worker_initializer`, which first makes
-    the worker exit when its parent dies.
-    """
-    global _PARALLEL
-    _PARALLEL = False
-
 
 def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
     """(noise seed, map seed, marker seed) of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``."""
@@ -73,50 +55,13 @@ def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
     return int(s[0]), int(s[1]), int(s[2])
 
 
-#: validation fields that only size the truths' sampling (:func:`truth_size_for`): a camera
-#: built for one size serves every size (the truths take their sizes as arguments)
-TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
+def _setup(scenario, setup: CameraSetup | None) -> CameraSetup:
+    """``setup`` (the runner's, :meth:`budget.starcam.study.StarCameraStudy.setup`), or a new one
+    for a direct call."""
+    return setup if setup is not None else CameraSetup(scenario)
 
 
-#: the last scenario object and its camera key (:func:`_camera_key`)
-_LAST_CAMERA_KEY: dict = {}
-
-
-def _camera_key(scenario) -> str:
-    """The scenario's hash with the truth sizes set to 0 (:data:`TRUTH_SIZE_FIELDS`), kept for
-    the last scenario object: scenarios are frozen, and a run's trials share one (a model
-    copy, a JSON dump and a SHA-256 fewer per trial)."""
-    hit = _LAST_CAMERA_KEY.get("last")
-    if hit is None or hit[0] is not scenario:
-        fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
-        key = model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
-        hit = _LAST_CAMERA_KEY["last"] = (scenario, key)
-    return hit[1]
-
-
-def _camera(scenario, detector_seed=None):
-    from simcam.starcam.render import StarCamera
-
-    key = (_camera_key(scenario), detector_seed)
-    cam = _CACHE.get(key)
-    if cam is None:
-        if len(_CACHE) > 4:
-            _CACHE.clear()
-        cam = StarCamera(scenario, detector_seed=detector_seed, parallel=_PARALLEL)
-        _CACHE[key] = cam
-    return cam
-
-
-def _spectral(scenario):
-    from budget.starcam.protocols import spectral_design
-
-    key = ("spectral", scenario.hash)
-    if key not in _CACHE:
-        _CACHE[key] = spectral_design(scenario)
-    return _CACHE[key]
-
-
-def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
+def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraSetup | None = None) -> dict:
     """One validation trial: every protocol of ``validation.protocols`` (default all four)
     through the published and improved estimators.
 
@@ -125,16 +70,18 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False) -> dict:
     data of each protocol (for the report). A protocol's numbers do not depend on which
     others run: its frames draw from their own noise streams of the trial's noise seed
     (:func:`budget.starcam.protocols.simulate`), its pose errors from the trial's seeds, and
-    the world's timeline is the whole lab run's (:mod:`simcam.starcam.world`).
+    the world's timeline is the whole lab run's (:mod:`simcam.starcam.world`). ``setup``: the
+    scenario's camera set-up (:class:`budget.starcam.setup.CameraSetup`; a new one by default).
     """
     noise_seed, map_seed, marker_seed = trial_seeds(seed, k)
     val = scenario.validation
-    cam = _camera(scenario, map_seed if val.new_maps_per_trial else None)
+    setup = _setup(scenario, setup)
+    cam = setup.camera(map_seed if val.new_maps_per_trial else None)
     ps = scenario.camera.scale_arcsec_per_px
     values: dict = {}
     kept: dict = {}
     run = [p for p in PROTOCOLS if p in val.protocols]
-    spectral = _spectral(scenario) if "chromatic" in run else None
+    spectral = setup.spectral() if "chromatic" in run else None
     with warnings.catch_warnings():
         # clipped variances and flagged stars are expected in some trials; counted via flags
         warnings.simplefilter("ignore")
@@ -194,15 +141,16 @@ def truth_parts(scenario, *, seed: int) -> list[tuple]:
     return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
 
 
-def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True):
+def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True, setup: CameraSetup | None = None):
     """One piece of :func:`truths` (see :func:`truth_parts`); ``control_variate`` False: the
     plain estimators (:func:`budget.starcam.truth.te_truth`, :func:`budget.starcam.truth.hsfe_truth`)."""
     from budget.starcam.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
 
     ts = _truth_seed(seed)
     val = scenario.validation
+    setup = _setup(scenario, setup)
     if part[0] == "rest":
-        cam = _camera(scenario)
+        cam = setup.camera()
         classes = computed_classes(scenario)
         out = {}
         if "te" in classes:
@@ -215,15 +163,16 @@ def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True
         return out
     _, m, p = part
     if m is None:
-        cam = _camera(scenario)
+        cam = setup.camera()
         hs = int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
     else:
-        cam = _camera(scenario, trial_seeds(seed, m)[1])
+        cam = setup.camera(trial_seeds(seed, m)[1])
         hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
     return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p, control_variate=control_variate)
 
 
-def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True) -> dict:
+def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True,
+                      setup: CameraSetup | None = None) -> dict:
     """:func:`truths` from the results of :func:`truth_parts`, in their order."""
     from budget.starcam.truth import ClassTruth, combine, hsfe_from_cells
 
@@ -235,11 +184,12 @@ def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bo
         cells.setdefault(part[1], []).append(r)
     if "hsfe" not in val.protocols:
         return combine(out)
+    setup = _setup(scenario, setup)
     if not val.new_maps_per_trial:
-        out["hsfe"] = hsfe_from_cells(_camera(scenario), cells[None], frames=val.hsfe_truth_frames,
+        out["hsfe"] = hsfe_from_cells(setup.camera(), cells[None], frames=val.hsfe_truth_frames,
                                       control_variate=control_variate)
     else:
-        hs = [hsfe_from_cells(_camera(scenario, trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames,
+        hs = [hsfe_from_cells(setup.camera(trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames,
                               control_variate=control_variate) for k in range(4)]
         vals = {}
         for ax in AXES:
@@ -263,7 +213,7 @@ MIN_HSFE_TRUTH_FRAMES = 20
 MIN_TE_TRUTH_FRAMES = 50
 
 
-def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
+def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup | None = None) -> object:
     """``scenario`` with ``validation.hsfe_truth_frames`` and ``te_truth_frames`` sized so that
     the HSFE and TE truths' standard errors are about ``target_px[(class, axis)]`` (px, 1
     sigma) or below; a class without a target keeps the scenario's size.
@@ -306,8 +256,9 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     if not want["hsfe"] and not want["te"]:
         return scenario
     ts = _truth_seed(seed)
+    setup = _setup(scenario, setup)
     ps = int(np.random.SeedSequence(ts, spawn_key=(5,)).generate_state(1)[0])
-    ma, mb, va, vb = hsfe_phase_cell(_camera(scenario), frames=SIZE_PILOT_FRAMES, seed=ps, phase=0)
+    ma, mb, va, vb = hsfe_phase_cell(setup.camera(), frames=SIZE_PILOT_FRAMES, seed=ps, phase=0)
     v = va * (SIZE_PILOT_FRAMES // 2)               # (2, W): per-frame variance per axis and star
     w = v.shape[1]
     upd = {}
@@ -323,7 +274,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
         upd["hsfe_truth_frames"] = int(f + (f % 2))
     if want["te"] and control_variate_applies(scenario):
         t = min(want["te"])
-        cam = _camera(scenario)
+        cam = setup.camera()
         ps6 = int(np.random.SeedSequence(ts, spawn_key=(6,)).generate_state(1)[0])
         (x, y, flag, px, py, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
         good = (flag == 0).all(axis=0)
@@ -341,7 +292,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict) -> object:
     return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
 
-def truths(scenario, *, seed: int, control_variate: bool = True) -> dict:
+def truths(scenario, *, seed: int, control_variate: bool = True, setup: CameraSetup | None = None) -> dict:
     """Every class's truth (:class:`budget.starcam.truth.ClassTruth`) of a validation run with ``seed``.
 
     The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
@@ -352,6 +303,7 @@ def truths(scenario, *, seed: int, control_variate: bool = True) -> dict:
     TE estimators on the same frames (for comparison; the runner uses the variance-reduced).
     """
     parts = truth_parts(scenario, seed=seed)
-    return truths_from_parts(scenario, seed=seed, control_variate=control_variate,
-                             results=[truth_part(scenario, seed=seed, part=p, control_variate=control_variate)
-                                      for p in parts])
+    setup = _setup(scenario, setup)
+    return truths_from_parts(scenario, seed=seed, control_variate=control_variate, setup=setup,
+                             results=[truth_part(scenario, seed=seed, part=p, control_variate=control_variate,
+                                                 setup=setup) for p in parts])

@@ -25,7 +25,7 @@ once, in runs of pieces (:class:`TruthPartTask`, :func:`evaluate_truth_part`), a
 every point that has it (``PointTask.truths``); a point given no truths computes its own
 with its truth seed, the same numbers. A sweep's truths have the scenario's own sizes
 (``truth_size = "fixed"``), or, when its points stop at a tolerance, sizes for a quarter of
-it (:func:`budget.runner.run.truth_targets`).
+it (:func:`budget.runner.scheduler.truth_targets`).
 
 The truth has a ``variant`` dimension when a class of the study carries per-trial truths
 (each variant's compensation leaves its own error); otherwise it is per class and axis.
@@ -45,7 +45,8 @@ import numpy as np
 
 import simcam
 from budget.runner.capabilities import SharedTruths, SplitTruths, capability
-from budget.runner.run import run_study, sized_truths_scenario, truth_targets, with_targets
+from budget.runner.run import run_study
+from budget.runner.scheduler import sized_truths_scenario, truth_targets, with_targets
 from budget.sweeps.layout import STOPPED_BY, class_layout, labels, schema, study_for_kind, truth_has_variant
 from budget.sweeps.values import point_seed as seed_of  # truth_seed_of has a parameter point_seed
 

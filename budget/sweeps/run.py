@@ -31,7 +31,7 @@ import click
 import simcam
 from budget.runner.capabilities import SplitTruths, Warmup, capability
 from budget.runner.numbers import fmt
-from budget.runner.run import with_targets
+from budget.runner.scheduler import with_targets
 from budget.runner.study import truth_identity
 from budget.sweeps.evaluate import PointTask, TruthPartTask, truth_seed_of, truths_scenario
 from budget.sweeps.execute import make_runner

@@ -321,22 +321,27 @@ class LabTimingModel(_Model):
 #: the counts of the seed-000 protocols a plan may change (``protocols.plan_knobs``): TE frames,
 #: HSFE frames per pose, HSFE poses (``protocols.hsfe.conditions``, in either pattern),
 #: chromatic frames per field and filter, distortion frames, dark frames per condition
-#: (``validation.dark_frames``)
-PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames")
+#: (``validation.dark_frames``); and, named only where a plan lists it, the calibration grid's
+#: extent (``distortion.extent``, ``lab.calibration_target.extent_fraction``)
+PLAN_KNOBS = ("te.frames", "hsfe.frames", "hsfe.poses", "chromatic.frames", "distortion.frames", "dark_frames",
+              "distortion.extent")
+#: the knobs a plan changes by default: the counts (seed 000's grid extent stays as published)
+DEFAULT_PLAN_KNOBS = PLAN_KNOBS[:6]
 
 
 class ProtocolsModel(_Model):
     """Acquisition plans of the seed-000 lab tests (data, read by budget.starcam.protocols),
     how long the lab's steps take (``timing``) and which counts ``budget starcam plan`` may
-    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default all of them; the
-    others stay as the scenario gives them, e.g. a lab that plans only its HSFE test)."""
+    change (``plan_knobs``, a list of names of :data:`PLAN_KNOBS`; default the six counts,
+    :data:`DEFAULT_PLAN_KNOBS`; the others stay as the scenario gives them, e.g. a lab that plans
+    only its HSFE test, or keeps seed 000's calibration grid extent)."""
 
     te: TEProtocolModel = TEProtocolModel()
     hsfe: HSFEProtocolModel = HSFEProtocolModel()
     chromatic: ChromaticProtocolModel = ChromaticProtocolModel()
     distortion: DistortionProtocolModel = DistortionProtocolModel()
     timing: LabTimingModel = LabTimingModel()
-    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = PLAN_KNOBS
+    plan_knobs: Annotated[tuple[Literal[PLAN_KNOBS], ...], Field(strict=False)] = DEFAULT_PLAN_KNOBS
 
     @field_validator("plan_knobs")
     @classmethod
@@ -363,6 +368,15 @@ class ValidationModel(ValidationSettings):
     * ``new_maps_per_trial``, ``new_markers_per_trial``: draw new PRNU/DSNU maps and new
       target marker errors in every trial (else fixed by the scenario seed); the hexapod
       positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
+    * ``instrument_seed`` (:class:`simcam.config_base.ValidationSettings`): an integer pins the
+      camera, whose drawn properties (PRNU/DSNU maps, the errors of its onboard distortion
+      calibration, its targets' fixed markers) then come from
+      ``budget.runner.study.instrument_seed_sequence`` instead of the scenario seed
+      (:func:`budget.starcam.setup.instrument_scenario`); it excludes ``new_maps_per_trial``.
+      None (the default) keeps the scenario seed's camera (maps new per trial only with
+      ``new_maps_per_trial``; docs/validation.md says why the rest is not yet drawn per trial);
+      ``new_markers_per_trial`` draws the lab target's markers per trial either way (the
+      target is the lab's, not the camera's);
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
       phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
@@ -393,6 +407,13 @@ class ValidationModel(ValidationSettings):
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
     )
     calibration_spectrum: str = "population_mean"
+
+    @model_validator(mode="after")
+    def _one_instrument_or_new_maps(self) -> ValidationModel:
+        if self.instrument_seed is not None and self.new_maps_per_trial:
+            raise ValueError("new_maps_per_trial: a pinned instrument_seed fixes the camera's PRNU/DSNU maps; set "
+                             "new_maps_per_trial = false, or leave instrument_seed unset for new maps every trial")
+        return self
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
     protocols: Annotated[tuple[Literal[LAB_PROTOCOLS], ...], Field(strict=False)] = LAB_PROTOCOLS
 

@@ -97,6 +97,9 @@ class FullToyStudy(Study, Prepared, CheckedScenario, BatchedTrials, Warmup, Spli
     def setup(self, scenario):  # a frame's noise in the scenario's pattern
         return scenario.sigma_px * math.sqrt(LINE_FACTOR if scenario.pattern == "line" else 1.0)
 
+    def setup_key(self, scenario):  # every field but the truth's sampling size, which setup never reads
+        return scenario.model_copy(update={"truth_draws": 0}).hash
+
     def check(self, scenario, *, where):
         if scenario.truth_draws < N_PARTS:
             raise ScenarioError(f"{where}: truth_draws: {scenario.truth_draws} draws for the truth's {N_PARTS} "
