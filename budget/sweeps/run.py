@@ -38,8 +38,9 @@ from budget.sweeps.execute import make_runner
 from budget.sweeps.layout import study_for_kind
 from budget.sweeps.sensitivity import analyze_samples
 from budget.sweeps.spec import Sweep, load_sweep
-from budget.sweeps.store import StoreWriter, check_store, create_store, open_sensitivity, open_sobol, open_sweep
-from simcam.infra.errors import UserInputError
+from budget.sweeps.store import (StoreWriter, check_store, create_store, open_sensitivity, open_sobol, open_sweep,
+                                 store_lock)
+from simcam.infra.errors import UserInputError, WorkersLost
 
 __all__ = [
     "SweepReport",
@@ -165,10 +166,26 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     ------
     ScenarioError, UserInputError
         Before any work: bad sweep file, a point the scenario or simulator rejects, a
-        store of another sweep, an unreachable scheduler.
+        store of another sweep or held by another run (:func:`~budget.sweeps.store.store_lock`),
+        an unreachable scheduler.
+    WorkersLost
+        A killed worker, a Dask cluster without workers: the points finished stay in the store.
     """
     say = echo or (lambda _msg: None)
     sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
+    with store_lock(out):  # one writer of a store at a time
+        try:
+            return _run_locked(sw, out, workers=workers, scheduler=scheduler, dask_local=dask_local,
+                               inline=inline, progress=progress, on_point=on_point, say=say,
+                               truths_shared=truths_shared)
+        except WorkersLost as exc:  # each point is written as it finishes: the store resumes
+            raise WorkersLost(f"{exc}; the points finished are kept in {out}: the same command "
+                              f"computes the rest") from None
+
+
+def _run_locked(sw: Sweep, out, *, workers, scheduler, dask_local, inline, progress, on_point, say,
+                truths_shared) -> SweepReport:
+    """:func:`run_sweep` once the store is held."""
     grid_tasks, sens_tasks = plan_tasks(sw)
     state = check_store(out, sw)
     runner = make_runner(kind=sw.spec.kind, workers=workers, scheduler=scheduler, dask_local=dask_local,

@@ -25,9 +25,12 @@ return their arrays), so there is one writer and remote workers need no access t
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +51,7 @@ __all__ = [
     "open_sobol",
     "open_sweep",
     "store_attrs",
+    "store_lock",
 ]
 
 FORMAT = 1
@@ -192,10 +196,78 @@ def create_store(path: str | os.PathLike, sweep) -> None:
         # the metadata never changes after this (points only write chunks): consolidated,
         # so that plain xarray.open_zarr(STORE) reads it in one go
         zarr.consolidate_metadata(str(tmp), zarr_format=2)
-        os.rename(tmp, path)
+        try:
+            os.rename(tmp, path)
+        except OSError as exc:
+            # another run created it meanwhile (no lock where the folder did not exist yet):
+            # that store is this sweep's (checked), and this run resumes it
+            if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST) or check_store(path, sweep) != "resume":
+                raise
+            shutil.rmtree(tmp, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def lock_path(path: str | os.PathLike) -> Path:
+    """The lock file of the store ``path``: ``.NAME.lock`` beside it."""
+    path = Path(path)
+    return path.parent / f".{path.name}.lock"
+
+
+@contextmanager
+def store_lock(path: str | os.PathLike) -> Iterator[None]:
+    """Hold the store ``path`` for this run: one writer at a time.
+
+    An exclusive ``flock`` on ``.NAME.lock`` beside the store (the kernel releases it when
+    the process ends, however it ends); the file holds the writer's PID and is removed
+    when the run ends. A second ``budget sweep ... --out`` of the same store while the
+    first runs is refused at once, naming the other writer (was: ``OSError: Directory not
+    empty`` when both created it). Where the store's folder does not exist yet, there is
+    nothing to lock and nothing another run can have written: the run goes on (its
+    creation then resumes a store another run created meanwhile: :func:`create_store`).
+    """
+    import fcntl
+
+    lock = lock_path(path)
+    if not lock.parent.is_dir():
+        yield
+        return
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:  # a read-only folder: no other run can create the store there either
+            yield
+            return
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise
+            try:
+                who = f" (pid {int(lock.read_text().strip())})"
+            except (OSError, ValueError):
+                who = ""
+            raise UserInputError(f"--out {path}: another budget sweep{who} is writing this store "
+                                 f"(it holds {lock}); wait for it to end, or give another --out") from None
+        try:  # the file locked is still the one at that name (not one its last holder removed)
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        yield
+    finally:
+        try:
+            os.unlink(lock)
+        except OSError:
+            pass
+        os.close(fd)
 
 
 def _read_attrs(path: Path) -> dict | None:
