@@ -35,6 +35,7 @@ from budget.runner.scheduler import (PILOT_TRIALS, TRUTH_SE_FRACTION, TRUTH_SIZE
                                      sized_truths_scenario, truth_targets, with_targets)
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
+from simcam.allocation import check_allocations
 from simcam.infra.lifecycle import check_memory
 
 __all__ = ["PILOT_TRIALS", "SCHEMA", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "StudyResult", "run_study",
@@ -114,6 +115,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     classes = tuple(study.classes(scenario))
     plan = Scheduler(study, scenario, seed, stopping, classes=classes, truth_size=truth_size, truths=truths)
     _check_memory(study, classes, stopping)
+    check_allocations(scenario)  # the scenario's largest arrays (simcam.allocation)
     own = executor is None
     if own:
         # local processes: this one is a worker too (it runs trials between collecting the

@@ -172,8 +172,8 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
         A killed worker, a Dask cluster without workers: the points finished stay in the store.
     """
     say = echo or (lambda _msg: None)
-    sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
-    with store_lock(out):  # one writer of a store at a time
+    with store_lock(out):  # one writer of a store at a time (refused before the sweep is read)
+        sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
         try:
             return _run_locked(sw, out, workers=workers, scheduler=scheduler, dask_local=dask_local,
                                inline=inline, progress=progress, on_point=on_point, say=say,

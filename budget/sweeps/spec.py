@@ -42,6 +42,7 @@ from budget.sweeps.values import (
     sensitivity_seed,
     sobol_samples,
 )
+from simcam.allocation import check_allocations
 from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 from simcam.dotted import derived_paths, set_dotted, set_values
 from simcam.infra.errors import ScenarioError
@@ -95,6 +96,7 @@ def scenario_text(kind: str, scenario) -> str:
 
 def check_simulable(kind: str, scenario, *, where: str) -> None:
     """What the simulator would refuse later, checked now (cheaply): :meth:`~budget.runner.capabilities.CheckedScenario.check`."""
+    check_allocations(scenario, source=where)  # its largest arrays fit (simcam.allocation)
     try:
         capability(_study(kind), CheckedScenario).check(scenario, where=where)
     except ScenarioError:
