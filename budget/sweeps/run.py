@@ -211,8 +211,10 @@ def _run_locked(sw: Sweep, out, *, workers, scheduler, dask_local, inline, progr
         if state == "new":
             create_store(out, sw)
         writer = StoreWriter(out, sw)
-        todo = {"grid": np.flatnonzero(~writer.done("grid")) if n_grid else np.zeros(0, int),
-                "sensitivity": np.flatnonzero(~writer.done("sensitivity")) if n_sens else np.zeros(0, int)}
+        # a new store has nothing done (reading a flag per point of a 1,000,000-point store
+        # reads as many chunk files); a resumed one reads its flags
+        todo = {g: (np.arange(n) if state == "new" else np.flatnonzero(~writer.done(g))) if n else np.zeros(0, int)
+                for g, n in (("grid", n_grid), ("sensitivity", n_sens))}
         report.already_done = n_grid - todo["grid"].size
         report.samples_already_done = n_sens - todo["sensitivity"].size
         say(f"{sw.spec.name or sw.path} (hash {sw.hash}): {n_grid} point(s)"
@@ -270,10 +272,15 @@ def _forget_oldest(cache: dict, keep: int) -> None:
 
 
 def _windows(indices: np.ndarray, workers: int):
-    """``indices`` in consecutive windows of ``max(WINDOW_MIN, WINDOW_PER_WORKER x workers)``."""
-    size = max(WINDOW_MIN, WINDOW_PER_WORKER * max(1, workers))
-    for lo in range(0, indices.size, size):
+    """``indices`` in consecutive windows: the first of one point per worker (the first
+    points written soon), each next twice the last, up to ``max(WINDOW_MIN,
+    WINDOW_PER_WORKER x workers)``."""
+    most = max(WINDOW_MIN, WINDOW_PER_WORKER * max(1, workers))
+    size, lo = max(1, workers), 0
+    while lo < indices.size:
         yield indices[lo:lo + size]
+        lo += size
+        size = min(most, 2 * size)
 
 
 def _write_result(writer, res, report: SweepReport, t0: float) -> None:

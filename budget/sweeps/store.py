@@ -101,11 +101,14 @@ def _template(point_dims, point_shape, point_coords, kind, evaluate, attrs):
     for name, (dims, dtype, vattrs) in schema(kind, evaluate).items():
         shape = tuple(point_shape) + tuple(len(lab[d]) for d in dims)
         chunks = (1,) * len(point_shape) + tuple(len(lab[d]) for d in dims)
-        data_vars[name] = (tuple(point_dims) + dims, da.full(shape, _fill(dtype), dtype=dtype, chunks=chunks), vattrs)
-        enc[name] = {"_FillValue": np.nan} if dtype.startswith("f") else {"_FillValue": None}
-    data_vars["done"] = (tuple(point_dims), da.zeros(point_shape, dtype="i1", chunks=(1,) * len(point_shape)),
+        # one Dask chunk (only the metadata is written: compute=False), one Zarr chunk per
+        # point: a graph of one task per variable, however many points (a 1,000,000-point
+        # axis built a graph of millions of tasks and 5 GiB before its store existed)
+        data_vars[name] = (tuple(point_dims) + dims, da.full(shape, _fill(dtype), dtype=dtype, chunks=-1), vattrs)
+        enc[name] = ({"_FillValue": np.nan} if dtype.startswith("f") else {"_FillValue": None}) | {"chunks": chunks}
+    data_vars["done"] = (tuple(point_dims), da.zeros(point_shape, dtype="i1", chunks=-1),
                          {"long_name": "1 once the point is complete (written last)"})
-    enc["done"] = {"_FillValue": None}
+    enc["done"] = {"_FillValue": None, "chunks": (1,) * len(point_shape)}
     used = {d for v in schema(kind, evaluate).values() for d in v[0]}
     coords = {d: list(lab[d]) for d in ("class", "axis", "variant") if d in used}
     coords.update(point_coords)
