@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import tomllib
 import zlib
 from pathlib import Path
@@ -111,7 +112,7 @@ def _bad_scenario(rng: np.random.Generator, kind: str) -> tuple[bytes, str]:
     bad = BAD_NUMBERS[int(rng.integers(len(BAD_NUMBERS)))]
     if isinstance(bad, float):  # TOML writes nan and inf as such
         _set(raw, field, 0.123456789)
-        text = tomli_w.dumps(raw).replace("0.123456789", "nan" if bad != bad else "inf", 1).encode()
+        text = tomli_w.dumps(raw).replace("0.123456789", "nan" if math.isnan(bad) else "inf", 1).encode()
         return text, field
     _set(raw, field, bad)
     return tomli_w.dumps(raw).encode(), field

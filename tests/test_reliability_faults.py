@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_reliability import (GRID, _all_gone, _children, _cli, _pool_workers, _run_until_workers, _start, _stop,
+from test_reliability import (GRID, _all_gone, _cli, _pool_workers, _run_until_workers, _start, _stop,
                               _wait_for)
 from tiny_camera import TINY
 
@@ -371,3 +371,57 @@ def test_a_dense_truth_grid_and_a_window_too_large_are_refused_naming_them(tmp_p
         "error: --window 100001: one window of 100001 x 100001 float64 px per star and frame: needs about "
         "74.5 GiB of memory, 1.0 GiB available"], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ind.toml", "lab"]
+
+
+# ----------------------------------------------------------------------------- streaming sweeps
+def test_a_long_axis_is_read_without_building_its_points(tmp_path, monkeypatch):
+    """A 100,000-point axis is read without building a point (was: every point built and
+    checked first, 97 s for 2,000); a point is built when asked for, with the values and seed
+    the eager build gave (``grid_points``, ``point_seed``)."""
+    from budget.sweeps import spec as spec_mod
+    from budget.sweeps.values import point_seed
+
+    built = []
+    real = spec_mod.validate_scenario
+    monkeypatch.setattr(spec_mod, "validate_scenario", lambda kind, data, *, source: (built.append(source),
+                                                                                      real(kind, data, source=source))[1])
+    (tmp_path / "tiny.toml").write_text(TINY)
+    (tmp_path / "s.toml").write_text(textwrap.dedent("""
+        kind = "starcam"
+        base = "tiny.toml"
+        seed = 11
+        evaluate = "truth"
+        [parameters]
+        "lab.source.match_v_mag" = {start = 6.0, stop = 7.0, num = 100000}
+    """))
+    sw = spec_mod.load_sweep(tmp_path / "s.toml")
+    assert len(built) == 1  # the base scenario only
+    assert len(sw.points) == 100_000
+    p = sw.points[-1]
+    assert p.index == 99_999 and p.values == {"lab.source.match_v_mag": 7.0}
+    assert p.seed == point_seed(11, p.values)
+    assert p.scenario.lab.source.match_v_mag == 7.0 and len(built) == 2
+
+
+def test_grid_indexer_is_the_product_in_c_order():
+    """Against itertools.product (the eager list it replaces) and zip."""
+    import itertools
+    from types import SimpleNamespace
+
+    from budget.sweeps.values import grid_indexer
+
+    params = [("a", [1, 2]), ("b", [4.0, 5.0, 6.0]), ("c", ["x", "y"])]
+    n, values_of = grid_indexer(SimpleNamespace(mode="product"), params, "s")
+    assert [values_of(i) for i in range(n)] == [dict(zip("abc", v)) for v in itertools.product(*[v for _, v in params])]
+    n, values_of = grid_indexer(SimpleNamespace(mode="zip"), [("a", [1, 2]), ("b", [3, 4])], "s")
+    assert [values_of(i) for i in range(n)] == [{"a": 1, "b": 3}, {"a": 2, "b": 4}]
+
+
+def test_windows_cover_every_point_once_starting_small():
+    from budget.sweeps.run import WINDOW_MIN, WINDOW_PER_WORKER, _windows
+
+    for workers, n in ((1, 1), (2, 100), (16, 1000)):
+        w = list(_windows(np.arange(n), workers))
+        np.testing.assert_array_equal(np.concatenate(w), np.arange(n))
+        assert len(w[0]) == min(n, workers)
+        assert max(len(x) for x in w) <= max(WINDOW_MIN, WINDOW_PER_WORKER * workers)

@@ -38,7 +38,6 @@ from budget.sweeps.values import (
     _value_count,
     expand_values,
     grid_indexer,
-    grid_points,
     point_identity,
     point_seed,
     salib_problem,
