@@ -23,12 +23,17 @@ it runs tasks (with one worker, or ``work_here``), is set up the same way.
 
 from __future__ import annotations
 
+import asyncio
+import logging
 import multiprocessing
 import os
+import socket
+import time
 import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, Self
+from urllib.parse import urlsplit
 
 from simcam.infra.errors import UserInputError, WorkersLost
 from simcam.infra.lifecycle import (cap_workers, default_stop_handlers, exit_with_parent, lost_worker_message,
@@ -247,9 +252,6 @@ WORKER_POLL_S = 1.0
 def _reachable(address: str) -> None:
     """Refuse at once a ``tcp://HOST:PORT`` where nothing listens (Dask itself retries until
     its connect timeout, 20 s and more, before saying so)."""
-    import socket
-    from urllib.parse import urlsplit
-
     if not address.startswith("tcp://"):
         return
     try:
@@ -278,8 +280,6 @@ class _ReconnectionNoise:
     its own line (:class:`~simcam.infra.errors.WorkersLost`), so these records are dropped."""
 
     def filter(self, record) -> bool:
-        import asyncio
-
         exc = record.exc_info[1] if record.exc_info else None
         if isinstance(exc, (OSError, TimeoutError, asyncio.CancelledError)):
             return False
@@ -290,8 +290,6 @@ _RECONNECTION_NOISE = _ReconnectionNoise()
 
 
 def _quiet_reconnection(on: bool) -> None:
-    import logging
-
     log = logging.getLogger("distributed.client")
     (log.addFilter if on else log.removeFilter)(_RECONNECTION_NOISE)
 
@@ -391,8 +389,6 @@ class DaskExecutor(Executor):
 
         try:
             done = as_completed(submit_new())
-            import time
-
             empty_since = None
             next_look = time.monotonic() + WORKER_POLL_S
             while not done.is_empty():

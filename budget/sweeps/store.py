@@ -26,6 +26,7 @@ return their arrays), so there is one writer and remote workers need no access t
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import shutil
 import tempfile
@@ -230,8 +231,6 @@ def store_lock(path: str | os.PathLike) -> Iterator[None]:
     nothing to lock and nothing another run can have written: the run goes on (its
     creation then resumes a store another run created meanwhile: :func:`create_store`).
     """
-    import fcntl
-
     lock = lock_path(path)
     if not lock.parent.is_dir():
         yield
