@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import math
 import os
 import shutil
 import tempfile
@@ -272,6 +273,27 @@ def store_lock(path: str | os.PathLike) -> Iterator[None]:
         os.close(fd)
 
 
+def _flags_from_chunk_names(folder: Path, shape: tuple[int, ...]) -> np.ndarray | None:
+    """The flat done flags from the chunk files' names (``i.j.k``, Zarr format 2's "."
+    separator, one element per chunk), or None where the folder is laid out otherwise."""
+    if not shape:
+        return None
+    try:
+        names = [n for n in os.listdir(folder) if not n.startswith(".")]
+    except OSError:
+        return None
+    idx = []
+    for name in names:
+        parts = name.split(".")
+        if len(parts) != len(shape) or not all(p.isdigit() for p in parts):
+            return None
+        idx.append([int(p) for p in parts])
+    flags = np.zeros(math.prod(shape), dtype=bool)
+    if idx:
+        flags[np.ravel_multi_index(np.array(idx).T, shape)] = True
+    return flags
+
+
 def _read_attrs(path: Path) -> dict | None:
     import zarr
 
@@ -334,8 +356,17 @@ class StoreWriter:
         return self.sweep.grid_index(index) if group == "grid" else (index,)
 
     def done(self, group: str) -> np.ndarray:
-        """Flat boolean array: which points of ``group`` are complete."""
-        return np.asarray(self._array(group, "done")[...]).reshape(-1).astype(bool)
+        """Flat boolean array: which points of ``group`` are complete.
+
+        Read from the names of the ``done`` array's chunk files (Zarr format 2: one file per
+        point, named by its grid index, written only by :meth:`write`, last, with the value
+        1): one folder listing instead of a read per point (a 1,000,000-point store took
+        more than 5 minutes to read its flags). Any other layout is read through Zarr."""
+        arr = self._array(group, "done")
+        flags = _flags_from_chunk_names(self.path / ("done" if group == "grid" else "sensitivity/done"), arr.shape)
+        if flags is None:
+            flags = np.asarray(arr[...]).reshape(-1).astype(bool)
+        return flags
 
     def write(self, result) -> None:
         """Write one point's arrays, then mark it done."""
