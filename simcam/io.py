@@ -28,6 +28,7 @@ from astropy.io import fits
 
 from simcam import __version__
 from simcam.infra.errors import UserInputError
+from simcam.allocation import check_allocations
 from simcam.infra.lifecycle import announce_size, check_disk, check_memory, partial_prefix, remove_stale_partials
 from simcam.infra.outputs import apply_umask, check_output_dir, failed_write, input_file_problem, is_earlier_output
 
@@ -211,6 +212,7 @@ def check_render_request(scenario, *, frames: int, out, source: str, mode: str =
     (windows mode: the float64 window cube of all frames). Disk: ``frames`` frame files of
     :func:`frame_bytes` (an upper bound when compressed) or the uint16 window cube.
     """
+    check_allocations(scenario, source=source)  # the PSF's spectrum (simcam.allocation)
     rows, cols = scenario.detector.mosaic_shape
     det = scenario.detector
     if mode == "full":

@@ -23,15 +23,21 @@ it runs tasks (with one worker, or ``work_here``), is set up the same way.
 
 from __future__ import annotations
 
+import asyncio
+import logging
 import multiprocessing
 import os
+import socket
+import time
 import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from typing import Any, Self
+from urllib.parse import urlsplit
 
-from simcam.infra.errors import UserInputError
-from simcam.infra.lifecycle import cap_workers, default_stop_handlers, exit_with_parent, quick_teardown, stop_pool
+from simcam.infra.errors import UserInputError, WorkersLost
+from simcam.infra.lifecycle import (cap_workers, default_stop_handlers, exit_with_parent, lost_worker_message,
+                                    quick_teardown, quiet_pool_breakage, stop_pool)
 
 __all__ = ["DaskExecutor", "Executor", "InlineExecutor", "ProcessExecutor", "default_workers", "make_executor",
            "start_method", "worker_setup"]
@@ -172,6 +178,7 @@ class ProcessExecutor(Executor):
             # start every worker now (a pool spawns lazily): they import while the caller works
             for _ in range(self._started):
                 self._pool.submit(int)
+            quiet_pool_breakage(self._pool)  # a worker's death: no thread traceback
         if not self._set_up:  # this process is a worker too, set up as the others
             worker_setup(self._initializer, self._initargs)
             self._set_up = True
@@ -191,7 +198,10 @@ class ProcessExecutor(Executor):
         self.close()
 
     def map_unordered(self, fn, tasks):
+        """As :meth:`Executor.map_unordered`; a worker that dies (``kill -9``, out of memory)
+        ends the run with :class:`~simcam.infra.errors.WorkersLost`, one line naming it."""
         from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
 
         if not self._set_up or (self._pool is None and self._started > 0):
             self.__enter__()
@@ -216,6 +226,8 @@ class ProcessExecutor(Executor):
                 for f in finished:
                     i = running.pop(f)
                     yield i, f.result()
+        except BrokenProcessPool:  # a submit to, or a result of, a pool whose worker died
+            raise WorkersLost(lost_worker_message(self._pool)) from None
         finally:
             for f in running:
                 f.cancel()
@@ -228,8 +240,67 @@ def _dask_call(fn, task, initializer, initargs):
     return fn(task)
 
 
+#: seconds to reach a scheduler (a plain TCP connection first, then Dask's handshake)
+DASK_CONNECT_S = 5.0
+#: seconds a run waits with no worker in its cluster before it stops (a nanny restarts a
+#: killed worker within a few seconds; a cluster whose workers are all gone stays empty)
+NO_WORKER_GRACE_S = 10.0
+#: how often a waiting run looks at the cluster's workers, seconds
+WORKER_POLL_S = 1.0
+
+
+def _reachable(address: str) -> None:
+    """Refuse at once a ``tcp://HOST:PORT`` where nothing listens (Dask itself retries until
+    its connect timeout, 20 s and more, before saying so)."""
+    if not address.startswith("tcp://"):
+        return
+    try:
+        parts = urlsplit(address)
+        host, port = parts.hostname, parts.port
+    except ValueError as exc:
+        raise UserInputError(f"--scheduler {address}: not an address like tcp://HOST:PORT ({exc})") from None
+    if not host or port is None:
+        raise UserInputError(f"--scheduler {address}: give the port too, like tcp://HOST:8786")
+    try:
+        with socket.create_connection((host, port), timeout=DASK_CONNECT_S):
+            pass
+    except socket.gaierror as exc:
+        raise UserInputError(f"--scheduler {address}: unknown host {host} ({exc.strerror})") from None
+    except TimeoutError:
+        raise UserInputError(f"--scheduler {address}: no answer from {host}:{port} within "
+                             f"{DASK_CONNECT_S:g} s") from None
+    except OSError as exc:
+        raise UserInputError(f"--scheduler {address}: cannot connect to {host}:{port} "
+                             f"({exc.strerror or exc}); is a Dask scheduler running there?") from None
+
+
+class _ReconnectionNoise:
+    """A logging filter: a client whose scheduler is gone logs each failed reconnection (and
+    its cancellation at close) as an ERROR with a traceback; the run says what happened in
+    its own line (:class:`~simcam.infra.errors.WorkersLost`), so these records are dropped."""
+
+    def filter(self, record) -> bool:
+        exc = record.exc_info[1] if record.exc_info else None
+        if isinstance(exc, (OSError, TimeoutError, asyncio.CancelledError)):
+            return False
+        return not str(record.msg).startswith("Failed to reconnect")
+
+
+_RECONNECTION_NOISE = _ReconnectionNoise()
+
+
+def _quiet_reconnection(on: bool) -> None:
+    log = logging.getLogger("distributed.client")
+    (log.addFilter if on else log.removeFilter)(_RECONNECTION_NOISE)
+
+
 class DaskExecutor(Executor):
-    """Tasks on a Dask distributed cluster (an existing scheduler, or a LocalCluster)."""
+    """Tasks on a Dask distributed cluster (an existing scheduler, or a LocalCluster).
+
+    Bounded waiting: an unreachable scheduler is said within :data:`DASK_CONNECT_S`; a run
+    whose cluster has had no worker for :data:`NO_WORKER_GRACE_S` (every worker killed),
+    or whose scheduler is gone, stops with :class:`~simcam.infra.errors.WorkersLost`, one
+    line with the tasks finished (a sweep keeps its finished points: it resumes)."""
 
     def __init__(self, *, scheduler: str | None = None, local_workers: int | None = None,
                  initializer: Callable | None = None, initargs: tuple = ()):
@@ -248,16 +319,20 @@ class DaskExecutor(Executor):
     def __enter__(self):
         from distributed import Client, LocalCluster
 
-
+        _quiet_reconnection(True)
         if self.local_workers is not None:
             self.cluster = LocalCluster(n_workers=self.local_workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None)
             self.client = Client(self.cluster)
         else:
+            _reachable(self.scheduler)
             try:
-                self.client = Client(self.scheduler, timeout="20s")
+                self.client = Client(self.scheduler, timeout=f"{DASK_CONNECT_S:g}s")
             except (OSError, TimeoutError, ValueError) as exc:
                 raise UserInputError(f"--scheduler {self.scheduler}: cannot connect: {exc}") from None
+            except MemoryError:  # a frame length read from a service that is no Dask scheduler
+                raise UserInputError(f"--scheduler {self.scheduler}: what answers there is not a Dask "
+                                     f"scheduler") from None
             self.workers = sum(self.client.nthreads().values())
             if self.workers == 0:
                 self.client.close()
@@ -266,11 +341,27 @@ class DaskExecutor(Executor):
 
     def close(self):
         if self.client is not None:
-            self.client.close()
+            try:
+                self.client.close(timeout=DASK_CONNECT_S)
+            except Exception:  # noqa: BLE001 - a scheduler already gone: nothing left to close
+                pass
             self.client = None
         if self.cluster is not None:
             self.cluster.close()
             self.cluster = None
+        _quiet_reconnection(False)
+
+    def _where(self) -> str:
+        return f"--scheduler {self.scheduler}" if self.scheduler else self.description
+
+    def _workers_now(self) -> int | None:
+        """The cluster's workers now (None: the scheduler cannot be asked)."""
+        if self.client is None or self.client.status != "running":
+            return None
+        try:
+            return len(self.client.scheduler_info(n_workers=-1).get("workers", {}))
+        except Exception:  # noqa: BLE001 - a scheduler going away mid-call
+            return None
 
     def map_unordered(self, fn, tasks):
         from distributed import as_completed
@@ -280,6 +371,7 @@ class DaskExecutor(Executor):
         tag = uuid.uuid4().hex[:8]
         futures: list = []
         index: dict = {}
+        finished = 0
 
         def submit_new() -> list:
             new = []
@@ -291,14 +383,40 @@ class DaskExecutor(Executor):
                 new.append(f)
             return new
 
+        def lost(why: str) -> WorkersLost:
+            return WorkersLost(f"{self._where()}: {why}; the run stopped after {finished} of {len(tasks)} "
+                               f"task(s)")
+
         try:
             done = as_completed(submit_new())
-            for fut in done:
-                yield index[fut.key], fut.result()
+            empty_since = None
+            next_look = time.monotonic() + WORKER_POLL_S
+            while not done.is_empty():
+                if not done.has_ready():
+                    if self.client.status not in ("running", "newly-created"):
+                        raise lost("the connection to the scheduler was lost")
+                    now = time.monotonic()
+                    if now >= next_look:
+                        next_look = now + WORKER_POLL_S
+                        n = self._workers_now()
+                        empty_since = (empty_since or now) if n == 0 else None
+                        if empty_since is not None and now - empty_since >= NO_WORKER_GRACE_S:
+                            raise lost(f"the cluster has had no worker for {NO_WORKER_GRACE_S:g} s "
+                                       f"(were they killed?)")
+                    with done.thread_condition:
+                        done.thread_condition.wait(timeout=0.1)
+                    continue
+                fut = next(done)
+                if fut.status == "cancelled":
+                    raise lost("the scheduler cancelled a task (the connection to it was lost?)")
+                value = fut.result()
+                finished += 1
+                yield index[fut.key], value
                 for f in submit_new():
                     done.add(f)
         finally:
-            self.client.cancel([f for f in futures if not f.done()])
+            if self.client is not None and self.client.status == "running":
+                self.client.cancel([f for f in futures if not f.done()])
 
 
 def make_executor(*, workers: int | None = None, scheduler: str | None = None, dask_local: int | None = None,

@@ -74,6 +74,7 @@ from budget.runner.report import staged_report, write_outputs
 from budget.runner.run import StudyResult
 from budget.runner.scheduler import init_worker
 from budget.runner.study import ClassSpec, Study, TrialResult, truth_identity
+from simcam.allocation import check_allocations
 from simcam.dotted import scenario_with
 from simcam.effects import scenario_effects
 from simcam.infra.cli import overwrite_option, write_json_atomic
@@ -261,6 +262,7 @@ def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, se
     cases = build_cases(study, scenario, source=source)
     for c in cases:
         capability(study, CheckedScenario).check(c.scenario, where=f"{source or study.name}, case {c.name}")
+        check_allocations(c.scenario, source=f"{source or study.name}, case {c.name}")
     classes = tuple(study.classes(scenario))
     n_values = sum(len(c.axes) for c in classes) * len(study.variants)
     check_memory(float(trials) * len(cases) * (300 + 3 * 100 * n_values),

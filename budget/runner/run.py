@@ -34,6 +34,7 @@ from budget.runner.result import SCHEMA, StudyResult
 from budget.runner.scheduler import Scheduler, Stopping, init_worker
 from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
+from simcam.allocation import check_allocations
 from simcam.infra.lifecycle import check_memory
 
 __all__ = ["SCHEMA", "StudyResult", "run_study"]
@@ -112,6 +113,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     classes = tuple(study.classes(scenario))
     plan = Scheduler(study, scenario, seed, stopping, classes=classes, truth_size=truth_size, truths=truths)
     _check_memory(study, classes, stopping)
+    check_allocations(scenario)  # the scenario's largest arrays (simcam.allocation)
     own = executor is None
     if own:
         # local processes: this one is a worker too (it runs trials between collecting the

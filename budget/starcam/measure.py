@@ -38,6 +38,7 @@ import click
 import numpy as np
 import pandas as pd
 
+from simcam.allocation import check_window
 from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import progress as progress_bar
@@ -418,6 +419,7 @@ def measure_command(protocol, directory, manifest, reference, plate_scale, metho
 
     if window_px % 2 == 0:
         raise UserInputError(f"--window {window_px}: must be odd")
+    check_window(window_px)  # one window per star and frame must fit (simcam.allocation)
     # before any frame is read: the outputs are files (not a device), none of the inputs (the
     # manifest, the frames it lists, the reference), in a writable folder
     inputs = dataset_inputs(protocol, directory, manifest=manifest, reference=reference, allow_outside=allow_outside)

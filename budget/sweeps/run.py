@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import click
+import numpy as np
 
 import simcam
 from budget.runner.capabilities import SplitTruths, Warmup, capability
@@ -38,8 +39,9 @@ from budget.sweeps.execute import make_runner
 from budget.sweeps.layout import study_for_kind
 from budget.sweeps.sensitivity import analyze_samples
 from budget.sweeps.spec import Sweep, load_sweep
-from budget.sweeps.store import StoreWriter, check_store, create_store, open_sensitivity, open_sobol, open_sweep
-from simcam.infra.errors import UserInputError
+from budget.sweeps.store import (StoreWriter, check_store, create_store, open_sensitivity, open_sobol, open_sweep,
+                                 store_lock)
+from simcam.infra.errors import UserInputError, WorkersLost
 
 __all__ = [
     "SweepReport",
@@ -48,6 +50,7 @@ __all__ = [
     "open_sobol",
     "open_sweep",
     "plan_tasks",
+    "point_task",
     "run_sweep",
     "share_truths",
     "sweep_command",
@@ -80,38 +83,50 @@ class SweepReport:
         return n / self.wall_s if self.wall_s > 0 else float("nan")
 
 
-def plan_tasks(sweep: Sweep) -> tuple[list, list]:
-    """Point tasks of the grid and of the Sobol samples, each with its truth seed
-    (:func:`budget.sweeps.evaluate.truth_seed_of`)."""
+def point_task(sweep: Sweep, group: str, index: int) -> PointTask:
+    """The task of point ``index`` of ``group`` (``"grid"`` or ``"sensitivity"``), with its
+    truth seed (:func:`budget.sweeps.evaluate.truth_seed_of`); the point is built now."""
     s = sweep.spec
-    study = study_for_kind(s.kind)
-    grid = [PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials, s.tolerance,
-                      truth_seed_of(study, p.scenario, s.seed, p.values, p.seed, common=False))
-            for p in sweep.points]
-    sens = []
-    if s.sensitivity is not None:
-        t = s.sensitivity
-        sens = [PointTask("sensitivity", p.index, s.kind, t.evaluate, p.scenario, p.seed, t.trials,
-                          t.tolerance, p.seed) for p in sweep.sample_points]
-    return grid, sens
+    if group == "grid":
+        p = sweep.points[index]
+        return PointTask("grid", p.index, s.kind, s.evaluate, p.scenario, p.seed, s.trials, s.tolerance,
+                         truth_seed_of(study_for_kind(s.kind), p.scenario, s.seed, p.values, p.seed, common=False))
+    t = s.sensitivity
+    p = sweep.sample_points[index]
+    return PointTask("sensitivity", p.index, s.kind, t.evaluate, p.scenario, p.seed, t.trials, t.tolerance, p.seed)
+
+
+def plan_tasks(sweep: Sweep) -> tuple[list, list]:
+    """Point tasks of the grid and of the Sobol samples, each with its truth seed (every
+    point built: small sweeps and tests; a run builds them window by window)."""
+    return ([point_task(sweep, "grid", i) for i in range(len(sweep.points))],
+            [point_task(sweep, "sensitivity", i) for i in range(len(sweep.sample_points))])
+
+
+#: points built, sent and written at a time: about this many per worker (at least
+#: :data:`WINDOW_MIN`); the next window is built once the last one's tasks are all sent
+WINDOW_PER_WORKER = 8
+WINDOW_MIN = 16
 
 
 #: a shared truth's pieces run as about this many tasks per worker (runs of consecutive pieces)
 TRUTH_TASKS_PER_WORKER = 8
 
 
-def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]:
+def share_truths(runner, tasks: list, *, share: bool = True, cache: dict | None = None) -> tuple[list, int]:
     """The tasks with their truths (``PointTask.truths``), each distinct truth computed once.
 
     Points whose truth-relevant fields (:func:`budget.runner.study.truth_identity`), truth
     seed and truth sizing are equal share one truth; its pieces (:meth:`~budget.runner.capabilities.SplitTruths.truth_parts`)
     run as tasks on ``runner``'s workers, in runs of consecutive pieces (about
     :data:`TRUTH_TASKS_PER_WORKER` tasks per worker in all). ``share=False`` computes one per point (the same
-    numbers: tests). Returns the tasks and the number of truths computed.
+    numbers: tests). ``cache``: the truths of earlier calls by key (a streaming run's
+    windows), reused and completed. Returns the tasks and the number of truths computed.
     """
     if not tasks:
         return tasks, 0
     study = study_for_kind(tasks[0].kind)
+    cache = {} if cache is None else cache
     groups: dict = {}
     keys = []
     for t in tasks:
@@ -119,7 +134,7 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
         key = (truth_identity(study, t.scenario), t.truth_seed, size)
         if not share:
             key += (t.group, t.index)
-        if key not in groups:
+        if key not in groups and key not in cache:
             scn, targets = truths_scenario(study, t)
             groups[key] = (len(groups), scn, targets, capability(study, SplitTruths).truth_parts(scn, t.truth_seed), t.truth_seed)
         keys.append(key)
@@ -134,11 +149,10 @@ def share_truths(runner, tasks: list, *, share: bool = True) -> tuple[list, int]
     for res in runner.run(part_tasks):
         for k, part in enumerate(res.parts):
             got.setdefault(res.group, {})[res.index + k] = part
-    truths = {}
     for key, (g, scn, targets, parts, seed) in groups.items():
         t = capability(study, SplitTruths).truths_from_parts(scn, seed, [got[g][j] for j in range(len(parts))])
-        truths[key] = with_targets(t, targets) if targets else t
-    return [replace(t, truths=truths[k]) for t, k in zip(tasks, keys)], len(groups)
+        cache[key] = with_targets(t, targets) if targets else t
+    return [replace(t, truths=cache[k]) for t, k in zip(tasks, keys)], len(groups)
 
 
 def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None = None,
@@ -165,79 +179,124 @@ def run_sweep(sweep: Sweep | str | Path, out: str | Path, *, workers: int | None
     ------
     ScenarioError, UserInputError
         Before any work: bad sweep file, a point the scenario or simulator rejects, a
-        store of another sweep, an unreachable scheduler.
+        store of another sweep or held by another run (:func:`~budget.sweeps.store.store_lock`),
+        an unreachable scheduler.
+    WorkersLost
+        A killed worker, a Dask cluster without workers: the points finished stay in the store.
     """
     say = echo or (lambda _msg: None)
-    sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
-    grid_tasks, sens_tasks = plan_tasks(sw)
+    with store_lock(out):  # one writer of a store at a time (refused before the sweep is read)
+        sw = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
+        try:
+            return _run_locked(sw, out, workers=workers, scheduler=scheduler, dask_local=dask_local,
+                               inline=inline, progress=progress, on_point=on_point, say=say,
+                               truths_shared=truths_shared)
+        except WorkersLost as exc:  # each point is written as it finishes: the store resumes
+            raise WorkersLost(f"{exc}; the points finished are kept in {out}: the same command "
+                              f"computes the rest") from None
+
+
+def _run_locked(sw: Sweep, out, *, workers, scheduler, dask_local, inline, progress, on_point, say,
+                truths_shared) -> SweepReport:
+    """:func:`run_sweep` once the store is held: the points not yet done, window by window
+    (:func:`_windows`), each window's truths shared and its points written as they finish."""
+    n_grid, n_sens = len(sw.points), len(sw.sample_points)
     state = check_store(out, sw)
     runner = make_runner(kind=sw.spec.kind, workers=workers, scheduler=scheduler, dask_local=dask_local,
                          inline=inline)
     t0 = time.perf_counter()
     report = SweepReport(store=str(out), sweep_hash=sw.hash, runner=runner.description,
-                         points=len(grid_tasks), already_done=0, computed=0, samples=len(sens_tasks))
+                         points=n_grid, already_done=0, computed=0, samples=n_sens)
     with runner:
         if state == "new":
             create_store(out, sw)
         writer = StoreWriter(out, sw)
-        todo_grid = grid_tasks
-        if grid_tasks:
-            done = writer.done("grid")
-            todo_grid = [t for t in grid_tasks if not done[t.index]]
-            report.already_done = len(grid_tasks) - len(todo_grid)
-        todo_sens = sens_tasks
-        if sens_tasks:
-            done = writer.done("sensitivity")
-            todo_sens = [t for t in sens_tasks if not done[t.index]]
-            report.samples_already_done = len(sens_tasks) - len(todo_sens)
-        say(f"{sw.spec.name or sw.path} (hash {sw.hash}): {len(grid_tasks)} point(s)"
-            + (f", {len(sens_tasks)} Sobol sample(s)" if sens_tasks else "")
+        # a new store has nothing done (reading a flag per point of a 1,000,000-point store
+        # reads as many chunk files); a resumed one reads its flags
+        todo = {g: (np.arange(n) if state == "new" else np.flatnonzero(~writer.done(g))) if n else np.zeros(0, int)
+                for g, n in (("grid", n_grid), ("sensitivity", n_sens))}
+        report.already_done = n_grid - todo["grid"].size
+        report.samples_already_done = n_sens - todo["sensitivity"].size
+        say(f"{sw.spec.name or sw.path} (hash {sw.hash}): {n_grid} point(s)"
+            + (f", {n_sens} Sobol sample(s)" if n_sens else "")
             + (f"; resuming: {report.already_done + report.samples_already_done} already in {out}"
                if state == "resume" else "") + f"; on {runner.description}")
-        if scheduler is None and (todo_grid or todo_sens):
+        first = next((point_task(sw, g, int(todo[g][0])) for g in ("grid", "sensitivity") if todo[g].size), None)
+        if scheduler is None and first is not None:
             # a first run's kernels compiled once on this machine's cores, before the workers
             # need them (each point then loads them from numba's cache)
-            capability(study_for_kind(sw.spec.kind), Warmup).prewarm((todo_grid or todo_sens)[0].scenario)
-        todo = todo_grid + todo_sens
-        todo, report.truths_computed = share_truths(runner, todo, share=truths_shared)
-        todo_grid, todo_sens = todo[:len(todo_grid)], todo[len(todo_grid):]
-        if report.truths_computed < len(todo):
-            say(f"truths shared: {report.truths_computed} distinct truth(s) for {len(todo)} point(s)")
-        for label, tasks in (("points", todo_grid), ("Sobol samples", todo_sens)):
-            if not tasks:
+            capability(study_for_kind(sw.spec.kind), Warmup).prewarm(first.scenario)
+        cache: dict = {}
+        shared_points = 0
+        for label, group in (("points", "grid"), ("Sobol samples", "sensitivity")):
+            if not todo[group].size:
                 continue
             bar = None
             if progress:
                 from tqdm import tqdm
 
-                bar = tqdm(total=len(tasks), desc=label, unit="pt", leave=False,
+                bar = tqdm(total=todo[group].size, desc=label, unit="pt", leave=False,
                            disable=not sys.stderr.isatty())  # quiet when not on a terminal
             try:
-                for res in runner.run(tasks):
-                    if res.version != simcam.__version__:
-                        raise UserInputError(
-                            f"a worker ({res.host}, pid {res.pid}) runs simcam {res.version}, this client "
-                            f"{simcam.__version__}: install the same version on every worker")
-                    writer.write(res)
-                    report.compute_s.append(float(res.values["compute_s"]))
-                    report.cpu_s.append(res.cpu_s)
-                    report.completed.append((res.group, res.index, time.perf_counter() - t0, res.pid))
-                    if res.group == "grid":
-                        report.computed += 1
-                    else:
-                        report.samples_computed += 1
-                    if bar:
-                        bar.update(1)
-                    if on_point is not None:
-                        on_point(res.group, res.index)
+                for window in _windows(todo[group], runner.workers):
+                    tasks = [point_task(sw, group, int(i)) for i in window]
+                    tasks, n_truths = share_truths(runner, tasks, share=truths_shared, cache=cache)
+                    report.truths_computed += n_truths
+                    shared_points += len(tasks)
+                    _forget_oldest(cache, TRUTHS_KEPT)
+                    for res in runner.run(tasks):
+                        _write_result(writer, res, report, t0)
+                        if bar:
+                            bar.update(1)
+                        if on_point is not None:
+                            on_point(res.group, res.index)
             finally:
                 if bar:
                     bar.close()
-        if sens_tasks and not writer.sobol_complete():
+        if report.truths_computed < shared_points:
+            say(f"truths shared: {report.truths_computed} distinct truth(s) for {shared_points} point(s)")
+        if n_sens and not writer.sobol_complete():
             writer.write_sobol(analyze_samples(open_sensitivity(out), sw))
             report.sobol = True
     report.wall_s = time.perf_counter() - t0
     return report
+
+
+#: distinct truths kept for the windows that follow (a streaming run's memory stays flat)
+TRUTHS_KEPT = 256
+
+
+def _forget_oldest(cache: dict, keep: int) -> None:
+    while len(cache) > keep:
+        cache.pop(next(iter(cache)))
+
+
+def _windows(indices: np.ndarray, workers: int):
+    """``indices`` in consecutive windows: the first of one point per worker (the first
+    points written soon), each next twice the last, up to ``max(WINDOW_MIN,
+    WINDOW_PER_WORKER x workers)``."""
+    most = max(WINDOW_MIN, WINDOW_PER_WORKER * max(1, workers))
+    size, lo = max(1, workers), 0
+    while lo < indices.size:
+        yield indices[lo:lo + size]
+        lo += size
+        size = min(most, 2 * size)
+
+
+def _write_result(writer, res, report: SweepReport, t0: float) -> None:
+    """One finished point into the store and the report."""
+    if res.version != simcam.__version__:
+        raise UserInputError(
+            f"a worker ({res.host}, pid {res.pid}) runs simcam {res.version}, this client "
+            f"{simcam.__version__}: install the same version on every worker")
+    writer.write(res)
+    report.compute_s.append(float(res.values["compute_s"]))
+    report.cpu_s.append(res.cpu_s)
+    report.completed.append((res.group, res.index, time.perf_counter() - t0, res.pid))
+    if res.group == "grid":
+        report.computed += 1
+    else:
+        report.samples_computed += 1
 
 
 # --------------------------------------------------------------------------- CLI

@@ -20,7 +20,9 @@ import copy
 import hashlib
 import json
 import math
+import operator
 import tomllib
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,13 +37,14 @@ from budget.sweeps.values import (
     _check_count,
     _value_count,
     expand_values,
-    grid_points,
+    grid_indexer,
     point_identity,
     point_seed,
     salib_problem,
     sensitivity_seed,
     sobol_samples,
 )
+from simcam.allocation import check_allocations
 from simcam.config_base import read_toml  # strict: missing, non-UTF-8, empty, invalid
 from simcam.dotted import derived_paths, set_dotted, set_values
 from simcam.infra.errors import ScenarioError
@@ -95,6 +98,7 @@ def scenario_text(kind: str, scenario) -> str:
 
 def check_simulable(kind: str, scenario, *, where: str) -> None:
     """What the simulator would refuse later, checked now (cheaply): :meth:`~budget.runner.capabilities.CheckedScenario.check`."""
+    check_allocations(scenario, source=where)  # its largest arrays fit (simcam.allocation)
     try:
         capability(_study(kind), CheckedScenario).check(scenario, where=where)
     except ScenarioError:
@@ -114,9 +118,49 @@ class Point:
     seed: int
 
 
+#: a sweep of at most this many points (and samples) has every point built and checked when
+#: it is read; a larger one builds and checks each point when it is reached (lazily), so that
+#: its first points are written within seconds and its memory does not grow with its points
+EAGER_POINTS = 64
+
+
+class LazyPoints(Sequence):
+    """The points of a sweep (or its Sobol samples), built when they are asked for.
+
+    ``points[i]`` builds point ``i`` (its values from the index, its scenario validated and
+    checked, its seed): nothing is held per point, so a 1,000,000-point axis costs no more
+    memory than a 10-point one. With ``keep`` (small sweeps) each point is built once and kept.
+    """
+
+    def __init__(self, n: int, values_of: Callable[[int], dict], build: Callable[[dict, str], Any],
+                 seed_of: Callable[[dict], int], label: str, *, keep: bool = False):
+        self._n, self._values_of, self._build, self._seed_of, self._label = n, values_of, build, seed_of, label
+        self._kept: dict[int, Point] | None = {} if keep else None
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(self._n))]
+        i = operator.index(i)
+        if i < 0:
+            i += self._n
+        if not 0 <= i < self._n:
+            raise IndexError(f"point {i} of {self._n}")
+        if self._kept is not None and i in self._kept:
+            return self._kept[i]
+        values = self._values_of(i)
+        p = Point(i, values, self._build(values, f"{self._label} {i}"), self._seed_of(values))
+        if self._kept is not None:
+            self._kept[i] = p
+        return p
+
+
 @dataclass
 class Sweep:
-    """A checked sweep: the spec, its file, the base scenario, every point built."""
+    """A checked sweep: the spec, its file, the base scenario, its points (built and checked
+    when read for up to :data:`EAGER_POINTS`, else when reached: :class:`LazyPoints`)."""
 
     spec: SweepSpec
     path: str
@@ -124,9 +168,9 @@ class Sweep:
     base: Any
     base_raw: dict
     params: list[tuple[str, list]]
-    points: list[Point]
+    points: Sequence[Point]
     samples: np.ndarray | None = None  # Sobol samples (n, D), parameter values
-    sample_points: list[Point] = field(default_factory=list)
+    sample_points: Sequence[Point] = field(default_factory=list)
     hash: str = ""
 
     @property
@@ -221,20 +265,26 @@ def load_sweep(path: str | Path, *, check: bool = True) -> Sweep:
     n_points = (math.prod(len(v) for _, v in params) if spec.mode != "zip" else max((len(v) for _, v in params), default=0))
     if sens is not None:
         n_points += sens.samples * (len(sens.parameters) + 2)
-    _check_count(n_points, what=f"{source}: parameters", per=_BYTES_PER_POINT, unit="point")
-    points = []
-    for i, values in enumerate(grid_points(spec, params, source)):
-        points.append(Point(i, values, build(values, f"point {i}"), point_seed(spec.seed, values)))
+    eager = n_points <= EAGER_POINTS
+    n_grid_points, values_of = grid_indexer(spec, params, source)
+    points = LazyPoints(n_grid_points, values_of, build, lambda v: point_seed(spec.seed, v), "point", keep=eager)
 
     samples = None
-    sample_points: list[Point] = []
+    sample_points: Sequence[Point] = []
     if sens is not None:
         samples = sobol_samples(spec)
         names = list(sens.parameters)
         s_seed = sensitivity_seed(spec.seed)
-        for i, row in enumerate(samples):
-            values = {k: (int(v) if sens.parameters[k].integer else float(v)) for k, v in zip(names, row)}
-            sample_points.append(Point(i, values, build(values, f"sensitivity sample {i}"), s_seed))
+
+        def sample_values(i: int) -> dict:
+            return {k: (int(v) if sens.parameters[k].integer else float(v)) for k, v in zip(names, samples[i])}
+
+        sample_points = LazyPoints(len(samples), sample_values, build, lambda _v: s_seed, "sensitivity sample",
+                                   keep=eager)
+    if eager:  # a small sweep: every point built and checked before any work
+        for pts in (points, sample_points):
+            for _ in pts:
+                pass
 
     sw = Sweep(spec=spec, path=source, text=text, base=base, base_raw=raw, params=params, points=points,
                samples=samples, sample_points=sample_points)

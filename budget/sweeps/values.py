@@ -17,6 +17,7 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -180,6 +181,32 @@ def sensitivity_seed(seed: int) -> int:
     """Common seed of the Sobol samples (and of SALib's sampler and bootstrap)."""
     s = np.random.SeedSequence(seed, spawn_key=SENSITIVITY_SPAWN_KEY).generate_state(1, dtype=np.uint64)
     return int(s[0]) >> 1
+
+
+def grid_indexer(spec: SweepSpec, params: list[tuple[str, list]], source: str) -> tuple[int, Callable[[int], dict]]:
+    """The number of grid points and a function giving point ``i``'s values (C order over
+    the parameters for ``product``, the ``i``-th of each list for ``zip``), without building
+    the list: :func:`grid_points` is ``[values_of(i) for i in range(n)]``."""
+    if not params:
+        return 0, lambda _i: {}
+    keys = [k for k, _ in params]
+    lists = [v for _, v in params]
+    if spec.mode == "zip":
+        lens = {k: len(v) for k, v in params}
+        if len(set(lens.values())) > 1:
+            raise ScenarioError(f"{source}: mode = 'zip' needs value lists of one length; got "
+                                + ", ".join(f"{k}: {n}" for k, n in lens.items()))
+        return len(lists[0]), lambda i: {k: v[i] for k, v in zip(keys, lists)}
+    shape = [len(v) for v in lists]
+
+    def values_of(i: int) -> dict:
+        out = {}
+        for k, v, n in zip(reversed(keys), reversed(lists), reversed(shape)):  # C order: the last fastest
+            i, j = divmod(i, n)
+            out[k] = v[j]
+        return {k: out[k] for k in keys}
+
+    return math.prod(shape), values_of
 
 
 def grid_points(spec: SweepSpec, params: list[tuple[str, list]], source: str) -> list[dict]:

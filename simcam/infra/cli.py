@@ -20,7 +20,7 @@ from typing import Any
 
 import click
 
-from simcam.infra.errors import Interrupted, ScenarioError, UserInputError
+from simcam.infra.errors import WORKERS_LOST_STATUS, Interrupted, ScenarioError, UserInputError, WorkersLost
 from simcam.infra.lifecycle import handle_termination
 from simcam.infra.outputs import (JSON_TEMPORARY_NAME_BYTES, WRITE_ERRNOS, apply_umask, check_output_file,
                                   os_error_message)
@@ -32,7 +32,8 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     SIGINT, SIGTERM and SIGHUP stop the command through
     :class:`simcam.infra.errors.Interrupted` (so its clean-up runs: temporary folders
     removed, worker processes ended) and end in one line and exit status 128 + signal.
-    A request that does not fit in memory is one ``error:`` line and status 2.
+    A request that does not fit in memory is one ``error:`` line and status 2; lost
+    workers (:class:`simcam.infra.errors.WorkersLost`) one line and status 3.
     """
     try:
         with handle_termination(), _stdout_reader_may_leave():
@@ -49,6 +50,9 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> None:
     except (ScenarioError, UserInputError) as exc:
         _error_lines(str(exc))
         sys.exit(2)
+    except WorkersLost as exc:  # a killed worker, a cluster without workers: one line, status 3
+        _error_lines(str(exc))
+        sys.exit(WORKERS_LOST_STATUS)
     except ValueError as exc:
         # Our packages' own ValueError subclasses (OpticsError, SpectraError, ...) report
         # bad input by convention; anything else is a bug and keeps its traceback.

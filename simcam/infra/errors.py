@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import signal
 
-__all__ = ["Interrupted", "ResourceLimitError", "ScenarioError", "UserInputError"]
+__all__ = ["Interrupted", "ResourceLimitError", "ScenarioError", "UserInputError", "WorkersLost"]
+
+#: exit status of a command whose workers were lost (a killed local worker, a Dask cluster
+#: without workers): the run stopped; what was finished is kept where the command resumes
+WORKERS_LOST_STATUS = 3
 
 
 class ScenarioError(ValueError):
@@ -27,6 +31,14 @@ class UserInputError(ValueError):
 
 class ResourceLimitError(ValueError):
     """A request needs more disk or memory than there is (message: figure and limit)."""
+
+
+class WorkersLost(RuntimeError):
+    """The processes running a command's tasks are gone: a local worker killed (``kill -9``,
+    the kernel's out-of-memory killer), or every worker of a Dask cluster lost, or the
+    scheduler itself. The message is one line naming what was lost; the command line
+    prints it as ``error: ...`` and exits with :data:`WORKERS_LOST_STATUS` (3): not a user
+    mistake (2), not an interruption (128 + signal)."""
 
 
 class Interrupted(BaseException):

@@ -45,7 +45,8 @@ from simcam.infra.errors import Interrupted, ResourceLimitError
 __all__ = [
     "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
     "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
-    "progress", "quick_teardown", "remove_stale_partials", "safe_filename", "stop_pool", "worker_initializer",
+    "lost_worker_message", "progress", "quick_teardown", "quiet_pool_breakage", "remove_stale_partials",
+    "safe_filename", "stop_pool", "worker_initializer",
     "cap_workers", "usable_cores",
 ]
 
@@ -276,12 +277,60 @@ def worker_initializer(target: str):
     return functools.partial(_guarded_init, target)
 
 
+def quiet_pool_breakage(pool) -> None:
+    """Let a :class:`~concurrent.futures.ProcessPoolExecutor` break without a thread traceback.
+
+    When a pool's worker dies (``kill -9``, or :func:`stop_pool` ending them on an
+    interruption), the pool's manager thread marks every pending task failed with
+    ``set_exception``; a task the caller cancelled meanwhile (an interrupted
+    ``map_unordered`` cancels what it queued) raises ``InvalidStateError: CANCELLED`` there,
+    printed as ``Exception in thread ...`` before the command's own line (CPython 3.11
+    does not skip cancelled futures). The pool's manager thread is given a
+    ``terminate_broken`` that first drops the cancelled tasks (it runs in that thread, the
+    only one that reads the pending tasks then), then does the rest as before. Call it
+    once the thread exists (after the first ``submit``); without that thread (another
+    Python's pool layout) nothing is changed.
+    """
+    thread = getattr(pool, "_executor_manager_thread", None)
+    original = getattr(thread, "terminate_broken", None)
+    if thread is None or original is None or getattr(original, "_quiet", False):
+        return
+
+    def terminate_broken(cause):
+        pending = getattr(thread, "pending_work_items", None)
+        if isinstance(pending, dict):
+            for work_id in [w for w, item in list(pending.items()) if item.future.cancelled()]:
+                pending.pop(work_id, None)
+        original(cause)
+
+    terminate_broken._quiet = True
+    thread.terminate_broken = terminate_broken
+
+
+def lost_worker_message(pool, *, what: str = "the run") -> str:
+    """One line for a pool that broke because a worker died: its PID and how it ended."""
+    dead = []
+    for p in list((getattr(pool, "_processes", None) or {}).values()):
+        code = getattr(p, "exitcode", None)
+        if code is not None and code != 0:
+            how = f"killed by {signal.Signals(-code).name}" if code < 0 and -code in signal.valid_signals() \
+                else f"exit status {code}"
+            dead.append(f"pid {p.pid}, {how}")
+    # the pool ends its other workers with SIGTERM once one has died: name the one that died
+    first = [d for d in dead if not d.endswith("killed by SIGTERM")] or dead
+    who = f" ({'; '.join(first)})" if first else ""
+    return (f"a worker process ended abruptly{who}; {what} stopped and its workers were ended "
+            f"(was it killed, or out of memory?)")
+
+
 def stop_pool(pool) -> None:
     """End a :class:`~concurrent.futures.ProcessPoolExecutor` now (on an interruption).
 
     Queued work is cancelled, the worker processes are terminated (SIGTERM, then SIGKILL
-    after 2 s) and joined, so the caller leaves no child process behind.
+    after 2 s) and joined, so the caller leaves no child process behind; the pool breaks
+    without a thread traceback (:func:`quiet_pool_breakage`).
     """
+    quiet_pool_breakage(pool)
     procs = list((getattr(pool, "_processes", None) or {}).values())
     for p in procs:
         try:
