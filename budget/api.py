@@ -42,6 +42,7 @@ from budget.runner.claims_run import run_claims
 from budget.runner.executors import default_workers
 from budget.runner.registry import get_study, study_names
 from budget.runner.study import Study
+from simcam.infra.errors import WorkersLost
 
 __all__ = ["claims", "plan", "robustness", "scenario_text", "studies", "sweep", "validate"]
 
@@ -109,10 +110,13 @@ def _on_workers(*objects):
     """Around a call that starts worker processes: :func:`_workers_skip_main` while they
     start, and a pool that could not start (spawned workers that re-ran a script defining
     the study) turned into one line saying what to do."""
+    in_main = any(type(o).__module__ == "__main__" or getattr(o, "__module__", None) == "__main__" for o in objects)
     with _workers_skip_main(*objects):
         try:
             yield
-        except BrokenProcessPool:
+        except (BrokenProcessPool, WorkersLost) as e:
+            if isinstance(e, WorkersLost) and not in_main:
+                raise  # a worker lost in the run, not at the start of a script's workers
             raise RuntimeError("budget: the worker processes could not start (they re-ran your script, which "
                                "defines the study): put the call under `if __name__ == \"__main__\":`, "
                                "or pass workers=1") from None
