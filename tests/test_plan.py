@@ -366,33 +366,36 @@ def test_the_premium_over_the_boundary_protocol_is_the_analytic_one(sure_plans):
     scn, plans = sure_plans
     w, lab, npos = scn.world, scn.lab, scn.protocol.positions
     z = stats.norm.ppf(0.5 + C / 2)
-    # a protocol at sure P meets when its true quantile is V / (1 + z_P sqrt(2) r_n) (r_n the
-    # quantile's relative se for a normal error at n trials); frames F(q) = sigma_f^2 / ((q/z)^2 - sigma_p^2/P)
-    margin = 1 + stats.norm.ppf(0.9) * math.sqrt(2) * _quantile_rel_se(N, C)
+    # a protocol at sure P holds when its true quantile is V / (1 + z_P r_n) (r_n the quantile's
+    # relative se for a normal error at the n trials it was judged on: a validation's, more where
+    # the verdict was settled); frames F(q) = sigma_f^2 / ((q/z)^2 - sigma_p^2/P)
+    margin = 1 + stats.norm.ppf(0.9) * _quantile_rel_se(N, C)
     assert sure_margin(0.9, N, C) == pytest.approx(margin, rel=1e-12)
 
     def frames(q):
         return w.sigma_frame_px**2 / ((q / z) ** 2 - w.sigma_position_px**2 / npos)
 
-    f_mult = frames(0.02 / margin) / frames(0.02)  # 1.37
-
     def cost(f):
         return lab.setup_time_s + f * lab.frame_time_s + npos * lab.move_time_s
 
-    c_mult = cost(frames(0.02 / margin)) / cost(frames(0.02))  # 1.03
+    # each plan's analytic multiplier at the trials its recommendation was judged on
+    margins = np.array([sure_margin(0.9, s.recommended.trials, C) for _, s in plans])
+    f_mult = np.array([frames(0.02 / m) / frames(0.02) for m in margins])  # 1.25 at n = 200
+    c_mult = np.array([cost(frames(0.02 / m)) / cost(frames(0.02)) for m in margins])
     fr = np.array([s.recommended.knobs["protocol.frames"] / b.recommended.knobs["protocol.frames"] for b, s in plans])
     prem = np.array([s.premium["factor"] for _, s in plans])
     m = len(plans)
-    # the mean over 30 seeds within 3 of its standard errors (estimated from the seeds' spread) of
-    # the analytic multiplier, plus the search's cost resolution (it stops within 1/(2 sqrt n) of
-    # the lab time the knob adds, for each plan of the pair: twice that on the frames ratio)
-    assert abs(fr.mean() - f_mult) <= 3 * fr.std(ddof=1) / math.sqrt(m) + 2 * resolution(N), (fr.mean(), f_mult)
+    d = fr - f_mult
+    # the mean difference over 30 seeds within 3 of its standard errors (estimated from the seeds'
+    # spread) of 0, plus the search's cost resolution (it stops within 1/(2 sqrt n) of the lab time
+    # the knob adds, for each plan of the pair: twice that on the frames ratio)
+    assert abs(d.mean()) <= 3 * d.std(ddof=1) / math.sqrt(m) + 2 * resolution(N), (fr.mean(), f_mult.mean())
     # the reported premium (lab time over the model's boundary protocol): the frames' part of the
     # lab time times the same resolution
     added = (cost(frames(0.02 / margin)) - cost(1)) / cost(frames(0.02 / margin))
-    assert abs(prem.mean() - c_mult) <= 3 * prem.std(ddof=1) / math.sqrt(m) + added * resolution(N), \
-        (prem.mean(), c_mult)
-    assert "Aiming 90 % sure to pass the real test costs" in plans[0][1].answer()
+    dp = prem - c_mult
+    assert abs(dp.mean()) <= 3 * dp.std(ddof=1) / math.sqrt(m) + added * resolution(N), (prem.mean(), c_mult.mean())
+    assert "Aiming 90 % sure" in plans[0][1].answer()
     assert plans[0][1].to_json()["premium"]["factor"] == pytest.approx(prem[0])
 
 

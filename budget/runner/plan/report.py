@@ -60,9 +60,10 @@ def answer_text(res) -> str:
             if worst["quantile"] <= worst["bound"]:
                 tail += f"; within the bound on these trials, but no protocol of {which} met it in the search"
         elif worst["quantile"] <= worst["bound"] and "upper" in worst:
-            tail = (f"; within the bound, but not {percent_text(worst['upper_sure'])} sure to stay there on the "
-                    f"real test (its prediction bound {fmt(worst['upper'])}; --sure)")
-        return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
+            tail = (f"; within the bound, but not {percent_text(worst['upper_sure'])} sure to be (its upper bound "
+                    f"{fmt(worst['upper'])}; --sure)")
+        return (_undetermined_text(res, budget) or
+                f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
                 f"Best achievable: {name} {fmt(worst['quantile'])} +- {fmt(worst['se_quantile'])} "
                 f"{next(r.unit for r in res.requirements if r.name == name)} "
                 f"(the {conf} quantile of |error|, bound {fmt(worst['bound'])}) with {knobs_text(b.knobs)} "
@@ -88,6 +89,29 @@ def answer_text(res) -> str:
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
                 f"({_sure_text(res)}): {why}.")
     return head + tail + aim
+
+
+def _undetermined_text(res, budget: str) -> str:
+    """Where the search ended with a protocol still undetermined (its trial budget spent): the
+    answer says "undetermined", the protocol, its figure and the trials that would settle it,
+    then the best achievable (docs/planning.md, "Deciding a requirement")."""
+    u = res.undetermined
+    if u is None:
+        return ""
+    name, f = max(((n, f) for n, f in u.figures.items() if f.get("verdict") == "undetermined"),
+                  key=lambda nf: nf[1]["quantile"] / nf[1]["bound"])
+    unit = next(r.unit for r in res.requirements if r.name == name)
+    settle = (f"about {u.n_to_settle} trials of it would settle it" if u.n_to_settle is not None else
+              "its quantile sits on the bound, so no number of trials settles it")
+    b = res.best_achievable
+    best = "" if b is None else (f" The most accurate protocol run is {knobs_text(b.knobs)} "
+                                 f"({lab_time_text(b.cost_s)}).")
+    return (f"{res.study.title}: undetermined: no protocol{budget} was decided to meet {_req_list(res)} "
+            f"({res.variant}, {percent_text(res.confidence)} of tests) within the trial budget. The cheapest that "
+            f"may, {knobs_text(u.knobs)}{'' if _is_any(u.shape) else f' ({u.shape})'} "
+            f"({lab_time_text(u.cost_s)} of lab time), measures {name} {fmt(f['quantile'])} +- "
+            f"{fmt(f['se_quantile'])} {unit} on {u.trials} trials, its {percent_text(f['upper_sure'])} upper bound "
+            f"{fmt(f['upper'])} beyond the bound {fmt(f['bound'])}; {settle} (--trials).{best}")
 
 
 def _sure_text(res, ev=None) -> str:
