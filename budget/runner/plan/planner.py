@@ -32,9 +32,9 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
                   sure: float = DEFAULT_SURE, fix=None) -> PlanResult:
     """Plan ``study``'s protocol on ``scenario`` (docs/planning.md). ``requirements``: texts
     ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
-    the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
-    prediction bound of the quantile the re-validation will measure is within the bound
-    (:func:`budget.runner.plan.quantiles.prediction_bound`; 0.5: the measured quantile itself,
+    the scenario's ``validation.trials``); ``sure``: a candidate meets when the verdict on its
+    quantile holds at this one-sided level, trials added near the bound until it is decided
+    (:func:`budget.runner.plan.quantiles.requirement_verdict`; 0.5: the measured quantile itself,
     the boundary protocol); ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE``
     (:func:`parse_fixes`)."""
     t0, c0 = time.perf_counter(), time.process_time()

@@ -20,7 +20,8 @@ __all__ = ["DEFAULT_SURE", "figures_of", "prediction_bound", "quantile_rank", "q
            "requirement_tolerance", "requirement_verdict", "smooth_ratio", "sure_margin", "sure_met",
            "verdict_confidence"]
 
-#: how sure the search wants a protocol to pass the real test (the re-validation): the default ``--sure``
+#: how sure the search wants to be that a protocol meets a requirement (the verdict's one-sided level): the
+#: default ``--sure``
 DEFAULT_SURE = 0.9
 #: slack below ``C n`` before its ceiling: ``C n`` a whole number in exact arithmetic stays that rank
 RANK_SLACK = 1e-9
@@ -96,7 +97,7 @@ def requirement_verdict(q: float, se: float, n: int, value: float, sure: float) 
 def prediction_bound(q: float, se_q: float, n: int, n_future: int, truth_se: float, sure: float) -> float:
     """One-sided ``sure`` upper prediction bound of the C-quantile the re-validation will
     measure: ``q + z_P sqrt(se_q^2 (1 + n / n_future) + 2 truth_se^2)`` (docs/planning.md,
-    "How sure the answer is to pass the real test")."""
+    "How sure the answer is")."""
     if sure <= 0.5:
         return q
     if not math.isfinite(se_q):

@@ -74,7 +74,7 @@ def answer_text(res) -> str:
     n = val.trials
     prem = res.premium
     aim = "" if prem is None or res.sure_level <= 0.5 else (
-        f" Aiming {percent_text(res.sure_level)} sure to pass the real test"
+        f" Aiming {percent_text(res.sure_level)} sure to meet the bound"
         f"{' on each requirement' if len(res.requirements) > 1 else ''} costs {prem['factor']:.2f}x the boundary "
         f"protocol's lab time ({knobs_text(prem['boundary_knobs'])}, {lab_time_text(prem['boundary_cost_s'])}).")
     if res.confirmed:
@@ -84,8 +84,9 @@ def answer_text(res) -> str:
         failed = [name for name, f in val.figures.items() if not f["met"]]
         why = ("the protocol sits at the boundary; take the next larger one or plan for a tighter bound"
                if res.sure_level <= 0.5 else
-               f"a protocol aimed {percent_text(res.sure_level)} sure fails about "
-               f"{percent_text(1 - res.sure_level)} of re-validations; plan with a higher --sure or a tighter bound")
+               f"a protocol {percent_text(res.sure_level)} sure to meet the bound can still fail a re-validation "
+               f"of {n} fresh trials, up to about half the time where its quantile lies close to the bound; "
+               f"plan with a higher --sure or a tighter bound")
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
                 f"({_sure_text(res)}): {why}.")
     return head + tail + aim

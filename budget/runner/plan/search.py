@@ -19,7 +19,7 @@ from budget.runner.plan.protocols import cost_flat_knobs, dotted_value, knob_lev
 from budget.runner.plan.quantiles import smooth_ratio
 from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import Boundary, Evaluation, ModelCurve, PlanResult, Refusal, ShapeOutcome
-from budget.runner.plan.trials import BUDGET_VALIDATIONS, screening_trials, validation_seed
+from budget.runner.plan.trials import BUDGET_VALIDATIONS, SETTLE_MAX_VALIDATIONS, screening_trials, validation_seed
 from budget.runner.study import Knob, Study
 
 __all__ = ["FLAT_COARSE", "FLAT_REFINE", "PlanRun", "ShapeSearch", "resolution"]
@@ -272,14 +272,16 @@ class ShapeSearch:
     def _settle(self, ev: Evaluation) -> Evaluation:
         """Near the bound, trials added until the verdict decides ``ev`` (:meth:`Oracle.settle`),
         where it matters: ``ev`` on a validation's trials, undetermined, within the budget and
-        cheaper than the cheapest protocol that holds; at most what the trial budget leaves after
-        one more validation (the answer's completion). In its place in :attr:`evals`."""
+        cheaper than the cheapest protocol that holds; to at most :data:`SETTLE_MAX_VALIDATIONS`
+        validations' trials and what the trial budget leaves after one more validation (the
+        answer's completion). In its place in :attr:`evals`."""
         if ev.trials < self.o.n or ev.verdict != "undetermined" or not self._in_budget(ev):
             return ev
         hi = self._cheapest_meeting()
         if hi is not None and hi.cost_s <= ev.cost_s:
             return ev
-        limit = ev.trials + max(0, self.trial_cap - self.spent() - self.o.n)
+        limit = min(ev.trials + max(0, self.trial_cap - self.spent() - self.o.n),
+                    SETTLE_MAX_VALIDATIONS * self.o.n)
         new = self.o.settle(ev, limit)
         if new is not ev:
             self.evals[next(i for i, e in enumerate(self.evals) if e is ev)] = new
