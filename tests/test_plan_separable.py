@@ -223,7 +223,7 @@ def test_budget_and_infeasible_groups():
     # no floor (every count averages a's error down): the sentence names the most accurate protocol
     # by the fitted model, the knob's largest count, with its measured figure and trial count
     group_a = next(s for s in bad.sentences() if s.startswith("Group a "))
-    assert "the most accurate by the fitted model, frames 100000 measured a.x" in group_a
+    assert "the most accurate by the fitted model), frames 100000 measured a.x" in group_a
     assert f"({N} trials)" in group_a and "fitted floor" not in group_a
 
 

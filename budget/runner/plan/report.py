@@ -105,7 +105,8 @@ def _undetermined_text(res, budget: str) -> str:
     settle = (f"about {u.n_to_settle} trials of it would settle it" if u.n_to_settle is not None else
               "its quantile sits on the bound, so no number of trials settles it")
     b = res.best_achievable
-    best = "" if b is None else (f" The most accurate protocol run is {knobs_text(b.knobs)} "
+    best = "" if b is None else (f" The best achievable (the cheapest protocol within one standard error of the "
+                                 f"most accurate) is {knobs_text(b.knobs)} "
                                  f"({lab_time_text(b.cost_s)}).")
     return (f"{res.study.title}: undetermined: no protocol{budget} was decided to meet {_req_list(res)} "
             f"({res.variant}, {percent_text(res.confidence)} of tests) within the trial budget. The cheapest that "
@@ -156,7 +157,8 @@ def findings_sentences(res) -> list[str]:
                            f"{lab_time_text(b.cost_s)}{rel}; {len(s.evaluations)} protocols run, {s.trials} trials.")
             else:
                 a = s.best_achievable
-                best = "" if a is None else (f"; its most accurate, {knobs_text(a.knobs)} "
+                best = "" if a is None else (f"; its best achievable (the cheapest within one standard error of "
+                                             f"the most accurate), {knobs_text(a.knobs)} "
                                              f"({lab_time_text(a.cost_s)}), reaches "
                                              f"{fmt(a.ratio, 3)} times the bound")
                 out.append(f"Shape {name}: no protocol meets every requirement{best}.")
@@ -222,9 +224,11 @@ def _group_sentences(res) -> list[str]:
                 r, v, within = fl
                 ans = (f"no count reaches {r.text}: the fitted floor is {fmt(v)} {r.unit}, what no count removes"
                        + (" (every protocol run within two standard errors of it)" if within else
-                          f"; the most accurate by the fitted model, {meas}"))
+                          f"; the best achievable (the cheapest within one standard error of the most accurate "
+                          f"by the fitted model), {meas}"))
             else:
-                ans = f"none meets; the most accurate by the fitted model, {meas}, bound {fmt(f['bound'])}"
+                ans = (f"none meets; the best achievable (the cheapest within one standard error of the most "
+                       f"accurate by the fitted model), {meas}, bound {fmt(f['bound'])}")
         else:
             ans = "no protocol could be run"
         out.append(f"{what}: {ans}; {go.protocols} protocols, {go.trials} trials.")
