@@ -14,6 +14,7 @@ from scipy import stats
 from budget.runner.plan import plan_protocol
 from budget.runner.plan.oracle import Oracle
 from budget.runner.plan.quantiles import quantile_rel_se, requirement_verdict
+from budget.runner.plan.trials import SETTLE_MAX_VALIDATIONS
 from budget.runner.plan.requirements import parse_requirements
 from budget.runner.study import TrialResult
 from plan_toy import TOY, ToyStudy
@@ -86,6 +87,27 @@ def test_when_the_budget_is_spent_it_stays_undetermined_with_the_trials_to_settl
                                                                       where="test"), stage="search", full=True)
     out = o.settle(ev, 400)
     assert out.trials == 400 and out.verdict == "undetermined" and out.n_to_settle > 400
+
+
+def test_a_plan_whose_best_protocols_stay_undetermined_says_so_with_the_trials_to_settle(one_knob):
+    study, scn, _, _ = one_knob
+    # the bound 3 % above the floor 1.96 x 0.005 = 0.0098 px: the dearest protocols lie 2-3 % inside
+    # it, which about (1.28 x 6.7 % / 2.5 %)^2 x 200 = 2300 trials would tell (a quantile's relative
+    # se at 200 trials, 6.7 %), beyond the 800 a candidate may be settled on
+    res = plan_protocol(study, scn, ["offset.x<=0.0101"], seed=0)
+    u = res.undetermined
+    assert not res.feasible and u is not None and u.verdict == "undetermined"
+    assert u.trials == SETTLE_MAX_VALIDATIONS * res.trials_per_validation < u.n_to_settle
+    # its true quantile (closed form) is indeed within the bound: more trials would settle it "holds"
+    w = scn.world
+    q_true = Z * math.sqrt(w.sigma_frame_px**2 / u.knobs["protocol.frames"]
+                           + w.sigma_position_px**2 / scn.protocol.positions)
+    assert q_true < 0.0101
+    text = res.answer()
+    assert ": undetermined: no protocol was decided to meet offset.x <= 0.0101 px" in text
+    assert f"about {u.n_to_settle} trials of it would settle it" in text
+    j = res.to_json()
+    assert j["feasible"] is False and j["undetermined"]["n_to_settle"] == u.n_to_settle
 
 
 def test_the_best_achievable_is_the_cheapest_within_one_standard_error_of_the_most_accurate(one_knob):
