@@ -208,7 +208,7 @@ class Oracle:
         """Whether screening figures ``figs`` already decide a candidate (:data:`DECIDED`; the
         verdict on its quantile settles it later, :meth:`settle`)."""
         s = [sure_met(f["exceed"], f["n"], self.confidence) for f in figs.values()]
-        # meeting is decided only where the search's rule (the prediction bound) already says so
+        # meeting is decided only where the search's rule (the verdict on the quantile) already holds
         return (min(s) > 1 - DECIDED and all(f["met"] for f in figs.values())) or min(s) < DECIDED
 
     def _echo(self, ev, what=None):
