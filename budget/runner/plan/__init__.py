@@ -14,10 +14,11 @@ knobs), :mod:`.cli` (the command).
 from __future__ import annotations
 
 from budget.runner.plan.cli import has_knobs, plan_command_for
-from budget.runner.plan.planner import plan_joint, plan_protocol
+from budget.runner.plan.planner import check_estimated, plan_joint, plan_protocol
 from budget.runner.plan.protocols import cost_flat_knobs, dotted_value, scenario_with
-from budget.runner.plan.quantiles import (DEFAULT_SURE, figures_of, prediction_bound, quantile_rel_se, sure_margin,
-                                          sure_met)
+from budget.runner.plan.quantiles import (DEFAULT_SURE, figures_of, prediction_bound, quantile_rel_se,
+                                          requirement_tolerance, requirement_verdict, sure_margin, sure_met,
+                                          verdict_confidence)
 from budget.runner.plan.report import answer_text, findings_sentences, summary_markdown, write_plan_report
 from budget.runner.plan.requirements import (DEFAULT_CONFIDENCE, Requirement, default_variant, parse_fixes,
                                              parse_requirements)
@@ -31,8 +32,9 @@ from budget.runner.plan.trials import (BUDGET_VALIDATIONS, DECIDED, VALIDATION_S
 __all__ = ["BUDGET_VALIDATIONS", "DECIDED", "DEFAULT_CONFIDENCE", "DEFAULT_SURE", "FRESH_STAGES", "REVALIDATED_BEST",
            "SCHEMA", "VALIDATION_SPAWN_KEY", "Boundary", "Evaluation", "GroupOutcome", "ModelCurve", "PlanGroup",
            "PlanResult", "PlanRun", "Refusal", "Requirement", "ShapeOutcome", "ShapeSearch", "answer_text",
-           "collapsed_labels", "cost_flat_knobs", "decompose", "default_variant", "dotted_value", "figures_of",
-           "findings_sentences", "has_knobs", "parse_fixes", "parse_requirements", "plan_command_for", "plan_joint",
-           "plan_json", "plan_protocol", "plan_separable", "prediction_bound", "quantile_rel_se", "resolution",
-           "scenario_with", "screening_trials", "summary_markdown", "sure_margin", "sure_met", "union_protocol",
-           "validation_seed", "write_plan_report"]
+           "check_estimated", "collapsed_labels", "cost_flat_knobs", "decompose", "default_variant", "dotted_value",
+           "figures_of", "findings_sentences", "has_knobs", "parse_fixes", "parse_requirements", "plan_command_for",
+           "plan_joint", "plan_json", "plan_protocol", "plan_separable", "prediction_bound", "quantile_rel_se",
+           "requirement_tolerance", "requirement_verdict", "resolution", "scenario_with", "screening_trials",
+           "summary_markdown", "sure_margin", "sure_met", "union_protocol", "validation_seed", "verdict_confidence",
+           "write_plan_report"]

@@ -49,10 +49,11 @@ def plan_command_for(study_name: str, *, get_study=None) -> click.Command:
     @click.option("--confidence", type=float, default=DEFAULT_CONFIDENCE, show_default=True,
                   help="The share of tests that must land within VALUE (the quantile).")
     @click.option("--sure", "sure", type=float, default=DEFAULT_SURE, show_default=True,
-                  help="How sure the recommended protocol should be to meet each requirement on the real test "
-                       "(the re-validation's fresh trials), per requirement: K requirements all pass together "
-                       "with probability at least 1 - K (1 - SURE) (for a joint P give 1 - (1 - P) / K); "
-                       "0.5: the boundary protocol.")
+                  help="How sure the plan must be that the recommended protocol meets each requirement: a "
+                       "protocol meets when the verdict on its quantile holds at this one-sided level (interval "
+                       "confidence 2 SURE - 1; near the bound trials are added until it is decided); K "
+                       "requirements together with probability at least 1 - K (1 - SURE) (for a joint P give "
+                       "1 - (1 - P) / K); 0.5: the boundary protocol.")
     @click.option("--fix", "fix", multiple=True, metavar="FIELD=VALUE",
                   help="Pin a protocol knob (repeat for several; FIELD one of the study's knobs, VALUE within "
                        "its bounds): the search leaves it at VALUE.")

@@ -18,7 +18,7 @@ from budget.runner.plan.quantiles import figures_of, sure_margin, sure_met
 from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import FRESH_STAGES, Evaluation
 from budget.runner.plan.text import knobs_text, lab_time_text
-from budget.runner.plan.trials import DECIDED, screening_trials
+from budget.runner.plan.trials import DECIDED, SETTLE_MAX_GROWTH, SETTLE_SLACK, screening_trials
 from budget.runner.run import run_study
 from budget.runner.scheduler import TRUTH_SE_FRACTION, sized_truths_scenario, with_targets
 from budget.runner.study import Study, truth_identity
@@ -153,13 +153,34 @@ class Oracle:
         self._echo(ev)
         return ev
 
-    def _extended(self, ev: Evaluation) -> Evaluation:
-        """``ev`` with trials ``ev.trials .. n - 1`` added (the same seed)."""
+    def _extended(self, ev: Evaluation, to: int | None = None) -> Evaluation:
+        """``ev`` with trials ``ev.trials .. to - 1`` added (default ``n``; the same seed)."""
+        to = self.n if to is None else to
         scn = ev.scenario if ev.run_scenario is None else ev.run_scenario
-        more, _ = self._run(scn, ev.seed, ev.trials, self.n, self.truths_for(scn, ev.seed))
+        more, _ = self._run(scn, ev.seed, ev.trials, to, self.truths_for(scn, ev.seed))
         errors = {k: np.concatenate([ev.errors[k], more[k]]) for k in ev.errors}
-        return dataclasses.replace(ev, errors=errors, trials=self.n,
+        return dataclasses.replace(ev, errors=errors, trials=to,
                                    figures=self._figures(errors, ev.truth_se, point=ev.stage in FRESH_STAGES))
+
+    def settle(self, ev: Evaluation, limit: int) -> Evaluation:
+        """``ev`` (on at least a validation's trials) extended while it is undetermined
+        (:attr:`Evaluation.verdict`), to the trials its verdict says would settle it
+        (:data:`SETTLE_SLACK` more, at most :data:`SETTLE_MAX_GROWTH` times its trials a step:
+        the standard error is re-measured on the way), never beyond ``limit`` trials; in its
+        place in :attr:`evaluations`. Where it is still undetermined at ``limit`` (the budget
+        is spent) or sits on its bound (no number settles it), it stays undetermined."""
+        cur = ev
+        while cur.trials >= self.n and cur.verdict == "undetermined" and cur.trials < limit:
+            need = cur.n_to_settle
+            if need is None:
+                break
+            to = min(limit, math.ceil(SETTLE_SLACK * need), SETTLE_MAX_GROWTH * cur.trials)
+            to = max(to, cur.trials + 1)
+            new = self._extended(cur, to)
+            self.replace(cur, new)
+            self._echo(new, "settling")
+            cur = new
+        return cur
 
     def complete(self, ev: Evaluation, *, quiet: bool = False) -> Evaluation:
         """``ev`` extended to ``n`` trials (trials ``ev.trials .. n - 1``, the same seed), in its
@@ -184,13 +205,20 @@ class Oracle:
         self.evaluations[i] = new
 
     def decided(self, figs: dict[str, dict]) -> bool:
-        """Whether screening figures ``figs`` already decide a candidate (:data:`DECIDED`)."""
+        """Whether screening figures ``figs`` already decide a candidate (:data:`DECIDED`; the
+        verdict on its quantile settles it later, :meth:`settle`)."""
         s = [sure_met(f["exceed"], f["n"], self.confidence) for f in figs.values()]
-        # meeting is decided only where the search's rule (the prediction bound) already says so
+        # meeting is decided only where the search's rule (the verdict on the quantile) already holds
         return (min(s) > 1 - DECIDED and all(f["met"] for f in figs.values())) or min(s) < DECIDED
 
     def _echo(self, ev, what=None):
         if self.progress:
             print(f"  {ev.shape} {what or ev.stage}: {knobs_text(ev.knobs)}: {lab_time_text(ev.cost_s)}, "
-                  f"{ev.trials} trials, worst quantile/bound {fmt(ev.ratio, 3)} ({'meets' if ev.met else 'fails'})",
+                  f"{ev.trials} trials, worst quantile/bound {fmt(ev.ratio, 3)} ({_word(ev)})",
                   file=sys.stderr, flush=True)
+
+
+def _word(ev: Evaluation) -> str:
+    """What a progress line says of ``ev``: meets, fails or undetermined."""
+    v = ev.verdict
+    return "meets" if v == "holds" else v

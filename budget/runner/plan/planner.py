@@ -8,6 +8,7 @@ import math
 import time
 from typing import Any
 
+from budget.arguments import check_seed, check_trials
 from budget.runner.capabilities import Plannable, ProtocolShapes, SeparablePlans, Warmup, capability, has_capability
 from budget.runner.executors import make_executor
 from budget.runner.plan.quantiles import DEFAULT_SURE
@@ -22,7 +23,7 @@ from budget.runner.study import Study
 from simcam.infra.errors import UserInputError
 from simcam.units import SECONDS_PER_HOUR
 
-__all__ = ["plan_joint", "plan_protocol"]
+__all__ = ["check_estimated", "plan_joint", "plan_protocol"]
 
 
 def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | None = None,
@@ -31,12 +32,14 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
                   sure: float = DEFAULT_SURE, fix=None) -> PlanResult:
     """Plan ``study``'s protocol on ``scenario`` (docs/planning.md). ``requirements``: texts
     ``CLASS.AXIS<=VALUE`` or :class:`Requirement`; ``trials``: a validation's trials (default
-    the scenario's ``validation.trials``); ``sure``: a candidate meets when the ``sure`` upper
-    prediction bound of the quantile the re-validation will measure is within the bound
-    (:func:`budget.runner.plan.quantiles.prediction_bound`; 0.5: the measured quantile itself,
+    the scenario's ``validation.trials``); ``sure``: a candidate meets when the verdict on its
+    quantile holds at this one-sided level, trials added near the bound until it is decided
+    (:func:`budget.runner.plan.quantiles.requirement_verdict`; 0.5: the measured quantile itself,
     the boundary protocol); ``fix``: knobs pinned, ``{field: value}`` or texts ``FIELD=VALUE``
     (:func:`parse_fixes`)."""
     t0, c0 = time.perf_counter(), time.process_time()
+    check_seed(seed)  # the API's checks, here too: a bad seed or trial count before any truth
+    check_trials(trials)
     if not has_capability(study, Plannable):
         raise UserInputError(f"plan: the {study.name} study has no plannable protocol")
     knobs = tuple(study.protocol_knobs(scenario))
@@ -63,12 +66,33 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     # one pool for every candidate (the study's kernels compiled first, so its workers load them
     # from the cache): starting workers per candidate would cost more than the toy's trials
     capability(study, Warmup).prewarm(scenario)
+    check_estimated(study, scenario, reqs, variant, seed)  # before any truth or search
     with make_executor(workers=workers, initializer=init_worker, initargs=(study,)) as pool:
         run = PlanRun(study, scenario, reqs, variant, confidence, budget_hours, budget_s, seed, n, workers, progress,
                       pool, knobs, sure, fixed, t0, c0)
         # the whole-test search where the study declares no field classes (every field may change
         # every class), else the separable plan
         return plan_separable(run) if capability(study, SeparablePlans).field_classes(scenario) else plan_joint(run)
+
+
+def check_estimated(study: Study, scenario: Any, reqs: list[Requirement], variant: str, seed: int) -> None:
+    """Refuse, as one :class:`UserInputError` naming the requirement, a required class the
+    judged variant does not estimate (the line camera's ``lookangle`` has no camera parameters:
+    ``focal.df``), before any truth is computed or any protocol run. The study declares no such
+    map, so one trial (trial 0 of the plan's seed, on the scenario restricted to the required
+    classes where the study can) says which ``(class, variant, axis)`` it estimates. A trial the
+    study refuses (a ``ValueError`` or an arithmetic error) checks nothing here: the search
+    skips and lists such protocols."""
+    scn = capability(study, SeparablePlans).restrict_classes(scenario, tuple(dict.fromkeys(r.cls for r in reqs)))
+    try:
+        keys = set(study.trial(scenario if scn is None else scn, seed, 0).estimates)
+    except (ValueError, ArithmeticError):
+        return
+    for r in reqs:
+        if (r.cls, variant, r.axis) not in keys:
+            others = sorted({v for c, v, a in keys if c == r.cls and a == r.axis} - set(study.reference_variants))
+            alt = f" (--variant {' or '.join(others)} does)" if others else ""
+            raise UserInputError(f"--require {r.text!r}: the {variant} variant does not estimate {r.name}{alt}")
 
 
 def plan_joint(run: PlanRun) -> PlanResult:

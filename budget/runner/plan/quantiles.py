@@ -1,7 +1,9 @@
 """The statistics of a requirement's errors over trials: the C-quantile of ``|error|`` and its
-standard error, how sure a bound is met, the prediction bound of the quantile a re-validation
-will measure, and the margin the search steers by (derivations: docs/planning.md, "Honest
-verdict" and "How sure the answer is to pass the real test")."""
+standard error, the verdict on the requirement (:func:`requirement_verdict`: the claims' rule,
+:func:`budget.runner.verdicts.judge`, on the quantile), how sure a bound is met, the
+prediction bound of the quantile a re-validation will measure, and the margin the search
+steers by (derivations: docs/planning.md, "Deciding a requirement", "Honest verdict" and
+"How sure the answer is")."""
 
 from __future__ import annotations
 
@@ -9,13 +11,17 @@ import math
 
 import numpy as np
 
+from budget.runner.verdicts import Tolerance, Verdict, judge
+
 # scipy is imported inside the functions that use it: it is heavy (scipy.stats alone takes longer to
 # import than matplotlib), and `budget <study> --help` imports this package to build the plan command
 
-__all__ = ["DEFAULT_SURE", "figures_of", "prediction_bound", "quantile_rank", "quantile_rel_se", "smooth_ratio",
-           "sure_margin", "sure_met"]
+__all__ = ["DEFAULT_SURE", "figures_of", "prediction_bound", "quantile_rank", "quantile_rel_se",
+           "requirement_tolerance", "requirement_verdict", "smooth_ratio", "sure_margin", "sure_met",
+           "verdict_confidence"]
 
-#: how sure the search wants a protocol to pass the real test (the re-validation): the default ``--sure``
+#: how sure the search wants to be that a protocol meets a requirement (the verdict's one-sided level): the
+#: default ``--sure``
 DEFAULT_SURE = 0.9
 #: slack below ``C n`` before its ceiling: ``C n`` a whole number in exact arithmetic stays that rank
 RANK_SLACK = 1e-9
@@ -56,20 +62,42 @@ def quantile_rel_se(trials: int, confidence: float) -> float:
 
 def sure_margin(sure: float | None, trials: int, confidence: float) -> float:
     """The factor by which a protocol's true C-quantile must sit below the bound for its
-    :func:`prediction_bound` to meet it (a normal error, ``n`` trials searched and ``n``
-    re-validated): ``1 + z_P sqrt(2) r_n``, ``r_n`` :func:`quantile_rel_se`. The search steers by
-    it; the measured bound decides."""
+    verdict on ``n`` trials to hold (:func:`requirement_verdict`; a normal error): ``1 + z_P
+    r_n``, ``r_n`` :func:`quantile_rel_se`, ``z_P`` the upper edge of the verdict's interval.
+    The search steers by it; the measured verdict decides."""
     if sure is None or sure <= 0.5:
         return 1.0
     from scipy import stats
 
-    return 1.0 + float(stats.norm.ppf(sure)) * math.sqrt(2.0) * quantile_rel_se(trials, confidence)
+    return 1.0 + float(stats.norm.ppf(sure)) * quantile_rel_se(trials, confidence)
+
+
+def verdict_confidence(sure: float) -> float:
+    """The two-sided confidence of the verdict's interval whose upper edge is the one-sided
+    ``sure`` bound: ``2 P - 1`` (0.8 at the default 0.9; 0.95, the claims' level, at 0.975)."""
+    return 2.0 * sure - 1.0
+
+
+def requirement_tolerance(value: float) -> Tolerance:
+    """The requirement ``CLASS.AXIS<=VALUE`` as the verdict's tolerance on the quantile."""
+    return Tolerance.at_most(value, reason="the requirement", source="user")
+
+
+def requirement_verdict(q: float, se: float, n: int, value: float, sure: float) -> Verdict | None:
+    """The verdict (:func:`budget.runner.verdicts.judge`) on the C-quantile ``q`` of ``n`` trials
+    with standard error ``se`` against the requirement ``<= value``: holds when its ``sure``
+    one-sided upper bound ``q + z_P se`` is within, fails when its lower ``q - z_P se`` is
+    beyond, else undetermined with the trials that would settle it. None where ``sure <= 0.5``
+    (the point decides: the boundary protocol) or the standard error is not finite."""
+    if sure <= 0.5 or not math.isfinite(se):
+        return None
+    return judge(q, se, n, requirement_tolerance(value), confidence=verdict_confidence(sure), quantity="the quantile")
 
 
 def prediction_bound(q: float, se_q: float, n: int, n_future: int, truth_se: float, sure: float) -> float:
     """One-sided ``sure`` upper prediction bound of the C-quantile the re-validation will
     measure: ``q + z_P sqrt(se_q^2 (1 + n / n_future) + 2 truth_se^2)`` (docs/planning.md,
-    "How sure the answer is to pass the real test")."""
+    "How sure the answer is")."""
     if sure <= 0.5:
         return q
     if not math.isfinite(se_q):
@@ -86,9 +114,13 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     ``value``: the C-quantile of ``|err|`` and its standard error (Maritz-Jarrett: the order
     statistics weighted by the quantile's beta distribution), exceedances, bias and spread
     with their standard errors, and how sure the bound is met (:func:`sure_met`, averaged
-    over the truth's standard error ``truth_se``). ``sure``: ``met`` when the ``sure``
-    :func:`prediction_bound` (``upper``; the re-validation has ``n_future`` trials, default
-    ``n``) is within ``value``; None: when the quantile itself is (the re-validation's rule)."""
+    over the truth's standard error ``truth_se``). ``sure``: the search's rule,
+    :func:`requirement_verdict` on the quantile with its standard error and the truth's
+    (``verdict``: holds, fails or undetermined; ``met`` when it holds; ``upper``: its interval's
+    upper edge; ``n_to_settle``: the trials that would settle an undetermined one) and, for the
+    reader, the ``sure`` :func:`prediction_bound` of the quantile a re-validation of
+    ``n_future`` trials (default ``n``) will measure (``prediction``); None: ``met`` when the
+    quantile itself is within (the re-validation's rule)."""
     from scipy.stats import mstats
 
     e = np.asarray(err, dtype=float)
@@ -99,12 +131,28 @@ def figures_of(err: np.ndarray, value: float, confidence: float, truth_se: float
     exceed = int(np.count_nonzero(a > value))
     sure_p = _sure_over_truth(e, value, confidence, truth_se) if truth_se > 0 else sure_met(exceed, n, confidence)
     sd = float(e.std(ddof=1)) if n > 1 else 0.0
-    upper = q if sure is None else prediction_bound(q, se_q, n, n_future or n, truth_se, sure)
+    judged = {} if sure is None else _judged(q, se_q, n, value, truth_se, sure, n_future or n)
+    met = judged["verdict"] == "holds" if judged else bool(q <= value)
     return {"quantile": q, "se_quantile": se_q, "bound": float(value), "n": int(n),
-            "exceed": exceed, "allowed": int(n - quantile_rank(n, confidence)), "met": bool(upper <= value),
-            "sure": sure_p, **({} if sure is None else {"upper": upper, "upper_sure": float(sure)}),
+            "exceed": exceed, "allowed": int(n - quantile_rank(n, confidence)), "met": met,
+            "sure": sure_p, **judged,
             "bias": float(e.mean()), "se_bias": float(math.sqrt(sd**2 / n + truth_se**2)), "sd": sd,
             "se_sd": sd / math.sqrt(2.0 * max(n - 1, 1)), "truth_se": float(truth_se)}
+
+
+def _judged(q: float, se_q: float, n: int, value: float, truth_se: float, sure: float, n_future: int) -> dict:
+    """The search's figures of :func:`figures_of`: the verdict on the quantile (its standard
+    error with the truth's), its interval's upper edge and the trials to settle it."""
+    se = math.sqrt(se_q**2 + truth_se**2) if math.isfinite(se_q) else se_q
+    v = requirement_verdict(q, se, n, value, sure)
+    if v is None:  # the point decides (sure <= 0.5), or no standard error (too few trials)
+        outcome = ("holds" if q <= value else "fails") if sure <= 0.5 else "undetermined"
+        return {"verdict": outcome, "upper": q if sure <= 0.5 else math.inf, "upper_sure": float(sure),
+                "n_to_settle": None, "prediction": prediction_bound(q, se_q, n, n_future, truth_se, sure)}
+    settle = v.n_to_settle if v.outcome == "undetermined" else None
+    return {"verdict": v.outcome, "upper": float(v.high), "upper_sure": float(sure),
+            "n_to_settle": None if settle is None else int(settle),
+            "prediction": prediction_bound(q, se_q, n, n_future, truth_se, sure)}
 
 
 def _sure_over_truth(e: np.ndarray, value: float, confidence: float, truth_se: float) -> float:

@@ -60,9 +60,10 @@ def answer_text(res) -> str:
             if worst["quantile"] <= worst["bound"]:
                 tail += f"; within the bound on these trials, but no protocol of {which} met it in the search"
         elif worst["quantile"] <= worst["bound"] and "upper" in worst:
-            tail = (f"; within the bound, but not {percent_text(worst['upper_sure'])} sure to stay there on the "
-                    f"real test (its prediction bound {fmt(worst['upper'])}; --sure)")
-        return (f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
+            tail = (f"; within the bound, but not {percent_text(worst['upper_sure'])} sure to be (its upper bound "
+                    f"{fmt(worst['upper'])}; --sure)")
+        return (_undetermined_text(res, budget) or
+                f"{st.title}: no protocol{budget} meets {_req_list(res)} ({res.variant}, {conf} of tests). "
                 f"Best achievable: {name} {fmt(worst['quantile'])} +- {fmt(worst['se_quantile'])} "
                 f"{next(r.unit for r in res.requirements if r.name == name)} "
                 f"(the {conf} quantile of |error|, bound {fmt(worst['bound'])}) with {knobs_text(b.knobs)} "
@@ -73,7 +74,7 @@ def answer_text(res) -> str:
     n = val.trials
     prem = res.premium
     aim = "" if prem is None or res.sure_level <= 0.5 else (
-        f" Aiming {percent_text(res.sure_level)} sure to pass the real test"
+        f" Aiming {percent_text(res.sure_level)} sure to meet the bound"
         f"{' on each requirement' if len(res.requirements) > 1 else ''} costs {prem['factor']:.2f}x the boundary "
         f"protocol's lab time ({knobs_text(prem['boundary_knobs'])}, {lab_time_text(prem['boundary_cost_s'])}).")
     if res.confirmed:
@@ -83,11 +84,36 @@ def answer_text(res) -> str:
         failed = [name for name, f in val.figures.items() if not f["met"]]
         why = ("the protocol sits at the boundary; take the next larger one or plan for a tighter bound"
                if res.sure_level <= 0.5 else
-               f"a protocol aimed {percent_text(res.sure_level)} sure fails about "
-               f"{percent_text(1 - res.sure_level)} of re-validations; plan with a higher --sure or a tighter bound")
+               f"a protocol {percent_text(res.sure_level)} sure to meet the bound can still fail a re-validation "
+               f"of {n} fresh trials, up to about half the time where its quantile lies close to the bound; "
+               f"plan with a higher --sure or a tighter bound")
         tail = (f" The re-validation on {n} fresh trials does not confirm {', '.join(failed)} "
                 f"({_sure_text(res)}): {why}.")
     return head + tail + aim
+
+
+def _undetermined_text(res, budget: str) -> str:
+    """Where the search ended with a protocol still undetermined (its trial budget spent): the
+    answer says "undetermined", the protocol, its figure and the trials that would settle it,
+    then the best achievable (docs/planning.md, "Deciding a requirement")."""
+    u = res.undetermined
+    if u is None:
+        return ""
+    name, f = max(((n, f) for n, f in u.figures.items() if f.get("verdict") == "undetermined"),
+                  key=lambda nf: nf[1]["quantile"] / nf[1]["bound"])
+    unit = next(r.unit for r in res.requirements if r.name == name)
+    settle = (f"about {u.n_to_settle} trials of it would settle it" if u.n_to_settle is not None else
+              "its quantile sits on the bound, so no number of trials settles it")
+    b = res.best_achievable
+    best = "" if b is None else (f" The best achievable (the cheapest protocol within one standard error of the "
+                                 f"most accurate) is {knobs_text(b.knobs)} "
+                                 f"({lab_time_text(b.cost_s)}).")
+    return (f"{res.study.title}: undetermined: no protocol{budget} was decided to meet {_req_list(res)} "
+            f"({res.variant}, {percent_text(res.confidence)} of tests) within the trial budget. The cheapest that "
+            f"may, {knobs_text(u.knobs)}{'' if _is_any(u.shape) else f' ({u.shape})'} "
+            f"({lab_time_text(u.cost_s)} of lab time), measures {name} {fmt(f['quantile'])} +- "
+            f"{fmt(f['se_quantile'])} {unit} on {u.trials} trials, its {percent_text(f['upper_sure'])} upper bound "
+            f"{fmt(f['upper'])} beyond the bound {fmt(f['bound'])}; {settle} (--trials).{best}")
 
 
 def _sure_text(res, ev=None) -> str:
@@ -131,7 +157,8 @@ def findings_sentences(res) -> list[str]:
                            f"{lab_time_text(b.cost_s)}{rel}; {len(s.evaluations)} protocols run, {s.trials} trials.")
             else:
                 a = s.best_achievable
-                best = "" if a is None else (f"; its most accurate, {knobs_text(a.knobs)} "
+                best = "" if a is None else (f"; its best achievable (the cheapest within one standard error of "
+                                             f"the most accurate), {knobs_text(a.knobs)} "
                                              f"({lab_time_text(a.cost_s)}), reaches "
                                              f"{fmt(a.ratio, 3)} times the bound")
                 out.append(f"Shape {name}: no protocol meets every requirement{best}.")
@@ -197,9 +224,11 @@ def _group_sentences(res) -> list[str]:
                 r, v, within = fl
                 ans = (f"no count reaches {r.text}: the fitted floor is {fmt(v)} {r.unit}, what no count removes"
                        + (" (every protocol run within two standard errors of it)" if within else
-                          f"; the most accurate by the fitted model, {meas}"))
+                          f"; the best achievable (the cheapest within one standard error of the most accurate "
+                          f"by the fitted model), {meas}"))
             else:
-                ans = f"none meets; the most accurate by the fitted model, {meas}, bound {fmt(f['bound'])}"
+                ans = (f"none meets; the best achievable (the cheapest within one standard error of the most "
+                       f"accurate by the fitted model), {meas}, bound {fmt(f['bound'])}")
         else:
             ans = "no protocol could be run"
         out.append(f"{what}: {ans}; {go.protocols} protocols, {go.trials} trials.")

@@ -60,8 +60,25 @@ class Evaluation:
         return all(f["met"] for f in self.figures.values())
 
     @property
+    def verdict(self) -> str:
+        """The protocol's verdict on every requirement together: ``fails`` where one fails,
+        ``holds`` where every one holds (met), else ``undetermined`` (figures without a verdict,
+        the re-validation's, are judged by ``met``)."""
+        outcomes = [f.get("verdict", "holds" if f["met"] else "fails") for f in self.figures.values()]
+        if "fails" in outcomes:
+            return "fails"
+        return "holds" if all(o == "holds" for o in outcomes) else "undetermined"
+
+    @property
+    def n_to_settle(self) -> int | None:
+        """The trials that would settle every undetermined requirement (the most of theirs;
+        None where none is undetermined or one sits on its bound: no number settles it)."""
+        need = [f.get("n_to_settle") for f in self.figures.values() if f.get("verdict") == "undetermined"]
+        return None if not need or any(n is None for n in need) else max(need)
+
+    @property
     def ratio(self) -> float:
-        """Worst measured quantile (its prediction bound where the search judged by one) over its bound."""
+        """Worst measured quantile (its verdict's upper edge where the search judged by one) over its bound."""
         return max(f.get("upper", f["quantile"]) / f["bound"] for f in self.figures.values())
 
     def to_json(self) -> dict:
@@ -136,6 +153,9 @@ class ShapeOutcome:
     #: a separable plan's: the declared shapes this searched shape stands for, and its group's name
     members: list[str] | None = None
     group: str | None = None
+    #: where none holds: the cheapest protocol still undetermined when the trial budget was spent
+    #: (its ``n_to_settle``: the trials that would settle it)
+    undetermined: Evaluation | None = None
 
 
 @dataclass(frozen=True)
@@ -219,6 +239,16 @@ class PlanResult:
     def feasible(self) -> bool:
         """A protocol (within the budget) met every requirement in the search."""
         return self.recommended is not None
+
+    @property
+    def undetermined(self) -> Evaluation | None:
+        """Where no protocol met every requirement: the cheapest protocol of any shape whose
+        verdict was still undetermined when its search's trial budget was spent (its
+        ``n_to_settle``: the trials that would settle it); None otherwise."""
+        if self.recommended is not None:
+            return None
+        cands = [s.undetermined for s in self.shapes.values() if s.undetermined is not None]
+        return min(cands, key=lambda e: e.cost_s) if cands else None
 
     @property
     def confirmed(self) -> bool:
@@ -405,6 +435,8 @@ def plan_json(res: PlanResult) -> dict:
             "scenario_toml": res.recommended_toml()},
         "validation": None if res.validation is None else res.validation.to_json(),
         "best_achievable": None if res.best_achievable is None else res.best_achievable.to_json(),
+        "undetermined": None if res.undetermined is None else {
+            **res.undetermined.to_json(), "n_to_settle": res.undetermined.n_to_settle},
         "shapes": {name: _shape_json(s) for name, s in res.shapes.items()},
         "evaluations": [e.to_json() for e in res.evaluations],
         "best_achievable_revalidated": res.best_achievable_revalidated,

@@ -19,7 +19,7 @@ from budget.runner.plan.protocols import cost_flat_knobs, dotted_value, knob_lev
 from budget.runner.plan.quantiles import smooth_ratio
 from budget.runner.plan.requirements import Requirement
 from budget.runner.plan.result import Boundary, Evaluation, ModelCurve, PlanResult, Refusal, ShapeOutcome
-from budget.runner.plan.trials import BUDGET_VALIDATIONS, screening_trials, validation_seed
+from budget.runner.plan.trials import BUDGET_VALIDATIONS, SETTLE_MAX_VALIDATIONS, screening_trials, validation_seed
 from budget.runner.study import Knob, Study
 
 __all__ = ["FLAT_COARSE", "FLAT_REFINE", "PlanRun", "ShapeSearch", "resolution"]
@@ -177,7 +177,8 @@ class ShapeSearch:
 
     # ---- the model
     def _fit(self):
-        """Per requirement, non-negative ``(a, b_1..b_d)`` of ``q^2 = a + sum b_i f_i(x_i)``."""
+        """Per requirement, non-negative ``(a, b_1..b_d)`` of ``(q / VALUE)^2 = a + sum b_i f_i(x_i)``:
+        in units of the bound, so that no bound (1e-300 or 1e300) over- or underflows a square."""
         from scipy.optimize import nnls  # heavy (budget.runner.plan.quantiles)
 
         evs = list(self.evals)
@@ -185,9 +186,9 @@ class ShapeSearch:
             return {r.name: np.zeros(1 + len(self.knobs)) for r in self.o.reqs}
         coefs = {}
         for r in self.o.reqs:
-            q2 = np.array([e.figures[r.name]["quantile"] ** 2 for e in evs])
+            q2 = np.array([(e.figures[r.name]["quantile"] / r.value) ** 2 for e in evs])
             feats = np.array([[1.0] + [float(_feature(k, e.knobs[k.field])) for k in self.knobs] for e in evs])
-            w = np.array([e.trials for e in evs]) / np.maximum(q2, (WEIGHT_QUANTILE_FLOOR * r.value) ** 2)
+            w = np.array([e.trials for e in evs]) / np.maximum(q2, WEIGHT_QUANTILE_FLOOR ** 2)
             sw = np.sqrt(w)
             coef, _ = nnls(feats * sw[:, None], q2 * sw)
             coefs[r.name] = coef
@@ -201,7 +202,7 @@ class ShapeSearch:
         (:func:`sure_margin`; default the search's)."""
         m = self.o.margin if margin is None else margin
         feats = self._features(pts)
-        return m * np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) / r.value for r in self.o.reqs], axis=0)
+        return m * np.max([np.sqrt(np.maximum(feats @ coefs[r.name], 0.0)) for r in self.o.reqs], axis=0)
 
     def frontier(self, coefs):
         """Indices into the fine grid, by cost, of protocols no cheaper protocol predicts better
@@ -258,11 +259,30 @@ class ShapeSearch:
                 self.refused.append(Refusal({**vals, **self.fixed}, _first_line(exc)))
                 return None
         self.evals.append(ev)
-        return ev
+        return self._settle(ev)
 
     def _complete(self, ev: Evaluation) -> Evaluation:
-        """``ev`` extended to a validation's trials, in its place in :attr:`evals`."""
+        """``ev`` extended to a validation's trials (then settled, :meth:`_settle`), in its place
+        in :attr:`evals`."""
         new = self.o.complete(ev)
+        if new is not ev:
+            self.evals[next(i for i, e in enumerate(self.evals) if e is ev)] = new
+        return self._settle(new)
+
+    def _settle(self, ev: Evaluation) -> Evaluation:
+        """Near the bound, trials added until the verdict decides ``ev`` (:meth:`Oracle.settle`),
+        where it matters: ``ev`` on a validation's trials, undetermined, within the budget and
+        cheaper than the cheapest protocol that holds; to at most :data:`SETTLE_MAX_VALIDATIONS`
+        validations' trials and what the trial budget leaves after one more validation (the
+        answer's completion). In its place in :attr:`evals`."""
+        if ev.trials < self.o.n or ev.verdict != "undetermined" or not self._in_budget(ev):
+            return ev
+        hi = self._cheapest_meeting()
+        if hi is not None and hi.cost_s <= ev.cost_s:
+            return ev
+        limit = min(ev.trials + max(0, self.trial_cap - self.spent() - self.o.n),
+                    SETTLE_MAX_VALIDATIONS * self.o.n)
+        new = self.o.settle(ev, limit)
         if new is not ev:
             self.evals[next(i for i, e in enumerate(self.evals) if e is ev)] = new
         return new
@@ -355,7 +375,15 @@ class ShapeSearch:
         best = self._answer()
         best_a = None if best is not None else self._best_achievable()
         return ShapeOutcome(self.shape, best, best_a, list(self.evals), self.spent(), list(self.refused),
-                            self.model_curve(), self.boundary())
+                            self.model_curve(), self.boundary(), undetermined=self._undetermined(best))
+
+    def _undetermined(self, best: Evaluation | None) -> Evaluation | None:
+        """Where none holds: the cheapest protocol within the budget still undetermined on at least
+        a validation's trials (the trial budget spent before its verdict settled)."""
+        if best is not None:
+            return None
+        und = [e for e in self.evals if e.verdict == "undetermined" and e.trials >= self.o.n and self._in_budget(e)]
+        return min(und, key=lambda e: e.cost_s) if und else None
 
     def _design(self) -> None:
         """Step 1: :data:`DESIGN_LEVELS` per knob over its range, every combination, on screening trials."""
@@ -477,12 +505,43 @@ class ShapeSearch:
 
     def _best_achievable(self) -> Evaluation | None:
         """Where no protocol meets: the frontier's most accurate protocol run, then the most
-        accurate of every protocol run within the budget, on a validation's trials."""
+        accurate of every protocol run within the budget, on a validation's trials; then the
+        cheapest protocol run within one standard error of it (:meth:`_within_one_se`)."""
         front, _ = self.frontier(self._fit())
         if len(front):
             self.run(self.points[front[-1]], "best achievable")
         best_a = self._most_accurate([e for e in self.evals if self._in_budget(e)])
-        return None if best_a is None else self._complete(best_a)  # its figure on a validation's trials
+        if best_a is None:
+            return None
+        return self._within_one_se(self._complete(best_a))  # its figure on a validation's trials
+
+    def _within_one_se(self, most: Evaluation) -> Evaluation:
+        """The cheapest protocol run whose quantile of every requirement, on a validation's
+        trials, lies within one standard error (``most``'s) of ``most``'s: the one-standard-error
+        rule (Hastie, Tibshirani & Friedman, *The Elements of Statistical Learning*, 2nd ed.,
+        sec. 7.10): protocols whose accuracy the trials cannot tell apart from the most
+        accurate's, the cheapest of them, not the noisy minimum. Candidates, cheapest first, are
+        completed to a validation's trials while the budget holds one more completion
+        (:data:`ROOM_VALIDATIONS`)."""
+        def within(e: Evaluation) -> bool:
+            return all(e.figures[r]["quantile"] <= f["quantile"] + f["se_quantile"] for r, f in most.figures.items())
+
+        cheaper = sorted((e for e in self.evals if e.cost_s < most.cost_s and self._in_budget(e)),
+                         key=lambda e: e.cost_s)
+        def plausible(e: Evaluation) -> bool:  # a screening run not clearly outside (its own se)
+            return all(e.figures[r]["quantile"] - e.figures[r]["se_quantile"] <= f["quantile"] + f["se_quantile"]
+                       for r, f in most.figures.items())
+
+        for e in cheaper:
+            if not (within(e) if e.trials >= self.o.n else plausible(e)):
+                continue
+            if e.trials < self.o.n:
+                if self.spent() + ROOM_VALIDATIONS * self.o.n > self.trial_cap:
+                    continue
+                e = self._complete(e)
+            if within(e):
+                return e
+        return most
 
     def _search_none(self) -> ShapeOutcome:
         ev = self.run(np.zeros(0), "search")
@@ -520,9 +579,13 @@ class ShapeSearch:
         return ModelCurve(
             cost_s=[float(c) for c in self.costs[front]],
             knobs=[{k.field: knob_value(k, x) for k, x in zip(self.knobs, p)} for p in pts],
-            quantile={r.name: [float(v) for v in np.sqrt(np.maximum(feats @ coefs[r.name], 0.0))] for r in reqs},
-            floor={r.name: float(math.sqrt(max(coefs[r.name][0], 0.0))) for r in reqs},
-            b={r.name: {k.field: float(b) for k, b in zip(self.knobs, coefs[r.name][1:])} for r in reqs})
+            quantile={r.name: [r.value * float(v) for v in np.sqrt(np.maximum(feats @ coefs[r.name], 0.0))]
+                      for r in reqs},
+            floor={r.name: r.value * float(math.sqrt(max(coefs[r.name][0], 0.0))) for r in reqs},
+            # in the class's unit squared (the fit's, in units of the bound, times VALUE^2: inf past
+            # the largest float, written null)
+            b={r.name: {k.field: float(b) * r.value * r.value for k, b in zip(self.knobs, coefs[r.name][1:])}
+               for r in reqs})
 
     def _most_accurate(self, cands: list[Evaluation]) -> Evaluation | None:
         """The most accurate protocol run (no protocol meets): by the fitted model's worst

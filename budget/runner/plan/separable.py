@@ -209,7 +209,9 @@ def union_protocol(run: PlanRun, declared: dict[str, dict], groups: list[PlanGro
             errs.update(part.errors)
             tse.update(part.truth_se)
     knob_vals = {k.field: vals[k.field] for k in run.knobs}
-    return Evaluation(shape, knob_vals, float(sum(items.values())), items, run.seed, run.n, figs, "search", scn,
+    # its trials: the parts' (a part settled near its bound ran more than a validation's)
+    trials = max((p.trials for p in parts if p is not None), default=run.n)
+    return Evaluation(shape, knob_vals, float(sum(items.values())), items, run.seed, trials, figs, "search", scn,
                       errs, tse)
 
 
