@@ -150,6 +150,12 @@ class ValidationSettings(StrictModel):
     batch_trials: BatchTrials = 50
     instrument_seed: Annotated[int, Field(ge=0)] | None = None
 
+    def pinned_instrument(self) -> str | None:
+        """What fixes one instrument for every trial, in words (None: each trial draws its own).
+        Here ``instrument_seed``; a study whose scenario pins its instrument otherwise says so
+        by overriding this."""
+        return None if self.instrument_seed is None else f"instrument seed {self.instrument_seed}"
+
 
 class ScenarioBase(StrictModel):
     """What every instrument's scenario has, whatever its physics:
@@ -183,6 +189,11 @@ class ScenarioBase(StrictModel):
     def source(self) -> str:
         """Where the scenario came from (not part of its content)."""
         return self._source
+
+    def pinned_instrument(self) -> str | None:
+        """What fixes one instrument for every trial, in words, or None when each trial draws
+        its own (:meth:`ValidationSettings.pinned_instrument`)."""
+        return self.validation.pinned_instrument()
 
     def to_toml(self) -> str:
         """The resolved scenario as TOML text (what a JSON result carries)."""

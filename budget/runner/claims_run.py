@@ -29,6 +29,7 @@ from budget.runner.claims import (
     world_scenario,
 )
 from budget.runner.claims_page import write_page
+from budget.runner.ledger_view import pinned_instrument
 from budget.runner.registry import entry, get_study, study_names
 from budget.runner.report import write_report
 from budget.runner.requirements import parse_requirements, with_requirements
@@ -66,8 +67,9 @@ class StudyLedger:
     results : tuple of ClaimResult
         One per claim and world (:func:`~budget.runner.claims.evaluate_claims`).
     runs : dict
-        ``(scenario, world) -> {"trials", "elapsed_s", "report"}`` (the report's page,
-        relative to the output folder).
+        ``(scenario, world) -> {"trials", "elapsed_s", "report", "pinned_instrument"}`` (the
+        report's page, relative to the output folder; what fixed one instrument for every
+        trial, :meth:`simcam.config_base.ScenarioBase.pinned_instrument`, or None).
     elapsed_s : float
         The study's wall time (its runs and reports).
     """
@@ -221,7 +223,8 @@ def run_claims(out, *, studies=(), trials: int | None = None, seed: int = 0, wor
                 write_report(res, folder / rel, claims=claims)
                 runs[(scn_name, world)], done[key] = res, (scn_name, world)
                 info[(scn_name, world)] = {"trials": res.trials, "elapsed_s": round(time.perf_counter() - tr, 2),
-                                           "report": (rel / "report.html").as_posix()}
+                                           "report": (rel / "report.html").as_posix(),
+                                           "pinned_instrument": pinned_instrument(scn)}
                 echo(f"{st.name}: {scn_name}, {world} world: {res.trials} trials in "
                      f"{time.perf_counter() - tr:.1f} s")
             results = evaluate_claims(claims, runs)

@@ -19,7 +19,7 @@ from budget.runner.claims import (
     study_claims,
 )
 
-__all__ = ["RunLedger", "instrument_line", "ledger_lines", "ledger_section", "run_ledger"]
+__all__ = ["RunLedger", "instrument_line", "ledger_lines", "ledger_section", "pinned_instrument", "run_ledger"]
 
 
 @dataclass(frozen=True)
@@ -42,13 +42,29 @@ def run_ledger(result, claims=None) -> RunLedger:
                      tuple(c for c in claims if not c.testable))
 
 
-def instrument_line(scenario) -> str | None:
-    """With ``validation.instrument_seed`` set: the results hold for that instrument only."""
+def pinned_instrument(scenario) -> str | None:
+    """What fixed one instrument for every trial of ``scenario``, in words, or None
+    (:meth:`simcam.config_base.ScenarioBase.pinned_instrument`; a scenario without it, such as
+    a plug-in study's own model, reads ``validation.instrument_seed`` alone)."""
+    if hasattr(scenario, "pinned_instrument"):
+        return scenario.pinned_instrument()
     seed = getattr(getattr(scenario, "validation", None), "instrument_seed", None)
-    if seed is None:
+    return None if seed is None else f"instrument seed {seed}"
+
+
+def instrument_line(scenario) -> str | None:
+    """When one instrument served every trial (``validation.instrument_seed`` set, or a
+    scenario that pins its instrument otherwise:
+    :meth:`simcam.config_base.ScenarioBase.pinned_instrument`): the results hold for that
+    instrument only."""
+    val = getattr(scenario, "validation", None)
+    pinned = pinned_instrument(scenario)
+    if pinned is None:
         return None
-    return (f"One instrument (instrument seed {seed}) served every trial: these results hold for that instrument "
-            "only, not for instruments like it (leave the instrument seed unset to draw one per trial).")
+    how = ("leave the instrument seed unset to draw one per trial" if getattr(val, "instrument_seed", None) is not None
+           else "this study does not yet draw it per trial by default")
+    return (f"One instrument ({pinned}) served every trial: these results hold for that instrument "
+            f"only, not for instruments like it ({how}).")
 
 
 def ledger_section(result, claims=None) -> list[str]:

@@ -407,13 +407,6 @@ class ValidationModel(ValidationSettings):
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
     )
     calibration_spectrum: str = "population_mean"
-
-    @model_validator(mode="after")
-    def _one_instrument_or_new_maps(self) -> ValidationModel:
-        if self.instrument_seed is not None and self.new_maps_per_trial:
-            raise ValueError("new_maps_per_trial: a pinned instrument_seed fixes the camera's PRNU/DSNU maps; set "
-                             "new_maps_per_trial = false, or leave instrument_seed unset for new maps every trial")
-        return self
     field_grid: Annotated[int, Field(ge=2, le=64)] = 9
     protocols: Annotated[tuple[Literal[LAB_PROTOCOLS], ...], Field(strict=False)] = LAB_PROTOCOLS
 
@@ -425,6 +418,24 @@ class ValidationModel(ValidationSettings):
         if len(set(v)) != len(v):
             raise ValueError(f"a protocol is listed twice ({list(v)})")
         return v
+
+    def pinned_instrument(self) -> str | None:
+        """The scenario seed's camera serves every trial unless ``new_maps_per_trial``: its
+        PRNU/DSNU maps and its onboard calibration's errors are one draw (docs/validation.md,
+        "Instruments")."""
+        pinned = super().pinned_instrument()
+        if pinned is not None:
+            return pinned
+        if self.new_maps_per_trial:
+            return "the scenario seed's onboard distortion calibration (pixel maps drawn per trial)"
+        return "the scenario seed's camera: its pixel maps and onboard distortion calibration"
+
+    @model_validator(mode="after")
+    def _one_instrument_or_new_maps(self) -> ValidationModel:
+        if self.instrument_seed is not None and self.new_maps_per_trial:
+            raise ValueError("new_maps_per_trial: a pinned instrument_seed fixes the camera's PRNU/DSNU maps; set "
+                             "new_maps_per_trial = false, or leave instrument_seed unset for new maps every trial")
+        return self
 
     @model_validator(mode="after")
     def _known_types(self) -> ValidationModel:

@@ -249,6 +249,15 @@ class SkyScenario(ScenarioBase):
         self._camera_scenario = flown_camera(load_camera(self.camera), self.world.effects)
         return self
 
+    def pinned_instrument(self) -> str | None:
+        """The flown camera's pixel maps serve every pointing unless its
+        ``validation.new_maps_per_trial`` draws them per trial (then from
+        ``validation.instrument_seed``)."""
+        own = super().pinned_instrument()
+        if own is not None or self.camera_scenario.validation.new_maps_per_trial:
+            return own
+        return "the flown camera's pixel maps, one draw of its scenario seed"
+
     @property
     def camera_scenario(self) -> starcam_scenario.Scenario:
         """The flown star camera's scenario (loaded when this scenario was validated), with this
