@@ -519,7 +519,7 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
                         f"x {result.truths[('te', 'x')].value:.3f} vs {te.details['cramer_rao_x_px'] * f:.3f}, "
                         f"y {result.truths[('te', 'y')].value:.3f} vs {te.details['cramer_rao_y_px'] * f:.3f} "
                         f"arcsec (3 sigma).")
-        named = [d for proto, d in (("hsfe", "HSFE residuals per star and step (seed 000 fig. 6)"),
+        named = [d for proto, d in (("hsfe", "the HSFE residual's rms over stars per step (fig. 6)"),
                                     ("chromatic", "colour differences per corner field (fig. 7)"),
                                     ("distortion", "distortion residuals before and after the cubic fit (fig. 8)"))
                  if proto in ex]
