@@ -363,7 +363,13 @@ def test_a_dense_truth_grid_and_a_window_too_large_are_refused_naming_them(tmp_p
     code, err = _cli("budget", ["inductosyn", "validate", "ind.toml", "--trials", "4", "--workers", "1",
                                 "--no-progress"])
     assert code == 2 and err.splitlines() == [
-        "error: scenario: validation.dense_step_deg = 1e-09: a truth grid of 3.6e+11 angles: needs about "
+        "error: ind.toml: validation.dense_step_deg = 1e-09: a truth grid of 3.6e+11 angles: needs about "
+        "10.5 TiB of memory, 1.0 GiB available"], err
+    # the planner too, before any truth or trial (it used to start computing its truths)
+    code, err = _cli("budget", ["inductosyn", "plan", "ind.toml", "--require", "residual.angle<=5", "--trials", "20",
+                                "--workers", "1"])
+    assert code == 2 and err.splitlines() == [
+        "error: ind.toml: validation.dense_step_deg = 1e-09: a truth grid of 3.6e+11 angles: needs about "
         "10.5 TiB of memory, 1.0 GiB available"], err
     (tmp_path / "lab").mkdir()
     code, err = _cli("budget", ["starcam", "measure", "te", "lab", "--window", "100001"])

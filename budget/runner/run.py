@@ -113,7 +113,7 @@ def run_study(study: Study, scenario: Any, *, trials: int | None = None, toleran
     classes = tuple(study.classes(scenario))
     plan = Scheduler(study, scenario, seed, stopping, classes=classes, truth_size=truth_size, truths=truths)
     _check_memory(study, classes, stopping)
-    check_allocations(scenario)  # the scenario's largest arrays (simcam.allocation)
+    check_allocations(scenario, source=getattr(scenario, "source", "scenario"))  # its largest arrays (simcam.allocation)
     own = executor is None
     if own:
         # local processes: this one is a worker too (it runs trials between collecting the

@@ -20,6 +20,7 @@ from budget.runner.plan.separable import plan_separable
 from budget.runner.plan.trials import MIN_TRIALS, validation_seed
 from budget.runner.scheduler import init_worker
 from budget.runner.study import Study
+from simcam.allocation import check_allocations
 from simcam.infra.errors import UserInputError
 from simcam.units import SECONDS_PER_HOUR
 
@@ -40,6 +41,7 @@ def plan_protocol(study: Study, scenario: Any, requirements, *, variant: str | N
     t0, c0 = time.perf_counter(), time.process_time()
     check_seed(seed)  # the API's checks, here too: a bad seed or trial count before any truth
     check_trials(trials)
+    check_allocations(scenario, source=getattr(scenario, "source", "scenario"))  # before any truth (simcam.allocation)
     if not has_capability(study, Plannable):
         raise UserInputError(f"plan: the {study.name} study has no plannable protocol")
     knobs = tuple(study.protocol_knobs(scenario))
