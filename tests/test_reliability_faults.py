@@ -351,7 +351,7 @@ def test_a_psf_too_narrow_for_memory_is_refused_naming_the_field(tmp_path, monke
     code, err = _cli("simcam", ["render", "t.toml", "--frames", "1", "--out", "r", "--no-progress"])
     assert code == 2 and err.splitlines() == [f"error: t.toml: {says}"], err
     code, err = _cli("budget", ["starcam", "validate", "t.toml", "--trials", "4", "--workers", "1", "--no-progress"])
-    assert code == 2 and err.splitlines() == [f"error: scenario: {says}"], err
+    assert code == 2 and err.splitlines() == [f"error: t.toml: {says}"], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.toml"]
 
 
