@@ -132,6 +132,7 @@ def test_verdicts_follow_the_numbers():
     key = ("mean", "published", "a")
     study = ToyWorldStudy(claims={("mean", "published"): a})
     for offset, verdict in ((a + 5.0 * se, "fails"), (0.0, "holds")):
+        # (an offset of 0 would leave no "offset_units" case: 1e-12 keeps it, a shift of 1e-10 se)
         scn = _scenario(study, **(OFF | {"offset_units": offset or 1e-12}))
         res = run_robustness(study, scn, trials=n, seed=3)
         cells = res.cells()

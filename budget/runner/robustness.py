@@ -359,11 +359,12 @@ class RobustnessResult:
         unit = "" if spec.unit in ("", "1") else f" {spec.unit}"  # a ratio's unit "1" is not written
         c = cells[cn][k]
         s = f"bias {fmt(c['bias'], 3, sign=True)} +- {fmt(abs(c['se_bias']), 2)}{unit}"
+        s += f" on axis {k[2]}" if len(keys) > 1 else ""
         if cn != IDEAL:
             s += f" (a shift of {fmt(c['shift'], 3, sign=True)} +- {fmt(abs(c['se_shift']), 2)} from the ideal world)"
         bv, cv = c["bias_verdict"], c["coverage_verdict"]
         if bv is not None:
-            s += f", {bv.outcome} against {bv.tolerance.describe(spec.unit)} ({bv.tolerance.reason})"
+            s += f", {bv.outcome} against {bv.tolerance.describe(unit.strip())} ({bv.tolerance.reason})"
         if c["coverage_1sigma"] is not None:
             s += f", 1-sigma coverage {100 * c['coverage_1sigma']:.1f} %"
             if cv is not None:
@@ -372,7 +373,7 @@ class RobustnessResult:
             s += ("; its estimate sits on a tolerance's edge: no number of trials settles it" if c["on_edge"]
                   else f"; about {c['n_to_settle']} trials would settle it" if c["n_to_settle"]
                   else "; more trials would settle it")
-        return s + (f" on axis {k[2]}" if len(keys) > 1 else "")
+        return s
 
     def _verdict(self, spec: ClassSpec, var: str, keys, cells, singles) -> dict:
         head = f"{spec.label}, {var}"
