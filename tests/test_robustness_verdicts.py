@@ -114,3 +114,28 @@ def test_more_trials_do_not_flip_holds_and_fails():
     count = {n: sum(v == "undetermined" for v in outcomes[n].values()) for n in TRIAL_COUNTS}
     assert count[1600] <= count[50], count
     assert IDEAL in {cn for cn, _ in outcomes[50]}
+
+
+def test_a_real_study_cell_has_validates_verdict():
+    """The same on the whiskbroom study (4 trials: the equality is exact whatever the count),
+    whose claimed accuracy (WorldEffects.claim) and ledger agree: every cell's verdict and
+    tolerance, reason and source included, are validate's."""
+    from budget.runner.registry import get_study, study_names
+
+    if "whiskbroom" not in study_names():
+        pytest.skip("whiskbroom is not installed")
+    study = get_study("whiskbroom")
+    scn = study.load_scenario()
+    cells = run_robustness(study, scn, trials=4, seed=1, workers=1).cells()[ALL]
+    val = run_study(study, scn, trials=4, seed=1, workers=1, prewarm=False)
+    judged = 0
+    for f in findings(val):
+        c = cells[(f["class"], f["variant"], f["axis"])]
+        assert c["bias"] == f["bias"]
+        if f["verdict"] is None:
+            continue
+        judged += 1
+        t = c["bias_verdict"].tolerance
+        assert c["verdict"] == f["verdict"] and c["coverage_1sigma"] is None
+        assert (t.low, t.high, t.reason, t.source) == tuple(f["tolerance"][k] for k in ("low", "high", "reason", "source"))
+    assert judged >= 5
