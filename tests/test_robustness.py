@@ -164,6 +164,14 @@ def test_the_cell_rule():
     v = coverage_verdict(0.64, 100)  # se 0.0466: straddles 0.633
     assert v.outcome == "undetermined" and v.n_to_settle > 100
     assert v.tolerance is COVERAGE_TOLERANCE and COVERAGE_TOLERANCE.source == "default"
+    # the tolerance's reason: a sigma stated 10 % too large or too small gives a coverage of
+    # P(|z| <= 1/1.1) = 0.637 or P(|z| <= 1/0.9) = 0.733, at the edges of 68.3 % +- 5 points
+    from scipy.stats import norm
+
+    for ratio in (1.1, 0.9):
+        c = 2 * norm.cdf(1 / ratio) - 1
+        edge = COVERAGE_TOLERANCE.low if ratio > 1 else COVERAGE_TOLERANCE.high
+        assert c == pytest.approx(edge, abs=0.005)
     tol = Tolerance.around(0.0, 1.0, reason="test", source="default")
     holds, fails = judge(0.0, 0.1, 10, tol), judge(5.0, 0.1, 10, tol)
     open_a, open_b = judge(0.9, 0.1, 10, tol), judge(0.95, 0.1, 10, tol)
