@@ -12,17 +12,15 @@ import numpy as np
 import pytest
 from toy_world_study import ToyWorldStudy
 
-from budget.runner.robustness import (
-    ALL,
-    IDEAL,
-    SCHEMA,
-    build_cases,
-    claim_holds,
-    coverage_consistent,
-    run_robustness,
+from budget.runner.robustness import ALL, IDEAL, SCHEMA, build_cases, run_robustness
+from budget.runner.robustness_verdicts import (
+    COVERAGE_TOLERANCE,
+    combine,
+    coverage_verdict,
     summary_cell,
 )
 from budget.runner.study import ClassSpec
+from budget.runner.verdicts import Tolerance, judge
 from simcam.infra.errors import UserInputError
 
 EPS = np.finfo(float).eps
@@ -122,47 +120,67 @@ def test_biases_of_the_cases_match_their_closed_forms():
 
 
 def test_verdicts_follow_the_numbers():
-    """An offset of 5 standard errors of the mean's bias fails, one of 0.1 passes. The bias's
-    se is sigma / sqrt(m n) exactly (error N(0, sigma^2/m)); seed 3 is fixed: the ideal bias is
-    one N(0, se^2) draw (here within 2 se, checked), so the offsets land where stated."""
-    study = ToyWorldStudy()
-    n, m, sigma = 400, 8, 2.0
+    """With a claimed accuracy A = 0.1 on the mean, an offset of A + 5 se fails and no offset
+    holds. 2000 trials: the bias's se is sigma / sqrt(m n) = 2 / sqrt(16000) = 0.0158 exactly
+    (error N(0, sigma^2/m)); seed 3 is fixed and the ideal bias is one N(0, se^2) draw (checked
+    within 2 se), so the 95 % interval (+- 1.96 se = 0.031) lies inside +- 0.1 unshifted and
+    wholly above 0.1 when shifted by 0.179. The stated sigma's coverage has se
+    sqrt(0.683 0.317 / 2000) = 0.0104: unshifted it lies within 2.8 of them of 68.3 % (checked),
+    so its interval (+- 0.020) lies inside 68.3 +- 5 points and the cell holds."""
+    n, m, sigma, a = 2000, 8, 2.0, 0.1
     se = sigma / math.sqrt(m * n)
     key = ("mean", "published", "a")
-    for factor, holds in ((5.0, False), (0.1, True)):
-        scn = _scenario(study, **(OFF | {"offset_units": factor * se}))
+    study = ToyWorldStudy(claims={("mean", "published"): a})
+    for offset, verdict in ((a + 5.0 * se, "fails"), (0.0, "holds")):
+        # (an offset of 0 would leave no "offset_units" case: 1e-12 keeps it, a shift of 1e-10 se)
+        scn = _scenario(study, **(OFF | {"offset_units": offset or 1e-12}))
         res = run_robustness(study, scn, trials=n, seed=3)
         cells = res.cells()
-        assert abs(cells[IDEAL][key]["bias"]) < 2 * se
-        assert cells[IDEAL][key]["claim_holds"] is True
-        assert cells["offset_units"][key]["claim_holds"] is holds
+        ideal, shifted = cells[IDEAL][key], cells["offset_units"][key]
+        assert abs(ideal["bias"]) < 2 * se and abs(ideal["coverage_1sigma"] - 0.6827) < 2.8 * 0.0104
+        assert ideal["verdict"] == "holds" and ideal["claim_holds"] is True
+        assert shifted["verdict"] == verdict and shifted["claim_holds"] is (verdict == "holds")
+        assert shifted["bias_verdict"].tolerance.high == pytest.approx(a)
         sentence = res.breaks()[("mean", "published")]["sentence"]
-        assert ("offset_units breaks its claim first" in sentence) is (not holds)
-        if holds:
-            assert "no effect breaks its claim" in sentence
-    # every cell's verdict is the definition applied to its own numbers
+        assert ("offset_units breaks its claim first" in sentence) is (verdict == "fails")
+        if verdict == "holds":
+            assert "its claim holds in every case" in sentence
+    # every cell's verdict is the rule applied to its own numbers
     for row in cells.values():
         for c in row.values():
-            assert c["claim_holds"] is claim_holds(bias=c["bias"], se_bias=c["se_bias"], claim=c["claim"],
-                                                   coverage_1sigma=c["coverage_1sigma"],
-                                                   coverage_n=c["coverage_n"], scale=c["scale"])
+            if c["verdict"] is None:
+                continue
+            bv = c["bias_verdict"]
+            assert bv == judge(c["bias"], c["se_bias"], n, bv.tolerance, unit=bv.unit, quantity=bv.quantity)
+            parts = [bv] + ([coverage_verdict(c["coverage_1sigma"], c["coverage_n"])]
+                            if c["coverage_1sigma"] is not None else [])
+            assert c["verdict"] == combine(parts)[0]
 
 
-def test_claim_holds_definition():
-    # no claim: unbiased within 3 se
-    assert claim_holds(bias=0.29, se_bias=0.1)
-    assert not claim_holds(bias=-0.31, se_bias=0.1)
-    # a deterministic estimator (se 0): rounding within 1e-9 of the values' magnitude
-    assert claim_holds(bias=1e-12, se_bias=0.0, scale=5.0)
-    assert not claim_holds(bias=1e-6, se_bias=0.0, scale=5.0)
-    # a claimed accuracy: |bias| + 3 se within it
-    assert claim_holds(bias=0.1, se_bias=0.01, claim=0.14)
-    assert not claim_holds(bias=0.1, se_bias=0.01, claim=0.12)
-    # coverage over 400 trials: band 3 sqrt(0.6827 * 0.3173 / 400) = 0.0698
-    assert coverage_consistent(0.65, 400) and not coverage_consistent(0.60, 400)
-    assert not claim_holds(bias=0.0, se_bias=0.1, coverage_1sigma=0.60, coverage_n=400)
-    assert claim_holds(bias=0.0, se_bias=0.1, coverage_1sigma=0.70, coverage_n=400)
-    assert not claim_holds(bias=float("nan"), se_bias=0.1)
+def test_the_cell_rule():
+    # coverage over 400 trials: se sqrt(0.6827 * 0.3173 / 400) = 0.0233, interval +- 0.0456
+    assert coverage_verdict(0.6827, 400).outcome == "holds"  # 0.637..0.728 inside 0.633..0.733
+    assert coverage_verdict(0.55, 400).outcome == "fails"  # up to 0.596, below 0.633
+    v = coverage_verdict(0.64, 100)  # se 0.0466: straddles 0.633
+    assert v.outcome == "undetermined" and v.n_to_settle > 100
+    assert v.tolerance is COVERAGE_TOLERANCE and COVERAGE_TOLERANCE.source == "default"
+    # the tolerance's reason: a sigma stated 10 % too large or too small gives a coverage of
+    # P(|z| <= 1/1.1) = 0.637 or P(|z| <= 1/0.9) = 0.733, at the edges of 68.3 % +- 5 points
+    from scipy.stats import norm
+
+    for ratio in (1.1, 0.9):
+        c = 2 * norm.cdf(1 / ratio) - 1
+        edge = COVERAGE_TOLERANCE.low if ratio > 1 else COVERAGE_TOLERANCE.high
+        assert c == pytest.approx(edge, abs=0.005)
+    tol = Tolerance.around(0.0, 1.0, reason="test", source="default")
+    holds, fails = judge(0.0, 0.1, 10, tol), judge(5.0, 0.1, 10, tol)
+    open_a, open_b = judge(0.9, 0.1, 10, tol), judge(0.95, 0.1, 10, tol)
+    assert combine([holds, holds]) == ("holds", None, False)
+    assert combine([holds, fails])[0] == "fails" and combine([open_a, fails])[0] == "fails"
+    # undetermined: the trials that settle both open parts (the larger)
+    assert combine([holds, open_a, open_b]) == ("undetermined", max(open_a.n_to_settle, open_b.n_to_settle), False)
+    edge = judge(1.0, 0.1, 10, tol)
+    assert combine([edge, open_a]) == ("undetermined", None, True)
 
 
 class _ResidualToy(ToyWorldStudy):
@@ -189,7 +207,7 @@ def test_an_undetermined_axis_has_no_claim():
     payload = res.to_json()
     for case in payload["cases"].values():
         for cell in case["classes"]["variance"]["a"].values():
-            assert cell["claim_holds"] is None and cell["claim"] is None
+            assert cell["claim_holds"] is None and cell["claim"] is None and cell["verdict"] is None
         assert isinstance(case["classes"]["mean"]["a"]["published"]["claim_holds"], bool)
     for var in study.variants:
         b = payload["breaks"][f"variance.{var}"]
@@ -197,43 +215,55 @@ def test_an_undetermined_axis_has_no_claim():
 
 
 def test_a_table_cell_sums_up_the_axes_of_a_class_and_variant():
-    def cell(bias, se, holds, claim=None, cov=None):
-        return {"bias": bias, "se_bias": se, "claim": claim, "claim_holds": holds, "coverage_1sigma": cov,
-                "coverage_n": 100 if cov is not None else 0, "scale": 1.0}
+    tol = Tolerance.around(0.0, 0.4, reason="test", source="default")
+
+    def cell(bias, se, verdict=True):
+        v = judge(bias, se, 100, tol) if verdict else None
+        return {"bias": bias, "se_bias": se, "verdict": v.outcome if v else None, "bias_verdict": v,
+                "coverage_verdict": None}
 
     # one axis: its verdict and bias, no axis named
-    assert summary_cell([("x", cell(0.5, 0.1, False))]) == "FAIL +0.5"
-    assert summary_cell([("x", cell(0.5, 0.1, False))], markdown=True) == "**FAIL** +0.5"
-    # two of three fail: the one farthest past its claim (|bias| / 3 se: 3.0 for b, 1.7 for a;
-    # c's coverage is 0.12 of its 3-se band, 0.14 at 100 trials)
-    axes = [("a", cell(0.5, 0.1, False)), ("b", cell(-0.9, 0.1, False)), ("c", cell(0.0, 0.1, True, cov=0.70))]
-    assert summary_cell(axes) == "FAIL 2/3 -0.9 (b)"
-    # all hold: the worst is a's coverage 0.55, 0.95 of its 3-se band (0.14 at 100 trials),
-    # against b's bias at 0.67 of 3 se
-    axes = [("a", cell(0.1, 0.1, True, cov=0.55)), ("b", cell(0.2, 0.1, True))]
-    assert summary_cell(axes) == "ok +0.1 (a)"
-    # an undetermined axis (claim_holds None) is not counted; none judged: "--" and the largest |bias|
-    assert summary_cell([("a", cell(9.0, 0.1, None)), ("b", cell(0.2, 0.1, True))]) == "ok +0.2"
-    assert summary_cell([("a", cell(0.3, 0.1, None)), ("b", cell(-0.4, 0.1, None))]) == "-- -0.4 (b)"
+    assert summary_cell([("x", cell(0.9, 0.1))]) == "FAILS +0.9"
+    assert summary_cell([("x", cell(0.9, 0.1))], markdown=True) == "**FAILS** +0.9"
+    # two of three fail: the one farthest past its tolerance (|bias| / 0.4: 3 for b, 2.25 for a)
+    axes = [("a", cell(0.9, 0.1)), ("b", cell(-1.2, 0.1)), ("c", cell(0.0, 0.1))]
+    assert summary_cell(axes) == "FAILS 2/3 -1.2 (b)"
+    # none fails, one undetermined (0.35 +- 0.196 straddles 0.4): it is named
+    axes = [("a", cell(0.1, 0.01)), ("b", cell(0.35, 0.1)), ("c", cell(0.2, 0.01))]
+    assert summary_cell(axes) == "undet. 1/3 +0.35 (b)"
+    # all hold: the one nearest its edge
+    assert summary_cell([("a", cell(0.1, 0.01)), ("b", cell(-0.2, 0.01))]) == "holds -0.2 (b)"
+    # an axis without a verdict is not counted; none judged: "--" and the largest |bias|
+    assert summary_cell([("a", cell(9.0, 0.1, False)), ("b", cell(0.2, 0.01))]) == "holds +0.2"
+    assert summary_cell([("a", cell(0.3, 0.1, False)), ("b", cell(-0.4, 0.1, False))]) == "-- -0.4 (b)"
 
 
 def test_json_schema_claims_residuals_and_report(tmp_path):
     study = _ResidualToy(claims={("mean", "published"): 0.5})
     res = run_robustness(study, study.load_scenario(), trials=40, seed=2)
     payload = json.loads(json.dumps(res.to_json(), allow_nan=False))
-    assert payload["schema"] == SCHEMA and payload["study"] == "toyworld"
+    assert payload["schema"] == SCHEMA == "budget.robustness/2" and payload["study"] == "toyworld"
+    assert payload["coverage_tolerance"]["low"] == pytest.approx(0.6327)
     assert list(payload["cases"]) == [c.name for c in res.cases]
-    for name, case in payload["cases"].items():
+    for case in payload["cases"].values():
         assert {"active_effects", "trials", "seed", "scenario_hash", "classes"} <= set(case)
         assert case["trials"] == 40 and case["seed"] == 2
         mean = case["classes"]["mean"]["a"]["published"]
         var = case["classes"]["variance"]["a"]["improved"]
         for cell in (mean, var):
-            assert {"bias", "se_bias", "std", "coverage_1sigma", "claim_holds"} <= set(cell)
+            assert {"bias", "se_bias", "std", "coverage_1sigma", "claim_holds", "verdict", "tolerance",
+                    "n_to_settle", "coverage_verdict"} <= set(cell)
         assert mean["claim"] == 0.5 and isinstance(mean["claim_holds"], bool)
+        # the claimed accuracy is the tolerance, a declared one (the hook does not say the paper's)
+        assert mean["tolerance"] == {"low": -0.5, "high": 0.5, "reason": "the method's claimed accuracy 0.5",
+                                     "source": "default"}
+        assert mean["verdict"] in ("holds", "fails", "undetermined")
+        assert mean["claim_holds"] is (mean["verdict"] == "holds")
+        assert (mean["n_to_settle"] is not None) is (mean["verdict"] == "undetermined")
         assert 0.0 <= mean["coverage_1sigma"] <= 1.0
         assert var["coverage_1sigma"] is None  # no sigma stated
         assert var["claim_holds"] is None and var["claim"] is None  # a residual: no claim
+        assert var["verdict"] is None and var["tolerance"] is None and "residual" in var["no_verdict"]
     assert payload["cases"][IDEAL]["active_effects"] == []
     assert payload["cases"]["offset_units"]["active_effects"] == ["offset_units"]
     assert payload["cases"][ALL]["scenario_hash"] == payload["scenario_hash"]
@@ -322,7 +352,7 @@ def test_every_study_group_has_the_verb(capsys):
         assert "--trials" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("name", ["starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam"])
+@pytest.mark.parametrize("name", ["starcam", "inductosyn", "whiskbroom", "scanmirror", "linecam", "attitude"])
 def test_cases_of_every_study_with_a_world(name):
     """Cases are built generically (dump, set world.effects, from_dict): every case is the
     scenario but for its effects (skipped for a study whose scenario has no world effects yet)."""
@@ -358,6 +388,10 @@ def test_a_reference_variant_is_never_shown_ok():
     for case, row in res.cells().items():
         for (cls, var, ax), cell in row.items():
             if var == "improved":
-                assert cell["claim_holds"] is None, (case, cls, ax)
+                assert cell["claim_holds"] is None and cell["verdict"] is None, (case, cls, ax)
+                assert "reference" in cell["no_verdict"]
             shown = summary_cell([(ax, cell)])
-            assert shown.startswith("--" if var == "improved" else ("ok", "FAIL")), (case, cls, var, shown)
+            assert shown.startswith("--" if var == "improved" else ("holds", "FAILS", "undet.")), (case, cls, var, shown)
+    for (cls, var), b in res.breaks().items():
+        if var == "improved" and cls == "variance":
+            assert b["verdict"] is None and "no verdict (a reference variant" in b["sentence"], b

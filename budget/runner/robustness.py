@@ -23,33 +23,28 @@ case on every field of :meth:`~budget.runner.capabilities.SharedTruths.truth_fie
 Statistics per case and key are the runner's (:func:`budget.runner.stats.key_statistics`).
 Classes of role ``"input"`` are left out (taken as given, nothing to validate).
 
-``claim_holds`` (:func:`claim_holds`, the one definition)
----------------------------------------------------------
-For a key with bias ``b``, its standard error ``se`` (the trials' combined with the
-truth's) and, where the variant states a 1-sigma uncertainty, the fraction ``c`` of ``m``
-trials whose error is within it:
+The verdicts (:mod:`budget.runner.robustness_verdicts`)
+--------------------------------------------------------
+Each cell, one ``(class, variant, axis)`` in one case, is judged by the one three-valued rule
+(:func:`budget.runner.verdicts.judge`), exactly as ``validate`` judges the same numbers
+(:func:`budget.runner.class_verdicts.class_verdict` on the case's result): the bias against a
+practical tolerance (the claimed accuracy of :meth:`~budget.runner.capabilities.WorldEffects.claim`,
+else the ledger's claim on the class, else 10 % of the truth's size) and,
+where the variant states a 1-sigma uncertainty, the 1-sigma coverage against 68.3 % +- 5
+points. ``verdict`` is ``holds`` / ``fails`` / ``undetermined`` (with ``n_to_settle``), or
+``null`` for a residual, an input, a reference variant (:attr:`Study.reference_variants`)
+and a gauge axis (:attr:`ClassSpec.undetermined`); ``claim_holds`` is derived from it
+(true for ``holds`` only, false for ``fails`` and ``undetermined``, null without a verdict).
 
-* the bias part: with a claimed accuracy ``A`` (:meth:`~budget.runner.capabilities.WorldEffects.claim`, in the class unit),
-  ``|b| + 3 se <= A``; without one, the method claims to be unbiased: ``|b| <= 3 se``
-  (a bias below ``1e-9`` of the compared values' magnitude counts as rounding, for a
-  deterministic estimator whose ``se`` is 0). A one-sided claim (:attr:`ClassSpec.at_most`:
-  the estimate is a stated bound, the truth at or below it) puts the shortfall ``-b`` in
-  place of ``|b|``: ``-b <= 3 se`` (``-b + 3 se <= A``), an estimate above the truth holds;
-* the coverage part, where a sigma is stated: ``|c - 0.6827| <= 3 sqrt(0.6827 * 0.3173 / m)``
-  (the binomial 3-standard-error band for ``m`` trials);
-* ``claim_holds`` = both parts; ``null`` for a class of role ``"residual"`` (what a
-  compensation leaves: no claim to test) or ``"input"`` (taken as given), for a reference
-  variant (:attr:`Study.reference_variants`: it estimates nothing, so it is never shown
-  ``ok``) and for an axis the data cannot determine (:attr:`ClassSpec.undetermined`, a
-  gauge freedom: its estimate is a convention).
-
-The result, :class:`RobustnessResult`, gives the JSON (schema ``budget.robustness/1``:
+The result, :class:`RobustnessResult`, gives the JSON (schema ``budget.robustness/2``:
 ``cases[name].classes[class][axis][variant]`` with ``bias``, ``se_bias``, ``std``,
-``coverage_1sigma`` (null where no sigma is stated), ``claim``, ``claim_holds``, ``shift``
-and ``se_shift`` (the change from the ideal case, paired), and per case its active
-effects, trials, seed and scenario hash), the table (:meth:`RobustnessResult.format_table`)
-and ``report.md`` (:meth:`RobustnessResult.write_report`) with one sentence per class and
-variant saying which effect breaks its claim first and by how much.
+``coverage_1sigma`` (null where no sigma is stated), ``claim``, ``verdict``, ``no_verdict``,
+``tolerance`` (``low``, ``high``, ``reason``, ``source``), ``coverage_verdict``,
+``n_to_settle``, ``claim_holds``, ``shift`` and ``se_shift`` (the change from the ideal
+case, paired), and per case its active effects, trials, seed and scenario hash), the table
+(:meth:`RobustnessResult.format_table`) and ``report.md`` (:meth:`RobustnessResult.write_report`)
+with one sentence per class and variant saying which effect breaks its claim first (only
+for a cell that fails), or where it is undetermined and how many trials would settle it.
 """
 
 from __future__ import annotations
@@ -64,13 +59,28 @@ import click
 import numpy as np
 
 import simcam
-from budget.runner.capabilities import (BatchedTrials, CheckedScenario, SharedTruths, SplitTruths, Warmup, WorldEffects,
-                                        capability)
+from budget.runner.capabilities import (
+    BatchedTrials,
+    CheckedScenario,
+    SharedTruths,
+    SplitTruths,
+    Warmup,
+    WorldEffects,
+    capability,
+)
+from budget.runner.class_verdicts import method_rules
 from budget.runner.executors import default_workers, make_executor
 from budget.runner.html import write_html
 from budget.runner.numbers import fmt
 from budget.runner.registry import get_study
 from budget.runner.report import staged_report, write_outputs
+from budget.runner.robustness_verdicts import (
+    COVERAGE_TOLERANCE,
+    VERDICT_TEXT,
+    cell_verdict,
+    severity,
+    summary_cell,
+)
 from budget.runner.run import StudyResult
 from budget.runner.scheduler import init_worker
 from budget.runner.study import ClassSpec, Study, TrialResult, truth_identity
@@ -82,89 +92,12 @@ from simcam.infra.errors import UserInputError
 from simcam.infra.lifecycle import check_memory
 from simcam.infra.outputs import check_run_outputs
 
-__all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "claim_holds",
-           "coverage_consistent", "robustness_command_for", "run_robustness", "scenario_with_effects",
-           "summary_cell"]
+__all__ = ["ALL", "IDEAL", "SCHEMA", "Case", "RobustnessResult", "build_cases", "robustness_command_for",
+           "run_robustness", "scenario_with_effects"]
 
-SCHEMA = "budget.robustness/1"
+SCHEMA = "budget.robustness/2"
 #: names of the cases with every effect off and every effect on
 IDEAL, ALL = "ideal", "all"
-#: probability of |N(0, 1)| <= 1
-EXPECTED_1SIGMA = 0.6827
-#: a bias below this fraction of the compared values' magnitude is rounding (se 0 only)
-ROUNDING = 1e-9
-
-
-# ---------------------------------------------------------------------- the definition
-def coverage_consistent(coverage_1sigma: float, n: int) -> bool:
-    """Whether a 1-sigma coverage over ``n`` trials is consistent with 68.27 %: within the
-    binomial band of 3 standard errors, ``3 sqrt(0.6827 * 0.3173 / n)``."""
-    return abs(coverage_1sigma - EXPECTED_1SIGMA) <= 3.0 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / n)
-
-
-def _off(bias: float, at_most: bool) -> float:
-    """How far an estimate is off its claim's side: ``|b|`` (two-sided) or the shortfall
-    ``-b`` below the truth (one-sided, :attr:`ClassSpec.at_most`; negative when above)."""
-    return -bias if at_most else abs(bias)
-
-
-def claim_holds(*, bias: float, se_bias: float, claim: float | None = None, coverage_1sigma: float | None = None,
-                coverage_n: int = 0, scale: float = 0.0, at_most: bool = False) -> bool:
-    """Whether a method's claim holds on one key (the module docstring's definition).
-
-    ``scale`` is the magnitude of the compared values (truth, mean): with ``se_bias`` 0 a bias
-    within ``1e-9 scale`` is rounding. ``at_most``: a one-sided claim (the estimate a bound
-    the truth stays at or below, :attr:`ClassSpec.at_most`).
-    """
-    if not math.isfinite(bias):
-        return False
-    off = _off(bias, at_most)
-    if claim is None:
-        ok = off <= 3.0 * se_bias + ROUNDING * abs(scale)
-    else:
-        ok = off + 3.0 * se_bias <= claim
-    if coverage_1sigma is not None:
-        ok = ok and coverage_n > 0 and coverage_consistent(coverage_1sigma, coverage_n)
-    return bool(ok)
-
-
-def _severity(cell: dict) -> float:
-    """How far a cell is past its claim (> 1: beyond): the larger of the bias's ratio to its
-    threshold and the coverage's distance from 68.27 % in 3-se bands."""
-    b, se, claim = _off(cell["bias"], cell.get("at_most", False)), cell["se_bias"], cell["claim"]
-    if not math.isfinite(b):
-        return math.inf
-    if claim is not None:
-        r = (b + 3 * se) / claim if claim > 0 else math.inf
-    else:
-        thr = 3 * se + ROUNDING * cell["scale"]
-        r = b / thr if thr > 0 else (0.0 if b <= 0 else math.inf)
-    if cell["coverage_1sigma"] is not None and cell["coverage_n"]:
-        band = 3 * math.sqrt(EXPECTED_1SIGMA * (1 - EXPECTED_1SIGMA) / cell["coverage_n"])
-        r = max(r, abs(cell["coverage_1sigma"] - EXPECTED_1SIGMA) / band)
-    return r
-
-
-def summary_cell(axes: list[tuple[str, dict]], *, markdown: bool = False) -> str:
-    """One table cell for a class and variant over its axes ``[(axis, cell), ...]``: the
-    verdict (``ok`` when every determined axis holds; ``FAIL k/n`` when k of the n
-    determined axes fail, ``FAIL`` for one axis; ``--`` without a claim) and the bias of the
-    axis farthest past its claim (:func:`_severity`; the largest |bias| without a claim),
-    named when there are several."""
-    judged = [(a, c) for a, c in axes if c["claim_holds"] is not None]
-    if judged:
-        failing = [(a, c) for a, c in judged if c["claim_holds"] is False]
-        a, c = max(judged, key=lambda ac: _severity(ac[1]))
-        if failing:
-            v = "FAIL" if len(judged) == 1 else f"FAIL {len(failing)}/{len(judged)}"
-            v = f"**{v}**" if markdown else v
-        else:
-            v = "ok"
-        n = len(judged)
-    else:
-        a, c = max(axes, key=lambda ac: abs(ac[1]["bias"]) if math.isfinite(ac[1]["bias"]) else math.inf)
-        v, n = "--", len(axes)
-    return f"{v} {fmt(c['bias'], 3, sign=True)}" + (f" ({a})" if n > 1 else "")
 
 
 # ---------------------------------------------------------------------- the cases
@@ -250,7 +183,7 @@ def _collect(results: dict[int, TrialResult]):
 
 def run_robustness(study: Study, scenario: Any, *, trials: int | None = None, seed: int = 0,
                    workers: int | None = 1, scheduler: str | None = None, dask_local: int | None = None,
-                   progress: bool = False, prewarm: bool = True, source: str = "") -> "RobustnessResult":
+                   progress: bool = False, prewarm: bool = True, source: str = "") -> RobustnessResult:
     """Run every case of ``scenario`` (:func:`build_cases`) with ``trials`` trials each (default:
     the study's) and seed ``seed``, in one executor (:func:`budget.runner.executors.make_executor`;
     results do not depend on it)."""
@@ -357,27 +290,23 @@ class RobustnessResult:
         out: dict = {}
         for case in self.cases:
             res = self.results[case.name]
+            ledger = method_rules(res)  # the study's ledger claims, once per case
             row = {}
             for key in self.columns():
-                cls, var, ax = key
+                cls, var, _ax = key
                 spec = res.class_spec(cls)
                 st = res.statistics(key)
                 cov = st.get("coverage")
-                # no claim: a residual, an input, a reference variant (it estimates nothing), or an
-                # axis the data cannot determine (a gauge freedom, ClassSpec.undetermined: its
-                # estimate is a convention, no sigma is stated)
-                no_claim = (spec.role in ("residual", "input") or st.get("determined") is False
-                            or var in self.study.reference_variants)
-                claim = None if no_claim else capability(self.study, WorldEffects).claim(case.scenario, cls, var)
+                v = cell_verdict(res, key, st, ledger)
+                # the claimed accuracy where there is a verdict (WorldEffects.claim), for the record
+                claim = (capability(self.study, WorldEffects).claim(case.scenario, cls, var)
+                         if v["verdict"] is not None else None)
                 cell = {"bias": st["bias"], "se_bias": st["se_bias"], "std": st["std"], "mean": st["mean"],
                         "truth": st["truth"], "coverage_1sigma": cov["within_1sigma"] if cov else None,
                         "se_coverage_1sigma": cov["se_1sigma"] if cov else None,
-                        "coverage_n": cov["n"] if cov else 0, "claim": claim,
-                        "scale": max(abs(st["truth"]), abs(st["mean"])), "at_most": spec.at_most}
-                cell["determined"] = st.get("determined") is not False
-                cell["claim_holds"] = None if no_claim else claim_holds(
-                    bias=cell["bias"], se_bias=cell["se_bias"], claim=claim, coverage_1sigma=cell["coverage_1sigma"],
-                    coverage_n=cell["coverage_n"], scale=cell["scale"], at_most=spec.at_most)
+                        "coverage_n": cov["n"] if cov else 0, "claim": claim, "at_most": spec.at_most,
+                        "determined": st.get("determined") is not False, **v}
+                cell["claim_holds"] = None if v["verdict"] is None else v["verdict"] == "holds"
                 cell["shift"], cell["se_shift"] = self._shift(key, res, ideal, case)
                 row[key] = cell
             out[case.name] = row
@@ -404,9 +333,10 @@ class RobustnessResult:
 
     # ------------------------------------------------------------ verdicts
     def breaks(self) -> dict[tuple[str, str], dict]:
-        """Per ``(class, variant)``: which single effect breaks its claim first (the failing
-        single-effect case farthest past its claim, :func:`_severity`), on which axis, and the
-        sentence that says it."""
+        """Per ``(class, variant)``: the sentence built from its cells' verdicts (a failing
+        single-effect case farthest past its tolerances, :func:`~budget.runner.robustness_verdicts.severity`,
+        "breaks its claim first"; an undetermined one says so with the trials to settle it),
+        the effect and axis it names."""
         cells = self.cells()
         singles = [c.name for c in self.cases if c.name not in (IDEAL, ALL)]
         out = {}
@@ -417,41 +347,55 @@ class RobustnessResult:
                     continue
                 determined = [k for k in keys if cells[IDEAL][k]["determined"]]
                 if not determined:
-                    out[(spec.name, var)] = {"effect": None, "axis": None, "sentence": (
+                    out[(spec.name, var)] = {"effect": None, "axis": None, "verdict": None, "sentence": (
                         f"{spec.label}, {var}: not determined (a gauge freedom: the data cannot separate "
                         "it from another parameter), no claim to test.")}
                     continue
-                keys = determined
-                out[(spec.name, var)] = self._verdict(spec, var, keys, cells, singles)
+                out[(spec.name, var)] = self._verdict(spec, var, determined, cells, singles)
         return out
 
-    def _verdict(self, spec: ClassSpec, var: str, keys, cells, singles) -> dict:
+    def _said(self, spec: ClassSpec, keys, cells, cn: str, k) -> str:
+        """One cell's numbers and verdict in words."""
         unit = "" if spec.unit in ("", "1") else f" {spec.unit}"  # a ratio's unit "1" is not written
+        c = cells[cn][k]
+        s = f"bias {fmt(c['bias'], 3, sign=True)} +- {fmt(abs(c['se_bias']), 2)}{unit}"
+        s += f" on axis {k[2]}" if len(keys) > 1 else ""
+        if cn != IDEAL:
+            s += f" (a shift of {fmt(c['shift'], 3, sign=True)} +- {fmt(abs(c['se_shift']), 2)} from the ideal world)"
+        bv, cv = c["bias_verdict"], c["coverage_verdict"]
+        if bv is not None:
+            s += f", {bv.outcome} against {bv.tolerance.describe(unit.strip())} ({bv.tolerance.reason})"
+        if c["coverage_1sigma"] is not None:
+            s += f", 1-sigma coverage {100 * c['coverage_1sigma']:.1f} %"
+            if cv is not None:
+                s += f" ({cv.outcome} against 68.3 +- 5 points)"
+        if c["verdict"] == "undetermined":
+            s += ("; its estimate sits on a tolerance's edge: no number of trials settles it" if c["on_edge"]
+                  else f"; about {c['n_to_settle']} trials would settle it" if c["n_to_settle"]
+                  else "; more trials would settle it")
+        return s
+
+    def _verdict(self, spec: ClassSpec, var: str, keys, cells, singles) -> dict:
         head = f"{spec.label}, {var}"
 
-        def worst(case_names, failing_only=True):
+        def said(cn, k) -> str:
+            return self._said(spec, keys, cells, cn, k)
+
+        def worst(case_names, outcome="fails"):
             best = None
             for cn in case_names:
                 for k in keys:
                     c = cells[cn][k]
-                    if failing_only and c["claim_holds"] is not False:
+                    if outcome is not None and c["verdict"] != outcome:
                         continue
-                    s = _severity(c)
+                    s = severity(c)
                     if best is None or s > best[0]:
                         best = (s, cn, k)
             return best
 
-        def said(cn, k) -> str:
-            c = cells[cn][k]
-            s = f"bias {fmt(c['bias'], 3, sign=True)} +- {fmt(abs(c['se_bias']), 2)}{unit}"
-            if cn != IDEAL:
-                s += f" (a shift of {fmt(c['shift'], 3, sign=True)} +- {fmt(abs(c['se_shift']), 2)} from the ideal world)"
-            if c["claim"] is not None:
-                s += f", {fmt((abs(c['bias']) + 3 * c['se_bias']) / c['claim'], 2)} times its claimed {fmt(c['claim'], 3)}"
-            if c["coverage_1sigma"] is not None:
-                s += (f", 1-sigma coverage {100 * c['coverage_1sigma']:.1f} % "
-                      f"(68.3 +- {100 * c['se_coverage_1sigma']:.1f} % expected)")
-            return s + (f" on axis {k[2]}" if len(keys) > 1 else "")
+        def answer(effect, w, sentence, verdict):
+            return {"effect": effect, "axis": None if w is None else w[2][2],
+                    "severity": None if w is None else w[0], "verdict": verdict, "sentence": sentence + "."}
 
         if spec.role == "residual":
             # no verdict; which effect alone moves it most (the case "all" always would, or
@@ -464,35 +408,40 @@ class RobustnessResult:
             if ALL in cells:
                 ka = max(keys, key=lambda k: abs(cells[ALL][k]["shift"]))
                 s += f"; all together: {said(ALL, ka)}"
-            return {"effect": effect, "axis": axis, "sentence": s + "."}
+            return {"effect": effect, "axis": axis, "verdict": None, "sentence": s + "."}
+        names = [c.name for c in self.cases]
+        if all(cells[cn][k]["verdict"] is None for cn in names for k in keys):
+            return answer(None, None, f"{head}: no verdict ({cells[IDEAL][keys[0]]['no_verdict']})", None)
         w0 = worst([IDEAL])
         if w0 is not None:
             s = f"{head}: its claim fails already in the ideal world: {said(IDEAL, w0[2])}"
-            w = worst(singles, failing_only=False)
+            w = worst(singles)
             if w is not None and w[0] > w0[0]:
                 s += f"; {w[1]} takes it farthest: {said(w[1], w[2])}"
-            return {"effect": IDEAL, "axis": w0[2][2], "severity": w0[0], "sentence": s + "."}
+            return answer(IDEAL, w0, s, "fails")
         w = worst(singles)
         if w is not None:
-            return {"effect": w[1], "axis": w[2][2], "severity": w[0],
-                    "sentence": f"{head}: {w[1]} breaks its claim first: {said(w[1], w[2])}."}
-        if ALL in cells:
-            wa = worst([ALL])
-            if wa is not None:
-                return {"effect": ALL, "axis": wa[2][2], "severity": wa[0],
-                        "sentence": f"{head}: no single effect breaks its claim; all together they do: "
-                                    f"{said(ALL, wa[2])}."}
+            return answer(w[1], w, f"{head}: {w[1]} breaks its claim first: {said(w[1], w[2])}", "fails")
+        wa = worst([ALL]) if ALL in cells else None
+        if wa is not None:
+            return answer(ALL, wa, f"{head}: no single effect breaks its claim; all together they do: "
+                                   f"{said(ALL, wa[2])}", "fails")
+        open_ = [cn for cn in names if any(cells[cn][k]["verdict"] == "undetermined" for k in keys)]
+        if open_:
+            wu = worst(open_, "undetermined")
+            return answer(None, wu, f"{head}: no case shows its claim broken, but it is undetermined in "
+                                    f"{len(open_)} of {len(names)} cases ({', '.join(open_)}); farthest out, "
+                                    f"{wu[1]}: {said(wu[1], wu[2])}", "undetermined")
         if len(self.cases) == 1:
-            return {"effect": None, "axis": None, "sentence": f"{head}: its claim holds (no effect is on)."}
+            return answer(None, None, f"{head}: its claim holds (no effect is on): {said(IDEAL, keys[0])}", "holds")
         last = ALL if ALL in cells else self.cases[-1].name
-        k = max(keys, key=lambda k: _severity(cells[last][k]))
-        return {"effect": None, "axis": None,
-                "sentence": f"{head}: no effect breaks its claim ({'all effects together' if last == ALL else last}: "
-                            f"{said(last, k)})."}
+        wl = worst([last], None)
+        return answer(None, None, f"{head}: its claim holds in every case "
+                                  f"({'all effects together' if last == ALL else last}: {said(last, wl[2])})", "holds")
 
     # ------------------------------------------------------------ output
     def to_json(self) -> dict:
-        """JSON payload (schema ``budget.robustness/1``, module docstring)."""
+        """JSON payload (schema ``budget.robustness/2``, module docstring)."""
         cells = self.cells()
         effects = scenario_effects(self.scenario)
         depends = capability(self.study, WorldEffects).truth_depends_on_effects(self.scenario)
@@ -500,9 +449,7 @@ class RobustnessResult:
         for case in self.cases:
             classes: dict = {}
             for (cls, var, ax), c in cells[case.name].items():
-                classes.setdefault(cls, {}).setdefault(ax, {})[var] = {
-                    k: c[k] for k in ("bias", "se_bias", "std", "coverage_1sigma", "claim", "claim_holds",
-                                      "shift", "se_shift", "mean", "truth")}
+                classes.setdefault(cls, {}).setdefault(ax, {})[var] = _cell_json(c)
             cases[case.name] = {
                 "active_effects": list(case.active), "effects": case.magnitudes,
                 "trials": self.results[case.name].trials, "seed": self.seed,
@@ -522,9 +469,11 @@ class RobustnessResult:
             "truth_depends_on_effects": None if depends is None else sorted(depends),
             "class_info": {c.name: {"label": c.label, "unit": c.unit, "role": c.role, "axes": list(c.axes),
                                     "per_trial_truth": c.per_trial_truth} for c in self.classes()},
-            "claim_holds_definition": CLAIM_HOLDS_TEXT,
+            "verdict_definition": VERDICT_TEXT,
+            "coverage_tolerance": _tolerance_json(COVERAGE_TOLERANCE),
             "cases": cases,
-            "breaks": {f"{cls}.{var}": v for (cls, var), v in self.breaks().items()},
+            "breaks": {f"{cls}.{var}": v | {"severity": _finite(v.get("severity"))}
+                       for (cls, var), v in self.breaks().items()},
             "elapsed_s": self.elapsed_s, "executor": self.executor,
         }
 
@@ -575,10 +524,10 @@ class RobustnessResult:
             sources = type(effects).sources()
             depends = st.truth_depends_on_effects(self.scenario)
             lines = [f"# {st.title}: what each claim survives", "",
-                     f"Study `{st.name}` (seed document {st.seed_document}); scenario "
-                     f"`{getattr(self.scenario, 'name', '')}` (hash `{st.scenario_hash(self.scenario)}`), seed "
-                     f"{self.seed}, {self.trials} trials in each of {len(self.cases)} cases, the same trial "
-                     "seeds in every case (common random numbers: a difference between cases is the effect's).",
+                     (f"Study `{st.name}` (seed document {st.seed_document}); scenario "
+                      f"`{getattr(self.scenario, 'name', '')}` (hash `{st.scenario_hash(self.scenario)}`), seed "
+                      f"{self.seed}, {self.trials} trials in each of {len(self.cases)} cases, the same trial "
+                      "seeds in every case (common random numbers: a difference between cases is the effect's)."),
                      "", "## Effects of the world", "",
                      "The lab's methods model none of these; each case below switches them on or off.", ""]
             for n, v in effects.magnitudes().items():
@@ -589,11 +538,12 @@ class RobustnessResult:
                                     "the ideal case's, reused by every case whose effects leave them unchanged "
                                     f"(they depend on {', '.join(sorted(depends)) or 'no effect'})."),
                       "", "## Verdicts", "", self.markdown_table(), "",
-                      "Each cell, one class and variant: `ok` when its claim holds on every axis, `FAIL k/n` "
-                      "when it fails on k of its n axes (`--`: no claim to judge: a residual, an input, a reference "
-                      "variant that estimates nothing, or an undetermined axis), "
-                      "then the bias in the class's unit of the axis farthest past its claim (named in "
-                      "brackets); every axis is in `robustness.json`. " + CLAIM_HOLDS_TEXT, "", "## What breaks each claim", ""]
+                      "Each cell, one class and variant: `holds` when every judged axis holds, `FAILS k/n` "
+                      "when k of its n judged axes fail, `undet. k/n` when none fails and k are undetermined "
+                      "(`--`: no verdict: a residual, an input, a reference variant that estimates nothing, or "
+                      "a gauge axis), then the bias in the class's unit of the axis farthest past its "
+                      "tolerance (named in brackets); every axis, with its tolerance and the trials that "
+                      "would settle it, is in `robustness.json`. " + VERDICT_TEXT, "", "## What breaks each claim", ""]
             lines += [f"* {s}" for s in self.sentences()]
             scenario_toml = st.scenario_text(self.scenario)
             lines += ["", "## Scenario", "", "```toml", scenario_toml.rstrip(), "```", ""]
@@ -604,14 +554,27 @@ class RobustnessResult:
         return Path(out_dir) / "report.md"
 
 
-#: ``claim_holds`` in words (the JSON and the report carry it)
-CLAIM_HOLDS_TEXT = (
-    "A claim holds when the bias is within 3 combined standard errors of zero (where the method "
-    "states an accuracy A: when |bias| + 3 se <= A) and, where the variant states a 1-sigma "
-    "uncertainty, its 1-sigma coverage is within the binomial 3-standard-error band of 68.27 % "
-    "for the trial count; a residual has no claim. A one-sided claim (a stated bound the actual "
-    "stays at or below) holds when the estimate is not below the truth by more than 3 standard "
-    "errors (-bias in place of |bias|).")
+def _finite(x):
+    """``x`` where finite, else None (the JSON has no NaN or infinity)."""
+    return x if isinstance(x, (int, float)) and math.isfinite(x) else None
+
+
+def _tolerance_json(t) -> dict | None:
+    if t is None:
+        return None
+    return {"low": _finite(t.low), "high": _finite(t.high), "reason": t.reason, "source": t.source}
+
+
+def _cell_json(c: dict) -> dict:
+    """One cell of the JSON (module docstring)."""
+    out = {k: c[k] for k in ("bias", "se_bias", "std", "coverage_1sigma", "claim", "verdict", "no_verdict",
+                             "n_to_settle", "claim_holds", "shift", "se_shift", "mean", "truth")}
+    bv, cv = c["bias_verdict"], c["coverage_verdict"]
+    out["tolerance"] = _tolerance_json(bv.tolerance if bv is not None else None)
+    out["bias_verdict"] = bv.outcome if bv is not None else None
+    out["coverage_verdict"] = cv.outcome if cv is not None else None
+    out["significance_se"] = _finite(bv.significance_se) if bv is not None else None
+    return out
 
 
 # ---------------------------------------------------------------------- the command
