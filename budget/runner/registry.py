@@ -50,22 +50,22 @@ class StudyEntry:
 REGISTRY: tuple[StudyEntry, ...] = (
     StudyEntry("starcam", "budget.starcam.study:STUDY",
                "Seed 000: star-camera TE, HSFE and LSFE lab methods.", cli_module="budget.starcam.cli",
-               former_names=("camera",), ledger_trials=200),
+               former_names=("camera",), ledger_trials=600),
     StudyEntry("inductosyn", "budget.inductosyn.study:STUDY",
                "Seed 001: polygon calibration of an inductosyn's harmonic errors.", cli_module="budget.inductosyn.cli",
-               aliases=("harmonics",), ledger_trials=400),
+               aliases=("harmonics",), ledger_trials=2000),
     StudyEntry("whiskbroom", "budget.whiskbroom.study:STUDY",
                "Seed 002: whiskbroom TDI camera image motion, synthesis and MTF.", cli_module="budget.whiskbroom.cli",
-               ledger_trials=200),
+               ledger_trials=600),
     StudyEntry("scanmirror", "budget.scanmirror.study:STUDY",
                "Seed 003: GEO two-axis scan mirror pointing and its normal deviation from stars.",
-               cli_module="budget.scanmirror.cli", ledger_trials=200),
+               cli_module="budget.scanmirror.cli", ledger_trials=600),
     StudyEntry("linecam", "budget.linecam.study:STUDY",
                "Seed 004: star-based on-orbit calibration of a TDI line camera.", cli_module="budget.linecam.cli",
-               ledger_trials=80),
+               ledger_trials=160),
     StudyEntry("attitude", "budget.attitude.study:STUDY",
                "Seed 000's star camera on the real sky: attitude error against eq 32.", cli_module="budget.attitude.cli",
-               ledger_trials=200),
+               ledger_trials=600),
 )
 _BY_NAME = {e.name: e for e in REGISTRY}
 _ALIASES = {a: e.name for e in REGISTRY for a in e.aliases}
