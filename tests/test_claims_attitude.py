@@ -9,30 +9,11 @@ from __future__ import annotations
 import pytest
 
 from budget.attitude.study import STUDY
-from budget.runner.claims import (
-    WORLDS,
-    evaluate_claims,
-    ledger_markdown,
-    ledger_runs,
-    study_claims,
-    world_scenario,
-)
-from budget.runner.run import run_study
+from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, world_scenario
+from claims_checks import assert_outcome_follows_numbers, ledger_of
 from simcam.effects import scenario_effects
 from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import EMBEDDED_DEFAULT, IN_ORBIT_EFFECTS, from_dict
-
-#: the two-sided 95 % normal quantile of the ledger's rule (budget.runner.verdicts)
-Z95 = 1.959963984540054
-
-
-def _runs(trials: int, seed: int, workers: int = 1) -> tuple:
-    claims = study_claims(STUDY, STUDY.load_scenario(None))
-    runs = {key: run_study(STUDY, world_scenario(STUDY, STUDY.load_scenario(key[0]), key[1]), trials=trials,
-                           seed=seed, workers=workers)
-            for key in ledger_runs(claims)}
-    return claims, runs, evaluate_claims(claims, runs)
-
 
 def test_the_worlds_differ_by_the_cameras_in_orbit_effects():
     scn = STUDY.load_scenario(None)
@@ -67,16 +48,13 @@ def _check(claims, runs, results, trials: int) -> None:
         assert st["mean"] == pytest.approx((single / 3.0) ** 2 / 10, rel=1e-12)
         assert st["mean"] == pytest.approx(r.claim.figures[0], rel=0.013)
         assert (v.tolerance.low, v.tolerance.high) == pytest.approx((-0.21 * st["truth"], 0.21 * st["truth"]))
-        lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
-        want = ("holds" if v.tolerance.low <= lo and hi <= v.tolerance.high
-                else "fails" if lo > v.tolerance.high or hi < v.tolerance.low else "undetermined")
-        assert v.outcome == want, r.sentence
+        assert_outcome_follows_numbers(r)
     table = ledger_markdown(results)
     assert "sqrt(10)" in table
 
 
 def test_eq32_is_judged_in_both_worlds_from_small_runs():
-    claims, runs, results = _runs(trials=12, seed=5)
+    claims, runs, results = ledger_of(STUDY, None, 12, 5)
     _check(claims, runs, results, 12)
     # the same pointings in both worlds (same seed): the in-orbit effects change the errors
     a = runs[(EMBEDDED_DEFAULT, "seed")].samples[("spatial", "published", "x")]
@@ -89,7 +67,7 @@ def test_eq32_fails_on_x_in_both_worlds_at_full_size():
     # 1,000 pointings a world (docs/attitude.md, "The claim judged"): eq 32 understates x's mean
     # square by about 0.15 arcsec^2 against a tolerance of 0.04, with a standard error of 0.007
     # (the spread of the per-pointing mean squares over sqrt(1000)): far outside in both worlds
-    claims, runs, results = _runs(trials=1000, seed=1, workers=2)
+    claims, runs, results = ledger_of(STUDY, None, 1000, 1, workers=2)
     _check(claims, runs, results, 1000)
     for r in results:
         if r.claim.axis == "x":

@@ -7,34 +7,16 @@ import pytest
 
 from budget.inductosyn.claims import CLAIMS, DEFAULT_SCENARIO
 from budget.inductosyn.study import STUDY
-from budget.runner.claims import (
-    WORLDS,
-    evaluate_claims,
-    ledger_markdown,
-    ledger_runs,
-    study_claims,
-    world_scenario,
-)
+from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, study_claims
 from budget.runner.numbers import fmt
-from budget.runner.run import run_study
-from simcam.effects import scenario_effects
+from claims_checks import assert_outcome_follows_numbers, assert_worlds, ledger_of, outcomes
 
-Z95 = 1.959963984540054
 COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s")
-
-
-def _runs(trials: int | None, seed: int) -> dict:
-    claims = study_claims(STUDY, STUDY.load_scenario(None))
-    return {key: run_study(STUDY, world_scenario(STUDY, STUDY.load_scenario(key[0]), key[1]), trials=trials,
-                           seed=seed, workers=1)
-            for key in ledger_runs(claims)}
 
 
 @pytest.fixture(scope="module")
 def small():
-    claims = study_claims(STUDY, STUDY.load_scenario(None))
-    runs = _runs(20, 11)
-    return claims, runs, evaluate_claims(claims, runs)
+    return ledger_of(STUDY, None, 20, 11)
 
 
 def _half_width(c, run) -> tuple[float, float]:
@@ -51,9 +33,7 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
     """The ledger's structure, and every verdict against its own numbers and the runs'."""
     assert len(claims) == 26 and claims == CLAIMS
     assert ledger_runs(claims) == ((DEFAULT_SCENARIO, "seed"), (DEFAULT_SCENARIO, "realistic"))
-    for (_, world), res in runs.items():
-        on = scenario_effects(res.scenario).active()
-        assert (on == ()) == (world == "seed"), (world, on)
+    assert_worlds(runs)
     by_id = {c.id: c for c in claims}
     for cid, cls, fig in (("short.before", "before", 145.6), ("short.after", "residual", 2.7),
                           ("environment", "environment", 5.4)):
@@ -84,24 +64,18 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
             assert (v.estimate, v.se, v.n) == (st["bias"], st["se_bias"], trials)
         lo_t, hi_t = _half_width(c, run)
         assert (v.tolerance.low, v.tolerance.high) == pytest.approx((lo_t, hi_t))
-        lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
-        want = ("holds" if lo_t <= lo and hi <= hi_t else "fails" if lo > hi_t or hi < lo_t else "undetermined")
-        assert v.outcome == want, r.sentence
-        assert r.sentence.startswith(want + ": ") and fmt(v.estimate) in r.sentence
+        assert_outcome_follows_numbers(r, lo_t, hi_t)
+        assert fmt(v.estimate) in r.sentence
     table = ledger_markdown(results).splitlines()
     assert len(table) == 2 + len(claims)
     for c, line in zip(claims, table[2:]):
         assert line.startswith(f"| {c.words} ")
 
 
-def _outcomes(results) -> dict:
-    return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
-
-
 def test_ledger_on_small_runs(small):
     claims, runs, results = small
     _check_ledger(claims, runs, results, 20)
-    got = _outcomes(results)
+    got = outcomes(results)
     # far from their tolerances' edges whatever the draw: the truth before compensation
     # (142.9 against 131 to 160, a property of the encoder: its per-instrument sd is 0.007),
     # the 23-face table's bias (+2.2 % +- 0.02 % against 10 %), the first electrical
@@ -127,11 +101,9 @@ def test_ledger_full_size():
     0.008 in 2.43 to 2.97), and every method claim (biases within 5 % of their truths, se
     below 1 %): the improved A_L2s holds (+0.020 +- 0.002 against 0.1), where the
     significance rule called it biased at 200 trials and recovered at 100."""
-    claims = study_claims(STUDY, STUDY.load_scenario(None))
-    runs = _runs(1000, 0)
-    results = evaluate_claims(claims, runs)
+    claims, runs, results = ledger_of(STUDY, None, 1000, 0)
     _check_ledger(claims, runs, results, 1000)
-    got = _outcomes(results)
+    got = outcomes(results)
     for w in WORLDS:
         assert got[("short.before.performance", w)] == "holds"
         assert got[("environment.performance", w)] == "fails"

@@ -9,12 +9,10 @@ import pytest
 
 from budget.linecam.claims import LEDGER_SCENARIO
 from budget.linecam.study import STUDY
-from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, study_claims
 from budget.runner.numbers import fmt
-from budget.runner.run import run_study
-from simcam.effects import scenario_effects
+from claims_checks import assert_outcome_follows_numbers, assert_worlds, ledger_of, outcomes
 
-Z95 = 1.959963984540054
 #: a tenth of the default's injected sigmas (report units) and 0.1 px of 10 um at f = 1 m
 PIXEL_ARCSEC = 0.01 / 1000.0 * 180.0 / math.pi * 3600.0
 TESTABLE = {"yaw.method": ("exterior", "yaw", 3.0), "df.method": ("focal", "df", 0.01),
@@ -27,26 +25,16 @@ TESTABLE = {"yaw.method": ("exterior", "yaw", 3.0), "df.method": ("focal", "df",
 UNTESTABLE = ("step2.signal", "step1.aberration", "luojia.positioning")
 
 
-def _runs(trials: int | None, seed: int) -> dict:
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    return {key: run_study(STUDY, world_scenario(STUDY, STUDY.load_scenario(key[0]), key[1]), trials=trials,
-                           seed=seed, workers=1)
-            for key in ledger_runs(claims)}
-
-
 @pytest.fixture(scope="module")
 def small():
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    runs = _runs(10, 11)
-    return claims, runs, evaluate_claims(claims, runs)
+    return ledger_of(STUDY, LEDGER_SCENARIO, 10, 11)
 
 
 def _check_ledger(claims, runs, results, trials: int) -> None:
     """The ledger's structure, and every verdict against its own numbers and the runs'."""
     assert [c.id for c in claims] == [*TESTABLE, *UNTESTABLE]
     assert ledger_runs(claims) == ((LEDGER_SCENARIO, "seed"), (LEDGER_SCENARIO, "realistic"))
-    for (_, world), res in runs.items():
-        assert (scenario_effects(res.scenario).active() == ()) == (world == "seed")
+    assert_worlds(runs)
     assert [(r.claim.id, r.world) for r in results] == [(c.id, w) for c in claims for w in WORLDS]
     for r in results:
         c = r.claim
@@ -60,22 +48,15 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
         assert (v.estimate, v.se, v.n) == (st["bias"], st["se_bias"], trials)
         # the tolerance's width is computed in the claim from the scenario's fields (rounding)
         assert (v.tolerance.low, v.tolerance.high) == pytest.approx((-half, half), rel=1e-12)
-        lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
-        want = ("holds" if v.tolerance.low <= lo and hi <= v.tolerance.high
-                else "fails" if lo > v.tolerance.high or hi < v.tolerance.low else "undetermined")
-        assert v.outcome == want, r.sentence
-        assert r.sentence.startswith(want + ": ") and fmt(v.estimate) in r.sentence
+        assert_outcome_follows_numbers(r)
+        assert fmt(v.estimate) in r.sentence
     assert len(ledger_markdown(results).splitlines()) == 2 + len(claims)
-
-
-def _outcomes(results) -> dict:
-    return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
 
 
 def test_ledger_on_small_runs(small):
     claims, runs, results = small
     _check_ledger(claims, runs, results, 10)
-    got = _outcomes(results)
+    got = outcomes(results)
     # far from the edges whatever the draw (200-trial sds in docs/claims.md): the determined
     # combinations within 0.01" of their truth against 3" in the ideal world (per-trial sd
     # 0.04"); the realistic world's unmodelled distortion biases p1 by 0.59 (sd 0.16) against
@@ -91,11 +72,9 @@ def test_linecam_declares_its_claims():
 @pytest.mark.slow
 def test_ledger_full_size():
     """The scenario's own trial count (200, seed 0), as docs/claims.md shows it."""
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    runs = _runs(None, 0)
-    results = evaluate_claims(claims, runs)
+    claims, runs, results = ledger_of(STUDY, LEDGER_SCENARIO, None, 0)
     _check_ledger(claims, runs, results, 200)
-    got = _outcomes(results)
+    got = outcomes(results)
     for cid in ("yaw.method", "df.method", "pitch+dx0/F.method", "roll-dy0/F.method", "los.across_100.method"):
         assert got[(cid, "seed")] == got[(cid, "realistic")] == "holds", cid
     for cid in ("p1.method", "p2.method", "los.along_100.method"):

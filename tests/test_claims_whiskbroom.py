@@ -5,14 +5,12 @@ from __future__ import annotations
 
 import pytest
 
-from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, study_claims
 from budget.runner.numbers import fmt
-from budget.runner.run import run_study
 from budget.whiskbroom.claims import LEDGER_SCENARIO
 from budget.whiskbroom.study import STUDY
-from simcam.effects import scenario_effects
+from claims_checks import assert_outcome_follows_numbers, assert_worlds, ledger_of, outcomes
 
-Z95 = 1.959963984540054
 #: the testable claims: id -> (class, axis, absolute tolerance)
 TESTABLE = {"mtf.along.method": ("mtf_nyquist", "along", 0.005), "mtf.cross.method": ("mtf_nyquist", "cross", 0.005),
             "stage_limit.method": ("stage_limit", "along", 0.05 * 96)}
@@ -21,26 +19,16 @@ HEADLINE = {"stage_limit.headline.0.001": 48.0, "stage_limit.headline.0.0005": 7
             "stage_limit.headline.0.0004": 84.0, "stage_limit.headline.0.0003": 96.0, "dv.max": 0.7, "beta.mode": 83.0}
 
 
-def _runs(trials: int | None, seed: int) -> dict:
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    return {key: run_study(STUDY, world_scenario(STUDY, STUDY.load_scenario(key[0]), key[1]), trials=trials,
-                           seed=seed, workers=1)
-            for key in ledger_runs(claims)}
-
-
 @pytest.fixture(scope="module")
 def small():
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    runs = _runs(20, 11)
-    return claims, runs, evaluate_claims(claims, runs)
+    return ledger_of(STUDY, LEDGER_SCENARIO, 20, 11)
 
 
 def _check_ledger(claims, runs, results, trials: int) -> None:
     """The ledger's structure, and every verdict against its own numbers and the runs'."""
     assert len(claims) == 10
     assert ledger_runs(claims) == ((LEDGER_SCENARIO, "seed"), (LEDGER_SCENARIO, "realistic"))
-    for (_, world), res in runs.items():
-        assert (scenario_effects(res.scenario).active() == ()) == (world == "seed")
+    assert_worlds(runs)
     by_id = {c.id: c for c in claims}
     for cid, (cls, axis, _) in TESTABLE.items():
         c = by_id[cid]
@@ -59,23 +47,16 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
         v = r.verdict
         assert (v.estimate, v.se, v.n) == (st["bias"], st["se_bias"], trials)
         assert (v.tolerance.low, v.tolerance.high) == pytest.approx((-half, half))
-        lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
-        want = ("holds" if v.tolerance.low <= lo and hi <= v.tolerance.high
-                else "fails" if lo > v.tolerance.high or hi < v.tolerance.low else "undetermined")
-        assert v.outcome == want, r.sentence
-        assert r.sentence.startswith(want + ": ") and fmt(v.estimate) in r.sentence
+        assert_outcome_follows_numbers(r)
+        assert fmt(v.estimate) in r.sentence
     table = ledger_markdown(results).splitlines()
     assert len(table) == 2 + len(claims)
-
-
-def _outcomes(results) -> dict:
-    return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
 
 
 def test_ledger_on_small_runs(small):
     claims, runs, results = small
     _check_ledger(claims, runs, results, 20)
-    got = _outcomes(results)
+    got = outcomes(results)
     # far from their tolerances' edges whatever the draw: the published sinc above the delivered
     # MTF by the clocking factor, 1 - sinc(pi/8) = 0.026 (per-trial sd 5e-4), and its stage limit
     # 19 % high (42 stages, per-trial sd 33: 20 trials put 2 se at 15) in the ideal world; in
@@ -93,11 +74,9 @@ def test_whiskbroom_declares_its_claims():
 @pytest.mark.slow
 def test_ledger_full_size():
     """The scenario's own trial count (200, seed 0), as docs/claims.md shows it."""
-    claims = study_claims(STUDY, STUDY.load_scenario(LEDGER_SCENARIO))
-    runs = _runs(None, 0)
-    results = evaluate_claims(claims, runs)
+    claims, runs, results = ledger_of(STUDY, LEDGER_SCENARIO, None, 0)
     _check_ledger(claims, runs, results, 200)
-    got = _outcomes(results)
+    got = outcomes(results)
     for w in WORLDS:
         assert got[("mtf.along.method", w)] == got[("stage_limit.method", w)] == "fails"
     # the drift-angle residual costs 0.3 % across in the ideal world (within 0.005), 2.4 % with

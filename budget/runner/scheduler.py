@@ -45,6 +45,7 @@ import numpy as np
 from budget.runner.capabilities import BatchedTrials, SizedTruths, SplitTruths, Warmup, capability
 from budget.runner.stats import converged
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
+from simcam.infra.lifecycle import raise_pending_interruption
 
 __all__ = ["MAX_TRIALS", "init_worker", "PILOT_TRIALS", "TRUTH_SE_FRACTION", "TRUTH_SIZES", "RunState", "ScheduledRun",
            "Scheduler", "Stopping", "TrialArrays", "TrialChunk", "TrialChunkDone", "TruthPart", "TruthPartDone",
@@ -400,6 +401,7 @@ class Scheduler:
         it comes back; a task's exception ends the run with it."""
         s = self.state
         for _, done in self.executor.map_unordered(run_task, s.queue):
+            raise_pending_interruption()  # a stop signal swallowed where it landed ends the run here
             s.tasks_done += 1
             if isinstance(done, TruthPartDone):
                 self.truth_part_done(done)

@@ -45,7 +45,8 @@ from simcam.infra.errors import Interrupted, ResourceLimitError
 __all__ = [
     "Interrupted", "ResourceLimitError", "announce_size", "available_memory_bytes", "check_disk", "check_memory",
     "exit_with_parent", "format_bytes", "guarded_entry", "handle_termination", "partial_prefix", "pid_alive",
-    "lost_worker_message", "progress", "quick_teardown", "quiet_pool_breakage", "remove_stale_partials",
+    "lost_worker_message", "progress", "quick_teardown", "quiet_pool_breakage", "raise_pending_interruption",
+    "remove_stale_partials",
     "safe_filename", "stop_pool", "worker_initializer",
     "cap_workers", "usable_cores",
 ]
@@ -61,6 +62,11 @@ _STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(sign
                                   signal.SIGINT) if s is not None)
 
 
+#: signals whose :class:`Interrupted` was raised inside :func:`handle_termination` and has not
+#: yet been seen leaving it (one raised where C code or a library swallowed it stays here)
+_PENDING: list = []
+
+
 def _raise_interrupted(signum, _frame):
     # one-shot: a second signal during the clean-up must not interrupt the clean-up itself
     # (a supervisor that insists sends SIGKILL)
@@ -69,7 +75,20 @@ def _raise_interrupted(signum, _frame):
             signal.signal(s, signal.SIG_IGN)
         except (ValueError, OSError):
             pass
+    _PENDING.append(signum)
     raise Interrupted(signum)
+
+
+def raise_pending_interruption() -> None:
+    """Raise the :class:`Interrupted` of a stop signal that arrived in this block but was
+    swallowed where it was raised (a C callback that reports nothing, a library's
+    ``except BaseException``): a command is never left running to its end, or ending with
+    status 0, deaf to a signal it received. A long loop calls this at each step; the end of
+    :func:`handle_termination` calls it too."""
+    if _PENDING:
+        signum = _PENDING[0]
+        _PENDING.clear()
+        raise Interrupted(signum)
 
 
 #: seconds after which an interruption swallowed by a C callback is delivered again
@@ -114,7 +133,9 @@ def default_stop_handlers() -> None:
 def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
     """Within the block, the given signals raise :class:`Interrupted` (main thread only); one
     raised inside a C callback, which cannot propagate it, is delivered again after it
-    (:func:`_redeliver_swallowed`).
+    (:func:`_redeliver_swallowed`), and one swallowed anywhere else is raised at the block's
+    end at the latest (:func:`raise_pending_interruption`), in place of any error it caused
+    on its way.
 
     The previous handlers are restored on exit. Outside the main thread (where Python
     cannot set handlers) the block runs unchanged.
@@ -132,6 +153,19 @@ def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
     sys.unraisablehook = _redeliver_swallowed
     try:
         yield
+        raise_pending_interruption()  # one swallowed on its way: delivered now, not lost
+    except Interrupted:
+        _PENDING.clear()  # seen leaving the block
+        raise
+    except BaseException:
+        # an error the swallowed interruption caused on its way (numba, interrupted while it
+        # saved a compiled kernel to its cache, raises "no compiled object yet"): the signal
+        # is what ended the command
+        if _PENDING:
+            signum = _PENDING[0]
+            _PENDING.clear()
+            raise Interrupted(signum) from None
+        raise
     finally:
         sys.unraisablehook = _PREVIOUS_UNRAISABLE.pop()
         for s, h in previous.items():

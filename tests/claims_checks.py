@@ -1,0 +1,50 @@
+"""What every study's claims-ledger test shares: the ledger's runs in both worlds, and the
+verdict rule recomputed from a verdict's own numbers (docs/claims.md, "The verdict rule")."""
+
+from __future__ import annotations
+
+from budget.runner.claims import evaluate_claims, ledger_runs, study_claims, world_scenario
+from budget.runner.run import run_study
+from simcam.effects import scenario_effects
+
+#: the normal quantile of 0.975: the rule's default two-sided 95 % interval
+Z95 = 1.959963984540054
+
+
+def ledger_of(study, scenario_name, trials: int | None, seed: int, *, workers: int = 1):
+    """``(claims, runs, results)``: the study's claims on ``scenario_name``, a run of each
+    scenario-world they name, and the claims judged from those runs."""
+    claims = study_claims(study, study.load_scenario(scenario_name))
+    runs = {key: run_study(study, world_scenario(study, study.load_scenario(key[0]), key[1]), trials=trials,
+                           seed=seed, workers=workers)
+            for key in ledger_runs(claims)}
+    return claims, runs, evaluate_claims(claims, runs)
+
+
+def assert_worlds(runs) -> None:
+    """The seed's own world has no effect on, the realistic world some."""
+    for (name, world), res in runs.items():
+        on = scenario_effects(res.scenario).active()
+        assert (on == ()) == (world == "seed"), (name, world, on)
+
+
+def expected_outcome(v, low: float | None = None, high: float | None = None) -> str:
+    """The rule on the verdict's own numbers: its 95 % interval against the tolerance
+    ``[low, high]`` (the verdict's own when not given)."""
+    low = v.tolerance.low if low is None else low
+    high = v.tolerance.high if high is None else high
+    lo, hi = v.estimate - Z95 * v.se, v.estimate + Z95 * v.se
+    return "holds" if low <= lo and hi <= high else "fails" if lo > high or hi < low else "undetermined"
+
+
+def assert_outcome_follows_numbers(r, low: float | None = None, high: float | None = None) -> str:
+    """The claim result's outcome and the start of its sentence are the rule's; returns it."""
+    want = expected_outcome(r.verdict, low, high)
+    assert r.verdict.outcome == want, r.sentence
+    assert r.sentence.startswith(want + ": "), r.sentence
+    return want
+
+
+def outcomes(results) -> dict:
+    """``(claim id, world) -> outcome`` of the results with a verdict."""
+    return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
