@@ -17,7 +17,7 @@ from budget.runner.plan.quantiles import quantile_rel_se, requirement_verdict
 from budget.runner.plan.trials import SETTLE_MAX_VALIDATIONS
 from budget.runner.plan.requirements import parse_requirements
 from budget.runner.study import TrialResult
-from plan_toy import TOY, ToyStudy
+from plan_toy import ToyStudy
 from simcam.infra.errors import UserInputError
 
 C = 0.95

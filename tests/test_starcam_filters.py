@@ -123,7 +123,6 @@ def test_lsfe_s_truth_does_not_depend_on_the_labs_filters():
     """The truth is the stars' chromatic displacement (no lab filter enters it): the same for
     every filter set, bit for bit, and the study says so (one truth identity)."""
     from budget.runner.study import truth_identity
-    from budget.starcam import validate as V
     from budget.starcam.truth import lsfe_s_truth
 
     d = _ideal(default())
@@ -139,7 +138,6 @@ def test_lsfe_s_truth_does_not_depend_on_the_labs_filters():
 def test_a_filters_frames_are_the_same_whichever_other_filters_are_taken():
     """Ideal world (no drift timeline): the 600 and 800 nm centroids of the {600, 800} test are
     those of the full test, frame for frame (common random numbers between filter sets)."""
-    from budget.starcam import validate as V
     from budget.starcam.protocols import make_plan, simulate
 
     d = with_updates(_ideal(default()), {"protocols.chromatic.frames": 3})

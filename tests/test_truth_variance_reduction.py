@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy import integrate, stats
+from scipy import stats
 
 from budget.starcam import truth as T
 from budget.starcam.kernels_truth import D_HALF_RANGE, cv_tables
