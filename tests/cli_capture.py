@@ -1,4 +1,4 @@
-"""Running the ``budget`` command line inside the test process, and what a user mistake must
+"""Running the ``budget`` and ``simcam`` command lines inside the test process, and what a user mistake must
 print: shared by the reliability tests."""
 
 from __future__ import annotations
@@ -7,9 +7,12 @@ import contextlib
 import io
 
 
-def run_budget(argv: list[str]) -> tuple[int, str, str]:
-    """``budget ARGV`` in this process: (exit status, stdout, stderr)."""
-    from budget.cli import main
+def run_cli(prog: str, argv: list[str]) -> tuple[int, str, str]:
+    """``simcam ARGV`` or ``budget ARGV`` in this process: (exit status, stdout, stderr)."""
+    if prog == "simcam":
+        from simcam.cli import main
+    else:
+        from budget.cli import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
@@ -19,6 +22,11 @@ def run_budget(argv: list[str]) -> tuple[int, str, str]:
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else 1
     return code, out.getvalue(), err.getvalue()
+
+
+def run_budget(argv: list[str]) -> tuple[int, str, str]:
+    """``budget ARGV`` in this process: (exit status, stdout, stderr)."""
+    return run_cli("budget", argv)
 
 
 def one_error(code: int, err: str, *named: str) -> str:

@@ -18,7 +18,6 @@ The cases are drawn from ``numpy.random.default_rng(seed)`` with the seed fixed 
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import tomllib
 import zlib
@@ -28,6 +27,8 @@ import click
 import numpy as np
 import pytest
 import tomli_w
+
+from cli_capture import run_cli
 
 FAST_CASES = 2
 SLOW_CASES = 24
@@ -66,18 +67,8 @@ COMMANDS = _commands()
 
 def _run(prog: str, argv: list[str]) -> tuple[int, str]:
     """``main(argv)`` of the program in this process: (exit status, stderr)."""
-    if prog == "simcam":
-        from simcam.cli import main
-    else:
-        from budget.cli import main
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            main(argv)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-    return code, err.getvalue()
+    code, _out, err = run_cli(prog, argv)
+    return code, err
 
 
 def _numeric_leaves(d: dict, prefix: str = "") -> list[str]:

@@ -35,6 +35,7 @@ import tomli_w
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from cli_capture import run_cli
 from tiny_camera import TINY
 
 REPO = Path(__file__).resolve().parents[1]
@@ -47,18 +48,8 @@ FUZZ = settings(max_examples=25, deadline=None, derandomize=True, database=None,
 # ----------------------------------------------------------------------------- helpers
 def _cli(prog: str, argv: list[str]) -> tuple[int, str]:
     """Run ``simcam`` or ``budget`` in this process; (exit status, stderr)."""
-    if prog == "simcam":
-        from simcam.cli import main
-    else:
-        from budget.cli import main
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            main(argv)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-    return code, err.getvalue()
+    code, _out, err = run_cli(prog, argv)
+    return code, err
 
 
 def _assert_refused(code: int, err: str, named: str, folder: Path, before: set) -> None:

@@ -13,8 +13,6 @@ Derandomised (the same examples on every machine and run).
 
 from __future__ import annotations
 
-import contextlib
-import io
 import tempfile
 import tomllib
 from pathlib import Path
@@ -25,21 +23,15 @@ import tomli_w
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from cli_capture import run_cli
+
 FUZZ = settings(max_examples=25, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 
 
 def _budget(argv):
-    from budget.cli import main
-
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            main(argv)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-    return code, err.getvalue()
+    code, _out, err = run_cli("budget", argv)
+    return code, err
 
 
 def _load_whisk(path):
