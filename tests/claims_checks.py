@@ -3,7 +3,7 @@ verdict rule recomputed from a verdict's own numbers (docs/claims.md, "The verdi
 
 from __future__ import annotations
 
-from budget.runner.claims import evaluate_claims, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import WORLDS, evaluate_claims, ledger_runs, study_claims, world_scenario
 from budget.runner.run import run_study
 from simcam.effects import scenario_effects
 
@@ -48,3 +48,14 @@ def assert_outcome_follows_numbers(r, low: float | None = None, high: float | No
 def outcomes(results) -> dict:
     """``(claim id, world) -> outcome`` of the results with a verdict."""
     return {(r.claim.id, r.world): r.verdict.outcome for r in results if r.verdict is not None}
+
+
+def judged(claims, results):
+    """The testable claims' results, after checking that ``results`` holds one per claim and
+    world in order and that an untestable claim has no verdict, only its reason."""
+    assert [(r.claim.id, r.world) for r in results] == [(c.id, w) for c in claims for w in WORLDS]
+    for r in results:
+        if r.claim.testable:
+            yield r
+        else:
+            assert r.verdict is None and r.no_verdict == f"untestable: {r.claim.untestable}"
