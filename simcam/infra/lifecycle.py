@@ -157,6 +157,8 @@ def handle_termination(signals: tuple = _STOP_SIGNALS) -> Iterator[None]:
     except Interrupted:
         _PENDING.clear()  # seen leaving the block
         raise
+    except GeneratorExit:  # the context manager itself closed unfinished: nothing to translate
+        raise
     except BaseException:
         # an error the swallowed interruption caused on its way (numba, interrupted while it
         # saved a compiled kernel to its cache, raises "no compiled object yet"): the signal
