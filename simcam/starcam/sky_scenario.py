@@ -24,6 +24,7 @@ target drift) move nothing on the sky: this chain never reads them.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import os
@@ -165,6 +166,7 @@ class RequirementConfig(StrictModel):
 #: the star camera's world effects that act in orbit (fields of
 #: :class:`simcam.starcam.scenario.StarCameraEffects`, the same names here)
 IN_ORBIT_EFFECTS = ("distortion_r5_px_at_corner", "distortion_r7_px_at_corner", "nonlinearity_beta")
+_CAMERA_FIELDS = starcam_scenario.StarCameraEffects.model_fields
 
 
 class AttitudeEffects(EffectsBase):
@@ -175,16 +177,11 @@ class AttitudeEffects(EffectsBase):
     at its sourced realistic magnitudes; 0 is off. They replace the flown camera scenario's
     values."""
 
-    distortion_r5_px_at_corner: float = Field(
-        1.47, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): fifth-order radial "
-        "distortion 1.47 px at the mosaic corner (3.5 deg) in a r, r^3, r^5, r^7 fit of its traced image heights; "
-        "the onboard correction fitted in the lab calibration removes it in part")
-    distortion_r7_px_at_corner: float = Field(
-        0.081, ge=-100.0, le=100.0, description="traced embedded lens (embedded:star_camera): seventh-order radial "
-        "distortion 0.081 px at the mosaic corner in the same fit")
-    nonlinearity_beta: float = Field(
-        0.008, gt=-1.0, lt=1.0, description="CMOS integral non-linearity 0.2 % of full scale typical (Gpixel "
-        "GSENSE4040 data sheet; Janesick, Photon Transfer, ch. 7): s_out = s (1 - beta s / FW), beta = 0.008")
+    # the same fields as the star camera's (default, range and sourced description), so the
+    # two cannot drift apart
+    distortion_r5_px_at_corner: float = copy.copy(_CAMERA_FIELDS["distortion_r5_px_at_corner"])
+    distortion_r7_px_at_corner: float = copy.copy(_CAMERA_FIELDS["distortion_r7_px_at_corner"])
+    nonlinearity_beta: float = copy.copy(_CAMERA_FIELDS["nonlinearity_beta"])
 
 
 class AttitudeWorld(WorldBase):
