@@ -64,7 +64,7 @@ def test_claims_runs_both_worlds_and_judges_every_claim(page):
                    ("mean.bound", "seed"): None, ("mean.bound", "realistic"): None}
     (led,) = page.ledgers
     assert set(led.runs) == {("embedded:default", "seed"), ("embedded:default", "realistic")}
-    assert all(run["trials"] == TRIALS for run in led.runs.values())
+    assert all(run.trials == TRIALS for run in led.runs.values())
 
 
 def test_the_page_links_each_row_to_an_existing_report_and_the_json(page):

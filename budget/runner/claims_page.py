@@ -95,7 +95,7 @@ def _rows(ledgers) -> list[str]:
 
 
 def _trials(led) -> str:
-    n = sorted({run["trials"] for run in led.runs.values()})
+    n = sorted({run.trials for run in led.runs.values()})
     return f" ({', '.join(map(str, n))} trials per run)" if n else ""
 
 
@@ -103,8 +103,8 @@ def _paper_section(doc: str, ledgers) -> list[str]:
     short, full = citation(doc)
     studies = ", ".join(f"<code>{_e(led.study)}</code>" + _trials(led) for led in ledgers)
     out = [f"<h2>{_e(short)}</h2>", f'<p class="cite">{_e(full)}. Studies: {studies}.</p>']
-    pinned = sorted({f"{led.study}: {run['pinned_instrument']}" for led in ledgers for run in led.runs.values()
-                     if run.get("pinned_instrument")})
+    pinned = sorted({f"{led.study}: {run.pinned_instrument}" for led in ledgers for run in led.runs.values()
+                     if run.pinned_instrument})
     if pinned:
         out.append("<p>One instrument served every trial (" + _e("; ".join(pinned)) + "): these verdicts hold for "
                    "that instrument, not for instruments like it.</p>")

@@ -38,7 +38,7 @@ from simcam.infra.cli import write_json_atomic
 from simcam.infra.errors import UserInputError
 from simcam.infra.outputs import StagedOutputs, check_output_dir
 
-__all__ = ["LEDGER_JSON", "PAGE", "ClaimsResult", "StudyLedger", "is_earlier_claims", "run_claims"]
+__all__ = ["LEDGER_JSON", "PAGE", "ClaimsResult", "LedgerRun", "StudyLedger", "is_earlier_claims", "run_claims"]
 
 #: the front page and the ledger's JSON in the output folder
 PAGE, LEDGER_JSON = "index.html", "claims.json"
@@ -56,6 +56,22 @@ def _slug(text: str) -> str:
 
 
 @dataclass(frozen=True)
+class LedgerRun:
+    """One scenario-world run behind a ledger: its trials, wall time (s), report page
+    (relative to the output folder) and what fixed one instrument for every trial
+    (:func:`budget.runner.ledger_view.pinned_instrument`), or None."""
+
+    trials: int
+    elapsed_s: float
+    report: str
+    pinned_instrument: str | None = None
+
+    def to_json(self) -> dict:
+        return {"trials": self.trials, "elapsed_s": self.elapsed_s, "report": self.report,
+                "pinned_instrument": self.pinned_instrument}
+
+
+@dataclass(frozen=True)
 class StudyLedger:
     """One study's ledger: its claims judged in both worlds, and the runs behind them.
 
@@ -67,9 +83,7 @@ class StudyLedger:
     results : tuple of ClaimResult
         One per claim and world (:func:`~budget.runner.claims.evaluate_claims`).
     runs : dict
-        ``(scenario, world) -> {"trials", "elapsed_s", "report", "pinned_instrument"}`` (the
-        report's page, relative to the output folder; what fixed one instrument for every
-        trial, :meth:`simcam.config_base.ScenarioBase.pinned_instrument`, or None).
+        ``(scenario, world) -> LedgerRun``.
     elapsed_s : float
         The study's wall time (its runs and reports).
     """
@@ -84,7 +98,7 @@ class StudyLedger:
     def report_of(self, result: ClaimResult) -> str | None:
         """The page of the run that judged ``result`` (relative to the folder), if any."""
         run = self.runs.get((result.claim.scenario, result.world))
-        return run["report"] if run else None
+        return run.report if run else None
 
 
 @dataclass(frozen=True)
@@ -148,7 +162,7 @@ def _result_json(r: ClaimResult, report: str | None) -> dict:
 
 def _ledger_json(led: StudyLedger) -> dict:
     return {"study": led.study, "title": led.title, "seed_document": led.seed_document, "elapsed_s": led.elapsed_s,
-            "runs": [{"scenario": s, "world": w, **run} for (s, w), run in led.runs.items()],
+            "runs": [{"scenario": s, "world": w, **run.to_json()} for (s, w), run in led.runs.items()],
             "claims": [_result_json(r, led.report_of(r)) for r in led.results]}
 
 
@@ -222,9 +236,8 @@ def run_claims(out, *, studies=(), trials: int | None = None, seed: int = 0, wor
                 rel = Path(st.name) / f"{_slug(scn_name)}-{world}"
                 write_report(res, folder / rel, claims=claims)
                 runs[(scn_name, world)], done[key] = res, (scn_name, world)
-                info[(scn_name, world)] = {"trials": res.trials, "elapsed_s": round(time.perf_counter() - tr, 2),
-                                           "report": (rel / "report.html").as_posix(),
-                                           "pinned_instrument": pinned_instrument(scn)}
+                info[(scn_name, world)] = LedgerRun(res.trials, round(time.perf_counter() - tr, 2),
+                                                    (rel / "report.html").as_posix(), pinned_instrument(scn))
                 echo(f"{st.name}: {scn_name}, {world} world: {res.trials} trials in "
                      f"{time.perf_counter() - tr:.1f} s")
             results = evaluate_claims(claims, runs)
