@@ -96,34 +96,39 @@ def test_one_and_two_workers_give_the_same_numbers():
 
 
 def test_the_instrument_comes_from_the_instrument_stream_and_can_be_pinned(tmp_path, monkeypatch):
-    # a camera that draws its maps per instrument: each trial's detector seed is the first word of
-    # instrument_seed_sequence(validation.instrument_seed, seed, k); pinned, every trial shares it
+    # each trial's camera has the calibration errors of the first word of
+    # instrument_seed_sequence(validation.instrument_seed, seed, k), and its maps too when the
+    # flown camera draws them per instrument; pinned, every trial shares that camera
     import budget.attitude.study as study_mod
 
-    cam = tmp_path / "cam.toml"
-    cam.write_text(starcam_scenario.load("embedded:seed000_noisy").to_toml().replace(
-        "new_maps_per_trial = false", "new_maps_per_trial = true"))
     seen = []
+    observe = study_mod.observe_pointing
 
-    class Recording(StarCamera):
-        def __init__(self, scenario, *, detector_seed=None, parallel=None):
-            seen.append(detector_seed)
-            super().__init__(scenario, detector_seed=detector_seed, parallel=parallel)
+    def recording(camera, *args, **kwargs):
+        seen.append((camera.detector_seed, camera.calibration_seed))
+        return observe(camera, *args, **kwargs)
 
-    monkeypatch.setattr(study_mod, "StarCamera", Recording)
-    for pinned in (None, 42):
-        data = read_toml(text=default_text(), source="t")
-        data["camera"], data["onboard"]["frames"] = str(cam), 2
-        data["validation"]["instrument_seed"] = pinned
-        if pinned is None:
-            del data["validation"]["instrument_seed"]
-        scn = from_dict(data, source="i.toml")
-        seen.clear()
-        for k in (0, 1):
-            STUDY.trial(scn, 7, k)
-        words = [int(instrument_seed_sequence(pinned, 7, k).generate_state(1, np.uint64)[0]) for k in (0, 1)]
-        assert [d for d in seen if d is not None] == words
-        assert (words[0] == words[1]) == (pinned is not None)
+    monkeypatch.setattr(study_mod, "observe_pointing", recording)
+    for new_maps in (False, True):
+        cam = tmp_path / f"cam{new_maps}.toml"
+        cam.write_text(starcam_scenario.load("embedded:seed000_noisy").to_toml().replace(
+            "new_maps_per_trial = false", f"new_maps_per_trial = {str(new_maps).lower()}"))
+        for pinned in ((None, 42) if new_maps else (None,)):
+            data = read_toml(text=default_text(), source="t")
+            data["camera"], data["onboard"]["frames"] = str(cam), 2
+            data["validation"]["instrument_seed"] = pinned
+            if pinned is None:
+                del data["validation"]["instrument_seed"]
+            scn = from_dict(data, source="i.toml")
+            seen.clear()
+            for k in (0, 1):
+                STUDY.trial(scn, 7, k)
+            words = [int(instrument_seed_sequence(pinned, 7, k).generate_state(1, np.uint32)[0]) for k in (0, 1)]
+            calib = sorted({c for _, c in seen})
+            assert calib == sorted(set(words))
+            maps = {d for d, _ in seen}
+            assert maps == (set(words) if new_maps else {scn.camera_scenario.seed})
+            assert (words[0] == words[1]) == (pinned is not None)
 
 
 def _split_check(run) -> None:

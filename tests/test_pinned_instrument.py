@@ -27,12 +27,13 @@ def test_an_instrument_seed_pins_the_instrument_and_the_line_says_so():
     assert "instrument seed 3" in line and "that instrument only" in line and "leave the instrument seed unset" in line
 
 
-def test_the_star_camera_says_its_default_camera_is_one_instrument():
-    """The star camera's maps and onboard calibration are one draw of the scenario seed unless
-    ``new_maps_per_trial`` (docs/validation.md): its reports must not speak for a population."""
+def test_the_star_camera_says_its_default_pixel_maps_are_one_draw():
+    """The star camera draws each trial's onboard calibration but keeps the scenario seed's
+    pixel maps unless ``new_maps_per_trial`` (docs/validation.md): its reports must say the
+    maps are one draw, and say nothing once the maps are drawn per trial too."""
     scn = _scenario("starcam")
-    assert "scenario seed's camera" in scn.pinned_instrument()
-    assert "does not yet draw it per trial" in instrument_line(scn)
-    maps = _scenario("starcam", {"validation.new_maps_per_trial": True})
-    assert "pixel maps drawn per trial" in maps.pinned_instrument()
+    assert "scenario seed's pixel maps" in scn.pinned_instrument()
+    line = instrument_line(scn)
+    assert "Part of the instrument is one draw" in line and "new_maps_per_trial = true" in line
+    assert _scenario("starcam", {"validation.new_maps_per_trial": True}).pinned_instrument() is None
     assert "flown camera's pixel maps" in _scenario("attitude").pinned_instrument()

@@ -435,13 +435,18 @@ def store(tmp_path_factory):
     return d
 
 
+def _first_chunk(array_dir):
+    """The first chunk file of a Zarr array's folder (``0.0.0`` for three dimensions, ``0.0.0.0`` for four)."""
+    return min(p for p in array_dir.iterdir() if p.name[:1].isdigit())
+
+
 def test_damaged_stores_are_one_error_and_leave_no_plots_folder(store, tmp_path):
     import shutil
 
     from budget.sweeps.plot import plot_store
 
-    cases = {"missing chunk": lambda s: os.remove(s / "truth" / "0.0.0"),
-             "corrupt chunk": lambda s: (s / "truth" / "0.0.0").write_bytes(b"garbage" * 9),
+    cases = {"missing chunk": lambda s: os.remove(_first_chunk(s / "truth")),
+             "corrupt chunk": lambda s: _first_chunk(s / "truth").write_bytes(b"garbage" * 9),
              "no truth": lambda s: shutil.rmtree(s / "truth"),
              "nothing done": lambda s: [os.remove(p) for p in (s / "done").glob("[0-9]*")]}
     expect = {"missing chunk": "marked done have no truth values", "corrupt chunk": "cannot be read",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import budget.starcam
@@ -72,12 +73,36 @@ def test_a_pinned_instrument_seed_draws_the_camera_and_nothing_else():
     a = with_updates(base, {"validation.instrument_seed": 5})
     b = with_updates(base, {"validation.instrument_seed": 5, "seed": base.seed + 1})
     c = with_updates(base, {"validation.instrument_seed": 6})
-    ca, cb, cc, c0 = (prepared(STUDY, s).camera() for s in (a, b, c, base))
+    ca, cb, cc = (prepared(STUDY, s).instrument(3, 1) for s in (a, b, c))
+    c0 = prepared(STUDY, base).camera()
     assert ca.detector_key == cb.detector_key and len({ca.detector_key, cc.detector_key, c0.detector_key}) == 3
     assert (ca.onboard_correction.coef_x == cb.onboard_correction.coef_x).all()
     assert not (ca.onboard_correction.coef_x == cc.onboard_correction.coef_x).all()
+    assert prepared(STUDY, a).instrument(4, 7) is ca  # every trial and run seed: the one camera
     assert STUDY.trial(a, 3, 1).estimates == STUDY.trial(b, 3, 1).estimates
-    assert c0.scenario.seed == base.seed  # unset: the scenario seed's camera, as before
+
+
+def test_unset_every_trial_draws_its_calibration_on_the_scenario_seeds_maps():
+    """instrument_seed unset (the default): trial k's camera has the calibration errors of the
+    first word of instrument_seed_sequence(None, seed, k) and the scenario seed's maps; with
+    new_maps_per_trial its maps are that word's too. Its LSFE-C1 truth is its own, and the
+    trial carries it (a per-trial truth; LSFE and the total combine it with the fixed truths)."""
+    from budget.runner.study import instrument_seed_sequence
+    from budget.starcam.truth import lsfe_c1_truth
+
+    base = with_updates(default(), {"validation.protocols": ["distortion"]})
+    setup = prepared(STUDY, base)
+    cams = [setup.instrument(3, k) for k in (0, 1)]
+    words = [int(instrument_seed_sequence(None, 3, k).generate_state(1, dtype=np.uint32)[0]) for k in (0, 1)]
+    assert [c.calibration_seed for c in cams] == words and words[0] != words[1]
+    assert {c.detector_key for c in cams} == {setup.camera().detector_key}
+    assert not (cams[0].onboard_correction.coef_x == cams[1].onboard_correction.coef_x).all()
+    maps = prepared(STUDY, with_updates(base, {"validation.new_maps_per_trial": True})).instrument(3, 1)
+    assert maps.detector_seed == words[1] and maps.calibration_seed == words[1]
+    r = STUDY.trial(base, 3, 1)
+    f = STUDY._factor(base)
+    assert r.truths[("lsfe_c1", "improved", "x")] == pytest.approx(lsfe_c1_truth(cams[1]).x_px * f, rel=1e-12)
+    assert [c.per_trial_truth for c in STUDY.classes(base)] == [True, False]  # lsfe_c1, lsfe_c2
 
 
 def test_a_pinned_instrument_refuses_new_maps_per_trial():

@@ -74,9 +74,14 @@ def test_grid_point_is_the_truth_of_its_scenario_and_seed(grid):
     assert p.values == {"lab.source.match_v_mag": 6.5, "optics.psf.sigma0_px": 1.1}
     t = get_study("starcam").truths(p.scenario, p.seed)
     classes = list(ds["class"].values)
-    truth = np.array([[t[(c, a)].value for a in ("x", "y")] for c in classes])
-    se = np.array([[t[(c, a)].se for a in ("x", "y")] for c in classes])
+    nan = float("nan")
+    # the run's truths, the same for each variant; a truth drawn per trial (each trial's
+    # camera's LSFE-C1, LSFE, total) needs trials: NaN in the truth mode
+    truth = np.array([[[t[(c, a)].value if (c, a) in t else nan] * 2 for a in ("x", "y")] for c in classes])
+    se = np.array([[[t[(c, a)].se if (c, a) in t else nan] * 2 for a in ("x", "y")] for c in classes])
+    assert {c for c in classes if (c, "x") not in t} == {"lsfe_c1", "lsfe", "total"}
     sel = {"lab.source.match_v_mag": 6.5, "optics.psf.sigma0_px": 1.1}
+    assert ds.truth.sel(sel).dims == ("class", "axis", "variant")
     np.testing.assert_array_equal(ds.truth.sel(sel).values, truth)
     np.testing.assert_array_equal(ds.truth_se.sel(sel).values, se)
     assert int(ds.seed.sel(sel)) == p.seed
@@ -84,7 +89,7 @@ def test_grid_point_is_the_truth_of_its_scenario_and_seed(grid):
     assert ds.attrs["sweep_hash"] == sw.hash and ds.attrs["seed"] == 11 and ds.attrs["version"]
     assert "lab.source.match_v_mag" in ds.attrs["sweep_file"]
     # physics sanity: a fainter star has a larger temporal error
-    te = ds.truth.sel({"class": "te", "axis": "x", "optics.psf.sigma0_px": 0.8}).values
+    te = ds.truth.sel({"class": "te", "axis": "x", "variant": "published", "optics.psf.sigma0_px": 0.8}).values
     assert te[0] < te[1] < te[2]
 
 
@@ -155,7 +160,7 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
     from budget.sweeps.values import point_seed
 
     ds = zipped["ds"]
-    assert ds.truth.dims == ("point", "class", "axis") and ds["mean"].dims == ("point", "class", "axis", "variant")
+    assert ds.truth.dims == ds["mean"].dims == ("point", "class", "axis", "variant")
     assert list(ds["protocols.te.frames"].values) == [6, 12]
     p = load_sweep(zipped["path"]).points[1]
     truths = STUDY.truths(p.scenario, point_seed(4, {}))
@@ -172,11 +177,12 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
                 assert [float(e.ci95_low), float(e.ci95_high)] == r["interval_95"]
                 assert float(e.truth) == r["truth"]
     assert int(d.trials) == 3 and int(d.stopped_by) == 0
-    np.testing.assert_array_equal(ds.truth.values[0], ds.truth.values[1])  # one truth, shared
+    fixed = {"class": ["te", "hsfe", "lsfe_s", "lsfe_c2"]}  # the run's truths (the rest: each trial's camera's)
+    np.testing.assert_array_equal(ds.truth.sel(fixed).values[0], ds.truth.sel(fixed).values[1])  # one truth, shared
     # the truth mode gives the same truths for the same point and seed
     t = _write(tmp_path, ZIP.replace("trials = 3", 'evaluate = "truth"'), "truth.toml")
     run_sweep(t, tmp_path / "t", inline=True)
-    np.testing.assert_array_equal(open_sweep(tmp_path / "t").truth.values, ds.truth.values)
+    np.testing.assert_array_equal(open_sweep(tmp_path / "t").truth.sel(fixed).values, ds.truth.sel(fixed).values)
 
 
 # --------------------------------------------------------------------------- resume
@@ -336,7 +342,7 @@ def test_sobol_indices_find_the_parameter_that_drives_each_class(tmp_path):
     """)
     rep = run_sweep(path, tmp_path / "sob", inline=True)
     assert rep.samples == rep.samples_computed == 8 * 4 and rep.sobol
-    s = open_sobol(tmp_path / "sob").sel(axis="x")
+    s = open_sobol(tmp_path / "sob").sel(axis="x", variant="published")  # the truths: equal for each variant
     psf, mark = "optics.psf.sigma0_px", "lab.calibration_target.marker_error_3sigma_arcsec"
     te, c2 = s.sel({"class": "te"}), s.sel({"class": "lsfe_c2"})
     # exact on purpose: a parameter the class does not read leaves its output bit-identical,
@@ -450,7 +456,8 @@ def test_truths_shared_across_points_equal_truths_computed_per_point(tmp_path):
     assert (shared.truths_computed, alone.truths_computed) == (2, 4)
     a, b = open_sweep(tmp_path / "shared"), open_sweep(tmp_path / "alone")
     _assert_same(a, b)
-    t = a.truth
+    # the run's truths (each trial's camera's LSFE-C1, LSFE and total follow the point's trials)
+    t = a.truth.sel({"class": ["te", "hsfe", "lsfe_s", "lsfe_c2"]})
     np.testing.assert_array_equal(t.isel({"lab.knowledge.qe_peak_nm_error": 0}).values,
                                   t.isel({"lab.knowledge.qe_peak_nm_error": 1}).values)
     assert not np.array_equal(t.isel({"optics.psf.sigma0_px": 0}).values, t.isel({"optics.psf.sigma0_px": 1}).values)

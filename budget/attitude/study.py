@@ -3,12 +3,14 @@ per frame, against the lab's attitude claim (eq 32) and an improved prediction.
 
 Trial ``k`` (drawn from ``trial_seed_sequence(seed, k)``, spawned into the attitude's, the
 temporal noise's and a third, unused stream; the instrument from
-``instrument_seed_sequence(validation.instrument_seed, seed, k)``):
+``instrument_seed_sequence(validation.instrument_seed, seed, k)``, its first word the camera's seed):
 
-1. the instrument: the flown camera (``SkyScenario.camera_scenario``), with new detector maps
-   (PRNU, DSNU) when its ``validation.new_maps_per_trial`` draws them per instrument: from
-   the trial's instrument stream (``validation.instrument_seed`` None, the default: each
-   trial its own; an integer: one pinned instrument for every trial);
+1. the instrument: the flown camera (``SkyScenario.camera_scenario``) with its own onboard
+   calibration errors and, when its ``validation.new_maps_per_trial`` says so, its own pixel
+   maps (PRNU, DSNU), drawn from the trial's instrument stream
+   (:func:`budget.starcam.setup.instrument_root`; ``validation.instrument_seed`` None, the
+   default: each trial its own camera; an integer: one pinned camera, maps included, for every
+   trial);
 2. a random attitude, boresight uniform on the sphere and roll uniform
    (``Rotation.random`` with the attitude stream); drawn again while some frame would have
    fewer than 2 stars (no attitude; ``aux["blind_draws"]`` counts them);
@@ -77,9 +79,9 @@ from budget.runner.study import (
     Study,
     TrialResult,
     Truth,
-    instrument_seed_sequence,
     trial_seed_sequence,
 )
+from budget.starcam.setup import instrument_root
 from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import EMBEDDED_DEFAULT
 from simcam.starcam.sky_view import DetectionLimit, SkyStars, detection_limit, sky_stars
@@ -227,11 +229,10 @@ class AttitudeStudy(Study, Prepared, Presented, Claims):
     def trial(self, scenario, seed: int, k: int) -> TrialResult:
         s = self.prepared(scenario)
         attitude_ss, noise_ss, _ = trial_seed_sequence(seed, k).spawn(3)
-        camera = s.camera
-        if scenario.camera_scenario.validation.new_maps_per_trial:
-            instrument_ss = instrument_seed_sequence(scenario.validation.instrument_seed, seed, k)
-            camera = StarCamera(scenario.camera_scenario,
-                                detector_seed=int(instrument_ss.generate_state(1, np.uint64)[0]))
+        # this trial's camera: its calibration errors, and its maps when drawn per trial or pinned
+        root = instrument_root(scenario, seed, k)
+        own_maps = scenario.camera_scenario.validation.new_maps_per_trial or scenario.validation.instrument_seed is not None
+        camera = s.camera.twin(detector_seed=root if own_maps else None, calibration_seed=root)
         noise_seed = int(noise_ss.generate_state(1, np.uint64)[0])
         rng = np.random.default_rng(attitude_ss)
         ob = scenario.onboard

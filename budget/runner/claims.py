@@ -420,17 +420,19 @@ def _evaluate(c: Claim, world: str, result: StudyResult, confidence: float) -> C
 def _truth(c: Claim, result: StudyResult, where: str) -> tuple[float, float, int | None]:
     """The class's truth on the claim's axis: a fixed truth with its Monte Carlo standard
     error (its samples are not the run's trials: n None), or the mean of per-trial truths
-    with ``sd / sqrt(n)`` over the run's n trials."""
+    with ``sd / sqrt(n)`` over the run's n trials (and the standard error a combination of
+    fixed truths carries, :mod:`budget.runner.combined_truths`, in quadrature)."""
     t = result.truths.get((c.class_name, c.axis))
     if t is not None:
         return float(t.value), float(t.se), None
-    for (cls, _var, ax), arr in result.trial_truths.items():
-        if cls == c.class_name and ax == c.axis:
+    for key, arr in result.trial_truths.items():
+        if key[0] == c.class_name and key[2] == c.axis:
             a = [float(v) for v in arr]
             n = len(a)
             mean = sum(a) / n
             sd = math.sqrt(sum((v - mean) ** 2 for v in a) / (n - 1)) if n > 1 else 0.0
-            return mean, sd / math.sqrt(n), n
+            shared = float(result.trial_truth_se.get(key, 0.0))  # what combined fixed truths carry
+            return mean, math.sqrt(sd**2 / n + shared**2), n
     raise ValueError(f"{where}: the run has no truth of {c.class_name!r} on axis {c.axis!r}")
 
 

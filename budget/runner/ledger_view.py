@@ -61,10 +61,11 @@ def instrument_line(scenario) -> str | None:
     pinned = pinned_instrument(scenario)
     if pinned is None:
         return None
-    how = ("leave the instrument seed unset to draw one per trial" if getattr(val, "instrument_seed", None) is not None
-           else "this study does not yet draw it per trial by default")
-    return (f"One instrument ({pinned}) served every trial: these results hold for that instrument "
-            f"only, not for instruments like it ({how}).")
+    if getattr(val, "instrument_seed", None) is not None:
+        return (f"One instrument ({pinned}) served every trial: these results hold for that instrument "
+                f"only, not for instruments like it (leave the instrument seed unset to draw one per trial).")
+    return (f"Part of the instrument is one draw for every trial ({pinned}): what depends on it holds "
+            f"for that draw only, not for instruments like it.")
 
 
 def ledger_section(result, claims=None) -> list[str]:

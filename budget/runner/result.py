@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from budget.runner.capabilities import Presented, capability
+from budget.runner.combined_truths import combined_trial_truths
 from budget.runner.findings import annotate, findings_json, findings_markdown
 from budget.runner.html import markdown_to_html
 from budget.runner.report import format_table
@@ -66,6 +67,15 @@ class StudyResult:
     aux: dict[str, np.ndarray] = field(default_factory=dict)
     #: how the truths were sized: "adaptive", "fixed" or "given" (computed before the run)
     truth_size: str = "fixed"
+    #: the standard error a per-trial truth carries from fixed truths it combines, by key
+    #: (:func:`budget.runner.combined_truths.combined_trial_truths`, applied when built: its
+    #: combined classes are in :attr:`trial_truths` too)
+    trial_truth_se: dict[Key, float] = field(default_factory=dict, init=False)
+
+    def __post_init__(self) -> None:
+        tt, se = combined_trial_truths(self.classes, self.truths, self.samples, self.trial_truths)
+        object.__setattr__(self, "trial_truths", tt)
+        object.__setattr__(self, "trial_truth_se", se)
 
     def __repr__(self) -> str:
         """One short line: study, scenario, trials, and the recommendation (the samples are in
@@ -135,7 +145,8 @@ class StudyResult:
         undetermined axis)."""
         cls, var, ax = key
         if key in self.trial_truths:
-            st = key_statistics(self.samples[key], trial_truths=self.trial_truths[key], sigmas=self.sigmas.get(key))
+            st = key_statistics(self.samples[key], trial_truths=self.trial_truths[key],
+                                truth_se=self.trial_truth_se.get(key, 0.0), sigmas=self.sigmas.get(key))
         else:
             t = self.truths[(cls, ax)]
             st = key_statistics(self.samples[key], truth=t.value, truth_se=t.se, sigmas=self.sigmas.get(key))

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from budget.runner.capabilities import BatchedTrials, SizedTruths, SplitTruths, Warmup, capability
+from budget.runner.combined_truths import combined_trial_truths
 from budget.runner.stats import converged
 from budget.runner.study import ClassSpec, Key, Study, TrialResult, Truth
 from simcam.infra.lifecycle import raise_pending_interruption
@@ -443,6 +444,8 @@ class Scheduler:
         if st.tolerance is None:
             return False
         samples, tt = _estimates(s.trials)
+        # a combined per-trial truth exists once the fixed truths do (before, truths_within is False)
+        tt, _ = combined_trial_truths(self.classes, s.truths, samples, tt)
         if converged(samples, tt, st.tolerance) and truths_within(samples, tt, s.truths, st.tolerance):
             s.stopped_by = "tolerance"
             return True

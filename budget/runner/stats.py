@@ -7,7 +7,9 @@ For each key ``(class, variant, axis)`` with estimates ``x_k`` (k = 1..n):
   sample standard deviation of the estimates (the truth's own sampling error enters the
   significance test: a truth from few frames must not make a bias "significant");
 * per-trial truths ``T_k`` (an error drawn per trial): the errors ``e_k = x_k - T_k``,
-  bias ``mean(e)``, standard error ``sd(e) / sqrt(n)``, rms error ``sqrt(mean(e^2))``;
+  bias ``mean(e)``, standard error ``sqrt(sd(e)^2 / n + s_T^2)``, rms error
+  ``sqrt(mean(e^2))``, with ``s_T`` the standard error the truths share (0, or what a
+  combination of fixed truths carries: :mod:`budget.runner.combined_truths`);
 * spread: the sample standard deviation of the estimates (of the errors for per-trial
   truths), with the standard error ``s / sqrt(2 (n - 1))`` (normal approximation);
 * a bias is *significant* when ``|b| > 3`` standard errors (the runner also asks it to
@@ -44,14 +46,14 @@ def key_statistics(estimates, *, truth: float | None = None, truth_se: float = 0
         truth_value = float(t.mean())
         bias = float(e.mean())
         spread = float(e.std(ddof=1)) if n > 1 else 0.0
-        se_bias = spread / math.sqrt(n)
+        se_bias = math.sqrt(spread**2 / n + truth_se**2)
         truth_spread = float(t.std(ddof=1)) if n > 1 else 0.0
         # truths of one sign (an rms, a stage count) are far from zero whatever their spread
         if np.all(t > 0) or np.all(t < 0):
             truth_spread = 0.0
         else:
             truth_spread *= 2.0 / 3.0  # else the mean beyond 2 sd of the trials' truths
-        extra = {"rms_error": float(math.sqrt(np.mean(e * e))), "truth_se": 0.0,
+        extra = {"rms_error": float(math.sqrt(np.mean(e * e))), "truth_se": float(truth_se),
                  "truth_sd": float(t.std(ddof=1)) if n > 1 else 0.0, "per_trial_truth": True}
     else:
         e = x - truth

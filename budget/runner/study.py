@@ -139,6 +139,12 @@ class ClassSpec:
         "exact to numerical precision", never significant (:mod:`budget.runner.findings`).
     undetermined : tuple of str
         Axes the data cannot determine (a gauge freedom): reported "not determined", no sigma.
+    rss_of : tuple of str
+        The classes whose truths this one's is the root-sum-square of (independent sources:
+        seed 000's LSFE of S, C1 and C2, its total of TE, HSFE and LSFE). With
+        ``per_trial_truth`` the trials give none for it: the runner combines the parts' truths,
+        per trial or fixed, once the fixed ones are known
+        (:func:`budget.runner.combined_truths.combined_trial_truths`).
     at_most : bool
         The claim is one-sided: the estimate is a stated bound on the truth (the line camera's
         largest stated 3-sigma against the largest actual error), so it holds when the truth is
@@ -155,6 +161,7 @@ class ClassSpec:
     role: str = "result"
     numerical_floor: float = 0.0
     undetermined: tuple[str, ...] = ()
+    rss_of: tuple[str, ...] = ()
     at_most: bool = False
 
     def __post_init__(self) -> None:

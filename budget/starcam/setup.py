@@ -1,4 +1,4 @@
-"""What a star-camera validation's trials and truths share: the camera and the spectral design.
+"""What a star-camera validation's trials and truths share: the cameras and the spectral design.
 
 :class:`CameraSetup` is the study's :meth:`~budget.runner.capabilities.Prepared.setup`: the
 runner keeps it per process (:func:`budget.runner.capabilities.prepared`) under
@@ -17,8 +17,9 @@ from simcam.config_base import model_hash
 #: validation fields that only size the truths' sampling
 #: (:func:`budget.starcam.validate.truth_size_for`): a camera built for one size serves every size
 TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
-#: cameras with their own detector maps (a detector seed) one set-up keeps, most recent last
-CAMERAS_KEPT = 4
+#: instruments (twins of the scenario seed's camera) one set-up keeps, most recent last: the
+#: population's (:data:`POPULATION_INSTRUMENTS`) and the trial running
+CAMERAS_KEPT = 6
 
 
 def setup_key(scenario) -> str:
@@ -27,47 +28,81 @@ def setup_key(scenario) -> str:
     return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
 
 
-def instrument_scenario(scenario):
-    """The scenario whose seed draws the camera's fixed properties (PRNU/DSNU maps,
-    :data:`simcam.starcam.render.STREAM_DETECTOR`; the onboard calibration's errors,
-    :data:`simcam.starcam.correction.STREAM_ONBOARD_CALIBRATION`; its targets' fixed markers,
-    :mod:`simcam.starcam.targets`): ``scenario`` itself when ``validation.instrument_seed`` is
-    None, else a copy whose seed is the first word of
-    :func:`budget.runner.study.instrument_seed_sequence` of the pinned seed (one camera for
-    every trial and run seed). No other draw of a trial reads the scenario seed."""
-    pinned = scenario.validation.instrument_seed
-    if pinned is None:
-        return scenario
-    root = int(instrument_seed_sequence(pinned, 0, 0).generate_state(1, dtype=np.uint32)[0])
-    return scenario.model_copy(update={"seed": root})
+#: the cameras whose truths stand for the population when every trial draws its own pixel
+#: maps (``validation.new_maps_per_trial``: those of trials 0, 1, 2 and 3): the HSFE and TE
+#: truths are their rms and mean over these
+POPULATION_INSTRUMENTS = 4
+
+
+def per_instrument(scenario) -> bool:
+    """Whether every trial draws its own camera (``validation.instrument_seed`` unset, the
+    default: at least its onboard calibration's errors) rather than one pinned camera serving
+    every trial."""
+    return scenario.validation.instrument_seed is None
+
+
+def instrument_root(scenario, seed: int, k: int) -> int:
+    """The seed of trial ``k``'s camera: the first word of
+    :func:`budget.runner.study.instrument_seed_sequence` (``validation.instrument_seed``; unset,
+    a new camera per trial and run seed; an integer, the one pinned camera of every trial). Its
+    pixel maps (:data:`simcam.starcam.render.STREAM_DETECTOR`) and the errors of its onboard
+    distortion calibration (:data:`simcam.starcam.correction.STREAM_ONBOARD_CALIBRATION`) are
+    drawn from it (the maps only with ``validation.new_maps_per_trial`` or a pinned camera;
+    else they are the scenario seed's); nothing else of a trial is."""
+    ss = instrument_seed_sequence(scenario.validation.instrument_seed, seed, k)
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
+def population(scenario) -> tuple[int, ...]:
+    """The trials whose cameras the TE and HSFE truths are computed on: the first
+    :data:`POPULATION_INSTRUMENTS` when every trial draws its own pixel maps
+    (``validation.new_maps_per_trial``), else trial 0's (the maps every trial shares; those
+    truths do not read the calibration)."""
+    return tuple(range(POPULATION_INSTRUMENTS)) if scenario.validation.new_maps_per_trial else (0,)
 
 
 class CameraSetup:
-    """The camera of a scenario (its own detector maps) and, built on first use, cameras with
-    the maps of other detector seeds (new maps per trial) and the chromatic test's spectral
-    design (:func:`budget.starcam.protocols.spectral_design`). Built from the first scenario of
-    its :func:`setup_key`, with the instrument :func:`instrument_scenario` gives; every
-    scenario of that key gives the same camera."""
+    """The cameras of a scenario's trials and the chromatic test's spectral design
+    (:func:`budget.starcam.protocols.spectral_design`). The scenario seed's camera is built
+    once; each trial's instrument (:meth:`instrument`) is a twin of it
+    (:meth:`simcam.starcam.render.StarCamera.twin`: the same optics and optical caches, its own
+    pixel maps and calibration errors); the :data:`CAMERAS_KEPT` most recently used are kept.
+    Every scenario of one :func:`setup_key` gives the same cameras."""
 
     def __init__(self, scenario):
-        self.scenario = instrument_scenario(scenario)
+        self.scenario = scenario
+        self._base = None
         self._cameras: dict = {}
         self._spectral = None
 
-    def camera(self, detector_seed: int | None = None):
-        """The :class:`simcam.starcam.render.StarCamera` with the scenario's detector maps
-        (``detector_seed`` None) or those of ``detector_seed``; serial kernels (the runner's
-        processes are the parallelism: on a 2-core machine a threaded trial was no faster,
-        0.103 s against 0.102 s, and a fresh install would compile every kernel twice)."""
+    def camera(self, detector_seed: int | None = None, calibration_seed: int | None = None):
+        """The :class:`simcam.starcam.render.StarCamera` with the pixel maps of
+        ``detector_seed`` and the calibration errors of ``calibration_seed`` (None: the
+        scenario seed's); serial kernels (the runner's processes are the parallelism: on a
+        2-core machine a threaded trial was no faster, 0.103 s against 0.102 s, and a fresh
+        install would compile every kernel twice)."""
         from simcam.starcam.render import StarCamera
 
-        cam = self._cameras.pop(detector_seed, None)
+        if self._base is None:
+            self._base = StarCamera(self.scenario, parallel=False)
+        if detector_seed is None and calibration_seed is None:
+            return self._base
+        key = (detector_seed, calibration_seed)
+        cam = self._cameras.pop(key, None)
         if cam is None:
-            cam = StarCamera(self.scenario, detector_seed=detector_seed, parallel=False)
+            cam = self._base.twin(detector_seed=detector_seed, calibration_seed=calibration_seed)
             while len(self._cameras) >= CAMERAS_KEPT:
                 self._cameras.pop(next(iter(self._cameras)))
-        self._cameras[detector_seed] = cam  # most recent last
+        self._cameras[key] = cam  # most recent last
         return cam
+
+    def instrument(self, seed: int, k: int):
+        """Trial ``k``'s camera under run seed ``seed`` (:func:`instrument_root`): its
+        calibration errors, and its maps when they are drawn per trial or pinned."""
+        root = instrument_root(self.scenario, seed, k)
+        val = self.scenario.validation
+        own_maps = val.new_maps_per_trial or val.instrument_seed is not None
+        return self.camera(root if own_maps else None, root)
 
     def spectral(self):
         """The chromatic test's spectral design of the scenario."""

@@ -1,15 +1,18 @@
 """The seed-000 trial and truths: what the study (:mod:`budget.starcam.study`) gives the runner.
 
 Each trial (:func:`run_trial`) runs the four protocols (TE, HSFE, chromatic, distortion)
-on the simulator with independent temporal noise (and, where the scenario says so, new
-PRNU/DSNU maps, new marker errors, new hexapod positioning errors), through the same
+on its own camera (pixel maps and onboard calibration errors drawn per trial unless
+``validation.instrument_seed`` pins one, :mod:`budget.starcam.setup`) with independent
+temporal noise (and, where the scenario says so, new marker errors, new hexapod positioning
+errors), through the same
 estimators as real data (:func:`budget.starcam.protocols.estimate`). :func:`truths` computes each
 class's truth (:mod:`budget.starcam.truth`), in independent pieces (:func:`truth_parts`) that the
 runner spreads over its workers. The runner (:mod:`budget.runner.run`) does the rest:
 trials on workers, adaptive stopping, statistics, JSON, report.
 
-Randomness: trial ``k`` draws everything from ``SeedSequence(seed, spawn_key=(k,))``, so a
-trial's result does not depend on how many workers run or in which order they finish.
+Randomness: trial ``k`` draws its noise and markers from ``SeedSequence(seed, spawn_key=(k,))``
+and its camera from :func:`budget.runner.study.instrument_seed_sequence`, so a trial's result
+does not depend on how many workers run or in which order they finish.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import warnings
 import numpy as np
 
 from budget.starcam.protocols import PROTOCOLS, estimate, make_plan, simulate
-from budget.starcam.setup import CameraSetup
+from budget.starcam.setup import CameraSetup, per_instrument, population
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -34,6 +37,13 @@ CLASS_PROTOCOL = {"te": "te", "hsfe": "hsfe", "lsfe_s": "chromatic", "lsfe_c1": 
 #: total TE, HSFE and LSFE)
 CLASS_NEEDS = {"te": ("te",), "hsfe": ("hsfe",), "lsfe_s": ("chromatic",), "lsfe_c1": ("distortion",),
                "lsfe_c2": (), "lsfe": ("chromatic", "distortion"), "total": PROTOCOLS}
+#: the classes whose truth is each camera's own when every trial draws its camera
+#: (:func:`budget.starcam.setup.per_instrument`): LSFE-C1 is what the trial's camera's onboard
+#: correction leaves (computed in the trial), LSFE and the total combine it with the fixed
+#: truths (:mod:`budget.runner.combined_truths`)
+INSTRUMENT_CLASSES = ("lsfe_c1", "lsfe", "total")
+#: the classes each combined class is the root-sum-square of (seed 000 eq 31, eq 32)
+RSS_OF = {"lsfe": ("lsfe_s", "lsfe_c1", "lsfe_c2"), "total": ("te", "hsfe", "lsfe")}
 
 
 def computed_classes(scenario) -> tuple[str, ...]:
@@ -50,7 +60,9 @@ def protocols_for(classes) -> tuple[str, ...]:
 
 
 def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
-    """(noise seed, map seed, marker seed) of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``."""
+    """(noise seed, unused, marker seed) of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``
+    (the second word drew the pixel maps before each trial drew its camera,
+    :func:`budget.starcam.setup.instrument_root`; kept so that noise and markers are unchanged)."""
     s = np.random.SeedSequence(seed, spawn_key=(k,)).generate_state(3, dtype=np.uint32)
     return int(s[0]), int(s[1]), int(s[2])
 
@@ -61,22 +73,28 @@ def _setup(scenario, setup: CameraSetup | None) -> CameraSetup:
     return setup if setup is not None else CameraSetup(scenario)
 
 
-def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraSetup | None = None) -> dict:
+def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraSetup | None = None,
+              camera=None) -> dict:
     """One validation trial: every protocol of ``validation.protocols`` (default all four)
     through the published and improved estimators.
 
-    Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}}`` for the classes
-    :func:`computed_classes` names; with ``keep`` also ``"kept"``: the estimate objects and
-    data of each protocol (for the report). A protocol's numbers do not depend on which
+    Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}, "truths": {...}}`` for the
+    classes :func:`computed_classes` names; ``truths`` holds the LSFE-C1 truth of the trial's
+    own camera (:func:`budget.starcam.truth.lsfe_c1_truth`, px) when every trial draws its
+    camera (:func:`budget.starcam.setup.per_instrument`), else nothing; with ``keep`` also
+    ``"kept"``: the estimate objects and data of each protocol (for the report). A protocol's numbers do not depend on which
     others run: its frames draw from their own noise streams of the trial's noise seed
     (:func:`budget.starcam.protocols.simulate`), its pose errors from the trial's seeds, and
     the world's timeline is the whole lab run's (:mod:`simcam.starcam.world`). ``setup``: the
-    scenario's camera set-up (:class:`budget.starcam.setup.CameraSetup`; a new one by default).
+    scenario's camera set-up (:class:`budget.starcam.setup.CameraSetup`; a new one by default);
+    ``camera``: the camera to measure (default the trial's own, :meth:`CameraSetup.instrument`;
+    ``setup.camera()`` is the scenario seed's, the one every trial used before cameras were
+    drawn per trial).
     """
-    noise_seed, map_seed, marker_seed = trial_seeds(seed, k)
+    noise_seed, _, marker_seed = trial_seeds(seed, k)
     val = scenario.validation
     setup = _setup(scenario, setup)
-    cam = setup.camera(map_seed if val.new_maps_per_trial else None)
+    cam = setup.instrument(seed, k) if camera is None else camera
     ps = scenario.camera.scale_arcsec_per_px
     values: dict = {}
     kept: dict = {}
@@ -117,7 +135,12 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
             if "total" in classes:
                 values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2
                                                        + values[("hsfe", var, ax)] ** 2 + lsfe**2)
-    out = {"k": k, "values": values}
+    out = {"k": k, "values": values, "truths": {}}
+    if per_instrument(scenario) and "lsfe_c1" in classes:
+        from budget.starcam.truth import lsfe_c1_truth
+
+        c1 = lsfe_c1_truth(cam)
+        out["truths"] = {("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES}
     if keep:
         out["kept"] = kept
     return out
@@ -129,16 +152,29 @@ def _truth_seed(seed: int) -> int:
 
 def truth_parts(scenario, *, seed: int) -> list[tuple]:
     """The independent pieces of :func:`truths`, computable anywhere and in any order:
-    ``("rest",)`` (TE, LSFE-S, LSFE-C1, LSFE-C2) and one ``("hsfe", map, phase)`` per
-    sub-pixel phase of the HSFE truth (``map`` None for the scenario's pixel maps, or the
-    trial 0-3 whose maps are used when ``validation.new_maps_per_trial``). Only the truths of
-    the classes the scenario computes (:func:`computed_classes`): no HSFE pieces without the
-    HSFE protocol, and ``("rest",)`` holds only the computed ones of its four."""
-    val = scenario.validation
-    if "hsfe" not in val.protocols:
-        return [("rest",)]
-    maps = list(range(4)) if val.new_maps_per_trial else [None]
-    return [("rest",)] + [("hsfe", m, p) for m in maps for p in range(val.hsfe_phase_grid**2)]
+    ``("rest",)`` (LSFE-S, LSFE-C2, and LSFE-C1 of a pinned camera), one ``("te", m)`` per
+    camera of :func:`budget.starcam.setup.population` (trial ``m``'s) and one ``("hsfe", m,
+    phase)`` per such camera and sub-pixel phase of the HSFE truth. Only the truths of the
+    classes the scenario computes (:func:`computed_classes`): no HSFE pieces without the HSFE
+    protocol, no TE pieces without the TE protocol."""
+    classes = computed_classes(scenario)
+    cams = population(scenario)
+    parts: list[tuple] = [("rest",)]
+    if "te" in classes:
+        parts += [("te", m) for m in cams]
+    if "hsfe" in classes:
+        parts += [("hsfe", m, p) for m in cams for p in range(scenario.validation.hsfe_phase_grid**2)]
+    return parts
+
+
+def _part_seed(scenario, ts: int, kind: str, m: int) -> int:
+    """The truth stream of camera ``m``'s TE or HSFE piece: with the maps every trial shares,
+    the truth seed itself (TE) or its ``spawn_key=(2,)`` (HSFE); of the population's camera
+    ``m`` (new maps per trial) ``spawn_key=(4, m)`` (TE) or ``(3, m)`` (HSFE)."""
+    if len(population(scenario)) == 1:
+        return ts if kind == "te" else int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
+    key = (4, m) if kind == "te" else (3, m)
+    return int(np.random.SeedSequence(ts, spawn_key=key).generate_state(1)[0])
 
 
 def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True, setup: CameraSetup | None = None):
@@ -150,59 +186,69 @@ def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True
     val = scenario.validation
     setup = _setup(scenario, setup)
     if part[0] == "rest":
-        cam = setup.camera()
         classes = computed_classes(scenario)
         out = {}
-        if "te" in classes:
-            out["te"] = te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate)
         if "lsfe_s" in classes:
-            out["lsfe_s"] = lsfe_s_truth(cam)
-        if "lsfe_c1" in classes:
-            out["lsfe_c1"] = lsfe_c1_truth(cam)
+            out["lsfe_s"] = lsfe_s_truth(setup.camera())  # the optics' lateral colour: every camera's
+        if "lsfe_c1" in classes and not per_instrument(scenario):
+            out["lsfe_c1"] = lsfe_c1_truth(setup.instrument(seed, 0))
         out["lsfe_c2"] = lsfe_c2_truth(scenario)
         return out
-    _, m, p = part
-    if m is None:
-        cam = setup.camera()
-        hs = int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
-    else:
-        cam = setup.camera(trial_seeds(seed, m)[1])
-        hs = int(np.random.SeedSequence(ts, spawn_key=(3, m)).generate_state(1)[0])
-    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=p, control_variate=control_variate)
+    cam = setup.instrument(seed, part[1])
+    if part[0] == "te":
+        return te_truth(cam, frames=val.te_truth_frames, seed=_part_seed(scenario, ts, "te", part[1]),
+                        control_variate=control_variate)
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=_part_seed(scenario, ts, "hsfe", part[1]),
+                           phase=part[2], control_variate=control_variate)
+
+
+def population_truth(name: str, truths: list, *, rms: bool):
+    """The truth over the population's cameras (:func:`budget.starcam.setup.population`) of one
+    class: the one camera's when pinned; else their mean (TE: the mean of each camera's
+    temporal sd) or their rms (``rms``, HSFE: the static error's mean square over cameras),
+    its standard error that of a mean of the cameras' values (or squares), conservatively
+    adding each camera's own sampling error to their scatter."""
+    from budget.starcam.truth import ClassTruth
+
+    if len(truths) == 1:
+        return truths[0]
+    vals = {}
+    for ax in AXES:
+        v = np.array([getattr(t, f"{ax}_px") for t in truths])
+        se = np.array([getattr(t, f"se_{ax}_px") for t in truths])
+        m = v.size
+        if rms:
+            se_sq = math.sqrt((v**2).var(ddof=1) / m + np.sum((2 * v * se) ** 2) / m**2)
+            value = math.sqrt(float(np.mean(v**2)))
+            vals[ax] = (value, se_sq / (2 * value) if value > 0 else math.sqrt(se_sq))
+        else:
+            vals[ax] = (float(v.mean()), math.sqrt(v.var(ddof=1) / m + float(np.sum(se**2)) / m**2))
+    return ClassTruth(name, vals["x"][0], vals["y"][0], {**truths[0].details, "cameras": len(truths)},
+                      se_x_px=vals["x"][1], se_y_px=vals["y"][1])
 
 
 def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True,
                       setup: CameraSetup | None = None) -> dict:
     """:func:`truths` from the results of :func:`truth_parts`, in their order."""
-    from budget.starcam.truth import ClassTruth, combine, hsfe_from_cells
+    from budget.starcam.truth import combine, hsfe_from_cells
 
     parts = truth_parts(scenario, seed=seed)
     val = scenario.validation
-    out = dict(results[0])
-    cells: dict = {}
-    for part, r in zip(parts[1:], results[1:]):
-        cells.setdefault(part[1], []).append(r)
-    if "hsfe" not in val.protocols:
-        return combine(out)
     setup = _setup(scenario, setup)
-    if not val.new_maps_per_trial:
-        out["hsfe"] = hsfe_from_cells(setup.camera(), cells[None], frames=val.hsfe_truth_frames,
-                                      control_variate=control_variate)
-    else:
-        hs = [hsfe_from_cells(setup.camera(trial_seeds(seed, k)[1]), cells[k], frames=val.hsfe_truth_frames,
-                              control_variate=control_variate) for k in range(4)]
-        vals = {}
-        for ax in AXES:
-            h2 = np.array([getattr(h, f"{ax}_px") ** 2 for h in hs])
-            # the truth is the rms over map realisations: the 4 maps sample it (se of a mean
-            # of 4 squares) and each map's own truth has its frame-sampling error
-            se_h2 = math.sqrt(h2.var(ddof=1) / h2.size
-                              + np.sum([(2 * getattr(h, f"{ax}_px") * getattr(h, f"se_{ax}_px")) ** 2
-                                        for h in hs]) / h2.size**2)
-            v = math.sqrt(h2.mean())
-            vals[ax] = (v, se_h2 / (2 * v) if v > 0 else math.sqrt(se_h2))
-        out["hsfe"] = ClassTruth("hsfe", vals["x"][0], vals["y"][0], {**hs[0].details, "map_realisations": len(hs)},
-                                 se_x_px=vals["x"][1], se_y_px=vals["y"][1])
+    out = dict(results[0])
+    te = [r for part, r in zip(parts, results) if part[0] == "te"]
+    if te:
+        out["te"] = population_truth("te", te, rms=False)
+    cells: dict = {}
+    for part, r in zip(parts, results):
+        if part[0] == "hsfe":
+            cells.setdefault(part[1], []).append(r)
+    if cells:
+        hs = [hsfe_from_cells(setup.instrument(seed, m), cells[m], frames=val.hsfe_truth_frames,
+                              control_variate=control_variate) for m in sorted(cells)]
+        out["hsfe"] = population_truth("hsfe", hs, rms=True)
+    if per_instrument(scenario):
+        return out  # LSFE-C1, LSFE and the total: each trial's camera's own
     return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2") if k in out})
 
 
@@ -241,6 +287,12 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
     the HSFE pilot's scatter ``v`` is that of the corrected errors, so the same formula gives
     the far smaller sizes the variance-reduced truths need.
 
+    When the truths are the mean over the population's cameras
+    (:func:`budget.starcam.setup.population`, ``M`` of them), each camera's sampling error
+    enters the mean divided by ``sqrt(M)``: ``W`` above is then ``M W`` (stars of all the
+    cameras). The scatter between the cameras themselves is not reduced by frames; the truths
+    report it in their standard error (:func:`population_truth`).
+
     Each is rounded up (HSFE to even), at least :data:`MIN_HSFE_TRUTH_FRAMES` /
     :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
     of the truths' work (raise ``validation.hsfe_truth_frames`` / ``te_truth_frames`` to
@@ -258,13 +310,14 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
     ts = _truth_seed(seed)
     setup = _setup(scenario, setup)
     ps = int(np.random.SeedSequence(ts, spawn_key=(5,)).generate_state(1)[0])
-    ma, mb, va, vb = hsfe_phase_cell(setup.camera(), frames=SIZE_PILOT_FRAMES, seed=ps, phase=0)
+    ma, mb, va, vb = hsfe_phase_cell(setup.instrument(seed, 0), frames=SIZE_PILOT_FRAMES, seed=ps, phase=0)
     v = va * (SIZE_PILOT_FRAMES // 2)               # (2, W): per-frame variance per axis and star
     w = v.shape[1]
     upd = {}
+    cams = len(population(scenario))  # the truths average this many cameras' (their mean's se: / sqrt(cams))
     if want["hsfe"]:
         t = min(want["hsfe"])
-        ncell = val.hsfe_phase_grid**2 * w
+        ncell = val.hsfe_phase_grid**2 * w * cams
         vm = float(np.max(v.mean(axis=1)))
         f = vm / (ncell * t * t)
         t2 = float(np.max(np.mean(ma * mb, axis=1)))
@@ -274,7 +327,7 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
         upd["hsfe_truth_frames"] = int(f + (f % 2))
     if want["te"] and control_variate_applies(scenario):
         t = min(want["te"])
-        cam = setup.camera()
+        cam = setup.instrument(seed, 0)
         ps6 = int(np.random.SeedSequence(ts, spawn_key=(6,)).generate_state(1)[0])
         (x, y, flag, px, py, kx, ky), _ = _cv_frames(cam, te_scene(cam), frames=SIZE_PILOT_FRAMES, seed=ps6)
         good = (flag == 0).all(axis=0)
@@ -282,12 +335,12 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
         for c, p, k in ((x, px, kx), (y, py, ky)):
             var, se_var = te_variance_cv(c[:, good], p[:, good], k[:, good])
             var_d = se_var**2 * SIZE_PILOT_FRAMES
-            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t))
+            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t * cams))
         upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
     elif want["te"]:
         t = min(want["te"])
         sd2 = float(np.max(v.mean(axis=1))) * w / max(w - 1, 1)
-        f = max(sd2 / (2 * w * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
+        f = max(sd2 / (2 * w * cams * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
         upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
     return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
@@ -295,10 +348,12 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
 def truths(scenario, *, seed: int, control_variate: bool = True, setup: CameraSetup | None = None) -> dict:
     """Every class's truth (:class:`budget.starcam.truth.ClassTruth`) of a validation run with ``seed``.
 
-    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. With
-    ``validation.new_maps_per_trial`` the static pixel error changes from trial to trial:
-    the HSFE truth is then the rms over the maps of trials 0-3, and the total follows.
-    Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
+    The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. When every trial draws its
+    camera (the default, :func:`budget.starcam.setup.per_instrument`), LSFE-C1, LSFE and the
+    total are each trial's camera's own (:data:`INSTRUMENT_CLASSES`: not here); with new pixel
+    maps per trial too, TE's truth is the mean and HSFE's the rms over the cameras of trials
+    0-3 (:func:`population_truth`). A pinned camera (``validation.instrument_seed``) has every
+    truth here, its own. Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
     over its workers and get the same numbers. ``control_variate`` False: the plain HSFE and
     TE estimators on the same frames (for comparison; the runner uses the variance-reduced).
     """

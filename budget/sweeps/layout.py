@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from budget.runner.registry import get_study
 
-__all__ = ["STOPPED_BY", "class_layout", "class_units", "labels", "schema", "study_for_kind", "truth_has_variant"]
+__all__ = ["STOPPED_BY", "class_layout", "class_units", "fixed_truth_classes", "labels", "schema", "study_for_kind",
+           "truth_has_variant"]
 
 #: codes of ``stopped_by`` (CF flag values)
 STOPPED_BY = ("trials", "tolerance", "max_trials")
@@ -49,6 +50,12 @@ def truth_has_variant(kind: str) -> bool:
     return any(c.per_trial_truth for c in class_layout(kind)[1])
 
 
+def fixed_truth_classes(kind: str) -> tuple[str, ...]:
+    """The classes of ``kind`` whose truth is the run's, not drawn per trial: what a sweep in
+    truth mode computes (a per-trial truth needs trials: NaN there)."""
+    return tuple(c.name for c in class_layout(kind)[1] if not c.per_trial_truth)
+
+
 def schema(kind: str, evaluate: str) -> dict[str, tuple[tuple[str, ...], str, dict]]:
     """Variables of a point: name -> (dimensions besides the point's, dtype, attributes)."""
     ca, cav = ("class", "axis"), ("class", "axis", "variant")
@@ -56,7 +63,7 @@ def schema(kind: str, evaluate: str) -> dict[str, tuple[tuple[str, ...], str, di
     tdims = cav if truth_has_variant(kind) else ca
     out: dict[str, tuple[tuple[str, ...], str, dict]] = {
         "truth": (tdims, "f8", {"units": u, "long_name": "truth of the error class (mean over trials where "
-                                "it is drawn per trial)"}),
+                                "it is drawn per trial; NaN there in truth mode, which runs no trial)"}),
         "truth_se": (tdims, "f8", {"units": u, "long_name": "Monte Carlo standard error of the truth (0 = exact)"}),
     }
     if evaluate == "validate":

@@ -36,7 +36,7 @@ from typing import Any, Literal
 from pydantic import Field, model_validator
 
 from budget.runner.registry import renamed, study_names
-from budget.sweeps.layout import truth_has_variant
+from budget.sweeps.layout import fixed_truth_classes
 from simcam.config_base import StrictModel, validate_model
 from simcam.infra.errors import ScenarioError
 
@@ -162,8 +162,8 @@ class SweepSpec(StrictModel):
             raise ValueError(f"kind: {self.kind!r} is not a registered study (known: {', '.join(known)})")
         for ev, where in ((self.evaluate, ""),
                           *(((self.sensitivity.evaluate, "sensitivity."),) if self.sensitivity else ())):
-            if ev == "truth" and truth_has_variant(self.kind):
-                raise ValueError(f"{where}evaluate = 'truth' is not available for {self.kind} sweeps: a truth "
+            if ev == "truth" and not fixed_truth_classes(self.kind):
+                raise ValueError(f"{where}evaluate = 'truth' is not available for {self.kind} sweeps: every truth "
                                  "of this study is drawn per trial and needs simulated trials")
         return self
 

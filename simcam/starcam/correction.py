@@ -25,7 +25,8 @@ import numpy as np
 
 from simcam.starcam import optics
 
-#: SeedSequence spawn-key root of the earlier calibration's errors (scenario seed)
+#: SeedSequence spawn-key root of the earlier calibration's errors (of the camera's
+#: ``calibration_seed``: the scenario seed, or the instrument's drawn per trial)
 STREAM_ONBOARD_CALIBRATION = 103
 
 
@@ -88,7 +89,8 @@ def lamp_image_focal_px(camera, u_px, v_px):
 
 
 def fit_onboard_correction(camera) -> OnboardCorrection | None:
-    """The camera's correction from its scenario's earlier calibration (None for ``kind = "none"``)."""
+    """The camera's correction from its earlier calibration (None for ``kind = "none"``): the
+    scenario's calibration design, its errors drawn from the camera's ``calibration_seed``."""
     scn = camera.scenario
     cfg = scn.optics.distortion_correction
     if cfg.kind == "none":
@@ -104,7 +106,7 @@ def fit_onboard_correction(camera) -> OnboardCorrection | None:
     _, mx, my = camera.mosaic.focal_to_mosaic(mu, mv)
     _, rx, ry = camera.mosaic.focal_to_mosaic(u, v)
     ok = np.isfinite(mx) & np.isfinite(rx)
-    rng = np.random.default_rng(np.random.SeedSequence(scn.seed, spawn_key=(STREAM_ONBOARD_CALIBRATION,)))
+    rng = np.random.default_rng(np.random.SeedSequence(camera.calibration_seed, spawn_key=(STREAM_ONBOARD_CALIBRATION,)))
     marker = cfg.marker_error_3sigma_arcsec / 3.0 / scn.camera.scale_arcsec_per_px
     z = rng.standard_normal((4, u.size))
     mx_meas = mx + cfg.centroid_noise_px * z[0]

@@ -40,6 +40,17 @@ from simcam.starcam.sources import SourceSpectra
 from simcam.starcam.targets import TargetLayout
 from simcam.starcam.world import world_motion
 
+#: the camera's caches that depend on neither the pixel maps nor the calibration's errors, so
+#: that every :meth:`StarCamera.twin` shares them: scenes (with their noise-free windows and,
+#: per detector key, their chains), drift gradients (keyed by detector key), spectra, lateral
+#: colour, PSF profiles, frame keys, and what the lab's protocols keep per camera (their
+#: targets' layouts and centroid columns, :mod:`budget.starcam.protocols`)
+_OPTICAL_CACHES = ("_scene_cache", "_drift_scenes", "_drift_grads", "_mosaic_xy", "_spectrum_cache",
+                   "_lateral_colour_models", "_profile_cache", "_condition_keys", "_star_grids",
+                   "_protocol_columns")
+#: detector chains one scene keeps (one per instrument that rendered it, most recent last)
+_CHAINS_KEPT = 8
+
 #: SeedSequence spawn-key roots
 STREAM_DETECTOR = 201  # scenario seed -> PRNU/DSNU maps
 STREAM_FRAMES = 301  # run seed -> temporal noise of each frame
@@ -133,15 +144,19 @@ class StarCamera:
     scenario : Scenario
         The camera and lab.
     detector_seed : int, optional
-        Seed of the fixed-pattern maps (PRNU, DSNU); default the scenario seed. A Monte
-        Carlo run that wants new maps per trial passes a trial seed here.
+        Seed of the fixed-pattern maps (PRNU, DSNU); default the scenario seed.
+    calibration_seed : int, optional
+        Seed of the errors of the camera's earlier distortion calibration
+        (:func:`simcam.starcam.correction.fit_onboard_correction`); default the scenario seed.
+        A Monte Carlo run that draws an instrument per trial gives both seeds per trial
+        through :meth:`twin`, which keeps the optical caches.
     parallel : bool, optional
         Use numba threads for batches of windows (default: by batch size). Worker
         processes of a Monte Carlo run pass False. Results are identical either way.
     """
 
     def __init__(self, scenario: Scenario, *, detector_seed: int | None = None,
-                 parallel: bool | None = None):
+                 calibration_seed: int | None = None, parallel: bool | None = None):
         self.scenario = scenario
         #: numba threads for window batches (None: by size); results do not depend on it
         self.parallel = parallel
@@ -178,9 +193,29 @@ class StarCamera:
             dsnu_rms_e=det.dsnu_rms_e,
             nonlinearity_beta=eff.nonlinearity_beta,
         )
-        seed = scenario.seed if detector_seed is None else detector_seed
-        self.detector_key = key_from_seed(seed, STREAM_DETECTOR)
+        #: the seeds of this instrument's drawn properties: its pixel maps, its calibration's errors
+        self.detector_seed = int(scenario.seed if detector_seed is None else detector_seed)
+        self.calibration_seed = int(scenario.seed if calibration_seed is None else calibration_seed)
+        self.detector_key = key_from_seed(self.detector_seed, STREAM_DETECTOR)
         self.background_e = det.background_e_per_s * scenario.camera.exposure_s
+        for name in _OPTICAL_CACHES:  # created here so that every twin shares them
+            self.__dict__[name] = {}
+
+    def twin(self, *, detector_seed: int | None = None, calibration_seed: int | None = None) -> StarCamera:
+        """Another instrument of this design: the same scenario and optics, the pixel maps of
+        ``detector_seed`` and the calibration errors of ``calibration_seed`` (None: this
+        camera's). It shares this camera's optical caches (:data:`_OPTICAL_CACHES`: scenes and
+        their noise-free windows, spectra, PSF profiles), which do not depend on either seed;
+        what does (a scene's detector chain, the drift gradients, the correction) is kept per
+        detector key or per camera."""
+        other = object.__new__(StarCamera)
+        # its attributes and the optical caches' dicts themselves (shared); no other cache
+        other.__dict__.update({k: v for k, v in self.__dict__.items()
+                               if isinstance(k, str) and (not k.startswith("_") or k in _OPTICAL_CACHES)})
+        other.detector_seed = self.detector_seed if detector_seed is None else int(detector_seed)
+        other.calibration_seed = self.calibration_seed if calibration_seed is None else int(calibration_seed)
+        other.detector_key = key_from_seed(other.detector_seed, STREAM_DETECTOR)
+        return other
 
     def world_motion(self, seed: int):
         """The world's hexapod pose errors and target drift for run seed ``seed``
@@ -211,7 +246,7 @@ class StarCamera:
         p = scene.placement if nominal is None else nominal
         key = (p.layout.u_px.tobytes(), p.layout.v_px.tobytes(), p.layout.pinhole_radius_px, p.platform_dx_px,
                p.platform_dy_px, p.platform_roll_rad, p.filter_nm, chain.col0.tobytes(), chain.row0.tobytes(),
-               float(step_px))
+               float(step_px), int(self.detector_key))
         cache = self.__dict__.setdefault("_drift_grads", {})
         grads = cache.get(key)
         if grads is None:
@@ -286,7 +321,7 @@ class StarCamera:
         x_refm, y_refm = self._focal_to_mosaic(lay.reference_u_px, lay.reference_v_px)
         derived = dataclasses.replace(hit, placement=placement,
                                       truth_columns={**hit.truth_columns, "x_reference": x_refm, "y_reference": y_refm})
-        for name in ("_windows_e", "_chain", "_chain_dark", "_true_xy"):  # do not depend on the reference
+        for name in ("_windows_e", "_chains", "_true_xy"):  # do not depend on the reference
             if name in hit.__dict__:
                 object.__setattr__(derived, name, hit.__dict__[name])
         return derived
@@ -526,8 +561,12 @@ class StarCamera:
         mean charge per pixel and the chip constants, for the noise kernels. ``dark``: lamp
         off (no star, no stray light). Cached on the scene (callers must not modify it).
         """
-        name = "_chain_dark" if dark else "_chain"
-        cached = scene.__dict__.get(name)
+        chains = scene.__dict__.get("_chains")
+        if chains is None:
+            chains = {}
+            object.__setattr__(scene, "_chains", chains)
+        key = (int(self.detector_key), bool(dark))  # per instrument: the maps are in the chain
+        cached = chains.get(key)
         if cached is None:
             sig, col0, row0 = self.expected_windows_e(scene)
             if dark:
@@ -536,7 +575,9 @@ class StarCamera:
             cached = window_chain(signal_e=sig, row0=row0, col0=col0, mosaic_cols=cols,
                                   chip_cols=self.mosaic.chip_cols, params=self.detector_params,
                                   detector_key=self.detector_key)
-            object.__setattr__(scene, name, cached)
+            if len(chains) >= _CHAINS_KEPT:
+                chains.pop(next(iter(chains)))
+            chains[key] = cached
         return cached
 
     def frame_keys(self, *, seed: int, condition: int, frames: int, first_frame: int = 0,

@@ -365,18 +365,20 @@ class ValidationModel(ValidationSettings):
       (:class:`simcam.config_base.ValidationSettings`): a fixed number of trials, or batches
       until the Monte Carlo standard error of every bias and spread (arcsec, 3 sigma) is
       below the tolerance (JCGM 101 section 7.9), with a cap;
-    * ``new_maps_per_trial``, ``new_markers_per_trial``: draw new PRNU/DSNU maps and new
-      target marker errors in every trial (else fixed by the scenario seed); the hexapod
-      positioning error is drawn per trial whenever ``lab.platform.positioning_noise_px > 0``;
-    * ``instrument_seed`` (:class:`simcam.config_base.ValidationSettings`): an integer pins the
-      camera, whose drawn properties (PRNU/DSNU maps, the errors of its onboard distortion
-      calibration, its targets' fixed markers) then come from
-      ``budget.runner.study.instrument_seed_sequence`` instead of the scenario seed
-      (:func:`budget.starcam.setup.instrument_scenario`); it excludes ``new_maps_per_trial``.
-      None (the default) keeps the scenario seed's camera (maps new per trial only with
-      ``new_maps_per_trial``; docs/validation.md says why the rest is not yet drawn per trial);
-      ``new_markers_per_trial`` draws the lab target's markers per trial either way (the
-      target is the lab's, not the camera's);
+    * ``instrument_seed`` (:class:`simcam.config_base.ValidationSettings`): None (the
+      default), every trial draws its own camera: the errors of its onboard distortion
+      calibration and, with ``new_maps_per_trial``, its PRNU/DSNU maps
+      (``budget.starcam.setup.instrument_root``); an integer pins one camera, maps and
+      calibration, for every trial and run seed (it excludes ``new_maps_per_trial``);
+    * ``new_maps_per_trial``: draw the PRNU/DSNU maps with each trial's camera (the TE and
+      HSFE truths are then the mean and rms over the cameras of trials 0-3, their standard
+      error carrying the cameras' scatter); False (the default) keeps the scenario seed's
+      maps, so HSFE speaks for that one draw of the pixels (a per-camera HSFE truth costs
+      about three trials' time, docs/validation.md);
+    * ``new_markers_per_trial``: draw the calibration grid target's marker errors in every
+      trial (default; else fixed by the scenario seed: the target is the lab's, not the
+      camera's); the hexapod positioning error is drawn per trial whenever
+      ``lab.platform.positioning_noise_px > 0``;
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
       phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
@@ -420,15 +422,13 @@ class ValidationModel(ValidationSettings):
         return v
 
     def pinned_instrument(self) -> str | None:
-        """The scenario seed's camera serves every trial unless ``new_maps_per_trial``: its
-        PRNU/DSNU maps and its onboard calibration's errors are one draw (docs/validation.md,
-        "Instruments")."""
+        """The pixel maps of the scenario seed serve every trial unless ``new_maps_per_trial``
+        (the calibration errors are each trial's own unless ``instrument_seed`` pins them)."""
         pinned = super().pinned_instrument()
-        if pinned is not None:
+        if pinned is not None or self.new_maps_per_trial:
             return pinned
-        if self.new_maps_per_trial:
-            return "the scenario seed's onboard distortion calibration (pixel maps drawn per trial)"
-        return "the scenario seed's camera: its pixel maps and onboard distortion calibration"
+        return ("the scenario seed's pixel maps, PRNU and DSNU; each trial draws its onboard calibration, and "
+                "validation.new_maps_per_trial = true draws the maps too")
 
     @model_validator(mode="after")
     def _one_instrument_or_new_maps(self) -> ValidationModel:

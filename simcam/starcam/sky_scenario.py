@@ -248,12 +248,12 @@ class SkyScenario(ScenarioBase):
 
     def pinned_instrument(self) -> str | None:
         """The flown camera's pixel maps serve every pointing unless its
-        ``validation.new_maps_per_trial`` draws them per trial (then from
-        ``validation.instrument_seed``)."""
+        ``validation.new_maps_per_trial`` draws them per trial (its onboard calibration's
+        errors are each pointing's own unless ``validation.instrument_seed`` pins them)."""
         own = super().pinned_instrument()
         if own is not None or self.camera_scenario.validation.new_maps_per_trial:
             return own
-        return "the flown camera's pixel maps, one draw of its scenario seed"
+        return "the flown camera's pixel maps, one draw of its scenario seed (each pointing draws its onboard calibration)"
 
     @property
     def camera_scenario(self) -> starcam_scenario.Scenario:
