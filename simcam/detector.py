@@ -359,8 +359,8 @@ def detector_maps(*, shape, row0, col0, mosaic_cols, params: DetectorParams, det
 
 
 def _maps_view(maps, *, r0, c0, h, w, mosaic_cols, params, detector_key):
-    """The part of ``maps`` under the block ``[r0, r0 + h) x [c0, c0 + w)``; an error if the
-    maps are another detector's (key or fixed-pattern parameters) or do not cover it."""
+    """The part of ``maps`` under the block ``[r0, r0 + h) x [c0, c0 + w)`` (C-contiguous); an
+    error if the maps are another detector's (key or fixed-pattern parameters) or do not cover it."""
     if not isinstance(maps, DetectorMaps):
         _fail("maps", "must be a DetectorMaps (simcam.detector.detector_maps)", type(maps).__name__)
     if not maps.matches(params=params, detector_key=detector_key, mosaic_cols=mosaic_cols):
@@ -373,7 +373,10 @@ def _maps_view(maps, *, r0, c0, h, w, mosaic_cols, params, detector_key):
               f"not the block at ({r0}, {c0}) of {h} x {w}", (maps.row0, maps.col0, mh, mw))
     if (i0, j0, h, w) == (0, 0, mh, mw):
         return maps.gain, maps.dark_e
-    return maps.gain[i0:i0 + h, j0:j0 + w], maps.dark_e[i0:i0 + h, j0:j0 + w]
+    # a contiguous copy of the part (2 x 8 bytes a pixel of the block): the kernel then has one
+    # array layout, so numba compiles one signature for whole and partial maps alike
+    return (np.ascontiguousarray(maps.gain[i0:i0 + h, j0:j0 + w]),
+            np.ascontiguousarray(maps.dark_e[i0:i0 + h, j0:j0 + w]))
 
 
 def expose(*, signal_e, row0, col0, mosaic_cols, chip_cols, params: DetectorParams,

@@ -70,9 +70,9 @@ def _fused_centroids() -> None:
 
 def _maps_routes() -> None:
     # tests/test_detector_maps.py, test_detector_frame.py: float32 input through maps of
-    # the exposed block (C-contiguous); float64 through maps of a larger block (strided
-    # views), to ADC codes and to float DN; the same-block maps to float DN (the
-    # thread-count check's child)
+    # the exposed block; float64 through maps of a larger block (their part copied
+    # contiguous, simcam.detector._maps_view), to ADC codes and to float DN; the same-block
+    # maps to float DN (the thread-count check's child)
     p = _params(beta=0.05)
     same = _maps(p, (2, 6))
     _expose(np.full((2, 6), 50.0, dtype=np.float32), p, maps=same, row0=0, col0=0)
@@ -136,3 +136,15 @@ def compile_all(arg: str = "") -> None:
     of :data:`STEPS` in turn."""
     for step in STEPS:
         step()
+
+
+def warm_studies() -> None:
+    """The kernels of a star-camera trial and its truths (the study's own two-process
+    :meth:`~budget.runner.capabilities.Warmup.prewarm`, on both cores), then one pointing of the
+    attitude study (its sky rendering and solve on top of them): what most of the suite's
+    tests call first."""
+    from budget.attitude.study import STUDY as ATTITUDE
+    from budget.starcam.study import STUDY as STARCAM
+
+    STARCAM.prewarm(STARCAM.load_scenario(None))
+    ATTITUDE.trial(ATTITUDE.load_scenario(None), 0, 0)
