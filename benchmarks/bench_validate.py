@@ -55,7 +55,9 @@ def main() -> None:
         args.repeat, args.trials = min(args.repeat, 3), min(args.trials, 20)
     import numba
 
-    numba.set_num_threads(1)
+    from budget.runner.executors import worker_setup
+
+    blas = worker_setup()  # one numba and one BLAS thread, as in a worker of the runner
     scn = default()
     warnings.simplefilter("ignore")
     V.run_trial(scn, 0, 0, setup=STUDY.prepared(scn))
@@ -89,6 +91,7 @@ def main() -> None:
     n_windows = sum(c.frames * (w_cal if c.target == "calibration_grid" else w_star)
                     for p in ("te", "hsfe", "chromatic", "distortion") for c in make_plan(p, scn).conditions)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    blas.restore_original_limits()
     t0 = time.perf_counter()
     res = run_study(STUDY, scn, trials=args.trials, seed=1, workers=args.workers)
     total = time.perf_counter() - t0
