@@ -108,3 +108,30 @@ def test_unset_every_trial_draws_its_calibration_on_the_scenario_seeds_maps():
 def test_a_pinned_instrument_refuses_new_maps_per_trial():
     with pytest.raises(ScenarioError, match=r"validation: .*new_maps_per_trial: a pinned instrument_seed"):
         with_updates(default(), {"validation.instrument_seed": 5, "validation.new_maps_per_trial": True})
+
+
+def test_a_twin_is_the_camera_built_with_its_seeds_though_it_shares_the_optical_caches():
+    """StarCamera.twin shares the scene cache of the camera it comes from: a scene the first
+    camera rendered (and whose detector chain it keeps) must give the twin the chain, drift
+    gradients and reported positions of a camera built anew with the twin's seeds, bit for bit."""
+    from budget.starcam.protocols import _star_grid, make_plan
+    from simcam.starcam.render import Placement, StarCamera
+
+    scn = default()
+    base = StarCamera(scn, parallel=False)
+    c = make_plan("te", scn).conditions[0]
+    placement = Placement(layout=_star_grid(base, c.field_center_px), condition=5)
+    scene = base.scene(placement)
+    base.window_chain(scene)
+    base.drift_chain(scene)
+    twin = base.twin(detector_seed=11, calibration_seed=12)
+    fresh = StarCamera(scn, detector_seed=11, calibration_seed=12, parallel=False)
+    assert twin.scene(placement) is scene  # the optical cache is shared
+    np.testing.assert_array_equal(twin.window_chain(scene).mean_e, fresh.window_chain(fresh.scene(placement)).mean_e)
+    (_, gu, gv), (_, fu, fv) = twin.drift_chain(scene), fresh.drift_chain(fresh.scene(placement))
+    np.testing.assert_array_equal(gu, fu)
+    np.testing.assert_array_equal(gv, fv)
+    assert not np.array_equal(twin.window_chain(scene).mean_e, base.window_chain(scene).mean_e)
+    x, y = np.array([100.0, 2500.0]), np.array([300.0, 1700.0])
+    np.testing.assert_array_equal(np.stack(twin.report_positions(x, y)), np.stack(fresh.report_positions(x, y)))
+    assert not np.array_equal(np.stack(twin.report_positions(x, y)), np.stack(base.report_positions(x, y)))
