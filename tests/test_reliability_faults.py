@@ -44,13 +44,12 @@ def _sleep(s):
     return s
 
 
-@pytest.mark.parametrize("quiet", [False, True])
-def test_a_pool_broken_after_cancels_prints_no_thread_traceback(quiet):
-    """The race, made deterministic: ten tasks on two workers, the seven queued ones
-    cancelled (as an interrupted ``map_unordered`` does), then the workers ended. Python
-    3.11's pool then calls ``set_exception`` on the cancelled futures in its manager
-    thread: ``InvalidStateError: CANCELLED`` (``quiet=False`` shows the reproduction holds);
-    :func:`simcam.infra.lifecycle.quiet_pool_breakage` removes it."""
+def _broken_pool_thread_errors(quiet: bool) -> list[str]:
+    """Ten tasks on two workers, the seven queued ones cancelled (as an interrupted
+    ``map_unordered`` does), then the workers ended: the exceptions the pool's manager thread
+    raised (Python 3.11's pool calls ``set_exception`` on the cancelled futures:
+    ``InvalidStateError: CANCELLED``), with :func:`simcam.infra.lifecycle.quiet_pool_breakage`
+    applied or not."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
@@ -72,7 +71,18 @@ def test_a_pool_broken_after_cancels_prints_no_thread_traceback(quiet):
         pool.shutdown(wait=True)
     finally:
         threading.excepthook = previous
-    assert seen == ([] if quiet else ["InvalidStateError"])
+    return seen
+
+
+def test_a_pool_broken_after_cancels_prints_no_thread_traceback():
+    """The race first without the fix (the control: it must reproduce, else the fixed case
+    proves nothing and the test skips, saying so; on a loaded machine the manager thread can
+    see the workers' end before the cancellations), then with it: no thread traceback."""
+    control = _broken_pool_thread_errors(quiet=False)
+    if control != ["InvalidStateError"]:
+        pytest.skip(f"the pool's race did not reproduce on this machine (thread errors {control}): "
+                    "the quiet case would prove nothing")
+    assert _broken_pool_thread_errors(quiet=True) == []
 
 
 def test_killed_local_worker_is_one_line_and_status_3(tmp_path):
