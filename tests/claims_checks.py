@@ -3,7 +3,7 @@ verdict rule recomputed from a verdict's own numbers (docs/claims.md, "The verdi
 
 from __future__ import annotations
 
-from budget.runner.claims import WORLDS, evaluate_claims, ledger_runs, study_claims, world_scenario
+from budget.runner.claims import WORLDS, evaluate_claims, ledger_markdown, ledger_runs, study_claims, world_scenario
 from budget.runner.run import run_study
 from simcam.effects import scenario_effects
 
@@ -59,3 +59,13 @@ def judged(claims, results):
             yield r
         else:
             assert r.verdict is None and r.no_verdict == f"untestable: {r.claim.untestable}"
+
+
+def assert_ledger_table(claims, results) -> list[str]:
+    """The ledger's Markdown table: a header, a rule and one row per claim, in the claims'
+    order, each opening with the claim's words; returns the rows (a study checks more)."""
+    table = ledger_markdown(results).splitlines()
+    assert len(table) == 2 + len(claims)
+    for c, line in zip(claims, table[2:]):
+        assert line.startswith(f"| {c.words} ")
+    return table[2:]

@@ -21,7 +21,6 @@ from simcam.config_base import read_toml
 from simcam.infra.errors import ScenarioError
 from simcam.sky.catalogue import hipparcos
 from simcam.starcam import scenario as starcam_scenario
-from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import default, default_text, from_dict
 
 

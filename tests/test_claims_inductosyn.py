@@ -7,9 +7,10 @@ import pytest
 
 from budget.inductosyn.claims import CLAIMS, DEFAULT_SCENARIO
 from budget.inductosyn.study import STUDY
-from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, study_claims
+from budget.runner.claims import WORLDS, ledger_runs, study_claims
 from budget.runner.numbers import fmt
-from claims_checks import assert_outcome_follows_numbers, assert_worlds, judged, ledger_of, outcomes
+from claims_checks import (assert_ledger_table, assert_outcome_follows_numbers, assert_worlds,
+                          judged, ledger_of, outcomes)
 
 COEFFICIENTS = ("A_L1c", "A_L1s", "A_L2c", "A_L2s", "A_S1c", "A_S1s", "A_S2c", "A_S2s")
 
@@ -62,10 +63,7 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
         assert (v.tolerance.low, v.tolerance.high) == pytest.approx((lo_t, hi_t))
         assert_outcome_follows_numbers(r, lo_t, hi_t)
         assert fmt(v.estimate) in r.sentence
-    table = ledger_markdown(results).splitlines()
-    assert len(table) == 2 + len(claims)
-    for c, line in zip(claims, table[2:]):
-        assert line.startswith(f"| {c.words} ")
+    assert_ledger_table(claims, results)
 
 
 def test_ledger_on_small_runs(small):

@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from budget.runner.claims import WORLDS, ledger_markdown, ledger_runs, study_claims
+from budget.runner.claims import WORLDS, ledger_runs, study_claims
 from budget.runner.numbers import fmt
 from budget.scanmirror.claims import CLAIMS, DEFAULT_SCENARIO, FIGURES_DEG
 from budget.scanmirror.study import STUDY
-from claims_checks import assert_outcome_follows_numbers, assert_worlds, judged, ledger_of, outcomes
+from claims_checks import (assert_ledger_table, assert_outcome_follows_numbers, assert_worlds,
+                          judged, ledger_of, outcomes)
 
 
 @pytest.fixture(scope="module")
@@ -39,10 +40,7 @@ def _check_ledger(claims, runs, results, trials: int) -> None:
             assert (v.tolerance.low, v.tolerance.high) == pytest.approx((-half, half))
         assert_outcome_follows_numbers(r, -np.inf if c.kind == "bound" else v.tolerance.low, v.tolerance.high)
         assert fmt(v.estimate) in r.sentence
-    table = ledger_markdown(results).splitlines()
-    assert len(table) == 2 + len(claims)
-    for c, line in zip(claims, table[2:]):
-        assert line.startswith(f"| {c.words} ")
+    assert_ledger_table(claims, results)
 
 
 def test_ledger_on_small_runs(small):

@@ -8,7 +8,7 @@ temporal noise's and a third, unused stream; the instrument from
 1. the instrument: the flown camera (``SkyScenario.camera_scenario``) with its own onboard
    calibration errors and, when its ``validation.new_maps_per_trial`` says so, its own pixel
    maps (PRNU, DSNU), drawn from the trial's instrument stream
-   (:func:`budget.starcam.setup.instrument_root`; ``validation.instrument_seed`` None, the
+   (:func:`budget.starcam.setup.instrument_seeds`; ``validation.instrument_seed`` None, the
    default: each trial its own camera; an integer: one pinned camera, maps included, for every
    trial);
 2. a random attitude, boresight uniform on the sphere and roll uniform
@@ -81,7 +81,7 @@ from budget.runner.study import (
     Truth,
     trial_seed_sequence,
 )
-from budget.starcam.setup import instrument_root
+from budget.starcam.setup import instrument_seeds
 from simcam.starcam.render import StarCamera
 from simcam.starcam.sky_scenario import EMBEDDED_DEFAULT
 from simcam.starcam.sky_view import DetectionLimit, SkyStars, detection_limit, sky_stars
@@ -230,9 +230,10 @@ class AttitudeStudy(Study, Prepared, Presented, Claims):
         s = self.prepared(scenario)
         attitude_ss, noise_ss, _ = trial_seed_sequence(seed, k).spawn(3)
         # this trial's camera: its calibration errors, and its maps when drawn per trial or pinned
-        root = instrument_root(scenario, seed, k)
-        own_maps = scenario.camera_scenario.validation.new_maps_per_trial or scenario.validation.instrument_seed is not None
-        camera = s.camera.twin(detector_seed=root if own_maps else None, calibration_seed=root)
+        detector_seed, calibration_seed = instrument_seeds(
+            instrument_seed=scenario.validation.instrument_seed,
+            new_maps_per_trial=scenario.camera_scenario.validation.new_maps_per_trial, seed=seed, k=k)
+        camera = s.camera.twin(detector_seed=detector_seed, calibration_seed=calibration_seed)
         noise_seed = int(noise_ss.generate_state(1, np.uint64)[0])
         rng = np.random.default_rng(attitude_ss)
         ob = scenario.onboard

@@ -41,16 +41,15 @@ def per_instrument(scenario) -> bool:
     return scenario.validation.instrument_seed is None
 
 
-def instrument_root(scenario, seed: int, k: int) -> int:
-    """The seed of trial ``k``'s camera: the first word of
-    :func:`budget.runner.study.instrument_seed_sequence` (``validation.instrument_seed``; unset,
-    a new camera per trial and run seed; an integer, the one pinned camera of every trial). Its
-    pixel maps (:data:`simcam.starcam.render.STREAM_DETECTOR`) and the errors of its onboard
-    distortion calibration (:data:`simcam.starcam.correction.STREAM_ONBOARD_CALIBRATION`) are
-    drawn from it (the maps only with ``validation.new_maps_per_trial`` or a pinned camera;
-    else they are the scenario seed's); nothing else of a trial is."""
-    ss = instrument_seed_sequence(scenario.validation.instrument_seed, seed, k)
-    return int(ss.generate_state(1, dtype=np.uint32)[0])
+def instrument_seeds(*, instrument_seed: int | None, new_maps_per_trial: bool, seed: int,
+                     k: int) -> tuple[int | None, int]:
+    """``(detector_seed, calibration_seed)`` of trial ``k``'s camera
+    (:meth:`simcam.starcam.render.StarCamera.twin`): the calibration errors from the first word
+    of :func:`budget.runner.study.instrument_seed_sequence`, the pixel maps too when they are
+    drawn per trial or the camera is pinned (else None: the scenario seed's maps)."""
+    root = int(instrument_seed_sequence(instrument_seed, seed, k).generate_state(1, dtype=np.uint32)[0])
+    own_maps = new_maps_per_trial or instrument_seed is not None
+    return (root if own_maps else None), root
 
 
 def population(scenario) -> tuple[int, ...]:
@@ -97,12 +96,11 @@ class CameraSetup:
         return cam
 
     def instrument(self, seed: int, k: int):
-        """Trial ``k``'s camera under run seed ``seed`` (:func:`instrument_root`): its
+        """Trial ``k``'s camera under run seed ``seed`` (:func:`instrument_seeds`): its
         calibration errors, and its maps when they are drawn per trial or pinned."""
-        root = instrument_root(self.scenario, seed, k)
         val = self.scenario.validation
-        own_maps = val.new_maps_per_trial or val.instrument_seed is not None
-        return self.camera(root if own_maps else None, root)
+        return self.camera(*instrument_seeds(instrument_seed=val.instrument_seed,
+                                             new_maps_per_trial=val.new_maps_per_trial, seed=seed, k=k))
 
     def spectral(self):
         """The chromatic test's spectral design of the scenario."""

@@ -62,7 +62,7 @@ def protocols_for(classes) -> tuple[str, ...]:
 def trial_seeds(seed: int, k: int) -> tuple[int, int, int]:
     """(noise seed, unused, marker seed) of trial ``k``: ``SeedSequence(seed, spawn_key=(k,))``
     (the second word drew the pixel maps before each trial drew its camera,
-    :func:`budget.starcam.setup.instrument_root`; kept so that noise and markers are unchanged)."""
+    :func:`budget.starcam.setup.instrument_seeds`; kept so that noise and markers are unchanged)."""
     s = np.random.SeedSequence(seed, spawn_key=(k,)).generate_state(3, dtype=np.uint32)
     return int(s[0]), int(s[1]), int(s[2])
 
@@ -82,7 +82,8 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
     classes :func:`computed_classes` names; ``truths`` holds the LSFE-C1 truth of the trial's
     own camera (:func:`budget.starcam.truth.lsfe_c1_truth`, px) when every trial draws its
     camera (:func:`budget.starcam.setup.per_instrument`), else nothing; with ``keep`` also
-    ``"kept"``: the estimate objects and data of each protocol (for the report). A protocol's numbers do not depend on which
+    ``"kept"``: the estimate objects and data of each protocol (for the report). A protocol's
+    numbers do not depend on which
     others run: its frames draw from their own noise streams of the trial's noise seed
     (:func:`budget.starcam.protocols.simulate`), its pose errors from the trial's seeds, and
     the world's timeline is the whole lab run's (:mod:`simcam.starcam.world`). ``setup``: the

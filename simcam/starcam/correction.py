@@ -106,7 +106,8 @@ def fit_onboard_correction(camera) -> OnboardCorrection | None:
     _, mx, my = camera.mosaic.focal_to_mosaic(mu, mv)
     _, rx, ry = camera.mosaic.focal_to_mosaic(u, v)
     ok = np.isfinite(mx) & np.isfinite(rx)
-    rng = np.random.default_rng(np.random.SeedSequence(camera.calibration_seed, spawn_key=(STREAM_ONBOARD_CALIBRATION,)))
+    ss = np.random.SeedSequence(camera.calibration_seed, spawn_key=(STREAM_ONBOARD_CALIBRATION,))
+    rng = np.random.default_rng(ss)
     marker = cfg.marker_error_3sigma_arcsec / 3.0 / scn.camera.scale_arcsec_per_px
     z = rng.standard_normal((4, u.size))
     mx_meas = mx + cfg.centroid_noise_px * z[0]

@@ -368,7 +368,7 @@ class ValidationModel(ValidationSettings):
     * ``instrument_seed`` (:class:`simcam.config_base.ValidationSettings`): None (the
       default), every trial draws its own camera: the errors of its onboard distortion
       calibration and, with ``new_maps_per_trial``, its PRNU/DSNU maps
-      (``budget.starcam.setup.instrument_root``); an integer pins one camera, maps and
+      (``budget.starcam.setup.instrument_seeds``); an integer pins one camera, maps and
       calibration, for every trial and run seed (it excludes ``new_maps_per_trial``);
     * ``new_maps_per_trial``: draw the PRNU/DSNU maps with each trial's camera (the TE and
       HSFE truths are then the mean and rms over the cameras of trials 0-3, their standard

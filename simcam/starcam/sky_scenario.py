@@ -253,7 +253,8 @@ class SkyScenario(ScenarioBase):
         own = super().pinned_instrument()
         if own is not None or self.camera_scenario.validation.new_maps_per_trial:
             return own
-        return "the flown camera's pixel maps, one draw of its scenario seed (each pointing draws its onboard calibration)"
+        return ("the flown camera's pixel maps, one draw of its scenario seed (each pointing draws its onboard "
+                "calibration)")
 
     @property
     def camera_scenario(self) -> starcam_scenario.Scenario:
