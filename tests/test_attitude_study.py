@@ -110,8 +110,9 @@ def test_the_instrument_comes_from_the_instrument_stream_and_can_be_pinned(tmp_p
     monkeypatch.setattr(study_mod, "observe_pointing", recording)
     for new_maps in (False, True):
         cam = tmp_path / f"cam{new_maps}.toml"
-        cam.write_text(starcam_scenario.load("embedded:seed000_noisy").to_toml().replace(
-            "new_maps_per_trial = false", f"new_maps_per_trial = {str(new_maps).lower()}"))
+        text = starcam_scenario.load("embedded:seed000_noisy").to_toml()
+        assert "new_maps_per_trial = true" in text
+        cam.write_text(text.replace("new_maps_per_trial = true", f"new_maps_per_trial = {str(new_maps).lower()}"))
         for pinned in ((None, 42) if new_maps else (None,)):
             data = read_toml(text=default_text(), source="t")
             data["camera"], data["onboard"]["frames"] = str(cam), 2

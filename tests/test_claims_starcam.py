@@ -77,21 +77,23 @@ def test_ledger_on_small_runs(small):
     _check_ledger(claims, runs, results, 10)
     got = outcomes(results)
     # far from their tolerances' edges, whatever the draw: the truths of the paper's noisy
-    # camera (TE 1.17 / 1.26 against 1.14 / 1.23; HSFE y 0.78 against 1.01; LSFE-S
-    # 0.49 / 0.04 against the printed 0.03 / 0.66), the published TE within 1 % of its truth,
-    # eq 16 at -34 % / -47 % of its truth
+    # camera (TE 1.17 / 1.26 against 1.14 / 1.23; LSFE-S 0.49 / 0.04 against the printed
+    # 0.03 / 0.66), the published TE within 1 % of its truth, eq 16 at -34 % / -47 % of its
+    # truth. HSFE y over cameras (each trial's pixel maps) is 0.98 +- 0.05 at these 10 trials
+    # (0.85-1.37 between cameras) against the paper's 1.01: inside its tolerance band, so not
+    # "fails" (the scenario seed's one camera had 0.78 and failed)
     for w in WORLDS:
         assert got[("te.x.performance", w)] == got[("te.y.performance", w)] == "holds"
-        assert got[("hsfe.y.performance", w)] == "fails"
+        assert got[("hsfe.y.performance", w)] in ("holds", "undetermined")
         assert got[("lsfe_s.x.performance", w)] == got[("lsfe_s.y.performance", w)] == "fails"
         assert got[("te.x.method", w)] == got[("te.y.method", w)] == "holds"
         assert got[("lsfe_s.x.method", w)] == got[("lsfe_s.y.method", w)] == "fails"
     # LSFE-C1 over the whole field, each trial's camera's own (issue #33): in the realistic world
     # 1.81" / 0.91" over cameras against the paper's 0.29 / 0.41 and eq 29's 0.35 / 0.39 from the
-    # grid's points; the single star in the seed's world 1.63 in y against 1.95
+    # grid's points (the single star in the seed's world, y, is near its tolerance's edge
+    # since HSFE y is each camera's own: not asserted)
     assert got[("lsfe_c1.x.performance", "realistic")] == got[("lsfe_c1.y.performance", "realistic")] == "fails"
     assert got[("lsfe_c1.x.method", "realistic")] == got[("lsfe_c1.y.method", "realistic")] == "fails"
-    assert got[("total.y.performance", "seed")] == "fails"
 
 
 def test_an_input_class_has_no_verdict(small):

@@ -27,13 +27,14 @@ def test_an_instrument_seed_pins_the_instrument_and_the_line_says_so():
     assert "instrument seed 3" in line and "that instrument only" in line and "leave the instrument seed unset" in line
 
 
-def test_the_star_camera_says_its_default_pixel_maps_are_one_draw():
-    """The star camera draws each trial's onboard calibration but keeps the scenario seed's
-    pixel maps unless ``new_maps_per_trial`` (docs/validation.md): its reports must say the
-    maps are one draw, and say nothing once the maps are drawn per trial too."""
-    scn = _scenario("starcam")
+def test_the_star_camera_draws_its_pixel_maps_per_trial_and_says_so_when_told_not_to():
+    """The star camera draws each trial's pixel maps and onboard calibration by default
+    (docs/validation.md): nothing is pinned. With ``new_maps_per_trial = false`` the maps are
+    the scenario seed's for every trial, and its reports must say the maps are one draw; so
+    must the attitude study's when its flown camera keeps one draw of maps."""
+    assert _scenario("starcam").pinned_instrument() is None
+    assert _scenario("attitude").pinned_instrument() is None
+    scn = _scenario("starcam", {"validation.new_maps_per_trial": False})
     assert "scenario seed's pixel maps" in scn.pinned_instrument()
     line = instrument_line(scn)
-    assert "Part of the instrument is one draw" in line and "new_maps_per_trial = true" in line
-    assert _scenario("starcam", {"validation.new_maps_per_trial": True}).pinned_instrument() is None
-    assert "flown camera's pixel maps" in _scenario("attitude").pinned_instrument()
+    assert "Part of the instrument is one draw" in line and "new_maps_per_trial = false" in line

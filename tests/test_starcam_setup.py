@@ -13,7 +13,6 @@ import pytest
 import budget.starcam
 from budget.runner.capabilities import SETUPS_KEPT, prepared
 from budget.starcam.study import STUDY
-from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import default, with_updates
 
 STARCAM = Path(budget.starcam.__file__).parent
@@ -82,32 +81,46 @@ def test_a_pinned_instrument_seed_draws_the_camera_and_nothing_else():
     assert STUDY.trial(a, 3, 1).estimates == STUDY.trial(b, 3, 1).estimates
 
 
-def test_unset_every_trial_draws_its_calibration_on_the_scenario_seeds_maps():
-    """instrument_seed unset (the default): trial k's camera has the calibration errors of the
-    first word of instrument_seed_sequence(None, seed, k) and the scenario seed's maps; with
-    new_maps_per_trial its maps are that word's too. Its LSFE-C1 truth is its own, and the
-    trial carries it (a per-trial truth; LSFE and the total combine it with the fixed truths)."""
+def test_unset_every_trial_draws_its_camera_maps_and_calibration():
+    """instrument_seed unset (the default): trial k's camera has the pixel maps and calibration
+    errors of the first word of instrument_seed_sequence(None, seed, k); with
+    new_maps_per_trial = false the maps are the scenario seed's. Its LSFE-C1 truth is its own,
+    and the trial carries it (a per-trial truth; LSFE and the total combine it with the fixed
+    truths); so is HSFE's with its own maps."""
     from budget.runner.study import instrument_seed_sequence
     from budget.starcam.truth import lsfe_c1_truth
 
     base = with_updates(default(), {"validation.protocols": ["distortion"]})
+    assert base.validation.maps_per_trial
     setup = prepared(STUDY, base)
     cams = [setup.instrument(3, k) for k in (0, 1)]
     words = [int(instrument_seed_sequence(None, 3, k).generate_state(1, dtype=np.uint32)[0]) for k in (0, 1)]
     assert [c.calibration_seed for c in cams] == words and words[0] != words[1]
-    assert {c.detector_key for c in cams} == {setup.camera().detector_key}
+    assert [c.detector_seed for c in cams] == words
     assert not (cams[0].onboard_correction.coef_x == cams[1].onboard_correction.coef_x).all()
-    maps = prepared(STUDY, with_updates(base, {"validation.new_maps_per_trial": True})).instrument(3, 1)
-    assert maps.detector_seed == words[1] and maps.calibration_seed == words[1]
+    shared = with_updates(base, {"validation.new_maps_per_trial": False})
+    one = [prepared(STUDY, shared).instrument(3, k) for k in (0, 1)]
+    assert {c.detector_key for c in one} == {prepared(STUDY, shared).camera().detector_key}
+    assert [c.calibration_seed for c in one] == words
     r = STUDY.trial(base, 3, 1)
     f = STUDY._factor(base)
     assert r.truths[("lsfe_c1", "improved", "x")] == pytest.approx(lsfe_c1_truth(cams[1]).x_px * f, rel=1e-12)
     assert [c.per_trial_truth for c in STUDY.classes(base)] == [True, False]  # lsfe_c1, lsfe_c2
+    both = with_updates(default(), {"validation.protocols": ["te", "hsfe"]})
+    assert [(c.name, c.per_trial_truth) for c in STUDY.classes(both)] == [
+        ("te", False), ("hsfe", True), ("lsfe_c2", False)]
+    fixed = with_updates(both, {"validation.new_maps_per_trial": False})
+    assert [c.per_trial_truth for c in STUDY.classes(fixed)] == [False, False, False]
 
 
-def test_a_pinned_instrument_refuses_new_maps_per_trial():
-    with pytest.raises(ScenarioError, match=r"validation: .*new_maps_per_trial: a pinned instrument_seed"):
-        with_updates(default(), {"validation.instrument_seed": 5, "validation.new_maps_per_trial": True})
+def test_a_pinned_instrument_fixes_the_maps_whatever_new_maps_per_trial_says():
+    """A pinned camera serves every trial, its maps included: new_maps_per_trial (true by
+    default) no longer applies (``maps_per_trial`` False), and every truth is the run's."""
+    pinned = with_updates(default(), {"validation.instrument_seed": 5, "validation.protocols": ["te", "hsfe"]})
+    assert pinned.validation.new_maps_per_trial and not pinned.validation.maps_per_trial
+    setup = prepared(STUDY, pinned)
+    assert setup.instrument(3, 0) is setup.instrument(3, 1)
+    assert not any(c.per_trial_truth for c in STUDY.classes(pinned))
 
 
 def test_a_twin_is_the_camera_built_with_its_seeds_though_it_shares_the_optical_caches():

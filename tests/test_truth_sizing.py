@@ -66,9 +66,25 @@ def test_given_truths_are_used_as_they_are():
 # ------------------------------------------------------------------ the star camera
 @pytest.fixture(scope="module")
 def default():
+    """The default camera with the scenario seed's pixel maps for every trial: the run's HSFE
+    truth is then one camera's and sized here (with maps per trial, the default, it is each
+    trial's own: :func:`test_a_trials_own_hsfe_truth_is_not_sized`)."""
+    from budget.starcam.study import STUDY
+    from simcam.starcam.scenario import with_updates
+
+    return STUDY, with_updates(STUDY.load_scenario(), {"validation.new_maps_per_trial": False})
+
+
+def test_a_trials_own_hsfe_truth_is_not_sized():
+    """Pixel maps per trial (the default): HSFE's truth is each trial's camera's own, computed
+    in the trial, so a target for it sizes nothing; TE's is still sized."""
     from budget.starcam.study import STUDY
 
-    return STUDY, STUDY.load_scenario()
+    scn = STUDY.load_scenario()
+    assert scn.validation.maps_per_trial
+    sized = STUDY.truth_size_for(scn, 0, {("hsfe", "x"): 1e-6, ("te", "x"): 2e-4})
+    assert sized.validation.hsfe_truth_frames == scn.validation.hsfe_truth_frames
+    assert sized.validation.te_truth_frames < scn.validation.te_truth_frames
 
 
 def test_star_camera_sizes_meet_their_target(default):
@@ -168,7 +184,7 @@ def test_star_camera_truths_blind_to_the_fields_it_says():
         assert STUDY.truths(s, 3) == t0, b
     s = scn(optics__psf__sigma0_px=1.2)
     assert truth_identity(STUDY, s) != truth_identity(STUDY, ref)
-    assert STUDY.truths(s, 3)[("hsfe", "x")].value != t0[("hsfe", "x")].value
+    assert STUDY.truths(s, 3)[("te", "x")].value != t0[("te", "x")].value
 
 
 def test_cli_truth_size_fixed_gives_the_scenarios_truths(tmp_path):
@@ -194,6 +210,6 @@ def test_cli_truth_size_fixed_gives_the_scenarios_truths(tmp_path):
         got = out["fixed"]["truths"][f"{c}.{a}"]
         assert (got["value"], got["se"]) == (t.value, t.se)
         assert "target_se" not in got
-    assert out["adaptive"]["truths"]["hsfe.x"]["se"] > 0 and "target_se" in out["adaptive"]["truths"]["hsfe.x"]
+    assert out["adaptive"]["truths"]["te.x"]["se"] > 0 and "target_se" in out["adaptive"]["truths"]["te.x"]
     r = CliRunner().invoke(cli, ["starcam", "validate", "--truth-size", "small"])
     assert r.exit_code == 2 and "--truth-size" in r.output

@@ -284,6 +284,39 @@ def test_default_trial_count_comes_from_the_scenario():
     assert res.stopped_by == "tolerance" and res.trials < 100
 
 
+def test_a_trials_hsfe_truth_is_unbiased_for_its_cameras_whole_grid_truth():
+    """hsfe_trial_truth samples ``hsfe_trial_phases`` (4) of the grid's 9 phases without
+    replacement (4 frames each, control variate): its mean square is unbiased for the mean
+    square over the whole grid (simple random sampling, Cochran thm 2.1; the split-half
+    product keeps each phase's unbiased). Against ``hsfe_truth`` of the same camera (all 9
+    phases, 200 frames, independent streams), the mean over 40 independent draws of the
+    sample's square must agree within 4 standard errors: that of the 40 draws' mean
+    (their sample sd / sqrt(40), fixed seeds) and the full truth's own, in quadrature
+    (false alarm below 1e-4 for a normal mean). The draws also scatter, so the sample is not
+    the whole grid in disguise, and each draw's phases are 4 distinct grid phases."""
+    from budget.starcam.truth import hsfe_trial_phases, hsfe_trial_truth, hsfe_truth
+
+    scn = _scn(detector={"prnu_rms": 0.03})
+    cam = STUDY.prepared(scn).instrument(2, 0)
+    full = hsfe_truth(cam, frames=scn.validation.hsfe_truth_frames, seed=77)
+    draws = [hsfe_trial_truth(cam, seed=1000 + j) for j in range(40)]
+    for ax in ("x", "y"):
+        sq = np.array([getattr(d, f"{ax}_px") ** 2 for d in draws])
+        f2 = getattr(full, f"{ax}_px") ** 2
+        se = math.hypot(sq.std(ddof=1) / math.sqrt(sq.size), 2 * getattr(full, f"{ax}_px") * getattr(full, f"se_{ax}_px"))
+        assert abs(sq.mean() - f2) < 4 * se, (ax, sq.mean(), f2, se)
+        assert sq.std(ddof=1) > 0.01 * f2
+    for j in range(5):
+        ph = hsfe_trial_phases(scn, 1000 + j)
+        assert ph.size == scn.validation.hsfe_trial_phases == len(set(ph.tolist()))
+        assert ph.min() >= 0 and ph.max() < scn.validation.hsfe_phase_grid**2
+
+
+def test_hsfe_trial_phases_cannot_exceed_the_grid():
+    with pytest.raises(Exception, match="hsfe_trial_phases: 10 is more than the 9 phases"):
+        _scn(validation=BASE["validation"] | {"hsfe_trial_phases": 10})
+
+
 def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
     """New PRNU maps per trial, PRNU alone (no DSNU, a wide Gaussian PSF: no pixel-phase
     error): each map's HSFE truth is the rms static centroid error its PRNU makes.
@@ -304,24 +337,20 @@ def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
       variance 2 / (W - 1), pooled over the axes, is a chi2(6) / 6 multiple of it: relative
       sd of h^2 between 0.073 and 0.56 (99.8 %); with the same maps in every trial it
       would be the frame noise's ~1 % (the behaviour this option changes).
-    * the truth the runner uses is the rms over the 4 maps."""
+    * the run's truths have no HSFE (each trial's camera has its own), and each trial returns
+      its camera's, :func:`budget.starcam.truth.hsfe_trial_truth` with the trial's stream."""
     from budget.starcam import validate as V
-    from budget.starcam.truth import hsfe_from_cells
+    from budget.starcam.truth import hsfe_trial_truth, hsfe_truth
 
     p = 0.05
     scn = _scn(detector={"prnu_rms": p, "dsnu_rms_e": 0.0},
                optics=NO_OPTICS | {"psf": {"sigma0_px": 1.6, "sigma_r2_px": 0.0}},
                validation=BASE["validation"] | {"new_maps_per_trial": True})
     seed = 4
-    parts = V.truth_parts(scn, seed=seed)
-    results = [V.truth_part(scn, seed=seed, part=q) for q in parts]
-    cells: dict = {}
-    for q, r in zip(parts, results):
-        if q[0] == "hsfe":
-            cells.setdefault(q[1], []).append(r)
-    assert sorted(cells) == [0, 1, 2, 3]
-    per_map = [hsfe_from_cells(STUDY.prepared(scn).instrument(seed, m), cells[m],
-                               frames=scn.validation.hsfe_truth_frames) for m in range(4)]
+    assert not [q for q in V.truth_parts(scn, seed=seed) if q[0] == "hsfe"]
+    setup = STUDY.prepared(scn)
+    per_map = [hsfe_truth(setup.instrument(seed, m), frames=scn.validation.hsfe_truth_frames, seed=40 + m)
+               for m in range(4)]
     w = per_map[0].details["stars"]
     h2 = np.array([[h.x_px**2, h.y_px**2] for h in per_map]).ravel()
     pred = p**2 / (8 * math.pi) * (w - 1) / w
@@ -334,6 +363,8 @@ def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
     expect = math.sqrt(2 / (w - 1))
     lo, hi = (expect * math.sqrt(stats.chi2.ppf(q, 6) / 6) for q in (0.001, 0.999))
     assert lo <= rel_sd <= hi, (rel_sd, lo, hi)
-    t = V.truths_from_parts(scn, seed=seed, results=results)["hsfe"]
-    assert t.details["cameras"] == 4
-    assert t.x_px == pytest.approx(math.sqrt(np.mean([h.x_px**2 for h in per_map])), rel=1e-12)
+    assert "hsfe" not in V.truths(scn, seed=seed, setup=setup)
+    got = V.run_trial(scn, seed, 2, setup=setup)["truths"]
+    own = hsfe_trial_truth(setup.instrument(seed, 2), seed=V.trial_truth_seed(seed, 2))
+    for var in V.VARIANTS:
+        assert (got[("hsfe", var, "x")], got[("hsfe", var, "y")]) == (own.x_px, own.y_px)

@@ -29,8 +29,8 @@ def setup_key(scenario) -> str:
 
 
 #: the cameras whose truths stand for the population when every trial draws its own pixel
-#: maps (``validation.new_maps_per_trial``: those of trials 0, 1, 2 and 3): the HSFE and TE
-#: truths are their rms and mean over these
+#: maps (``validation.maps_per_trial``: those of trials 0, 1, 2 and 3): TE's truth is the mean
+#: over these (HSFE's is each trial's own, :func:`budget.starcam.validate.instrument_classes`)
 POPULATION_INSTRUMENTS = 4
 
 
@@ -53,11 +53,11 @@ def instrument_seeds(*, instrument_seed: int | None, new_maps_per_trial: bool, s
 
 
 def population(scenario) -> tuple[int, ...]:
-    """The trials whose cameras the TE and HSFE truths are computed on: the first
-    :data:`POPULATION_INSTRUMENTS` when every trial draws its own pixel maps
-    (``validation.new_maps_per_trial``), else trial 0's (the maps every trial shares; those
-    truths do not read the calibration)."""
-    return tuple(range(POPULATION_INSTRUMENTS)) if scenario.validation.new_maps_per_trial else (0,)
+    """The trials whose cameras the run's TE truth (and HSFE's, where it is not each trial's
+    own) is computed on: the first :data:`POPULATION_INSTRUMENTS` when every trial draws its
+    own pixel maps (``validation.maps_per_trial``), else trial 0's (the maps every trial
+    shares; those truths do not read the calibration)."""
+    return tuple(range(POPULATION_INSTRUMENTS)) if scenario.validation.maps_per_trial else (0,)
 
 
 class CameraSetup:

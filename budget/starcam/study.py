@@ -20,7 +20,7 @@ from budget.runner.study import ClassSpec, Knob, ReportSection, Study, TrialResu
 from budget.starcam.checks import check_geometry
 from budget.starcam.claims import CLAIMS
 from budget.starcam.report import plot_chromatic_residuals, plot_distortion_residuals, plot_hsfe_residuals
-from budget.starcam.setup import CameraSetup, per_instrument, setup_key
+from budget.starcam.setup import CameraSetup, setup_key
 from budget.starcam.warm import prewarm
 from simcam.infra.errors import ScenarioError
 from simcam.starcam.scenario import MAX_PLAN_FILTER_SETS, with_updates
@@ -88,12 +88,12 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
     def classes(self, scenario) -> tuple[ClassSpec, ...]:
         """Seed 000's classes that the scenario's ``validation.protocols`` compute (all seven by
         default; :func:`budget.starcam.validate.computed_classes`)."""
-        from budget.starcam.validate import INPUT_CLASSES, INSTRUMENT_CLASSES, RSS_OF, computed_classes
+        from budget.starcam.validate import INPUT_CLASSES, RSS_OF, computed_classes, instrument_classes
 
         computed = computed_classes(scenario)
-        own = per_instrument(scenario)  # each trial's camera: its own LSFE-C1, LSFE and total
+        own = instrument_classes(scenario)  # each trial's camera: its own LSFE-C1, LSFE, total (and HSFE)
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result",
-                               per_trial_truth=own and n in INSTRUMENT_CLASSES, rss_of=RSS_OF.get(n, ()))
+                               per_trial_truth=n in own, rss_of=RSS_OF.get(n, ()))
                      for n, label, desc in _CLASSES if n in computed)
 
     def truth_depends_on_effects(self, scenario) -> set[str]:

@@ -40,8 +40,18 @@ CLASS_NEEDS = {"te": ("te",), "hsfe": ("hsfe",), "lsfe_s": ("chromatic",), "lsfe
 #: the classes whose truth is each camera's own when every trial draws its camera
 #: (:func:`budget.starcam.setup.per_instrument`): LSFE-C1 is what the trial's camera's onboard
 #: correction leaves (computed in the trial), LSFE and the total combine it with the fixed
-#: truths (:mod:`budget.runner.combined_truths`)
+#: truths (:mod:`budget.runner.combined_truths`); HSFE too when the trial's camera draws its
+#: pixel maps (:func:`instrument_classes`)
 INSTRUMENT_CLASSES = ("lsfe_c1", "lsfe", "total")
+
+
+def instrument_classes(scenario) -> tuple[str, ...]:
+    """The classes whose truth is each trial's camera's own, computed in the trial: none for a
+    pinned camera, else :data:`INSTRUMENT_CLASSES`, and HSFE when every trial draws its pixel
+    maps (``validation.maps_per_trial``: :func:`budget.starcam.truth.hsfe_trial_truth`)."""
+    if not per_instrument(scenario):
+        return ()
+    return INSTRUMENT_CLASSES + (("hsfe",) if scenario.validation.maps_per_trial else ())
 #: the classes each combined class is the root-sum-square of (seed 000 eq 31, eq 32)
 RSS_OF = {"lsfe": ("lsfe_s", "lsfe_c1", "lsfe_c2"), "total": ("te", "hsfe", "lsfe")}
 
@@ -79,9 +89,10 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
     through the published and improved estimators.
 
     Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}, "truths": {...}}`` for the
-    classes :func:`computed_classes` names; ``truths`` holds the LSFE-C1 truth of the trial's
-    own camera (:func:`budget.starcam.truth.lsfe_c1_truth`, px) when every trial draws its
-    camera (:func:`budget.starcam.setup.per_instrument`), else nothing; with ``keep`` also
+    classes :func:`computed_classes` names; ``truths`` holds the truths of the trial's own
+    camera (px) of :func:`instrument_classes`: LSFE-C1's (:func:`budget.starcam.truth.lsfe_c1_truth`)
+    when every trial draws its camera, HSFE's (:func:`budget.starcam.truth.hsfe_trial_truth`,
+    stream :func:`trial_truth_seed`) when it draws its pixel maps too; with ``keep`` also
     ``"kept"``: the estimate objects and data of each protocol (for the report). A protocol's
     numbers do not depend on which
     others run: its frames draw from their own noise streams of the trial's noise seed
@@ -137,11 +148,17 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
                 values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2
                                                        + values[("hsfe", var, ax)] ** 2 + lsfe**2)
     out = {"k": k, "values": values, "truths": {}}
-    if per_instrument(scenario) and "lsfe_c1" in classes:
+    own = instrument_classes(scenario)
+    if "lsfe_c1" in own and "lsfe_c1" in classes:
         from budget.starcam.truth import lsfe_c1_truth
 
         c1 = lsfe_c1_truth(cam)
-        out["truths"] = {("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES}
+        out["truths"].update({("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES})
+    if "hsfe" in own and "hsfe" in classes:
+        from budget.starcam.truth import hsfe_trial_truth
+
+        hs = hsfe_trial_truth(cam, seed=trial_truth_seed(seed, k))
+        out["truths"].update({("hsfe", var, ax): getattr(hs, f"{ax}_px") for var in VARIANTS for ax in AXES})
     if keep:
         out["kept"] = kept
     return out
@@ -151,11 +168,19 @@ def _truth_seed(seed: int) -> int:
     return int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
 
 
+def trial_truth_seed(seed: int, k: int) -> int:
+    """The stream of trial ``k``'s own truths that draw noise (HSFE's, with the camera's own
+    maps): ``SeedSequence(truth seed, spawn_key=(7, k))``, apart from the trial's noise and
+    from the run's truths."""
+    return int(np.random.SeedSequence(_truth_seed(seed), spawn_key=(7, k)).generate_state(1)[0])
+
+
 def truth_parts(scenario, *, seed: int) -> list[tuple]:
     """The independent pieces of :func:`truths`, computable anywhere and in any order:
     ``("rest",)`` (LSFE-S, LSFE-C2, and LSFE-C1 of a pinned camera), one ``("te", m)`` per
     camera of :func:`budget.starcam.setup.population` (trial ``m``'s) and one ``("hsfe", m,
-    phase)`` per such camera and sub-pixel phase of the HSFE truth. Only the truths of the
+    phase)`` per such camera and sub-pixel phase of the HSFE truth (none where HSFE's truth is
+    each trial's camera's own, :func:`instrument_classes`). Only the truths of the
     classes the scenario computes (:func:`computed_classes`): no HSFE pieces without the HSFE
     protocol, no TE pieces without the TE protocol."""
     classes = computed_classes(scenario)
@@ -163,7 +188,7 @@ def truth_parts(scenario, *, seed: int) -> list[tuple]:
     parts: list[tuple] = [("rest",)]
     if "te" in classes:
         parts += [("te", m) for m in cams]
-    if "hsfe" in classes:
+    if "hsfe" in classes and "hsfe" not in instrument_classes(scenario):
         parts += [("hsfe", m, p) for m in cams for p in range(scenario.validation.hsfe_phase_grid**2)]
     return parts
 
@@ -304,7 +329,8 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
     from budget.starcam.truth import _cv_frames, control_variate_applies, hsfe_phase_cell, te_scene, te_variance_cv
 
     val = scenario.validation
-    want = {c: [target_px[(c, a)] for a in AXES if (c, a) in target_px and target_px[(c, a)] > 0]
+    own = instrument_classes(scenario)  # a trial's own truth has no run-level size
+    want = {c: [target_px[(c, a)] for a in AXES if (c, a) in target_px and target_px[(c, a)] > 0 and c not in own]
             for c in ("hsfe", "te")}
     if not want["hsfe"] and not want["te"]:
         return scenario
@@ -351,9 +377,9 @@ def truths(scenario, *, seed: int, control_variate: bool = True, setup: CameraSe
 
     The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. When every trial draws its
     camera (the default, :func:`budget.starcam.setup.per_instrument`), LSFE-C1, LSFE and the
-    total are each trial's camera's own (:data:`INSTRUMENT_CLASSES`: not here); with new pixel
-    maps per trial too, TE's truth is the mean and HSFE's the rms over the cameras of trials
-    0-3 (:func:`population_truth`). A pinned camera (``validation.instrument_seed``) has every
+    total are each trial's camera's own (:func:`instrument_classes`: not here); with new pixel
+    maps per trial too (the default), HSFE's is each trial's own as well and TE's truth is the
+    mean over the cameras of trials 0-3 (:func:`population_truth`). A pinned camera (``validation.instrument_seed``) has every
     truth here, its own. Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
     over its workers and get the same numbers. ``control_variate`` False: the plain HSFE and
     TE estimators on the same frames (for comparison; the runner uses the variance-reduced).

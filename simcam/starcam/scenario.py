@@ -366,22 +366,26 @@ class ValidationModel(ValidationSettings):
       until the Monte Carlo standard error of every bias and spread (arcsec, 3 sigma) is
       below the tolerance (JCGM 101 section 7.9), with a cap;
     * ``instrument_seed`` (:class:`simcam.config_base.ValidationSettings`): None (the
-      default), every trial draws its own camera: the errors of its onboard distortion
-      calibration and, with ``new_maps_per_trial``, its PRNU/DSNU maps
-      (``budget.starcam.setup.instrument_seeds``); an integer pins one camera, maps and
-      calibration, for every trial and run seed (it excludes ``new_maps_per_trial``);
-    * ``new_maps_per_trial``: draw the PRNU/DSNU maps with each trial's camera (the TE and
-      HSFE truths are then the mean and rms over the cameras of trials 0-3, their standard
-      error carrying the cameras' scatter); False (the default) keeps the scenario seed's
-      maps, so HSFE speaks for that one draw of the pixels (a per-camera HSFE truth costs
-      about three trials' time, docs/validation.md);
+      default), every trial draws its own camera: its PRNU/DSNU maps (with
+      ``new_maps_per_trial``, the default) and the errors of its onboard distortion
+      calibration (``budget.starcam.setup.instrument_seeds``); an integer pins one camera,
+      maps and calibration, for every trial and run seed (the pin fixes the maps whatever
+      ``new_maps_per_trial`` says: :attr:`maps_per_trial`);
+    * ``new_maps_per_trial``: draw the PRNU/DSNU maps with each trial's camera (the default):
+      HSFE's truth is then each trial's camera's own, over ``hsfe_trial_phases`` sub-pixel
+      phases of the ``hsfe_phase_grid`` grid drawn per trial (an unbiased sample of the
+      grid's mean square, docs/validation.md), and TE's the mean over the cameras of trials
+      0-3 (cameras differ in it by about 0.2 %); False keeps the scenario seed's maps for
+      every trial, and the report says the pixels are that one draw;
     * ``new_markers_per_trial``: draw the calibration grid target's marker errors in every
       trial (default; else fixed by the scenario seed: the target is the lab's, not the
       camera's); the hexapod positioning error is drawn per trial whenever
       ``lab.platform.positioning_noise_px > 0``;
     * ``centroid_method``, ``threshold_sigma``, ``dark_frames``: how the lab centroids;
     * truth sampling: ``te_truth_frames`` noise-only frames, ``hsfe_phase_grid`` sub-pixel
-      phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves), ``lsfe_spectral_types`` (the stellar population, equal weights) and
+      phases per axis with ``hsfe_truth_frames`` noisy frames each (even: two halves; a
+      trial's own HSFE truth takes ``hsfe_trial_phases`` of those phases),
+      ``lsfe_spectral_types`` (the stellar population, equal weights) and
       ``calibration_spectrum`` (the reference of the chromatic displacement:
       ``population_mean``, the default, the mean over the population at each field point,
       since the population's common offset is calibrated at system level (seed 000); or
@@ -397,7 +401,7 @@ class ValidationModel(ValidationSettings):
 
     model_config = _Model.model_config
 
-    new_maps_per_trial: bool = False
+    new_maps_per_trial: bool = True
     new_markers_per_trial: bool = True
     centroid_method: Literal["cog", "iwcog", "gauss"] = "cog"
     threshold_sigma: Pos = Field(3.0, le=1000.0, description="at most 1000 noise sigmas: above it no pixel is kept")
@@ -405,6 +409,7 @@ class ValidationModel(ValidationSettings):
     te_truth_frames: Annotated[int, Field(ge=10)] = 1000
     hsfe_truth_frames: Annotated[int, Field(ge=4, multiple_of=2)] = 400
     hsfe_phase_grid: Annotated[int, Field(ge=2, le=32)] = 8
+    hsfe_trial_phases: Annotated[int, Field(ge=1)] = 4
     lsfe_spectral_types: Annotated[tuple[str, ...], Field(strict=False, min_length=1)] = (
         "B5V", "A0V", "A5V", "F0V", "F5V", "G0V", "G5V", "K0V", "K5V", "M0V", "M5V",
     )
@@ -421,20 +426,26 @@ class ValidationModel(ValidationSettings):
             raise ValueError(f"a protocol is listed twice ({list(v)})")
         return v
 
+    @property
+    def maps_per_trial(self) -> bool:
+        """Whether every trial draws its camera's PRNU/DSNU maps: ``new_maps_per_trial`` and no
+        ``instrument_seed`` pinning one camera (whose maps serve every trial)."""
+        return self.new_maps_per_trial and self.instrument_seed is None
+
     def pinned_instrument(self) -> str | None:
-        """The pixel maps of the scenario seed serve every trial unless ``new_maps_per_trial``
-        (the calibration errors are each trial's own unless ``instrument_seed`` pins them)."""
+        """The pixel maps of the scenario seed serve every trial when ``new_maps_per_trial`` is
+        false (the calibration errors are each trial's own unless ``instrument_seed`` pins them)."""
         pinned = super().pinned_instrument()
         if pinned is not None or self.new_maps_per_trial:
             return pinned
-        return ("the scenario seed's pixel maps, PRNU and DSNU; each trial draws its onboard calibration, and "
-                "validation.new_maps_per_trial = true draws the maps too")
+        return ("the scenario seed's pixel maps, PRNU and DSNU (validation.new_maps_per_trial = false); "
+                "each trial draws its onboard calibration")
 
     @model_validator(mode="after")
-    def _one_instrument_or_new_maps(self) -> ValidationModel:
-        if self.instrument_seed is not None and self.new_maps_per_trial:
-            raise ValueError("new_maps_per_trial: a pinned instrument_seed fixes the camera's PRNU/DSNU maps; set "
-                             "new_maps_per_trial = false, or leave instrument_seed unset for new maps every trial")
+    def _trial_phases_in_grid(self) -> ValidationModel:
+        if self.hsfe_trial_phases > self.hsfe_phase_grid**2:
+            raise ValueError(f"hsfe_trial_phases: {self.hsfe_trial_phases} is more than the "
+                             f"{self.hsfe_phase_grid**2} phases of hsfe_phase_grid = {self.hsfe_phase_grid}")
         return self
 
     @model_validator(mode="after")
