@@ -270,7 +270,9 @@ def test_starcam_cause_of_the_published_hsfe_follows_the_numbers():
     from budget.starcam.study import STUDY as STARCAM
 
     scn = SimpleNamespace(protocols=SimpleNamespace(hsfe=SimpleNamespace(frames=30, conditions=12, step_px=0.2)))
-    res = SimpleNamespace(scenario=scn, samples={}, truths={("te", "x"): Truth(0.21, 0.0)})
+    # TE's truth as the run's statistics give it (the run's, or the mean of each trial's camera's)
+    res = SimpleNamespace(scenario=scn, samples={("te", "published", "x"): [0.2]},
+                          truths={}, statistics=lambda key: {"truth": 0.21})
     floor = 0.21 * (2 / 30) ** 0.5  # 0.0542
     at_floor = STARCAM.likely_cause(res, ("hsfe", "published", "x"), {"mean": 0.055, "truth": 0.043, "bias": 0.012})
     assert "measures temporal noise" in at_floor and f"{floor:.3g}" in at_floor

@@ -62,8 +62,8 @@ def test_a_restricted_trial_gives_the_full_trials_numbers(protocols):
 def test_restricted_truths_are_the_full_truths_of_their_classes():
     """Small test camera, truth seed of run seed 3: the truths of a restricted scenario are the
     full scenario's for its classes (same streams, bit for bit), and only those are computed
-    (no HSFE pieces without the HSFE protocol, nor where HSFE's truth is each trial's camera's
-    own: pixel maps drawn per trial, the default)."""
+    (no HSFE pieces without the HSFE protocol, nor TE or HSFE pieces where their truths are
+    each trial's camera's own: pixel maps drawn per trial, the default)."""
     for maps in (True, False):
         full = with_updates(_tiny(), {"validation.new_maps_per_trial": maps})
         ft = STUDY.truths(full, 3)
@@ -73,13 +73,12 @@ def test_restricted_truths_are_the_full_truths_of_their_classes():
             # LSFE-C1, LSFE and the total (and HSFE with its own maps) are each trial's
             # camera's own: not among the run's truths
             own = set(V.instrument_classes(s))
-            assert ("hsfe" in own) == maps
+            assert ("hsfe" in own) == ("te" in own) == maps
             assert {c for c, _ in t} == set(V.computed_classes(s)) - own
             for key, v in t.items():
                 assert (v.value, v.se) == (ft[key].value, ft[key].se), (protocols, key)
             phases = s.validation.hsfe_phase_grid**2
-            cams = len(V.population(s))
-            assert len(STUDY.truth_parts(s, 3)) == (1 + cams * ("te" in protocols)
+            assert len(STUDY.truth_parts(s, 3)) == (1 + ("te" in protocols and not maps)
                                                      + phases * ("hsfe" in protocols and not maps))
 
 
@@ -123,8 +122,7 @@ def test_a_restricted_validation_reports_only_its_classes(tmp_path):
     s = with_updates(_tiny(), {"validation.protocols": ["hsfe"]})
     res = run_study(STUDY, s, trials=3, seed=0, workers=1)
     assert {k[0] for k in res.samples} == {"hsfe", "lsfe_c2"}
-    assert {k[0] for k in res.truths} == {"lsfe_c2"}  # HSFE's: each trial's camera's own
-    assert {k[0] for k in res.trial_truths} == {"hsfe"}
+    assert {k[0] for k in res.truths} == {"hsfe", "lsfe_c2"}
     from budget.runner.report import write_report
 
     out = write_report(res, tmp_path / "rep")

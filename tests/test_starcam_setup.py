@@ -86,7 +86,7 @@ def test_unset_every_trial_draws_its_camera_maps_and_calibration():
     errors of the first word of instrument_seed_sequence(None, seed, k); with
     new_maps_per_trial = false the maps are the scenario seed's. Its LSFE-C1 truth is its own,
     and the trial carries it (a per-trial truth; LSFE and the total combine it with the fixed
-    truths); so is HSFE's with its own maps."""
+    truths); so are TE's and HSFE's with its own maps."""
     from budget.runner.study import instrument_seed_sequence
     from budget.starcam.truth import lsfe_c1_truth
 
@@ -108,7 +108,7 @@ def test_unset_every_trial_draws_its_camera_maps_and_calibration():
     assert [c.per_trial_truth for c in STUDY.classes(base)] == [True, False]  # lsfe_c1, lsfe_c2
     both = with_updates(default(), {"validation.protocols": ["te", "hsfe"]})
     assert [(c.name, c.per_trial_truth) for c in STUDY.classes(both)] == [
-        ("te", False), ("hsfe", True), ("lsfe_c2", False)]
+        ("te", True), ("hsfe", True), ("lsfe_c2", False)]
     fixed = with_updates(both, {"validation.new_maps_per_trial": False})
     assert [c.per_trial_truth for c in STUDY.classes(fixed)] == [False, False, False]
 

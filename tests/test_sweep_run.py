@@ -76,10 +76,10 @@ def test_grid_point_is_the_truth_of_its_scenario_and_seed(grid):
     classes = list(ds["class"].values)
     nan = float("nan")
     # the run's truths, the same for each variant; a truth drawn per trial (each trial's
-    # camera's LSFE-C1, HSFE, LSFE, total) needs trials: NaN in the truth mode
+    # camera's LSFE-C1, LSFE, total) needs trials: NaN in the truth mode
     truth = np.array([[[t[(c, a)].value if (c, a) in t else nan] * 2 for a in ("x", "y")] for c in classes])
     se = np.array([[[t[(c, a)].se if (c, a) in t else nan] * 2 for a in ("x", "y")] for c in classes])
-    assert {c for c in classes if (c, "x") not in t} == {"hsfe", "lsfe_c1", "lsfe", "total"}
+    assert {c for c in classes if (c, "x") not in t} == {"lsfe_c1", "lsfe", "total"}
     sel = {"lab.source.match_v_mag": 6.5, "optics.psf.sigma0_px": 1.1}
     assert ds.truth.sel(sel).dims == ("class", "axis", "variant")
     np.testing.assert_array_equal(ds.truth.sel(sel).values, truth)
@@ -177,7 +177,7 @@ def test_validate_mode_point_equals_the_monte_carlo_validation(zipped, tmp_path)
                 assert [float(e.ci95_low), float(e.ci95_high)] == r["interval_95"]
                 assert float(e.truth) == r["truth"]
     assert int(d.trials) == 3 and int(d.stopped_by) == 0
-    fixed = {"class": ["te", "lsfe_s", "lsfe_c2"]}  # the run's truths (the rest: each trial's camera's)
+    fixed = {"class": ["te", "hsfe", "lsfe_s", "lsfe_c2"]}  # the run's truths (the rest: each trial's camera's)
     np.testing.assert_array_equal(ds.truth.sel(fixed).values[0], ds.truth.sel(fixed).values[1])  # one truth, shared
     # the truth mode gives the same truths for the same point and seed
     t = _write(tmp_path, ZIP.replace("trials = 3", 'evaluate = "truth"'), "truth.toml")
@@ -457,8 +457,8 @@ def test_truths_shared_across_points_equal_truths_computed_per_point(tmp_path):
     assert (shared.truths_computed, alone.truths_computed) == (2, 4)
     a, b = open_sweep(tmp_path / "shared"), open_sweep(tmp_path / "alone")
     _assert_same(a, b)
-    # the run's truths (each trial's camera's LSFE-C1, HSFE, LSFE and total follow the point's trials)
-    t = a.truth.sel({"class": ["te", "lsfe_s", "lsfe_c2"]})
+    # the run's truths (each trial's camera's LSFE-C1, LSFE and total follow the point's trials)
+    t = a.truth.sel({"class": ["te", "hsfe", "lsfe_s", "lsfe_c2"]})
     np.testing.assert_array_equal(t.isel({"lab.knowledge.qe_peak_nm_error": 0}).values,
                                   t.isel({"lab.knowledge.qe_peak_nm_error": 1}).values)
     assert not np.array_equal(t.isel({"optics.psf.sigma0_px": 0}).values, t.isel({"optics.psf.sigma0_px": 1}).values)

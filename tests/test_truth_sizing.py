@@ -68,23 +68,22 @@ def test_given_truths_are_used_as_they_are():
 def default():
     """The default camera with the scenario seed's pixel maps for every trial: the run's HSFE
     truth is then one camera's and sized here (with maps per trial, the default, it is each
-    trial's own: :func:`test_a_trials_own_hsfe_truth_is_not_sized`)."""
+    trial's own: :func:`test_a_trials_own_truths_are_not_sized`)."""
     from budget.starcam.study import STUDY
     from simcam.starcam.scenario import with_updates
 
     return STUDY, with_updates(STUDY.load_scenario(), {"validation.new_maps_per_trial": False})
 
 
-def test_a_trials_own_hsfe_truth_is_not_sized():
-    """Pixel maps per trial (the default): HSFE's truth is each trial's camera's own, computed
-    in the trial, so a target for it sizes nothing; TE's is still sized."""
+def test_a_trials_own_truths_are_not_sized():
+    """Pixel maps per trial (the default): TE's and HSFE's truths are each trial's camera's
+    own, computed in the trial, so targets for them size nothing."""
     from budget.starcam.study import STUDY
 
     scn = STUDY.load_scenario()
     assert scn.validation.maps_per_trial
     sized = STUDY.truth_size_for(scn, 0, {("hsfe", "x"): 1e-6, ("te", "x"): 2e-4})
-    assert sized.validation.hsfe_truth_frames == scn.validation.hsfe_truth_frames
-    assert sized.validation.te_truth_frames < scn.validation.te_truth_frames
+    assert sized == scn
 
 
 def test_star_camera_sizes_meet_their_target(default):

@@ -32,8 +32,10 @@ BASE = {
         "chromatic": {"frames": 4, "field_centers_px": [[-150.0, -60.0], [150.0, -60.0], [-150.0, 60.0], [150.0, 60.0]]},
         "distortion": {"frames": 4},
     },
+    # one camera's pixel maps for every trial (the run's TE and HSFE truths, which these tests
+    # check against closed forms); the maps drawn per trial are tested where a test sets them
     "validation": {"te_truth_frames": 300, "hsfe_phase_grid": 3, "hsfe_truth_frames": 200, "field_grid": 5,
-                   "batch_trials": 4},
+                   "batch_trials": 4, "new_maps_per_trial": False},
     # the ideal world: these tests check the lab's methods against closed forms;
     # the world's effects have their own tests (test_world_starcam.py)
     "world": {"effects": {"distortion_r5_px_at_corner": 0.0, "distortion_r7_px_at_corner": 0.0,
@@ -337,17 +339,18 @@ def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
       variance 2 / (W - 1), pooled over the axes, is a chi2(6) / 6 multiple of it: relative
       sd of h^2 between 0.073 and 0.56 (99.8 %); with the same maps in every trial it
       would be the frame noise's ~1 % (the behaviour this option changes).
-    * the run's truths have no HSFE (each trial's camera has its own), and each trial returns
-      its camera's, :func:`budget.starcam.truth.hsfe_trial_truth` with the trial's stream."""
+    * the run's truths have no TE or HSFE (each trial's camera has its own), and each trial
+      returns its camera's, :func:`budget.starcam.truth.hsfe_trial_truth` and
+      :func:`budget.starcam.truth.te_trial_truth` with the trial's streams."""
     from budget.starcam import validate as V
-    from budget.starcam.truth import hsfe_trial_truth, hsfe_truth
+    from budget.starcam.truth import hsfe_trial_truth, hsfe_truth, te_trial_truth
 
     p = 0.05
     scn = _scn(detector={"prnu_rms": p, "dsnu_rms_e": 0.0},
                optics=NO_OPTICS | {"psf": {"sigma0_px": 1.6, "sigma_r2_px": 0.0}},
                validation=BASE["validation"] | {"new_maps_per_trial": True})
     seed = 4
-    assert not [q for q in V.truth_parts(scn, seed=seed) if q[0] == "hsfe"]
+    assert V.truth_parts(scn, seed=seed) == [("rest",)]
     setup = STUDY.prepared(scn)
     per_map = [hsfe_truth(setup.instrument(seed, m), frames=scn.validation.hsfe_truth_frames, seed=40 + m)
                for m in range(4)]
@@ -363,8 +366,10 @@ def test_new_maps_per_trial_hsfe_truth_follows_the_prnu_statistics():
     expect = math.sqrt(2 / (w - 1))
     lo, hi = (expect * math.sqrt(stats.chi2.ppf(q, 6) / 6) for q in (0.001, 0.999))
     assert lo <= rel_sd <= hi, (rel_sd, lo, hi)
-    assert "hsfe" not in V.truths(scn, seed=seed, setup=setup)
+    assert not {"te", "hsfe"} & set(V.truths(scn, seed=seed, setup=setup))
     got = V.run_trial(scn, seed, 2, setup=setup)["truths"]
-    own = hsfe_trial_truth(setup.instrument(seed, 2), seed=V.trial_truth_seed(seed, 2))
-    for var in V.VARIANTS:
-        assert (got[("hsfe", var, "x")], got[("hsfe", var, "y")]) == (own.x_px, own.y_px)
+    own = {"hsfe": hsfe_trial_truth(setup.instrument(seed, 2), seed=V.trial_truth_seed(seed, 2, "hsfe")),
+           "te": te_trial_truth(setup.instrument(seed, 2), seed=V.trial_truth_seed(seed, 2, "te"))}
+    for cls, t in own.items():
+        for var in V.VARIANTS:
+            assert (got[(cls, var, "x")], got[(cls, var, "y")]) == (t.x_px, t.y_px)

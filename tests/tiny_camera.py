@@ -1,5 +1,8 @@
 """A small camera (two 256 x 256 chips, short plans) for tests that run many scenarios
-(sweeps): every point of those tests varies this base. Imported by the sweep tests."""
+(sweeps): every point of those tests varies this base. Imported by the sweep tests. Its
+pixel maps are the scenario seed's for every trial (``new_maps_per_trial = false``), so that
+its TE and HSFE truths are the run's, which a truth-mode sweep computes; the maps drawn per
+trial (the default) are tested where a test sets them."""
 
 import textwrap
 
@@ -28,6 +31,7 @@ TINY = textwrap.dedent("""
     stamp_px = 16
     wavelength_step_nm = 25.0
     [validation]
+    new_maps_per_trial = false
     te_truth_frames = 60
     hsfe_truth_frames = 40
     hsfe_phase_grid = 2

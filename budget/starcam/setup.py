@@ -18,7 +18,7 @@ from simcam.config_base import model_hash
 #: (:func:`budget.starcam.validate.truth_size_for`): a camera built for one size serves every size
 TRUTH_SIZE_FIELDS = ("te_truth_frames", "hsfe_truth_frames")
 #: instruments (twins of the scenario seed's camera) one set-up keeps, most recent last: the
-#: population's (:data:`POPULATION_INSTRUMENTS`) and the trial running
+#: trials' running in this process, and trial 0's (the run's truths' camera)
 CAMERAS_KEPT = 6
 
 
@@ -26,12 +26,6 @@ def setup_key(scenario) -> str:
     """The scenario's hash with the truth sizes set to 0 (:data:`TRUTH_SIZE_FIELDS`)."""
     fixed = {f: 0 for f in TRUTH_SIZE_FIELDS}
     return model_hash(scenario.model_copy(update={"validation": scenario.validation.model_copy(update=fixed)}))
-
-
-#: the cameras whose truths stand for the population when every trial draws its own pixel
-#: maps (``validation.maps_per_trial``: those of trials 0, 1, 2 and 3): TE's truth is the mean
-#: over these (HSFE's is each trial's own, :func:`budget.starcam.validate.instrument_classes`)
-POPULATION_INSTRUMENTS = 4
 
 
 def per_instrument(scenario) -> bool:
@@ -50,14 +44,6 @@ def instrument_seeds(*, instrument_seed: int | None, new_maps_per_trial: bool, s
     root = int(instrument_seed_sequence(instrument_seed, seed, k).generate_state(1, dtype=np.uint32)[0])
     own_maps = new_maps_per_trial or instrument_seed is not None
     return (root if own_maps else None), root
-
-
-def population(scenario) -> tuple[int, ...]:
-    """The trials whose cameras the run's TE truth (and HSFE's, where it is not each trial's
-    own) is computed on: the first :data:`POPULATION_INSTRUMENTS` when every trial draws its
-    own pixel maps (``validation.maps_per_trial``), else trial 0's (the maps every trial
-    shares; those truths do not read the calibration)."""
-    return tuple(range(POPULATION_INSTRUMENTS)) if scenario.validation.maps_per_trial else (0,)
 
 
 class CameraSetup:

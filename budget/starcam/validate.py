@@ -23,7 +23,7 @@ import warnings
 import numpy as np
 
 from budget.starcam.protocols import PROTOCOLS, estimate, make_plan, simulate
-from budget.starcam.setup import CameraSetup, per_instrument, population
+from budget.starcam.setup import CameraSetup, per_instrument
 
 CLASSES = ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2", "lsfe", "total")
 VARIANTS = ("published", "improved")
@@ -47,11 +47,12 @@ INSTRUMENT_CLASSES = ("lsfe_c1", "lsfe", "total")
 
 def instrument_classes(scenario) -> tuple[str, ...]:
     """The classes whose truth is each trial's camera's own, computed in the trial: none for a
-    pinned camera, else :data:`INSTRUMENT_CLASSES`, and HSFE when every trial draws its pixel
-    maps (``validation.maps_per_trial``: :func:`budget.starcam.truth.hsfe_trial_truth`)."""
+    pinned camera, else :data:`INSTRUMENT_CLASSES`, and TE and HSFE when every trial draws its
+    pixel maps (``validation.maps_per_trial``: :func:`budget.starcam.truth.te_trial_truth`,
+    :func:`budget.starcam.truth.hsfe_trial_truth`)."""
     if not per_instrument(scenario):
         return ()
-    return INSTRUMENT_CLASSES + (("hsfe",) if scenario.validation.maps_per_trial else ())
+    return INSTRUMENT_CLASSES + (("te", "hsfe") if scenario.validation.maps_per_trial else ())
 #: the classes each combined class is the root-sum-square of (seed 000 eq 31, eq 32)
 RSS_OF = {"lsfe": ("lsfe_s", "lsfe_c1", "lsfe_c2"), "total": ("te", "hsfe", "lsfe")}
 
@@ -154,11 +155,13 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
 
         c1 = lsfe_c1_truth(cam)
         out["truths"].update({("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES})
-    if "hsfe" in own and "hsfe" in classes:
-        from budget.starcam.truth import hsfe_trial_truth
+    for cls in ("te", "hsfe"):
+        if cls in own and cls in classes:
+            from budget.starcam.truth import hsfe_trial_truth, te_trial_truth
 
-        hs = hsfe_trial_truth(cam, seed=trial_truth_seed(seed, k))
-        out["truths"].update({("hsfe", var, ax): getattr(hs, f"{ax}_px") for var in VARIANTS for ax in AXES})
+            route = te_trial_truth if cls == "te" else hsfe_trial_truth
+            t = route(cam, seed=trial_truth_seed(seed, k, cls))
+            out["truths"].update({(cls, var, ax): getattr(t, f"{ax}_px") for var in VARIANTS for ax in AXES})
     if keep:
         out["kept"] = kept
     return out
@@ -168,44 +171,40 @@ def _truth_seed(seed: int) -> int:
     return int(np.random.SeedSequence(seed, spawn_key=(2**31,)).generate_state(1)[0])
 
 
-def trial_truth_seed(seed: int, k: int) -> int:
-    """The stream of trial ``k``'s own truths that draw noise (HSFE's, with the camera's own
-    maps): ``SeedSequence(truth seed, spawn_key=(7, k))``, apart from the trial's noise and
-    from the run's truths."""
-    return int(np.random.SeedSequence(_truth_seed(seed), spawn_key=(7, k)).generate_state(1)[0])
+#: the word of :func:`trial_truth_seed` of each class whose truth a trial computes with noise
+_TRIAL_TRUTH_STREAM = {"hsfe": 0, "te": 1}
+
+
+def trial_truth_seed(seed: int, k: int, cls: str = "hsfe") -> int:
+    """The stream of trial ``k``'s own truth of ``cls`` (TE's and HSFE's, with the camera's own
+    maps): word ``0`` (HSFE) or ``1`` (TE) of ``SeedSequence(truth seed, spawn_key=(7, k))``,
+    apart from the trial's noise and from the run's truths."""
+    words = np.random.SeedSequence(_truth_seed(seed), spawn_key=(7, k)).generate_state(2)
+    return int(words[_TRIAL_TRUTH_STREAM[cls]])
 
 
 def truth_parts(scenario, *, seed: int) -> list[tuple]:
     """The independent pieces of :func:`truths`, computable anywhere and in any order:
-    ``("rest",)`` (LSFE-S, LSFE-C2, and LSFE-C1 of a pinned camera), one ``("te", m)`` per
-    camera of :func:`budget.starcam.setup.population` (trial ``m``'s) and one ``("hsfe", m,
-    phase)`` per such camera and sub-pixel phase of the HSFE truth (none where HSFE's truth is
-    each trial's camera's own, :func:`instrument_classes`). Only the truths of the
+    ``("rest",)`` (LSFE-S, LSFE-C2, and LSFE-C1 of a pinned camera), ``("te",)`` and one
+    ``("hsfe", phase)`` per sub-pixel phase of the HSFE truth, on the camera every trial's pixels
+    share (trial 0's: the scenario seed's maps, or the pinned camera), none where those
+    truths are each trial's camera's own (:func:`instrument_classes`). Only the truths of the
     classes the scenario computes (:func:`computed_classes`): no HSFE pieces without the HSFE
     protocol, no TE pieces without the TE protocol."""
     classes = computed_classes(scenario)
-    cams = population(scenario)
+    own = instrument_classes(scenario)
     parts: list[tuple] = [("rest",)]
-    if "te" in classes:
-        parts += [("te", m) for m in cams]
-    if "hsfe" in classes and "hsfe" not in instrument_classes(scenario):
-        parts += [("hsfe", m, p) for m in cams for p in range(scenario.validation.hsfe_phase_grid**2)]
+    if "te" in classes and "te" not in own:
+        parts.append(("te",))
+    if "hsfe" in classes and "hsfe" not in own:
+        parts += [("hsfe", p) for p in range(scenario.validation.hsfe_phase_grid**2)]
     return parts
-
-
-def _part_seed(scenario, ts: int, kind: str, m: int) -> int:
-    """The truth stream of camera ``m``'s TE or HSFE piece: with the maps every trial shares,
-    the truth seed itself (TE) or its ``spawn_key=(2,)`` (HSFE); of the population's camera
-    ``m`` (new maps per trial) ``spawn_key=(4, m)`` (TE) or ``(3, m)`` (HSFE)."""
-    if len(population(scenario)) == 1:
-        return ts if kind == "te" else int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
-    key = (4, m) if kind == "te" else (3, m)
-    return int(np.random.SeedSequence(ts, spawn_key=key).generate_state(1)[0])
 
 
 def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True, setup: CameraSetup | None = None):
     """One piece of :func:`truths` (see :func:`truth_parts`); ``control_variate`` False: the
-    plain estimators (:func:`budget.starcam.truth.te_truth`, :func:`budget.starcam.truth.hsfe_truth`)."""
+    plain estimators (:func:`budget.starcam.truth.te_truth`, :func:`budget.starcam.truth.hsfe_truth`).
+    Streams: TE the truth seed itself, HSFE its ``spawn_key=(2,)``."""
     from budget.starcam.truth import hsfe_phase_cell, lsfe_c1_truth, lsfe_c2_truth, lsfe_s_truth, te_truth
 
     ts = _truth_seed(seed)
@@ -220,37 +219,11 @@ def truth_part(scenario, *, seed: int, part: tuple, control_variate: bool = True
             out["lsfe_c1"] = lsfe_c1_truth(setup.instrument(seed, 0))
         out["lsfe_c2"] = lsfe_c2_truth(scenario)
         return out
-    cam = setup.instrument(seed, part[1])
+    cam = setup.instrument(seed, 0)  # the pixels every trial shares (their truths do not read the calibration)
     if part[0] == "te":
-        return te_truth(cam, frames=val.te_truth_frames, seed=_part_seed(scenario, ts, "te", part[1]),
-                        control_variate=control_variate)
-    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=_part_seed(scenario, ts, "hsfe", part[1]),
-                           phase=part[2], control_variate=control_variate)
-
-
-def population_truth(name: str, truths: list, *, rms: bool):
-    """The truth over the population's cameras (:func:`budget.starcam.setup.population`) of one
-    class: the one camera's when pinned; else their mean (TE: the mean of each camera's
-    temporal sd) or their rms (``rms``, HSFE: the static error's mean square over cameras),
-    its standard error that of a mean of the cameras' values (or squares), conservatively
-    adding each camera's own sampling error to their scatter."""
-    from budget.starcam.truth import ClassTruth
-
-    if len(truths) == 1:
-        return truths[0]
-    vals = {}
-    for ax in AXES:
-        v = np.array([getattr(t, f"{ax}_px") for t in truths])
-        se = np.array([getattr(t, f"se_{ax}_px") for t in truths])
-        m = v.size
-        if rms:
-            se_sq = math.sqrt((v**2).var(ddof=1) / m + np.sum((2 * v * se) ** 2) / m**2)
-            value = math.sqrt(float(np.mean(v**2)))
-            vals[ax] = (value, se_sq / (2 * value) if value > 0 else math.sqrt(se_sq))
-        else:
-            vals[ax] = (float(v.mean()), math.sqrt(v.var(ddof=1) / m + float(np.sum(se**2)) / m**2))
-    return ClassTruth(name, vals["x"][0], vals["y"][0], {**truths[0].details, "cameras": len(truths)},
-                      se_x_px=vals["x"][1], se_y_px=vals["y"][1])
+        return te_truth(cam, frames=val.te_truth_frames, seed=ts, control_variate=control_variate)
+    hs = int(np.random.SeedSequence(ts, spawn_key=(2,)).generate_state(1)[0])
+    return hsfe_phase_cell(cam, frames=val.hsfe_truth_frames, seed=hs, phase=part[1], control_variate=control_variate)
 
 
 def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bool = True,
@@ -262,19 +235,15 @@ def truths_from_parts(scenario, *, seed: int, results: list, control_variate: bo
     val = scenario.validation
     setup = _setup(scenario, setup)
     out = dict(results[0])
-    te = [r for part, r in zip(parts, results) if part[0] == "te"]
-    if te:
-        out["te"] = population_truth("te", te, rms=False)
-    cells: dict = {}
     for part, r in zip(parts, results):
-        if part[0] == "hsfe":
-            cells.setdefault(part[1], []).append(r)
+        if part[0] == "te":
+            out["te"] = r
+    cells = [r for part, r in zip(parts, results) if part[0] == "hsfe"]
     if cells:
-        hs = [hsfe_from_cells(setup.instrument(seed, m), cells[m], frames=val.hsfe_truth_frames,
-                              control_variate=control_variate) for m in sorted(cells)]
-        out["hsfe"] = population_truth("hsfe", hs, rms=True)
+        out["hsfe"] = hsfe_from_cells(setup.instrument(seed, 0), cells, frames=val.hsfe_truth_frames,
+                                      control_variate=control_variate)
     if per_instrument(scenario):
-        return out  # LSFE-C1, LSFE and the total: each trial's camera's own
+        return out  # LSFE-C1, LSFE and the total (TE and HSFE with maps per trial): each trial's camera's own
     return combine({k: out[k] for k in ("te", "hsfe", "lsfe_s", "lsfe_c1", "lsfe_c2") if k in out})
 
 
@@ -313,12 +282,6 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
     the HSFE pilot's scatter ``v`` is that of the corrected errors, so the same formula gives
     the far smaller sizes the variance-reduced truths need.
 
-    When the truths are the mean over the population's cameras
-    (:func:`budget.starcam.setup.population`, ``M`` of them), each camera's sampling error
-    enters the mean divided by ``sqrt(M)``: ``W`` above is then ``M W`` (stars of all the
-    cameras). The scatter between the cameras themselves is not reduced by frames; the truths
-    report it in their standard error (:func:`population_truth`).
-
     Each is rounded up (HSFE to even), at least :data:`MIN_HSFE_TRUTH_FRAMES` /
     :data:`MIN_TE_TRUTH_FRAMES` and at most the scenario's own size, which is the ceiling
     of the truths' work (raise ``validation.hsfe_truth_frames`` / ``te_truth_frames`` to
@@ -341,10 +304,9 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
     v = va * (SIZE_PILOT_FRAMES // 2)               # (2, W): per-frame variance per axis and star
     w = v.shape[1]
     upd = {}
-    cams = len(population(scenario))  # the truths average this many cameras' (their mean's se: / sqrt(cams))
     if want["hsfe"]:
         t = min(want["hsfe"])
-        ncell = val.hsfe_phase_grid**2 * w * cams
+        ncell = val.hsfe_phase_grid**2 * w
         vm = float(np.max(v.mean(axis=1)))
         f = vm / (ncell * t * t)
         t2 = float(np.max(np.mean(ma * mb, axis=1)))
@@ -362,12 +324,12 @@ def truth_size_for(scenario, *, seed: int, target_px: dict, setup: CameraSetup |
         for c, p, k in ((x, px, kx), (y, py, ky)):
             var, se_var = te_variance_cv(c[:, good], p[:, good], k[:, good])
             var_d = se_var**2 * SIZE_PILOT_FRAMES
-            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t * cams))
+            f = max(f, float(np.sum(var_d / (4 * np.clip(var, 1e-300, None)))) / (int(good.sum()) ** 2 * t * t))
         upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
     elif want["te"]:
         t = min(want["te"])
         sd2 = float(np.max(v.mean(axis=1))) * w / max(w - 1, 1)
-        f = max(sd2 / (2 * w * cams * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
+        f = max(sd2 / (2 * w * t * t) + 1.0, math.sqrt(sd2) / (2 * t))
         upd["te_truth_frames"] = int(min(max(MIN_TE_TRUTH_FRAMES, math.ceil(f)), val.te_truth_frames))
     return scenario.model_copy(update={"validation": val.model_copy(update=upd)})
 
@@ -378,9 +340,8 @@ def truths(scenario, *, seed: int, control_variate: bool = True, setup: CameraSe
     The truth seed is ``SeedSequence(seed, spawn_key=(2**31,))``. When every trial draws its
     camera (the default, :func:`budget.starcam.setup.per_instrument`), LSFE-C1, LSFE and the
     total are each trial's camera's own (:func:`instrument_classes`: not here); with new pixel
-    maps per trial too (the default), HSFE's is each trial's own as well and TE's truth is the
-    mean over the cameras of trials 0-3 (:func:`population_truth`). A pinned camera (``validation.instrument_seed``) has every
-    truth here, its own. Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
+    maps per trial too (the default), TE's and HSFE's as well. A pinned camera
+    (``validation.instrument_seed``) has every truth here, its own. Computed piece by piece (:func:`truth_parts`), so that a runner can spread the pieces
     over its workers and get the same numbers. ``control_variate`` False: the plain HSFE and
     TE estimators on the same frames (for comparison; the runner uses the variance-reduced).
     """

@@ -372,11 +372,10 @@ class ValidationModel(ValidationSettings):
       maps and calibration, for every trial and run seed (the pin fixes the maps whatever
       ``new_maps_per_trial`` says: :attr:`maps_per_trial`);
     * ``new_maps_per_trial``: draw the PRNU/DSNU maps with each trial's camera (the default):
-      HSFE's truth is then each trial's camera's own, over ``hsfe_trial_phases`` sub-pixel
-      phases of the ``hsfe_phase_grid`` grid drawn per trial (an unbiased sample of the
-      grid's mean square, docs/validation.md), and TE's the mean over the cameras of trials
-      0-3 (cameras differ in it by about 0.2 %); False keeps the scenario seed's maps for
-      every trial, and the report says the pixels are that one draw;
+      TE's and HSFE's truths are then each trial's camera's own (HSFE's over
+      ``hsfe_trial_phases`` sub-pixel phases of the ``hsfe_phase_grid`` grid drawn per trial,
+      an unbiased sample of the grid's mean square, docs/validation.md); False keeps the
+      scenario seed's maps for every trial, and the report says the pixels are that one draw;
     * ``new_markers_per_trial``: draw the calibration grid target's marker errors in every
       trial (default; else fixed by the scenario seed: the target is the lab's, not the
       camera's); the hexapod positioning error is drawn per trial whenever
