@@ -165,7 +165,8 @@ def te_variance_cv(x, psi, kappa):
     return d.mean(axis=0), d.std(axis=0, ddof=1) / math.sqrt(f)
 
 
-def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) -> ClassTruth:
+def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True,
+             cramer_rao: bool = True) -> ClassTruth:
     """TE truth: mean over stars of the temporal centroid sd from ``frames`` noise-only frames.
 
     Plain route: each star's sample sd (``ddof = 1``), standard error from normal theory
@@ -175,7 +176,9 @@ def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) ->
     exactly: :mod:`budget.starcam.kernels_truth`), its sd the square root, with
     standard error ``se(V) / (2 sd)`` (delta method; the square root's bias,
     ``se(V)^2 / (8 sd^3)``, is a fraction ``se / (4 sd)`` of that standard error, negligible),
-    and the mean over stars ``sqrt(sum_j se_j^2) / W`` (independent stars).
+    and the mean over stars ``sqrt(sum_j se_j^2) / W`` (independent stars). ``cramer_rao``: the
+    details carry the Cramer-Rao bound of the same pixels (:func:`cramer_rao_bound_px`) for
+    the report.
     """
     scn = camera.scenario
     scene = te_scene(camera)
@@ -210,12 +213,12 @@ def te_truth(camera, *, frames: int, seed: int, control_variate: bool = True) ->
         sy = y[:, good].std(axis=0, ddof=1)
         se_x, se_y = _se_mean_of_sd(sx, frames), _se_mean_of_sd(sy, frames)
         route = "per-star sample sd"
-    crb_x, crb_y = cramer_rao_bound_px(camera, scene)
-    return ClassTruth("te", float(sx.mean()), float(sy.mean()), {
-        "frames": frames, "stars": int(good.sum()), "route": route,
-        "per_star_sd_x_px": sx.tolist(), "per_star_sd_y_px": sy.tolist(),
-        "cramer_rao_x_px": float(np.mean(crb_x)), "cramer_rao_y_px": float(np.mean(crb_y)),
-    }, se_x_px=se_x, se_y_px=se_y)
+    details = {"frames": frames, "stars": int(good.sum()), "route": route,
+               "per_star_sd_x_px": sx.tolist(), "per_star_sd_y_px": sy.tolist()}
+    if cramer_rao:
+        crb_x, crb_y = cramer_rao_bound_px(camera, scene)
+        details |= {"cramer_rao_x_px": float(np.mean(crb_x)), "cramer_rao_y_px": float(np.mean(crb_y))}
+    return ClassTruth("te", float(sx.mean()), float(sy.mean()), details, se_x_px=se_x, se_y_px=se_y)
 
 
 def _se_mean_of_sd(sd, frames: int) -> float:
@@ -421,7 +424,7 @@ def te_trial_truth(camera, *, seed: int) -> ClassTruth:
     per-trial errors, so the bias's standard error carries it."""
     scn = camera.scenario
     frames = TRIAL_TE_FRAMES if control_variate_applies(scn) else scn.validation.te_truth_frames
-    return te_truth(camera, frames=frames, seed=seed)
+    return te_truth(camera, frames=frames, seed=seed, cramer_rao=False)  # the trial keeps the value only
 
 
 def hsfe_trial_phases(scenario, seed: int) -> np.ndarray:
