@@ -1,5 +1,10 @@
 """Cost of the truths when their precision follows the question, and of a sweep point.
 
+The truths measured here are the run's: the embedded default with one camera's pixel maps for
+every trial (``validation.new_maps_per_trial = false``), since with the maps drawn per trial
+(the default) TE's and HSFE's truths are each trial's camera's own, computed in the trial
+(their cost is in ``bench_validate.py``'s trial), and the run has none of them to size.
+
 * **truths at the main job's precision**: the embedded default's truths sized for 200 trials
   (the runner's pilot of the first 20 trials gives the trials' spread; the truths' target
   is a quarter of the bias standard error, :func:`budget.runner.scheduler.truth_targets`), in
@@ -14,7 +19,7 @@
   ``1 / sqrt(frames)``);
 * **budget validate --trials 2, warm**: end to end in a new process (numba cache warm),
   wall and CPU of the child;
-* **a camera sweep point**: one ``validate`` point of the default (``--trials``, 200) as a
+* **a camera sweep point**: one ``validate`` point of that scenario (``--trials``, 200) as a
   sweep runs it (:func:`budget.sweeps.evaluate.evaluate_point`, one core), with its own
   truths and with a truth shared from another point (what each further point of a group
   costs, :func:`budget.sweeps.run.share_truths`): CPU time.
@@ -75,8 +80,10 @@ def main() -> None:
     warnings.simplefilter("ignore")
     _validate_small()  # numba's cache warm, the scenes' code imported
     small = min((_validate_small() for _ in range(2)), key=lambda x: x[0])
+    from simcam.starcam.scenario import with_updates
+
     study = get_study("starcam")
-    scn = study.load_scenario()
+    scn = with_updates(study.load_scenario(), {"validation.new_maps_per_trial": False})  # the run's truths
     pilot = {k: study.trial(scn, 0, k) for k in range(min(PILOT_TRIALS, args.trials))}
     arrays = trial_arrays(pilot)
     samples, tt = arrays.samples, arrays.trial_truths

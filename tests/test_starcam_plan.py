@@ -187,7 +187,7 @@ def test_grid_pattern_recovers_the_hsfe_truth_where_the_diagonal_sees_part():
     setup = STUDY.prepared(scns["diagonal"])
     truths = []
     for k in range(trials):
-        t = hsfe_trial_truth(setup.instrument(0, k), seed=V.trial_truth_seed(0, k))
+        t = hsfe_trial_truth(setup.instrument(0, k), seed=V.trial_truth_seed(0, k, "hsfe"))
         truths.append((t.x_px, t.y_px))
     truths = np.array(truths)
     for p, scn in scns.items():

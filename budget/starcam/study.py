@@ -91,7 +91,7 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
         from budget.starcam.validate import INPUT_CLASSES, RSS_OF, computed_classes, instrument_classes
 
         computed = computed_classes(scenario)
-        own = instrument_classes(scenario)  # each trial's camera: its own LSFE-C1, LSFE, total (and HSFE)
+        own = instrument_classes(scenario)  # each trial's camera: its own LSFE-C1, LSFE, total (TE, HSFE)
         return tuple(ClassSpec(n, label, _UNIT, ("x", "y"), desc, role="input" if n in INPUT_CLASSES else "result",
                                per_trial_truth=n in own, rss_of=RSS_OF.get(n, ()))
                      for n, label, desc in _CLASSES if n in computed)

@@ -15,6 +15,9 @@ in px, per axis):
   ``hsfe_phase_grid^2`` sub-pixel phases of the HSFE target, with the common motion of
   each phase removed (the mean over stars): ``hsfe_truth_frames`` noisy frames per phase,
   split in two halves whose product is unbiased for the square (:func:`hsfe_truth`).
+  When every trial draws its camera's pixel maps, TE's and HSFE's truths are each trial's
+  camera's own, computed in the trial: :func:`te_trial_truth` (fewer frames) and
+  :func:`hsfe_trial_truth` (a random sample of the phases, unbiased for the grid's mean square).
 * **LSFE-S**: the rms, over the stellar population ``lsfe_spectral_types`` and a
   ``field_grid`` grid over the detector, of the spectrum-weighted chromatic displacement
   about its reference (``calibration_spectrum``: by default the population mean at each

@@ -40,8 +40,8 @@ CLASS_NEEDS = {"te": ("te",), "hsfe": ("hsfe",), "lsfe_s": ("chromatic",), "lsfe
 #: the classes whose truth is each camera's own when every trial draws its camera
 #: (:func:`budget.starcam.setup.per_instrument`): LSFE-C1 is what the trial's camera's onboard
 #: correction leaves (computed in the trial), LSFE and the total combine it with the fixed
-#: truths (:mod:`budget.runner.combined_truths`); HSFE too when the trial's camera draws its
-#: pixel maps (:func:`instrument_classes`)
+#: truths (:mod:`budget.runner.combined_truths`); TE and HSFE too when the trial's camera
+#: draws its pixel maps (:func:`instrument_classes`)
 INSTRUMENT_CLASSES = ("lsfe_c1", "lsfe", "total")
 
 
@@ -53,6 +53,8 @@ def instrument_classes(scenario) -> tuple[str, ...]:
     if not per_instrument(scenario):
         return ()
     return INSTRUMENT_CLASSES + (("te", "hsfe") if scenario.validation.maps_per_trial else ())
+
+
 #: the classes each combined class is the root-sum-square of (seed 000 eq 31, eq 32)
 RSS_OF = {"lsfe": ("lsfe_s", "lsfe_c1", "lsfe_c2"), "total": ("te", "hsfe", "lsfe")}
 
@@ -92,8 +94,9 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
     Returns ``{"k": k, "values": {(class, variant, axis): sigma_px}, "truths": {...}}`` for the
     classes :func:`computed_classes` names; ``truths`` holds the truths of the trial's own
     camera (px) of :func:`instrument_classes`: LSFE-C1's (:func:`budget.starcam.truth.lsfe_c1_truth`)
-    when every trial draws its camera, HSFE's (:func:`budget.starcam.truth.hsfe_trial_truth`,
-    stream :func:`trial_truth_seed`) when it draws its pixel maps too; with ``keep`` also
+    when every trial draws its camera, TE's and HSFE's (:func:`budget.starcam.truth.te_trial_truth`,
+    :func:`budget.starcam.truth.hsfe_trial_truth`, streams :func:`trial_truth_seed`) when it
+    draws its pixel maps too; with ``keep`` also
     ``"kept"``: the estimate objects and data of each protocol (for the report). A protocol's
     numbers do not depend on which
     others run: its frames draw from their own noise streams of the trial's noise seed
@@ -155,11 +158,10 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
 
         c1 = lsfe_c1_truth(cam)
         out["truths"].update({("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES})
-    for cls in ("te", "hsfe"):
-        if cls in own and cls in classes:
-            from budget.starcam.truth import hsfe_trial_truth, te_trial_truth
+    from budget.starcam.truth import hsfe_trial_truth, te_trial_truth
 
-            route = te_trial_truth if cls == "te" else hsfe_trial_truth
+    for cls, route in (("te", te_trial_truth), ("hsfe", hsfe_trial_truth)):
+        if cls in own and cls in classes:
             t = route(cam, seed=trial_truth_seed(seed, k, cls))
             out["truths"].update({(cls, var, ax): getattr(t, f"{ax}_px") for var in VARIANTS for ax in AXES})
     if keep:
@@ -175,7 +177,7 @@ def _truth_seed(seed: int) -> int:
 _TRIAL_TRUTH_STREAM = {"hsfe": 0, "te": 1}
 
 
-def trial_truth_seed(seed: int, k: int, cls: str = "hsfe") -> int:
+def trial_truth_seed(seed: int, k: int, cls: str) -> int:
     """The stream of trial ``k``'s own truth of ``cls`` (TE's and HSFE's, with the camera's own
     maps): word ``0`` (HSFE) or ``1`` (TE) of ``SeedSequence(truth seed, spawn_key=(7, k))``,
     apart from the trial's noise and from the run's truths."""
