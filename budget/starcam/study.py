@@ -514,7 +514,9 @@ class StarCameraStudy(Study, Prepared, CheckedScenario, Warmup, SplitTruths, Siz
             "LSFE-S, the rms chromatic displacement of the stellar population about its reference "
             f"({scn.validation.calibration_spectrum}); LSFE-C1, what the camera {c1}; LSFE-C2, the given "
             "marker error (an input). TE and HSFE truths are Monte Carlo estimates and carry a standard "
-            "error. **published**: seed 000's own estimator of each class (eqs 1-2, 3-12, 13-16, 17-30, 31). "
+            "error" + (", and, like LSFE-C1's, each trial's camera's own (its pixel maps, its calibration): "
+                       "the bias is over cameras like it" if scn.validation.maps_per_trial else "")
+            + ". **published**: seed 000's own estimator of each class (eqs 1-2, 3-12, 13-16, 17-30, 31). "
             "**improved**: the estimator derived in docs/estimators.md that targets the truth with only what "
             "a lab knows (its own, imperfect spectral model; the marker error it was given).",
             f"Plate scale {scn.camera.scale_arcsec_per_px:g} arcsec/px."]
