@@ -8,7 +8,11 @@ twice, took far longer than a benchmark should (the run was killed). The points 
 ``validation.hsfe_truth_frames`` to ``--hsfe-truth-frames`` (default 100: the same route,
 its standard error sqrt(20) = 4.5x larger, about 2.1-2.3 s a point), so the figures are those of
 the machinery on points of a few seconds; one point with the scenario's own 2000 frames is
-timed once and printed, so the cost of a full-truth point is in the same run.
+timed once and printed, so the cost of a full-truth point is in the same run. Every point
+keeps one camera's pixel maps for every trial (``validation.new_maps_per_trial = false``):
+with the maps drawn per trial (the default) TE's and HSFE's truths are each trial's own, so a
+truth-mode point would compute neither and the figures would not be those of the points
+described here.
 
 * points per second of a truth-mode sweep of the embedded seed-000 scenario (PSF width x
   PRNU, ``--points`` points, each a new camera: scenes, stamps and every class's truth)
@@ -66,6 +70,7 @@ seed = 1
 evaluate = "truth"
 [fixed]
 "validation.hsfe_truth_frames" = {hsfe_truth_frames}
+"validation.new_maps_per_trial" = false
 [parameters]
 "optics.psf.sigma0_px" = {{start = 0.6, stop = 1.4, num = {n_psf}}}
 "detector.prnu_rms" = [0.0, 0.01]
@@ -149,8 +154,8 @@ def _trial_cost(trials_list, repeat, hsfe_truth_frames, *, full_point: bool = Tr
     from simcam.starcam.scenario import default, with_updates
 
     worker_setup(STUDY.worker_init)  # one numba thread, as in a worker process
-    full = default()
-    base = with_updates(full, {"validation": {"hsfe_truth_frames": hsfe_truth_frames}})
+    full = with_updates(default(), {"validation.new_maps_per_trial": False})  # the run's TE and HSFE truths
+    base = with_updates(full, {"validation.hsfe_truth_frames": hsfe_truth_frames})
     evaluate_point(PointTask("grid", 0, "starcam", "validate", base, 1, trials=2))  # warm-up (JIT)
     rows = []
     n = 0
