@@ -314,6 +314,26 @@ def test_a_trials_hsfe_truth_is_unbiased_for_its_cameras_whole_grid_truth():
         assert ph.min() >= 0 and ph.max() < scn.validation.hsfe_phase_grid**2
 
 
+def test_a_trials_te_truth_is_unbiased_for_its_cameras_truth():
+    """te_trial_truth takes 50 frames (control variate) where the run's TE truth takes
+    te_truth_frames (here 3000): each star's variance estimate is unbiased whatever the
+    frames, and the square root's bias is below 1e-4 of the truth at 50 (docstring), so over
+    30 independent draws the mean agrees with the 3000-frame truth of the same camera within
+    4 standard errors (the draws' sd / sqrt(30) and the long truth's own, in quadrature;
+    fixed seeds)."""
+    from budget.starcam.truth import TRIAL_TE_FRAMES, te_trial_truth, te_truth
+
+    scn = _scn(detector={"prnu_rms": 0.03})
+    cam = STUDY.prepared(scn).instrument(2, 0)
+    long = te_truth(cam, frames=3000, seed=91, cramer_rao=False)
+    draws = [te_trial_truth(cam, seed=2000 + j) for j in range(30)]
+    assert draws[0].details["frames"] == TRIAL_TE_FRAMES and "cramer_rao_x_px" not in draws[0].details
+    for ax in ("x", "y"):
+        v = np.array([getattr(d, f"{ax}_px") for d in draws])
+        se = math.hypot(v.std(ddof=1) / math.sqrt(v.size), getattr(long, f"se_{ax}_px"))
+        assert abs(v.mean() - getattr(long, f"{ax}_px")) < 4 * se, (ax, v.mean(), getattr(long, f"{ax}_px"), se)
+
+
 def test_hsfe_trial_phases_cannot_exceed_the_grid():
     with pytest.raises(Exception, match="hsfe_trial_phases: 10 is more than the 9 phases"):
         _scn(validation=BASE["validation"] | {"hsfe_trial_phases": 10})
