@@ -152,17 +152,16 @@ def run_trial(scenario, seed: int, k: int, *, keep: bool = False, setup: CameraS
                 values[("total", var, ax)] = math.sqrt(values[("te", var, ax)] ** 2
                                                        + values[("hsfe", var, ax)] ** 2 + lsfe**2)
     out = {"k": k, "values": values, "truths": {}}
+    from budget.starcam.truth import hsfe_trial_truth, lsfe_c1_truth, te_trial_truth
+
+    # the trial's camera's own truths (LSFE-C1 exact; TE and HSFE from the trial's truth streams)
+    routes = {"lsfe_c1": lambda: lsfe_c1_truth(cam),
+              "te": lambda: te_trial_truth(cam, seed=trial_truth_seed(seed, k, "te")),
+              "hsfe": lambda: hsfe_trial_truth(cam, seed=trial_truth_seed(seed, k, "hsfe"))}
     own = instrument_classes(scenario)
-    if "lsfe_c1" in own and "lsfe_c1" in classes:
-        from budget.starcam.truth import lsfe_c1_truth
-
-        c1 = lsfe_c1_truth(cam)
-        out["truths"].update({("lsfe_c1", var, ax): getattr(c1, f"{ax}_px") for var in VARIANTS for ax in AXES})
-    from budget.starcam.truth import hsfe_trial_truth, te_trial_truth
-
-    for cls, route in (("te", te_trial_truth), ("hsfe", hsfe_trial_truth)):
+    for cls, route in routes.items():
         if cls in own and cls in classes:
-            t = route(cam, seed=trial_truth_seed(seed, k, cls))
+            t = route()
             out["truths"].update({(cls, var, ax): getattr(t, f"{ax}_px") for var in VARIANTS for ax in AXES})
     if keep:
         out["kept"] = kept
